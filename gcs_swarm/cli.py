@@ -1,0 +1,138 @@
+"""`gcs-swarm` command line: run, check, plan, report."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+EXIT_USER_ERROR = 2
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from gcs_swarm.run_command import RunOptions, run_command
+
+    options = RunOptions(
+        out_dir=Path(args.out) if args.out else None,
+        connect_only=args.connect_only,
+        base_port=args.base_port,
+        time_mode=args.time_mode,
+        seed=args.seed,
+        quiet=args.quiet,
+    )
+    return run_command(args.mission, options)
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    from gcs_swarm.mission import MissionError, load_mission
+
+    try:
+        mission = load_mission(args.mission)
+    except MissionError as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
+    leader = mission.vehicles[mission.leader_index].name
+    print(
+        f"{args.mission}: ok: mission '{mission.name}', {len(mission.vehicles)} vehicles (leader {leader}), "
+        f"{len(mission.obstacles)} obstacles, goal {[round(float(x), 2) for x in mission.goal]}"
+    )
+    return 0
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    from gcs_swarm.mission import MissionError, load_mission
+    from gcs_swarm.planning import plan_json, plan_mission, plot_plan
+
+    try:
+        mission = load_mission(args.mission)
+    except MissionError as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
+    result = plan_mission(mission, args.method)
+    figures = plan_json(result)
+    if args.json:
+        print(json.dumps(figures))
+    else:
+        for key, value in figures.items():
+            print(f"{key:>20}: {value}")
+    if args.plot:
+        if not plot_plan({args.method: result}, mission.obstacles, Path(args.plot)):
+            print("note: matplotlib is not installed (pip install 'swarm-gcs[plot]'); no plot written")
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from gcs_swarm.mission import MissionError, load_mission
+    from gcs_swarm.report import write_report
+
+    run_dir = Path(args.run_dir)
+    flight_path = run_dir / "flight.json"
+    if not flight_path.exists():
+        print(f"error: {run_dir} is not a run folder (no flight.json)")
+        return EXIT_USER_ERROR
+    flight = json.loads(flight_path.read_text())
+    mission_path = args.mission or flight.get("mission_path")
+    try:
+        mission = load_mission(mission_path)
+    except MissionError as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
+    report = write_report(run_dir, mission)
+    print((run_dir / "report.md").read_text())
+    return 0 if report["reached"] and report["collisions"] == 0 else 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gcs-swarm",
+        description="Ground station for quadrotor swarms: IAAPF-SMC formation flight over MAVLink.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="fly a mission and write a run folder with its report")
+    run.add_argument("mission", help="mission file (YAML)")
+    run.add_argument("--out", help="run folder (default runs/<time>-<mission>/)")
+    run.add_argument(
+        "--connect-only",
+        action="store_true",
+        help="fly vehicles that are already running (no embedded simulator)",
+    )
+    run.add_argument("--base-port", type=int, help="embedded simulator: first UDP port (vehicle i on port+i)")
+    run.add_argument(
+        "--time-mode",
+        choices=("lockstep", "realtime", "speedup"),
+        help="embedded simulator time mode override",
+    )
+    run.add_argument("--seed", type=int, help="embedded simulator seed override")
+    run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.set_defaults(func=_cmd_run)
+
+    check = sub.add_parser("check", help="validate a mission file without flying")
+    check.add_argument("mission")
+    check.set_defaults(func=_cmd_check)
+
+    plan = sub.add_parser("plan", help="kinematic APF/IAAPF path of the leader (preview, Table 1 experiment)")
+    plan.add_argument("mission")
+    plan.add_argument("--method", choices=("apf", "iaapf"), default="iaapf")
+    plan.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    plan.add_argument("--plot", metavar="FILE.png", help="write the path plot (needs matplotlib)")
+    plan.set_defaults(func=_cmd_plan)
+
+    report = sub.add_parser("report", help="(re)build a run folder's report")
+    report.add_argument("run_dir")
+    report.add_argument("--mission", help="mission file (default: the one recorded in the run folder)")
+    report.set_defaults(func=_cmd_report)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

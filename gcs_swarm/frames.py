@@ -1,0 +1,134 @@
+"""Frame conversions used at the MAVLink boundary (spec 1.1).
+
+Inside the ground station: world ENU (x East, y North, z up) metres around the mission origin, body FLU, ZYX
+Euler angles `(roll, pitch, yaw)` with yaw counter-clockwise from East. On the wire: lat/lon degrees, altitude
+AMSL, NED world and FRD body axes. Every function is vectorised: leading dimensions broadcast, the last axis
+holds the components (3 for vectors and Euler angles, 4 for quaternions `(w, x, y, z)`).
+
+Geodesy goes through pymap3d (WGS84). Mission origin altitude and vehicle altitudes (GLOBAL_POSITION_INT.alt,
+AMSL) are both used as heights above the ellipsoid: the geoid offset is common to both and cancels in the
+local frame to well under a centimetre over a mission area.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymap3d
+from numpy.typing import ArrayLike, NDArray
+
+Origin = tuple[float, float, float]
+"""Mission origin: latitude deg, longitude deg, altitude m."""
+
+FloatArray = NDArray[np.float64]
+
+# q_ENU<-NED: 180 deg about (1, 1, 0)/sqrt(2); q_FRD<-FLU: 180 deg about x. Both are their own inverse.
+_Q_ENU_NED = np.array([0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0])
+_Q_FRD_FLU = np.array([0.0, 1.0, 0.0, 0.0])
+
+
+def geodetic_to_enu(lat_deg: ArrayLike, lon_deg: ArrayLike, alt_m: ArrayLike, origin: Origin) -> FloatArray:
+    """Geodetic position(s) -> local ENU metres around `origin`, shape (..., 3)."""
+    e, n, u = pymap3d.geodetic2enu(
+        np.asarray(lat_deg, dtype=float),
+        np.asarray(lon_deg, dtype=float),
+        np.asarray(alt_m, dtype=float),
+        origin[0],
+        origin[1],
+        origin[2],
+    )
+    return np.stack(np.broadcast_arrays(e, n, u), axis=-1).astype(float)
+
+
+def enu_to_geodetic(enu: ArrayLike, origin: Origin) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Local ENU metres (..., 3) around `origin` -> (lat deg, lon deg, alt m), each of shape (...)."""
+    p = np.asarray(enu, dtype=float)
+    lat, lon, alt = pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2], origin[0], origin[1], origin[2])
+    return np.asarray(lat, dtype=float), np.asarray(lon, dtype=float), np.asarray(alt, dtype=float)
+
+
+def ned_to_enu(v: ArrayLike) -> FloatArray:
+    """NED vector(s) (..., 3) -> ENU: `(y, x, -z)` (spec 1.1). Same map as `enu_to_ned`."""
+    a = np.asarray(v, dtype=float)
+    return np.stack((a[..., 1], a[..., 0], -a[..., 2]), axis=-1)
+
+
+def enu_to_ned(v: ArrayLike) -> FloatArray:
+    """ENU vector(s) (..., 3) -> NED: `(y, x, -z)` (spec 1.1)."""
+    return ned_to_enu(v)
+
+
+def wrap_pi(angle: ArrayLike) -> FloatArray:
+    """Angle(s) in rad wrapped to [-pi, pi)."""
+    return np.asarray((np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi, dtype=float)
+
+
+def euler_to_quaternion(euler: ArrayLike) -> FloatArray:
+    """ZYX Euler `(roll, pitch, yaw)` (..., 3) rad -> quaternion `(w, x, y, z)` (..., 4); R = Rz Ry Rx."""
+    a = np.asarray(euler, dtype=float) * 0.5
+    cr, sr = np.cos(a[..., 0]), np.sin(a[..., 0])
+    cp, sp = np.cos(a[..., 1]), np.sin(a[..., 1])
+    cy, sy = np.cos(a[..., 2]), np.sin(a[..., 2])
+    return np.stack(
+        (
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ),
+        axis=-1,
+    )
+
+
+def quaternion_to_euler(q: ArrayLike) -> FloatArray:
+    """Quaternion `(w, x, y, z)` (..., 4), any norm > 0 -> ZYX Euler `(roll, pitch, yaw)` rad (..., 3)."""
+    a = np.asarray(q, dtype=float)
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    w, x, y, z = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.stack((roll, pitch, yaw), axis=-1)
+
+
+def quaternion_multiply(p: ArrayLike, q: ArrayLike) -> FloatArray:
+    """Hamilton product `p * q` of quaternions `(w, x, y, z)`, shapes broadcast over (..., 4)."""
+    a, b = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+    w1, x1, y1, z1 = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    w2, x2, y2, z2 = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack(
+        (
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ),
+        axis=-1,
+    )
+
+
+def attitude_enu_to_ned(euler_flu_enu: ArrayLike) -> FloatArray:
+    """Euler FLU/ENU -> Euler FRD/NED (spec 1.1): roll kept, pitch negated, yaw -> wrap(pi/2 - yaw)."""
+    a = np.asarray(euler_flu_enu, dtype=float)
+    return np.stack((a[..., 0], -a[..., 1], wrap_pi(0.5 * math.pi - a[..., 2])), axis=-1)
+
+
+def attitude_ned_to_enu(euler_frd_ned: ArrayLike) -> FloatArray:
+    """Euler FRD/NED (MAVLink ATTITUDE) -> Euler FLU/ENU; the map of spec 1.1 is its own inverse."""
+    return attitude_enu_to_ned(euler_frd_ned)
+
+
+def quaternion_ned_to_enu(q_frd_ned: ArrayLike) -> FloatArray:
+    """Attitude quaternion body FRD -> world NED (MAVLink) -> body FLU -> world ENU, (..., 4)."""
+    return quaternion_multiply(quaternion_multiply(_Q_ENU_NED, q_frd_ned), _Q_FRD_FLU)
+
+
+def quaternion_enu_to_ned(q_flu_enu: ArrayLike) -> FloatArray:
+    """Attitude quaternion body FLU -> world ENU -> body FRD -> world NED (MAVLink), (..., 4)."""
+    return quaternion_ned_to_enu(q_flu_enu)
+
+
+def attitude_target_quaternion(euler_flu_enu: ArrayLike) -> FloatArray:
+    """Desired FLU/ENU Euler angles (..., 3) -> SET_ATTITUDE_TARGET quaternion NED -> body FRD (..., 4)."""
+    return euler_to_quaternion(attitude_enu_to_ned(euler_flu_enu))

@@ -1,0 +1,341 @@
+"""One control tick for the whole fleet: formation targets, potential field, reference generator, position
+controller (SMC or PID) and thrust/attitude inversion (spec 5-8).
+
+Everything is local ENU metres, FLU body, rad; arrays have one row per vehicle (N). The ground station calls
+`tick` once per control period with the measured state; the returned `Command` rows of active vehicles become
+SET_ATTITUDE_TARGET messages (the link converts frames and thrust).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs_swarm.guidance import field as fieldmod
+from gcs_swarm.guidance.formation import (
+    LeaderHeading,
+    check_offsets,
+    rotate_z,
+    turn_velocity,
+)
+from gcs_swarm.guidance.inversion import THRUST_MODES, invert
+from gcs_swarm.guidance.obstacles import clearance
+from gcs_swarm.guidance.params import (
+    FieldParams,
+    G,
+    Limits,
+    PIDParams,
+    ReferenceParams,
+    SeparationParams,
+    SMCParams,
+)
+from gcs_swarm.guidance.pid import PIDController
+from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
+from gcs_swarm.guidance.separation import repulsion_range, uav_repulsion
+from gcs_swarm.guidance.smc import SMCController
+from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
+
+CONTROLLERS = ("smc", "pid")
+
+
+@dataclass(frozen=True)
+class Command:
+    """Output of one tick. Rows of inactive vehicles are NaN and must not be sent.
+
+    roll_d, pitch_d, yaw_d (N,) rad (FLU body / ENU world, ZYX); thrust_acc (N,) = U1/m in m/s^2 (normalised
+    thrust = MOT_THST_HOVER * thrust_acc / g). Diagnostics: ref_pos/ref_vel/ref_acc (N, 3) the SMC's desired
+    state, field_force (N, 3) field units, slots (N, 3) formation targets (the leader's row is its current
+    waypoint), u (N, 3) limited thrust acceleration, emergency (N,) inside D_Emg of another vehicle,
+    collision (N,) measured position at/inside an obstacle, clearance (N,) m smallest surface distance,
+    psi_leader rad, waypoint_index, leader_goal_distance m (leader to its current waypoint).
+    """
+
+    active: np.ndarray
+    roll_d: np.ndarray
+    pitch_d: np.ndarray
+    yaw_d: np.ndarray
+    thrust_acc: np.ndarray
+    ref_pos: np.ndarray
+    ref_vel: np.ndarray
+    ref_acc: np.ndarray
+    field_force: np.ndarray
+    slots: np.ndarray
+    u: np.ndarray
+    emergency: np.ndarray
+    collision: np.ndarray
+    clearance: np.ndarray
+    psi_leader: float
+    waypoint_index: int
+    leader_goal_distance: float
+
+
+def _as_array(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    return arr
+
+
+class FleetController:
+    """Leader-follower IAAPF (or APF) guidance with SMC (or PID) control for N vehicles (spec 8)."""
+
+    def __init__(
+        self,
+        n: int,
+        leader: int,
+        offsets: np.ndarray,
+        goal_waypoints: np.ndarray,
+        follower_targets: np.ndarray | None = None,
+        field: FieldParams | None = None,
+        separation: SeparationParams | None = None,
+        reference: ReferenceParams | None = None,
+        limits: Limits | None = None,
+        controller: str = "smc",
+        smc: SMCParams | None = None,
+        pid: PIDParams | None = None,
+        adjacency: np.ndarray | None = None,
+        topology: str = "broadcast",
+        control_dt: float = 0.02,
+        thrust_mode: str = "measured",
+        g: float = G,
+        z_min: float | None = None,
+    ) -> None:
+        """`n` vehicles, `leader` its index; `offsets` (N, 3) leader-frame slots (leader row zero),
+        `goal_waypoints` (W, 3) the leader's goals in order, `follower_targets` (N, 3) final destinations g_i
+        for the adaptive factor (default g_L + R(psi_L) delta_i, spec 8 step 1), `topology` "broadcast"
+        (every follower hears the leader at once) or "relay" (one tick of delay per hop along `adjacency`,
+        default the star graph), `thrust_mode` "measured" (Eq 36) or "norm" (m|U|), `control_dt` s the
+        nominal tick."""
+        if n < 1 or not 0 <= leader < n:
+            raise ValueError(f"leader index {leader} is not a vehicle of a fleet of {n}")
+        if controller not in CONTROLLERS:
+            raise ValueError(f"controller must be one of {CONTROLLERS}, not {controller!r}")
+        if topology not in TOPOLOGIES:
+            raise ValueError(f"topology must be one of {TOPOLOGIES}, not {topology!r}")
+        if thrust_mode not in THRUST_MODES:
+            raise ValueError(f"thrust_mode must be one of {THRUST_MODES}, not {thrust_mode!r}")
+        if not control_dt > 0:
+            raise ValueError("control_dt must be > 0")
+        self.n = n
+        self.leader = leader
+        self.field = field or FieldParams()
+        self.separation = separation or SeparationParams()
+        self.reference = reference or ReferenceParams()
+        self.limits = limits or Limits()
+        self.control_dt = control_dt
+        self.thrust_mode = thrust_mode
+        self.g = g
+        self.offsets = check_offsets(offsets, n, leader)
+        self.set_goal_waypoints(goal_waypoints)
+        self.follower_targets = None if follower_targets is None else self._checked_targets(follower_targets)
+        self.d_g = default_d_g(self.field, self.limits.v_xy, self.reference.k_v)
+        self.d_max = repulsion_range(self.separation, self.limits.v_xy, self.limits.a_xy)
+        if topology == "relay":
+            graph = star_adjacency(n, leader) if adjacency is None else adjacency
+            self.delays = check_adjacency(graph, n, leader)
+        else:
+            self.delays = np.zeros(n, dtype=int)
+        self.is_leader = np.arange(n) == leader
+        self.v_xy_cap = np.where(self.is_leader, self.limits.v_xy_leader, self.limits.v_xy)
+        self.generator = ReferenceGenerator(self.reference, self.limits, self.field.k_att, g, z_min)
+        self.controller: SMCController | PIDController = (
+            SMCController(smc or SMCParams(), g)
+            if controller == "smc"
+            else PIDController(pid or PIDParams(), g)
+        )
+        self.heading: LeaderHeading | None = None
+        self.relay: LeaderRelay | None = None
+
+    # ----- live changes (operator console) -----
+
+    def set_goal_waypoints(self, goal_waypoints: np.ndarray) -> None:
+        """Replace the leader's goal list (W, 3) and restart at its first entry."""
+        wp = np.asarray(goal_waypoints, dtype=float)
+        if wp.ndim == 1:
+            wp = wp[None, :]
+        if wp.ndim != 2 or wp.shape[1] != 3 or len(wp) == 0 or not np.isfinite(wp).all():
+            raise ValueError(f"goal waypoints must be a non-empty finite (W, 3) array, got shape {wp.shape}")
+        self.waypoints = wp
+        self.waypoint_index = 0
+
+    def set_goal(self, goal: np.ndarray) -> None:
+        """Fly the leader to one new goal (3,); per-follower destinations revert to the default."""
+        self.set_goal_waypoints(_as_array("goal", goal, (3,))[None, :])
+        self.follower_targets = None
+
+    def set_offsets(self, offsets: np.ndarray) -> None:
+        """New leader-frame slot offsets (N, 3), leader row zero."""
+        self.offsets = check_offsets(offsets, self.n, self.leader)
+
+    def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
+        arr = _as_array("follower_targets", targets, (self.n, 3))
+        if not np.isfinite(arr).all():
+            raise ValueError("follower_targets must be finite")
+        return arr
+
+    # ----- control -----
+
+    def reset(self, pos: np.ndarray, vel: np.ndarray, yaw: np.ndarray) -> None:
+        """Start from the measured state: references at (pos, vel) (N, 3), psi_L = the leader's yaw (rad)."""
+        pos = _as_array("pos", pos, (self.n, 3))
+        vel = _as_array("vel", vel, (self.n, 3))
+        yaw = _as_array("yaw", yaw, (self.n,))
+        known = np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
+        if not known[self.leader] or not np.isfinite(yaw[self.leader]):
+            raise ValueError(f"reset needs a finite state of the leader (vehicle {self.leader})")
+        self.last_pos = np.where(known[:, None], pos, np.nan)
+        self.last_vel = np.where(known[:, None], vel, 0.0)
+        self.was_active = known.copy()
+        self.last_t: float | None = None
+        self.generator.reset(self.last_pos, self.last_vel)
+        self.controller.reset(self.n)
+        rate = np.deg2rad(self.reference.heading_rate_max_deg)
+        self.heading = LeaderHeading(yaw[self.leader], self.reference.heading_min_speed, rate, self.d_g)
+        self.relay = LeaderRelay(self.delays, self._leader_state())
+
+    def _leader_state(self) -> np.ndarray:
+        assert self.heading is not None
+        p, v = self.last_pos[self.leader], self.last_vel[self.leader]
+        return np.concatenate([p, v, [self.heading.psi, self.heading.rate]])
+
+    def _tick_dt(self, t: float) -> float:
+        """Time since the previous tick; the nominal period on the first tick or after a gap or jump."""
+        dt = self.control_dt if self.last_t is None else t - self.last_t
+        self.last_t = t
+        return dt if 0.0 < dt <= 5.0 * self.control_dt else self.control_dt
+
+    def _check_tick_inputs(
+        self,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        att: np.ndarray,
+        obstacles_c: np.ndarray,
+        obstacles_r: np.ndarray,
+        active: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Shapes and finiteness of one tick's inputs, as float/bool arrays; ValueError naming the problem."""
+        pos = _as_array("pos", pos, (self.n, 3))
+        vel = _as_array("vel", vel, (self.n, 3))
+        att = _as_array("att", att, (self.n, 3))
+        active = np.asarray(active, dtype=bool)
+        if active.shape != (self.n,):
+            raise ValueError(f"active must have shape ({self.n},), got {active.shape}")
+        obstacles_c = np.asarray(obstacles_c, dtype=float).reshape(-1, 3)
+        obstacles_r = np.asarray(obstacles_r, dtype=float).reshape(-1)
+        if len(obstacles_c) != len(obstacles_r):
+            raise ValueError(f"{len(obstacles_c)} obstacle centres but {len(obstacles_r)} radii")
+        if not (
+            np.isfinite(obstacles_c).all() and np.isfinite(obstacles_r).all() and (obstacles_r >= 0).all()
+        ):
+            raise ValueError("obstacle centres must be finite and radii finite and >= 0")
+        state_ok = np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1) & np.isfinite(att).all(axis=1)
+        bad = np.flatnonzero(active & ~state_ok)
+        if len(bad):
+            raise ValueError(f"non-finite state for active vehicle(s) {', '.join(map(str, bad))}")
+        return pos, vel, att, obstacles_c, obstacles_r, active
+
+    def tick(
+        self,
+        t: float,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        att: np.ndarray,
+        obstacles_c: np.ndarray,
+        obstacles_r: np.ndarray,
+        active: np.ndarray,
+    ) -> Command:
+        """One control step at vehicle time t (s) from measured pos/vel (N, 3), att (N, 3) roll, pitch, yaw,
+        obstacles (K, 3), (K,) at time t, and the (N,) mask of vehicles to command (spec 8 steps 1-7)."""
+        if self.heading is None or self.relay is None:
+            raise RuntimeError("FleetController.reset must be called before tick")
+        pos, vel, att, obs_c, obs_r, active = self._check_tick_inputs(
+            pos, vel, att, obstacles_c, obstacles_r, active
+        )
+        dt = self._tick_dt(t)
+        returning = active & ~self.was_active
+        self.last_pos[active] = pos[active]
+        self.last_vel[active] = vel[active]
+        self.was_active = active.copy()
+        if returning.any():
+            self.generator.reset_rows(returning, pos, vel)
+            self.controller.reset_rows(returning)
+
+        # Leader goal and heading (spec 6 [add]); the heading follows the leader's reference velocity.
+        lead = self.leader
+        p_lead = self.last_pos[lead]
+        goal_dist = float(np.linalg.norm(self.waypoints[self.waypoint_index] - p_lead))
+        if goal_dist < self.reference.waypoint_radius and self.waypoint_index < len(self.waypoints) - 1:
+            self.waypoint_index += 1
+            goal_dist = float(np.linalg.norm(self.waypoints[self.waypoint_index] - p_lead))
+        goal = self.waypoints[self.waypoint_index]
+        self.heading.update(self.generator.v[lead, :2], goal_dist, dt)
+
+        # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
+        self.relay.push(self._leader_state())
+        heard = self.relay.read()
+        p_l, v_l, psi_l, rate_l = heard[:, 0:3], heard[:, 3:6], heard[:, 6], heard[:, 7]
+        world_off = rotate_z(self.offsets, psi_l)
+        targets = p_l + world_off
+        v_ff = v_l + turn_velocity(world_off, rate_l)
+        targets[lead] = goal
+        v_ff[lead] = 0.0
+        dest = goal + world_off if self.follower_targets is None else self.follower_targets.copy()
+        dest[lead] = goal
+
+        literal = self.reference.paper_literal & ~self.is_leader
+        if self.reference.paper_literal:
+            self.generator.reset_rows(literal & active, pos, vel)
+
+        # Step 6 (leash) then step 2: field at the reference points; other vehicles repel from where they
+        # are (or were).
+        self.generator.leash(pos, active)
+        p_r = self.generator.p
+        known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
+        f_obs, _ = fieldmod.obstacle_repulsion(p_r, dest, obs_c, obs_r, self.field)
+        f_uav, emergency = uav_repulsion(
+            p_r, self.last_pos, self.last_vel, self.field.k_uav, self.field.n_uav, self.d_max,
+            self.separation, self.field.l_min, src_valid=known,
+        )  # fmt: skip
+        f_att = fieldmod.attraction(p_r, targets, self.field, self.d_g)
+        force = f_att + f_obs + f_uav
+
+        # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
+        x_d, xd_dot, xd_ddot = self.generator.step(force, v_ff, self.v_xy_cap, dt, active)
+        if self.reference.paper_literal:
+            lit = paper_literal_reference(targets, v_ff, f_obs + f_uav, self.field.k_att, self.field.l0)
+            for arr, lit_arr in zip((x_d, xd_dot, xd_ddot), lit, strict=True):
+                arr[literal] = lit_arr[literal]
+        u = self.controller(x_d, xd_dot, xd_ddot, pos, vel, dt)
+        if self.thrust_mode == "measured":
+            cmd = invert(u, att[:, 2], self.limits, self.g, att[:, 0], att[:, 1])
+        else:
+            cmd = invert(u, att[:, 2], self.limits, self.g)
+
+        off = ~active
+        gap = clearance(pos, obs_c, obs_r)
+
+        def masked(a: np.ndarray) -> np.ndarray:
+            out = np.array(a, dtype=float)
+            out[off] = np.nan
+            return out
+
+        return Command(
+            active=active,
+            roll_d=masked(cmd.roll),
+            pitch_d=masked(cmd.pitch),
+            yaw_d=masked(psi_l),
+            thrust_acc=masked(cmd.thrust_acc),
+            ref_pos=x_d,
+            ref_vel=xd_dot,
+            ref_acc=xd_ddot,
+            field_force=force,
+            slots=targets,
+            u=masked(cmd.u_limited),
+            emergency=emergency & active,
+            collision=(gap <= 0.0) & active,
+            clearance=masked(gap),
+            psi_leader=self.heading.psi,
+            waypoint_index=self.waypoint_index,
+            leader_goal_distance=goal_dist,
+        )

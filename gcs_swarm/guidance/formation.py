@@ -1,0 +1,143 @@
+"""Leader-follower formation geometry (spec 6, paper Eqs 26-29) and the leader heading (spec 6 [add]).
+
+Offsets `delta_i = (d_x, d_y, d_z)` are in the leader heading frame (x forward, y left, z up), one row per
+vehicle, the leader's row zero. Functions broadcast over leading axes: `p_L` (..., 3), `psi_L` (...,),
+offsets (N, 3) -> (..., N, 3).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+SHAPES = ("line", "v", "column", "grid")
+
+
+def formation_offsets(shape: str, n_followers: int, spacing: float, angle_deg: float = 45.0) -> np.ndarray:
+    """Leader-frame slot offsets (n_followers, 3) of a named shape for followers k = 1..n_followers (place
+    them in the rows of the non-leader vehicles, in index order; the leader's offset is zero).
+
+    line: abreast, alternating right/left (`(0, s r L, 0)`); v: wedge behind the leader with half-angle
+    `angle_deg`, `(-r L cos a, s r L sin a, 0)` with row r = ceil(k/2) and side s = (-1)^k (spec 6 (b));
+    column: `(-k L, 0, 0)`; grid: rows of ceil(sqrt(n_followers)) centred behind the leader, `L` apart.
+    """
+    if shape not in SHAPES:
+        raise ValueError(f"formation shape must be one of {', '.join(SHAPES)}, not {shape!r}")
+    if n_followers < 0:
+        raise ValueError("the number of followers must be >= 0")
+    if not spacing > 0:
+        raise ValueError("formation spacing must be > 0")
+    k = np.arange(1, n_followers + 1, dtype=float)
+    row = np.ceil(k / 2.0)
+    side = np.where(k % 2 == 1, -1.0, 1.0)
+    out = np.zeros((n_followers, 3))
+    if shape == "line":
+        out[:, 1] = side * row * spacing
+    elif shape == "v":
+        a = math.radians(angle_deg)
+        out[:, 0] = -row * spacing * math.cos(a)
+        out[:, 1] = side * row * spacing * math.sin(a)
+    elif shape == "column":
+        out[:, 0] = -k * spacing
+    else:
+        cols = max(1, math.ceil(math.sqrt(n_followers)))
+        m = np.arange(n_followers)
+        out[:, 0] = -(1 + m // cols) * spacing
+        out[:, 1] = ((cols - 1) / 2.0 - m % cols) * spacing
+    return out
+
+
+def check_offsets(offsets: np.ndarray, n: int, leader: int) -> np.ndarray:
+    """Validate explicit offsets: finite, shape (N, 3), leader row zero. Returns them as a float array."""
+    arr = np.asarray(offsets, dtype=float)
+    if arr.shape != (n, 3):
+        raise ValueError(f"formation offsets must have shape ({n}, 3), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError("formation offsets must be finite numbers")
+    if np.any(arr[leader] != 0.0):
+        raise ValueError(f"the leader's offset (row {leader}) must be zero, got {arr[leader].tolist()}")
+    return arr
+
+
+def rotate_z(vec: np.ndarray, psi: np.ndarray | float) -> np.ndarray:
+    """Rotate vectors (..., 3) about world z by psi (...) rad, elementwise with broadcasting, (..., 3)."""
+    vec = np.asarray(vec, dtype=float)
+    psi = np.asarray(psi, dtype=float)
+    c, s = np.cos(psi), np.sin(psi)
+    out = np.empty(np.broadcast_shapes(vec.shape, psi.shape + (3,)))
+    out[..., 0] = vec[..., 0] * c - vec[..., 1] * s
+    out[..., 1] = vec[..., 0] * s + vec[..., 1] * c
+    out[..., 2] = vec[..., 2]
+    return out
+
+
+def rotate_to_world(offsets: np.ndarray, psi: np.ndarray | float) -> np.ndarray:
+    """Leader-frame offsets (N, 3) rotated by psi (...,) into world ENU, (..., N, 3) (spec 6, Eqs 26-27)."""
+    return rotate_z(offsets, np.asarray(psi, dtype=float)[..., None])
+
+
+def turn_velocity(world_offsets: np.ndarray, psi_rate: np.ndarray | float) -> np.ndarray:
+    """Velocity psi_L_dot * z_hat x (world offset) of offsets (..., 3) turning at psi_rate (...) rad/s."""
+    rate = np.asarray(psi_rate, dtype=float)
+    out = np.zeros(np.broadcast_shapes(np.shape(world_offsets), rate.shape + (3,)))
+    out[..., 0] = -rate * world_offsets[..., 1]
+    out[..., 1] = rate * world_offsets[..., 0]
+    return out
+
+
+def slot_positions(p_leader: np.ndarray, psi_leader: np.ndarray | float, offsets: np.ndarray) -> np.ndarray:
+    """Slots X_i^s (..., N, 3) from the leader position (..., 3) and heading (...,) (spec 6, Eqs 26-28)."""
+    return np.asarray(p_leader, dtype=float)[..., None, :] + rotate_to_world(offsets, psi_leader)
+
+
+def slot_velocities(
+    v_leader: np.ndarray, psi_leader: np.ndarray | float, psi_rate: np.ndarray | float, offsets: np.ndarray
+) -> np.ndarray:
+    """Slot velocity feed-forward v_i^s = v_L + psi_L_dot * z_hat x R(psi_L) delta_i, (..., N, 3) (spec 6)."""
+    world = rotate_to_world(offsets, psi_leader)
+    rate = np.asarray(psi_rate, dtype=float)[..., None]
+    return np.asarray(v_leader, dtype=float)[..., None, :] + turn_velocity(world, rate)
+
+
+def leader_frame_offsets(p: np.ndarray, p_leader: np.ndarray, psi_leader: np.ndarray | float) -> np.ndarray:
+    """Measured offsets (..., N, 3) of positions p (..., N, 3) in the leader heading frame (spec 6, Eq 29
+    corrected: the transpose rotation)."""
+    psi = np.asarray(psi_leader, dtype=float)[..., None]
+    c, s = np.cos(psi), np.sin(psi)
+    d = p - np.asarray(p_leader, dtype=float)[..., None, :]
+    out = np.empty_like(d)
+    out[..., 0] = d[..., 0] * c + d[..., 1] * s
+    out[..., 1] = -d[..., 0] * s + d[..., 1] * c
+    out[..., 2] = d[..., 2]
+    return out
+
+
+def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
+    """Angle(s) wrapped to [-pi, pi)."""
+    return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class LeaderHeading:
+    """psi_L: course of the leader's reference velocity, held when slow or near the goal, rate limited
+    (spec 6 [add]). The formation rotates with it and every vehicle's yaw is commanded to it."""
+
+    def __init__(self, psi: float, min_speed: float, rate_max: float, hold_distance: float) -> None:
+        """`min_speed` m/s, `rate_max` rad/s, `hold_distance` m (d_g)."""
+        self.psi = float(wrap_angle(psi))
+        self.rate = 0.0
+        self.min_speed = min_speed
+        self.rate_max = rate_max
+        self.hold_distance = hold_distance
+
+    def update(self, v_ref_xy: np.ndarray, distance_to_goal: float, dt: float) -> float:
+        """Advance psi_L by one step of dt s from the leader's reference velocity (2,) and goal distance m."""
+        speed = math.hypot(float(v_ref_xy[0]), float(v_ref_xy[1]))
+        if speed > self.min_speed and distance_to_goal > self.hold_distance:
+            course = math.atan2(float(v_ref_xy[1]), float(v_ref_xy[0]))
+            step = float(np.clip(wrap_angle(course - self.psi), -self.rate_max * dt, self.rate_max * dt))
+        else:
+            step = 0.0
+        self.psi = float(wrap_angle(self.psi + step))
+        self.rate = step / dt
+        return self.psi

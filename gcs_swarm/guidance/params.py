@@ -1,0 +1,164 @@
+"""Parameter sets of guidance and control (frozen dataclasses, SI units).
+
+Defaults are the spec's values (`docs`: iaapf-smc.md): [paper] where the paper gives
+them, [add] rows otherwise. The mission file (gcs_swarm.mission) builds these; the
+pure guidance modules only read them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+G = 9.8  # m/s^2, Table 2
+
+
+@dataclass(frozen=True)
+class FieldParams:
+    """Potential-field parameters (spec 2-4). Forces are in field units (k_att * m)."""
+
+    method: str = "iaapf"  # "apf" (spec 2, baseline) or "iaapf" (spec 3-4)
+    k_att: float = 100.0  # attraction gain (Table 1/6 "k")
+    k_rep: float = 1e5  # obstacle repulsion gain (spec 9.1 reproduction default)
+    l0: float = 20.0  # m, obstacle influence distance measured from the surface
+    d_g: float | None = None  # m, attraction segment boundary; None -> v_max / K_v (spec 3.1)
+    n: float = 0.8  # adaptive factor of the obstacle repulsion (Table 2)
+    k_uav: float = 5e4  # inter-UAV repulsion gain (spec 11.5)
+    n_uav: float = 0.8  # adaptive exponent of the inter-UAV potential (spec 4)
+    l_min: float = 0.05  # m, distance floor inside/at an obstacle (spec 2.1)
+    rho_eps: float = 1e-3  # m, F*_rep2 is zero closer than this to the goal (spec 3.2)
+
+    def __post_init__(self) -> None:
+        if self.method not in ("apf", "iaapf"):
+            raise ValueError(f"field method must be 'apf' or 'iaapf', not {self.method!r}")
+        for name in ("k_att", "l0", "n", "l_min", "rho_eps"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"field parameter {name} must be > 0")
+        for name in ("k_rep", "k_uav"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"field parameter {name} must be >= 0")
+        if not 0 < self.n_uav < 2:
+            raise ValueError("n_uav must lie in (0, 2) so the inter-UAV force stays repulsive (spec 4)")
+        if self.d_g is not None and not self.d_g > 0:
+            raise ValueError("d_g must be > 0 (or omitted for v_max / K_v)")
+
+
+@dataclass(frozen=True)
+class SeparationParams:
+    """Inter-UAV ranges (spec 4, Eqs 17 and 20)."""
+
+    mode: str = "constant"  # "constant" (Table 2) or "formula" (Eq 17 / Eq 20)
+    d_max: float = 10.0  # m, constant mode
+    d_emg: float = 3.0  # m, constant mode
+    t_r: float = 0.2  # s, reaction time (formula mode)
+    s_s: float = 1.0  # m, safe distance (formula mode)
+    a_e: float = 10.0  # m/s^2, emergency deceleration (formula mode)
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("constant", "formula"):
+            raise ValueError(f"separation mode must be 'constant' or 'formula', not {self.mode!r}")
+        for name in ("d_max", "d_emg", "a_e"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"separation parameter {name} must be > 0")
+        for name in ("t_r", "s_s"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"separation parameter {name} must be >= 0")
+
+
+@dataclass(frozen=True)
+class SMCAxisGains:
+    """Gains of one SMC channel (spec 7.1, paper Eqs 29-50)."""
+
+    c1: float
+    k1: float
+    k2: float
+    k3: float
+    xi1: float = 0.5
+    xi2: float = 1.5
+
+    def __post_init__(self) -> None:
+        if not (self.c1 > 0 and self.k1 > 0 and self.k2 >= 0 and self.k3 >= 0):
+            raise ValueError("SMC gains need c1 > 0, k1 > 0, k2 >= 0, k3 >= 0")
+        if not self.k1 * self.c1 > 0.25:  # spec 7.2: P positive definite iff k1*c1 > 1/4
+            raise ValueError(f"SMC stability condition k1*c1 > 1/4 violated (k1*c1 = {self.k1 * self.c1:g})")
+        if not 0 < self.xi1 < 1 < self.xi2 < 2:
+            raise ValueError("SMC exponents need 0 < xi1 < 1 < xi2 < 2")
+
+
+@dataclass(frozen=True)
+class SMCParams:
+    """Sliding-mode position controller (spec 7.3 gains, 7.4 boundary layer)."""
+
+    xy: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(0.8, 1.5, 0.3, 0.05))
+    z: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(1.0, 2.0, 0.5, 0.1))
+    boundary_layer: float = 0.0  # m/s, Phi of sat(s/Phi); 0 = off (sgn, as in the paper)
+
+    def __post_init__(self) -> None:
+        if self.boundary_layer < 0:
+            raise ValueError("boundary_layer must be >= 0 (0 turns it off)")
+
+
+@dataclass(frozen=True)
+class PIDParams:
+    """Baseline PID position controller (acceleration output, same interface as the SMC)."""
+
+    kp_xy: float = 1.2
+    ki_xy: float = 0.05
+    kd_xy: float = 2.3
+    kp_z: float = 2.0
+    ki_z: float = 0.1
+    kd_z: float = 3.0
+    i_limit: float = 2.0  # m/s^2, anti-windup clamp of the integral term
+
+    def __post_init__(self) -> None:
+        for name in ("kp_xy", "ki_xy", "kd_xy", "kp_z", "ki_z", "kd_z", "i_limit"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"PID gain {name} must be >= 0")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Motion and command limits (Table 2 and spec 5 [add])."""
+
+    v_xy_leader: float = 10.0  # m/s, leader cap below the followers' (spec 8 step 3)
+    v_xy: float = 20.0  # m/s
+    v_z: float = 20.0  # m/s
+    a_xy: float = 20.0  # m/s^2
+    a_z: float = 15.0  # m/s^2
+    tilt_max_deg: float = 35.0  # deg, spec 5 limit 2
+    thrust_max_g: float = 2.0  # U1_max / (m g), spec 5 limit 3
+    uz_min_g: float = 0.3  # U_z >= uz_min_g * g, spec 5 limit 1
+
+    def __post_init__(self) -> None:
+        for name in ("v_xy_leader", "v_xy", "v_z", "a_xy", "a_z", "thrust_max_g", "uz_min_g"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"limit {name} must be > 0")
+        if not 0 < self.tilt_max_deg < 80:
+            raise ValueError("tilt_max_deg must lie in (0, 80)")
+        if not self.uz_min_g < 1 < self.thrust_max_g:
+            raise ValueError("need uz_min_g < 1 < thrust_max_g so hover is commandable")
+
+    @property
+    def tilt_max(self) -> float:
+        """Tilt limit in rad."""
+        return math.radians(self.tilt_max_deg)
+
+
+@dataclass(frozen=True)
+class ReferenceParams:
+    """Reference generator that closes IAAPF onto the SMC (spec 8)."""
+
+    k_v: float = 1.0  # 1/s, velocity per (field / k_att) metre
+    tau_v: float = 0.5  # s, velocity-tracking time constant
+    leash: float = 5.0  # m, max distance of the reference point from the vehicle
+    heading_min_speed: float = 3.0  # m/s, psi_L updates only above this reference speed (spec 6)
+    heading_rate_max_deg: float = 30.0  # deg/s, rate limit of psi_L (spec 6)
+    paper_literal: bool = False  # spec 8 option: x_d = slot + K_f * sum F_rep
+    waypoint_radius: float = 5.0  # m, the leader moves on to its next goal waypoint within this distance
+
+    def __post_init__(self) -> None:
+        for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"reference parameter {name} must be > 0")
+        if self.heading_min_speed < 0:
+            raise ValueError("heading_min_speed must be >= 0")

@@ -1,0 +1,151 @@
+"""Inter-UAV repulsion and the emergency vertical force (spec 4, paper Eqs 13-20).
+
+Vehicle i feels the others j != i as point sources. Positions `p_at` (N, D) are where the force on each
+vehicle is evaluated (its reference point, spec 8 step 2), `p_src` (N, D) where the vehicles are; row i of
+both belongs to vehicle i. D = 2 or 3; the emergency force needs D = 3 (z up).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gcs_swarm.guidance.obstacles import squared_distances
+from gcs_swarm.guidance.params import SeparationParams
+
+DENSE_PAIRS_MAX = 40_000  # above this many (i, j) candidates, use the hash grid instead of a dense product
+
+
+def d_max_formula(v_max: float, t_r: float, a_max: float, s_s: float) -> float:
+    """D_max = v_max t_r + v_max^2 / (2 a_max) + s_s, m (spec 4, Eq 17)."""
+    return v_max * t_r + v_max * v_max / (2.0 * a_max) + s_s
+
+
+def d_emg_formula(v_re: np.ndarray, a_e: float, s_s: float) -> np.ndarray:
+    """D_Emg = v_re^2 / (2 a_e) + s_s per pair, m (spec 4, Eq 20)."""
+    return v_re * v_re / (2.0 * a_e) + s_s
+
+
+def repulsion_range(sep: SeparationParams, v_max: float, a_max: float) -> float:
+    """D_max of the configured mode: Table 2 constant or Eq 17 from the motion limits."""
+    return sep.d_max if sep.mode == "constant" else d_max_formula(v_max, sep.t_r, a_max, sep.s_s)
+
+
+def pair_potential(l: np.ndarray, k_uav: float, n: float, d_max: float) -> np.ndarray:
+    """U_ij = 0.5 k_uav (1/l - 1/D_max)^2 l^n for l < D_max, else 0 (spec 4, Eq 13 with D_max)."""
+    inside = l < d_max
+    l_in = np.where(inside, l, d_max)
+    bracket = 1.0 / l_in - 1.0 / d_max
+    return np.where(inside, 0.5 * k_uav * bracket * bracket * l_in**n, 0.0)
+
+
+def pair_force_scale(l: np.ndarray, k_uav: float, n: float, d_max: float) -> np.ndarray:
+    """|F_ij| = k_uav (1/l - 1/D_max) l^(n-2) (1 - n/2 (1 - l/D_max)) along e_ji, > 0 for 0 < n < 2
+    (spec 4, F1 + F2)."""
+    bracket = np.where(l < d_max, 1.0 / l - 1.0 / d_max, 0.0)
+    return k_uav * bracket * l ** (n - 2.0) * (1.0 - 0.5 * n * (1.0 - l / d_max))
+
+
+def _grid_candidates(p_at: np.ndarray, p_src: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs from a horizontal hash grid of cell size `cell`: each point against the sources of
+    its own and the 8 surrounding cells. Rows of p_at must be finite."""
+    src_cell = np.floor(p_src[:, :2] / cell).astype(np.int64)
+    at_cell = np.floor(p_at[:, :2] / cell).astype(np.int64)
+    low = np.minimum(src_cell.min(axis=0), at_cell.min(axis=0)) - 1
+    width = int(max(src_cell[:, 1].max(), at_cell[:, 1].max()) - low[1]) + 2
+    src_key = (src_cell[:, 0] - low[0]) * width + (src_cell[:, 1] - low[1])
+    order = np.argsort(src_key, kind="stable")
+    keys = src_key[order]
+    at_key = (at_cell[:, 0] - low[0]) * width + (at_cell[:, 1] - low[1])
+    shifts = np.array([dx * width + dy for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
+    query = (at_key[:, None] + shifts[None, :]).ravel()
+    lo = np.searchsorted(keys, query, side="left")
+    counts = np.searchsorted(keys, query, side="right") - lo
+    i = np.repeat(np.arange(len(p_at)).repeat(len(shifts)), counts)
+    first = np.repeat(lo - (np.cumsum(counts) - counts), counts)
+    return i, order[np.arange(len(i)) + first]
+
+
+def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i, j), i != j, with |p_at[i] - p_src[j]| < radius. Rows of p_src must be finite; NaN
+    rows of p_at match nothing.
+
+    Small fleets: one dense matrix product. Large ones: a horizontal hash grid with cells of `radius`, so
+    the cost grows with N times the neighbours per cell instead of N^2.
+    """
+    n_at, n_src = len(p_at), len(p_src)
+    if n_at == 0 or n_src == 0:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
+    if n_at * n_src <= DENSE_PAIRS_MAX:
+        i, j = np.nonzero(squared_distances(p_at, p_src) < (radius + 1e-6) ** 2)
+    else:
+        finite = np.flatnonzero(np.isfinite(p_at).all(axis=1))
+        i, j = _grid_candidates(p_at[finite], p_src, radius)
+        i = finite[i]
+    keep = i != j
+    i, j = i[keep], j[keep]
+    d = p_at[i] - p_src[j]
+    near = np.einsum("pd,pd->p", d, d) < radius * radius
+    return i[near], j[near]
+
+
+def uav_potential(p_at: np.ndarray, p_src: np.ndarray, k_uav: float, n: float, d_max: float) -> np.ndarray:
+    """Sum over j != i of U_ij(|p_at[i] - p_src[j]|), (N,) (dense; for tests and small N)."""
+    d = np.linalg.norm(p_at[:, None, :] - p_src[None, :, :], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    return pair_potential(d, k_uav, n, d_max).sum(axis=1)
+
+
+def uav_repulsion(
+    p_at: np.ndarray,
+    p_src: np.ndarray,
+    vel: np.ndarray,
+    k_uav: float,
+    n: float,
+    d_max: float,
+    sep: SeparationParams,
+    l_min: float,
+    src_valid: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Total inter-UAV force F_uav,i = sum_j F_uav,ij (N, D) and the emergency flag (N,) (spec 4, Eq 19).
+
+    `vel` (N, D) measured velocities give v_re = |v_i - v_j| in formula mode (Eq 20, D_Emg clamped to
+    D_max). Inside D_Emg the pair adds |F_ij| sgn(i - j) z_hat (Eq 18: larger index pushed up). Two vehicles
+    at one point (l < l_min) use l_min and direction sgn(i - j) along the last axis. Sources with
+    `src_valid` False are ignored.
+    """
+    n_veh, dim = p_at.shape
+    force = np.zeros((n_veh, dim))
+    emergency = np.zeros(n_veh, dtype=bool)
+    if src_valid is None:
+        src_index = np.arange(n_veh)
+    else:
+        src_index = np.flatnonzero(src_valid)
+    i, jj = neighbour_pairs(p_at, p_src[src_index], d_max)
+    j = src_index[jj]
+    keep = i != j
+    i, j = i[keep], j[keep]
+    if len(i) == 0:
+        return force, emergency
+    diff = p_at[i] - p_src[j]
+    l = np.sqrt(np.einsum("pd,pd->p", diff, diff))
+    sign = np.sign(i - j).astype(float)
+    coincident = l < l_min
+    e_ji = diff / np.where(coincident, 1.0, l)[:, None]
+    e_ji[coincident] = 0.0
+    e_ji[coincident, -1] = sign[coincident]
+    l = np.maximum(l, l_min)
+    scale = pair_force_scale(l, k_uav, n, d_max)
+    pair_force = scale[:, None] * e_ji
+    if sep.mode == "constant":
+        d_emg = np.full(len(i), min(sep.d_emg, d_max))
+    else:
+        v_re = np.linalg.norm(vel[i] - vel[j], axis=-1)
+        d_emg = np.minimum(d_emg_formula(v_re, sep.a_e, sep.s_s), d_max)
+    in_emg = l <= d_emg
+    if dim == 3:
+        pair_force[:, 2] += np.where(in_emg, scale * sign, 0.0)
+    for axis in range(dim):
+        force[:, axis] = np.bincount(i, weights=pair_force[:, axis], minlength=n_veh)
+    emergency[i[in_emg]] = True
+    return force, emergency

@@ -1,0 +1,274 @@
+"""MAVLink endpoints: connection strings -> non-blocking sockets that yield parsed messages.
+
+Forms (pymavlink / MAVProxy conventions):
+  udpout:HOST:PORT   we send first to a vehicle listening there (the simulator's form)
+  udpin:HOST:PORT    we listen; vehicles send to us. Several vehicles may share one udpin endpoint: it routes
+                     by system id and answers each vehicle at the address its own packets come from
+                     (pymavlink's udpin writes every packet to every sender it has seen, which breaks
+                     per-vehicle traffic such as lockstep SYSTEM_TIME answers).
+  udp:HOST:PORT      same as udpin
+  tcp:HOST:PORT      TCP client (e.g. ArduPilot SITL's 5760)
+  serial:DEVICE[:BAUD], /dev/DEVICE[,BAUD]   serial port (needs pyserial), baud 115200 by default
+
+udpout, tcp and serial are opened by `pymavlink.mavutil.mavlink_connection`; the ground station reads and
+writes the opened socket / port itself so that one poll loop serves every vehicle. Parsing uses pymavlink's
+MAVLink 2 ardupilotmega dialect with robust parsing: garbage becomes BAD_DATA messages, counted by callers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import socket
+from dataclasses import dataclass
+from typing import Any
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+MAVLinkMessage = mavlink2.MAVLink_message
+Address = tuple[str, int]
+
+_MAX_READS_PER_POLL = 512
+_UDP_MAX = 65535
+_HOST_PORT = re.compile(r"^(?P<host>[^:]+):(?P<port>\d{1,5})$")
+_USAGE = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT or serial:DEVICE[:BAUD]"
+
+
+class LinkError(Exception):
+    """A failure the user can cause or fix (endpoint, vehicle, command): one sentence naming the vehicle."""
+
+
+@dataclass(frozen=True)
+class ConnectionSpec:
+    """A parsed connection string. `key` identifies the local resource (shared only for udpin)."""
+
+    text: str
+    kind: str  # "udpin", "udpout", "tcp" or "serial"
+    host: str = ""
+    port: int = 0
+    device: str = ""
+    baud: int = 115200
+
+    @property
+    def key(self) -> tuple[str, str, int]:
+        return (self.kind, self.device or self.host, self.port)
+
+
+def parse_connection(text: str) -> ConnectionSpec:
+    """Parse a connection string; ValueError with the reason when it is not one of the supported forms."""
+    s = text.strip()
+    scheme, _, rest = s.partition(":")
+    if scheme in ("udpin", "udp", "udpout", "tcp"):
+        m = _HOST_PORT.match(rest)
+        if m is None or not 0 < int(m["port"]) < 65536:
+            raise ValueError(f"connection {text!r} needs HOST:PORT with a port in 1..65535 ({_USAGE})")
+        kind = "udpin" if scheme == "udp" else scheme
+        return ConnectionSpec(text=s, kind=kind, host=m["host"], port=int(m["port"]))
+    if scheme == "serial":
+        device, sep, baud = rest.rpartition(":")
+        if not sep or not baud.isdigit():
+            device, baud = rest, "115200"
+        return _serial_spec(s, device, baud)
+    if s.startswith("/dev/") or re.match(r"^COM\d+", s):
+        device, sep, baud = s.partition(",")
+        return _serial_spec(s, device, baud if sep else "115200")
+    raise ValueError(f"connection {text!r} is not one of {_USAGE}")
+
+
+def _serial_spec(text: str, device: str, baud: str) -> ConnectionSpec:
+    if not device or not baud.isdigit() or int(baud) <= 0:
+        raise ValueError(f"connection {text!r} needs serial:DEVICE[:BAUD] with a positive integer baud rate")
+    return ConnectionSpec(text=text, kind="serial", device=device, baud=int(baud))
+
+
+def new_parser() -> mavlink2.MAVLink:
+    """A MAVLink 2 (reads MAVLink 1 too) ardupilotmega parser that turns garbage into BAD_DATA messages."""
+    parser = mavlink2.MAVLink(None, 0, 0)
+    parser.robust_parsing = True
+    return parser
+
+
+class _DatagramParser:
+    """Parses whole UDP datagrams: a truncated packet ending a datagram is garbage, not joined to the next."""
+
+    def __init__(self) -> None:
+        self._parser = new_parser()
+
+    def parse(self, data: bytes) -> list[MAVLinkMessage]:
+        msgs = self._parser.parse_buffer(data) or []
+        if self._parser.buf_len() > 0:
+            tail = bytearray(data[-self._parser.buf_len() :])
+            msgs.append(mavlink2.MAVLink_bad_data(tail, "truncated packet"))
+            self._parser = new_parser()
+        return msgs
+
+
+class Endpoint:
+    """One local socket or serial port. Subclasses implement `fileno`, `receive`, `send`, `close`."""
+
+    def __init__(self, spec: ConnectionSpec) -> None:
+        self.spec = spec
+        self.closed = False  # the peer closed a stream connection; nothing more will arrive
+
+    def fileno(self) -> int:
+        raise NotImplementedError
+
+    def receive(self) -> list[tuple[MAVLinkMessage, Any]]:
+        """Drain what is readable now: (message, peer address or None) pairs, BAD_DATA included."""
+        raise NotImplementedError
+
+    def send(self, packet: bytes | bytearray, sysid: int | None) -> bool:
+        """Send one packet towards vehicle `sysid`; False when there is nowhere to send it yet."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+
+class UdpRouter(Endpoint):
+    """A listening UDP socket shared by vehicles, routed by system id.
+
+    Each vehicle's replies go to the address its latest packet came from; `addresses[sysid]` keeps every
+    address a sysid was heard from so the fleet can refuse two endpoints claiming one sysid.
+    """
+
+    def __init__(self, spec: ConnectionSpec) -> None:
+        super().__init__(spec)
+        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self._sock.bind((spec.host, spec.port))
+        except OSError:
+            self._sock.close()
+            raise
+        self._sock.setblocking(False)
+        self._parser = _DatagramParser()
+        self.addresses: dict[int, list[Address]] = {}
+        self.sysid_of: dict[Address, int] = {}
+
+    def fileno(self) -> int:
+        return self._sock.fileno()
+
+    def receive(self) -> list[tuple[MAVLinkMessage, Any]]:
+        out: list[tuple[MAVLinkMessage, Any]] = []
+        for _ in range(_MAX_READS_PER_POLL):
+            try:
+                data, addr = self._sock.recvfrom(_UDP_MAX)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:  # e.g. ICMP port unreachable reported on the socket
+                continue
+            for msg in self._parser.parse(data):
+                if msg.get_type() != "BAD_DATA":
+                    self._learn(msg.get_srcSystem(), addr)
+                out.append((msg, addr))
+        return out
+
+    def _learn(self, sysid: int, addr: Address) -> None:
+        known = self.addresses.setdefault(sysid, [])
+        if not known or known[-1] != addr:
+            if addr in known:
+                known.remove(addr)
+            known.append(addr)
+        self.sysid_of[addr] = sysid
+
+    def send(self, packet: bytes | bytearray, sysid: int | None) -> bool:
+        known = self.addresses.get(sysid) if sysid is not None else None
+        if not known:
+            return False
+        try:
+            self._sock.sendto(packet, known[-1])
+        except OSError:
+            return False
+        return True
+
+    def close(self) -> None:
+        self._sock.close()
+
+
+class MavutilEndpoint(Endpoint):
+    """udpout / tcp / serial opened with pymavlink's mavlink_connection; one vehicle behind it."""
+
+    def __init__(self, spec: ConnectionSpec, connect_timeout_s: float) -> None:
+        super().__init__(spec)
+        if spec.kind == "serial":
+            try:
+                import serial  # noqa: F401  (pymavlink imports it lazily; fail with a clear sentence instead)
+            except ImportError as err:
+                raise OSError("serial connections need pyserial (pip install pyserial)") from err
+            self._conn = mavutil.mavlink_connection(spec.device, baud=spec.baud, source_system=255)
+            self._datagrams = False
+            self._stream_parser = new_parser()
+            return
+        if spec.kind == "tcp":
+            previous = socket.getdefaulttimeout()
+            socket.setdefaulttimeout(connect_timeout_s)  # bound mavtcp's blocking connect()
+            try:
+                self._conn = mavutil.mavlink_connection(spec.text, retries=0)
+            finally:
+                socket.setdefaulttimeout(previous)
+            self._datagrams = False
+            self._stream_parser = new_parser()
+            return
+        self._destination = (socket.gethostbyname(spec.host), spec.port)
+        self._conn = mavutil.mavlink_connection(spec.text)
+        self._datagrams = True
+        self._udp_parser = _DatagramParser()
+
+    def fileno(self) -> int:
+        fd = self._conn.fd
+        if fd is None:
+            raise OSError(f"{self.spec.text} has no pollable file descriptor")
+        return int(fd)
+
+    def receive(self) -> list[tuple[MAVLinkMessage, Any]]:
+        out: list[tuple[MAVLinkMessage, Any]] = []
+        if self._datagrams:
+            for _ in range(_MAX_READS_PER_POLL):
+                try:
+                    data, addr = self._conn.port.recvfrom(_UDP_MAX)
+                except (BlockingIOError, InterruptedError):
+                    break
+                except OSError:  # ECONNREFUSED: nothing listens at the destination (yet)
+                    continue
+                out.extend((msg, addr) for msg in self._udp_parser.parse(data))
+            return out
+        chunk = b""
+        if self.spec.kind == "tcp":
+            try:
+                chunk = self._conn.port.recv(_UDP_MAX)
+                self.closed = not chunk
+            except (BlockingIOError, InterruptedError):
+                pass
+            except OSError:
+                self.closed = True
+        else:
+            chunk = self._conn.recv(4096)
+        return [(msg, None) for msg in (self._stream_parser.parse_buffer(chunk) or [])] if chunk else []
+
+    def send(self, packet: bytes | bytearray, sysid: int | None) -> bool:
+        try:
+            if self._datagrams:
+                self._conn.port.sendto(packet, self._destination)
+            elif self.spec.kind == "tcp":
+                self._conn.port.sendall(packet)
+            else:
+                self._conn.write(packet)
+        except OSError:
+            return False
+        return True
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self._conn.close()
+
+
+def open_endpoint(spec: ConnectionSpec, owner: str, connect_timeout_s: float = 5.0) -> Endpoint:
+    """Open `spec` for the vehicle(s) named in `owner`; LinkError (one sentence) when that fails."""
+    try:
+        if spec.kind == "udpin":
+            return UdpRouter(spec)
+        return MavutilEndpoint(spec, connect_timeout_s)
+    except OSError as err:
+        reason = err.strerror or str(err)
+        raise LinkError(f"cannot open {owner}'s connection {spec.text}: {reason}") from err

@@ -1,0 +1,520 @@
+"""N vehicles over MAVLink in one single-threaded event loop, clocked by their telemetry.
+
+Flight loop (spec 8; the same code runs against hardware in real time and against the simulator in lockstep):
+
+    with Fleet(configs, origin, tlog_path=run_dir / "flight.tlog") as fleet:
+        fleet.connect(timeout_s=10)
+        ...preflight with fleet.request_streams_all / wait_ready / param_set_all / set_mode_all / arm_all...
+        while flying:
+            if not fleet.wait_tick(timeout_s=0.5):   # every alive vehicle sent a new GLOBAL_POSITION_INT
+                fleet.answer_frame()                 # keep a lockstep simulator going for the others
+                continue
+            roll, pitch, yaw, thrust = control(fleet.pos, fleet.vel, fleet.att)   # (N,) each, FLU/ENU
+            fleet.send_attitude_targets(roll, pitch, yaw, thrust)   # answers this tick's frame
+            fleet.answer_frame()                                    # answers vehicles not commanded
+
+Lockstep (team brief): the simulator waits until each frame is answered by SYSTEM_TIME / SET_ATTITUDE_TARGET
+/ SET_POSITION_TARGET_* carrying time_boot_ms >= the frame's. `wait_tick` and `pump` never answer (the flight
+loop does, after its commands); every blocking wait of the link (`connect`, `run`, `wait_until` and all
+`*_all` / per-vehicle blocking methods) answers each new frame itself when `lockstep_answers` is on.
+"""
+
+from __future__ import annotations
+
+import selectors
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gcs_swarm import frames
+from gcs_swarm.link.connection import (
+    ConnectionSpec,
+    Endpoint,
+    LinkError,
+    MAVLinkMessage,
+    UdpRouter,
+    open_endpoint,
+    parse_connection,
+)
+from gcs_swarm.link.tlog import TlogWriter
+from gcs_swarm.link.vehicle import (
+    Event,
+    FleetState,
+    Operation,
+    VehicleConfig,
+    VehicleLink,
+    telemetry_rates,
+    thrust_from_acc,
+)
+
+__all__ = [
+    "Fleet",
+    "LinkError",
+    "VehicleConfig",
+    "VehicleLink",
+    "Event",
+    "thrust_from_acc",
+    "telemetry_rates",
+]
+
+_POLL_S = 0.02  # longest single select() inside blocking waits; they return as soon as packets arrive
+_SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before connect refuses it
+
+
+class Fleet:
+    """MAVLink links to N vehicles and their state as arrays (row i = vehicles[i]).
+
+    origin: mission origin (lat deg, lon deg, alt m AMSL) of the local ENU frame.
+    loss_timeout_s: a vehicle is lost after this much fleet vehicle time without a packet, or after
+    `loss_wall_timeout_s` of wall time (default: the same value); it is regained at its next packet.
+    """
+
+    def __init__(
+        self,
+        vehicles: Sequence[VehicleConfig],
+        origin: frames.Origin,
+        gcs_sysid: int = 255,
+        gcs_compid: int = 190,
+        tlog_path: Path | None = None,
+        lockstep_answers: bool = True,
+        loss_timeout_s: float = 3.0,
+        loss_wall_timeout_s: float | None = None,
+    ) -> None:
+        _validate(vehicles, gcs_sysid, gcs_compid)
+        self.configs = list(vehicles)
+        self.lockstep_answers = lockstep_answers
+        self.loss_timeout_s = loss_timeout_s
+        self.loss_wall_timeout_s = loss_timeout_s if loss_wall_timeout_s is None else loss_wall_timeout_s
+        self.tlog_path = tlog_path
+        self.state = FleetState(len(self.configs), origin)
+        self.events: deque[Event] = deque(maxlen=10_000)
+        self.links = [
+            VehicleLink(i, cfg, self.state, self.events, self._run_one, gcs_sysid, gcs_compid)
+            for i, cfg in enumerate(self.configs)
+        ]
+        self._by_name = {link.name: link for link in self.links}
+        self._routes: dict[Endpoint, list[VehicleLink]] = {}
+        self._selector = selectors.DefaultSelector()
+        self._tlog: TlogWriter | None = None
+        self.unrouted = 0  # packets on a shared udpin endpoint from no configured vehicle
+
+    # ------------------------------------------------------------------ state arrays (copies)
+
+    @property
+    def names(self) -> list[str]:
+        return [link.name for link in self.links]
+
+    @property
+    def pos(self) -> NDArray[np.float64]:
+        """(N,3) ENU m around the origin, from GLOBAL_POSITION_INT."""
+        return self.state.pos.copy()
+
+    @property
+    def vel(self) -> NDArray[np.float64]:
+        """(N,3) ENU m/s."""
+        return self.state.vel.copy()
+
+    @property
+    def att(self) -> NDArray[np.float64]:
+        """(N,3) roll, pitch, yaw rad, body FLU in world ENU (yaw 0 = facing East)."""
+        return self.state.att.copy()
+
+    @property
+    def time_ms(self) -> NDArray[np.int64]:
+        """(N,) latest time_boot_ms of each vehicle (-1 before any)."""
+        return self.state.time_ms.copy()
+
+    @property
+    def alive(self) -> NDArray[np.bool_]:
+        return self.state.alive.copy()
+
+    @property
+    def armed(self) -> NDArray[np.bool_]:
+        return self.state.armed.copy()
+
+    @property
+    def mode(self) -> NDArray[np.int64]:
+        """(N,) ArduCopter custom_mode from HEARTBEAT (-1 unknown); names via vehicle.mode_name."""
+        return self.state.mode.copy()
+
+    @property
+    def ready(self) -> NDArray[np.bool_]:
+        """(N,) usable position estimate and pre-arm checks passing (EKF_STATUS_REPORT, SYS_STATUS)."""
+        return self.state.ready.copy()
+
+    @property
+    def landed_state(self) -> NDArray[np.int64]:
+        """(N,) MAV_LANDED_STATE from EXTENDED_SYS_STATE (0 undefined, 1 on ground, 2 in air, ...)."""
+        return self.state.landed_state.copy()
+
+    @property
+    def system_status(self) -> NDArray[np.int64]:
+        """(N,) MAV_STATE from HEARTBEAT (-1 unknown)."""
+        return self.state.system_status.copy()
+
+    def vehicle(self, key: int | str) -> VehicleLink:
+        """The link of vehicle `key` (index or name)."""
+        if isinstance(key, str):
+            if key in self._by_name:
+                return self._by_name[key]
+        elif 0 <= key < len(self.links):
+            return self.links[key]
+        raise LinkError(f"there is no vehicle {key!r} (vehicles: {', '.join(self.names)})")
+
+    def stats(self) -> dict[str, dict[str, int]]:
+        """Per-vehicle packet counters (received, sent, bad, ignored, lost, unsent)."""
+        return {link.name: asdict(link.counters) for link in self.links}
+
+    # ------------------------------------------------------------------ connection
+
+    def connect(self, timeout_s: float = 10.0) -> None:
+        """Open every endpoint and wait for each vehicle's HEARTBEAT; refuse sysid mismatches/duplicates."""
+        if self._routes:
+            raise RuntimeError("the fleet is already connected")
+        try:
+            self._open_endpoints(connect_timeout_s=min(timeout_s, 5.0))
+            if self.tlog_path is not None:
+                self._tlog = TlogWriter(self.tlog_path)
+                for link in self.links:
+                    link.tlog = self._tlog
+            deadline = time.monotonic() + timeout_s
+            while True:
+                self._check_identities()
+                if all(link.sysid is not None for link in self.links):
+                    break
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    self._check_identities(wrong_sysid_heartbeats=1)
+                    missing = [f"{v.name} ({v.config.connection})" for v in self.links if v.sysid is None]
+                    raise LinkError(
+                        f"no HEARTBEAT within {timeout_s:g} s from {', '.join(missing)}; "
+                        "is it running and reachable?"
+                    )
+                self._pump_answering(min(remaining, _POLL_S))
+            for link in self.links:
+                if link.state.time_ms[link.index] < 0:
+                    link.request_message("SYSTEM_TIME")  # learn the frame time to answer in lockstep
+        except BaseException:
+            self.close()
+            raise
+
+    def _open_endpoints(self, connect_timeout_s: float) -> None:
+        groups: dict[tuple[str, str, int], tuple[ConnectionSpec, list[VehicleLink]]] = {}
+        for link in self.links:
+            try:
+                spec = parse_connection(link.config.connection)
+            except ValueError as err:
+                raise LinkError(f"{link.name}: {err}") from None
+            groups.setdefault(spec.key, (spec, []))[1].append(link)
+        for spec, members in groups.values():
+            names = ", ".join(m.name for m in members)
+            if len(members) > 1 and spec.kind != "udpin":
+                raise LinkError(
+                    f"{names} share the connection {spec.text}; "
+                    "only a udpin endpoint can serve several vehicles"
+                )
+            if len(members) > 1 and any(m.config.sysid is None for m in members):
+                raise LinkError(
+                    f"{names} share {spec.text}: give each of them its sysid so they can be told apart"
+                )
+            endpoint = open_endpoint(spec, names, connect_timeout_s)
+            self._routes[endpoint] = members
+            self._selector.register(endpoint.fileno(), selectors.EVENT_READ, endpoint)
+            for member in members:
+                member.endpoint = endpoint
+
+    def _check_identities(self, wrong_sysid_heartbeats: int = _SYSID_CONFLICT_HEARTBEATS) -> None:
+        by_sysid: dict[int, VehicleLink] = {}
+        for link in self.links:
+            conn = link.config.connection
+            if link.sysid is not None:
+                other = by_sysid.setdefault(link.sysid, link)
+                if other is not link:
+                    raise LinkError(
+                        f"{other.name} ({other.config.connection}) and {link.name} ({conn}) both report "
+                        f"sysid {link.sysid}; give each vehicle its own SYSID_THISMAV"
+                    )
+            elif link.config.sysid is not None:
+                wrong = [s for s, n in link.foreign_heartbeats.items() if n >= wrong_sysid_heartbeats]
+                if wrong:
+                    raise LinkError(
+                        f"{link.name} ({conn}) reports sysid {wrong[0]}, but the mission gives it sysid "
+                        f"{link.config.sysid}"
+                    )
+            endpoint = link.endpoint
+            wanted = link.sysid if link.sysid is not None else link.config.sysid
+            if isinstance(endpoint, UdpRouter) and wanted is not None:
+                addresses = endpoint.addresses.get(wanted, [])
+                if len(addresses) > 1:
+                    shown = ", ".join(f"{host}:{port}" for host, port in addresses)
+                    raise LinkError(
+                        f"{link.name}'s sysid {wanted} is heard from several addresses on {conn} ({shown}); "
+                        "two vehicles share that sysid"
+                    )
+
+    def close(self) -> None:
+        """Close every endpoint and the tlog (idempotent)."""
+        for endpoint in self._routes:
+            endpoint.close()
+        self._routes.clear()
+        self._selector.close()
+        self._selector = selectors.DefaultSelector()
+        if self._tlog is not None:
+            self._tlog.close()
+            self._tlog = None
+
+    def __enter__(self) -> Fleet:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ event loop
+
+    def pump(self, timeout_s: float = 0.0) -> None:
+        """Wait up to `timeout_s` for packets, decode all that are readable, send due heartbeats, detect loss.
+
+        Never answers lockstep frames (see the module doc).
+        """
+        if not self._routes:
+            raise RuntimeError("the fleet is not connected")
+        if self._selector.get_map():
+            ready = self._selector.select(max(timeout_s, 0.0))
+        else:  # every stream endpoint was closed by its peer
+            ready = []
+            time.sleep(max(timeout_s, 0.0))
+        now = time.monotonic()
+        for key, _ in ready:
+            endpoint: Endpoint = key.data
+            for msg, peer in endpoint.receive():
+                self._deliver(endpoint, msg, peer, now)
+            if endpoint.closed:
+                self._selector.unregister(key.fd)
+                for link in self._routes[endpoint]:
+                    link.add_event(f"connection {endpoint.spec.text} closed by the peer")
+        for link in self.links:
+            if link.endpoint is not None:
+                link.heartbeat_if_due(now)
+                link.check_loss(now, self.loss_timeout_s, self.loss_wall_timeout_s)
+
+    def _deliver(self, endpoint: Endpoint, msg: MAVLinkMessage, peer: Any, now: float) -> None:
+        bad = msg.get_type() == "BAD_DATA"
+        if self._tlog is not None and not bad:
+            self._tlog.write(msg.get_msgbuf())
+        members = self._routes[endpoint]
+        if len(members) == 1:
+            members[0].handle(msg, now)
+            return
+        assert isinstance(endpoint, UdpRouter)
+        sysid = endpoint.sysid_of.get(peer) if bad else msg.get_srcSystem()
+        for link in members:
+            if link.config.sysid == sysid:
+                link.handle(msg, now)
+                return
+        self.unrouted += 1
+
+    def _pump_answering(self, timeout_s: float) -> None:
+        self.pump(timeout_s)
+        if self.lockstep_answers:
+            self.answer_frame()
+
+    def wait_tick(self, timeout_s: float) -> bool:
+        """Pump until every alive vehicle has a GLOBAL_POSITION_INT newer than its last tick or lockstep
+        answer (True), or `timeout_s` passes (False). Does not answer: the caller does, after its commands."""
+        deadline = time.monotonic() + timeout_s
+        st = self.state
+        while True:
+            alive = st.alive
+            if alive.any() and bool(np.all((st.position_ms > st.tick_ms) | ~alive)):
+                st.tick_ms[alive] = st.position_ms[alive]
+                return True
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            self.pump(remaining)
+
+    def wait_until(self, predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
+        """Pump (answering frames) until `predicate()`; LinkError "timed out after T s waiting for {what}"."""
+        deadline = time.monotonic() + timeout_s
+        while not predicate():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise LinkError(f"timed out after {timeout_s:g} s waiting for {what}")
+            self._pump_answering(min(remaining, _POLL_S))
+
+    def run(self, ops: Iterable[Operation[Any]], strict: bool = True) -> list[Any]:
+        """Drive several vehicle operations together, pumping (and answering frames) between their steps.
+
+        Returns their results in order. strict: raise one LinkError naming every failure; otherwise a
+        failed operation's slot holds its LinkError.
+        """
+        ops = list(ops)
+        results: list[Any] = [None] * len(ops)
+        pending = list(range(len(ops)))
+        while pending:
+            still = []
+            for k in pending:
+                try:
+                    next(ops[k])
+                    still.append(k)
+                except StopIteration as stop:
+                    results[k] = stop.value
+                except LinkError as err:
+                    results[k] = err
+            pending = still
+            if pending:
+                self._pump_answering(_POLL_S)
+        errors = [r for r in results if isinstance(r, LinkError)]
+        if strict and errors:
+            raise errors[0] if len(errors) == 1 else LinkError("; ".join(str(e) for e in errors))
+        return results
+
+    def _run_one(self, op: Operation[Any]) -> Any:
+        return self.run([op])[0]
+
+    # ------------------------------------------------------------------ flight-loop output
+
+    def answer_frame(self, mask: ArrayLike | None = None) -> None:
+        """SYSTEM_TIME answer to each vehicle (in `mask`, default all) whose latest frame is unanswered.
+
+        An answered frame is consumed: the next `wait_tick` waits for a newer one from that vehicle.
+        """
+        selected = self._mask(mask)
+        for link in self.links:
+            if selected[link.index] and link.endpoint is not None:
+                link.answer_frame()
+
+    def send_attitude_targets(
+        self,
+        roll: ArrayLike,
+        pitch: ArrayLike,
+        yaw: ArrayLike,
+        thrust: ArrayLike,
+        mask: ArrayLike | None = None,
+    ) -> None:
+        """SET_ATTITUDE_TARGET to each connected vehicle in `mask` (default all), echoing its time_boot_ms.
+
+        roll, pitch, yaw: (N,) rad, body FLU in world ENU (spec 1.1); thrust: (N,) normalised, clipped to
+        [0, 1] (see `thrust_from_acc`). A NaN or inf in a selected row is a bug upstream: ValueError naming
+        the vehicles, and nothing is sent to any vehicle (each keeps its previous target until the caller
+        decides, e.g. BRAKE).
+        """
+        n = len(self.links)
+        euler = np.stack(
+            np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (roll, pitch, yaw))), axis=-1
+        )
+        thr = np.broadcast_to(np.asarray(thrust, dtype=float), (n,))
+        if euler.shape != (n, 3):
+            raise ValueError(f"attitude targets need shape ({n},) per angle, got {euler.shape[:-1]}")
+        selected = self._mask(mask)
+        bad = selected & ~(np.all(np.isfinite(euler), axis=1) & np.isfinite(thr))
+        if bad.any():
+            names = ", ".join(self.links[i].name for i in np.flatnonzero(bad))
+            raise ValueError(f"non-finite attitude target for {names}; nothing sent")
+        q = frames.attitude_target_quaternion(euler)
+        for link in self.links:
+            i = link.index
+            if selected[i] and link.sysid is not None:
+                link.send_attitude_quaternion(q[i], float(thr[i]))
+
+    def _mask(self, mask: ArrayLike | None) -> NDArray[np.bool_]:
+        n = len(self.links)
+        if mask is None:
+            return np.ones(n, dtype=bool)
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != (n,):
+            raise ValueError(f"vehicle mask needs shape ({n},), got {m.shape}")
+        return m
+
+    # ------------------------------------------------------------------ fleet-wide operations
+
+    def select(self, vehicles: Iterable[int | str] | None = None) -> list[VehicleLink]:
+        """Links for `vehicles` (indices or names); None = every vehicle whose link is alive."""
+        if vehicles is None:
+            return [link for link in self.links if self.state.alive[link.index]]
+        return [self.vehicle(v) for v in vehicles]
+
+    def wait_ready(self, timeout_s: float, vehicles: Iterable[int | str] | None = None) -> None:
+        """Wait until each vehicle (default: all) is ready to arm; LinkError naming the others and why."""
+        links = self.links if vehicles is None else self.select(vehicles)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            reasons = [(link, link.not_ready_reason()) for link in links]
+            late = [(link, why) for link, why in reasons if why is not None]
+            if not late:
+                return
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                detail = "; ".join(f"{link.name}: {why}" for link, why in late)
+                raise LinkError(f"not ready to fly after {timeout_s:g} s: {detail}")
+            self._pump_answering(min(remaining, _POLL_S))
+
+    def request_streams_all(
+        self,
+        control_hz: float,
+        status_hz: float = 2.0,
+        local_position: bool = False,
+        vehicles: Iterable[int | str] | None = None,
+    ) -> None:
+        """SET_MESSAGE_INTERVAL for the telemetry the ground station uses (see `telemetry_rates`)."""
+        rates = telemetry_rates(control_hz, status_hz, local_position)
+        self.run(link.op_request_streams(rates) for link in self.select(vehicles))
+
+    def set_mode_all(self, mode: str | int, vehicles: Iterable[int | str] | None = None) -> None:
+        """Set an ArduCopter mode on each vehicle, confirmed by HEARTBEAT."""
+        self.run(link.op_set_mode(mode) for link in self.select(vehicles))
+
+    def arm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
+        self.run(link.op_arm(force) for link in self.select(vehicles))
+
+    def disarm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
+        self.run(link.op_disarm(force) for link in self.select(vehicles))
+
+    def takeoff_all(self, alt_m: ArrayLike, vehicles: Iterable[int | str] | None = None) -> None:
+        """MAV_CMD_NAV_TAKEOFF; alt_m (m above each home) is a scalar or one value per selected vehicle."""
+        links = self.select(vehicles)
+        alts = np.broadcast_to(np.asarray(alt_m, dtype=float), (len(links),))
+        self.run(link.op_takeoff(float(a)) for link, a in zip(links, alts, strict=True))
+
+    def land_all(self, vehicles: Iterable[int | str] | None = None) -> None:
+        self.set_mode_all("LAND", vehicles)
+
+    def param_set_all(self, name: str, value: float, vehicles: Iterable[int | str] | None = None) -> None:
+        """Set and read back a parameter on each vehicle."""
+        self.run(link.op_param_set(name, value) for link in self.select(vehicles))
+
+    def param_get_all(self, name: str, vehicles: Iterable[int | str] | None = None) -> NDArray[np.float64]:
+        """Read a parameter from each vehicle, in selection order."""
+        return np.array(self.run(link.op_param_get(name) for link in self.select(vehicles)), dtype=float)
+
+
+def _validate(vehicles: Sequence[VehicleConfig], gcs_sysid: int, gcs_compid: int) -> None:
+    if not vehicles:
+        raise LinkError("the fleet needs at least one vehicle")
+    if not (1 <= gcs_sysid <= 255 and 0 <= gcs_compid <= 255):
+        raise LinkError(
+            f"ground station sysid {gcs_sysid} / compid {gcs_compid} out of range (1-255 / 0-255)"
+        )
+    names: set[str] = set()
+    sysids: dict[int, str] = {}
+    for cfg in vehicles:
+        if not cfg.name or cfg.name in names:
+            raise LinkError(f"vehicle name {cfg.name!r} is empty or used twice")
+        names.add(cfg.name)
+        if cfg.sysid is not None:
+            if not 1 <= cfg.sysid <= 254 or cfg.sysid == gcs_sysid:
+                raise LinkError(
+                    f"{cfg.name}: sysid {cfg.sysid} must be 1-254 and differ from the ground station's"
+                )
+            if cfg.sysid in sysids:
+                raise LinkError(f"{sysids[cfg.sysid]} and {cfg.name} are both given sysid {cfg.sysid}")
+            sysids[cfg.sysid] = cfg.name

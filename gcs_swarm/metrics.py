@@ -1,0 +1,183 @@
+"""Run metrics with the spec's definitions (spec 10), as pure functions of logged arrays.
+
+Times `t` (T,) s, increasing; positions (T, N, D) m; velocities (T, D) or (T, N, D) m/s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs_swarm.guidance.formation import slot_positions
+
+
+def reach_time(t: np.ndarray, distance: np.ndarray, r_goal: float, hold_s: float = 2.0) -> float | None:
+    """Start of the first interval with distance (T,) <= r_goal held continuously for hold_s s, else None
+    (spec 10 "reached destination"; r_goal 0.5 m for the 2-D planner, 1.0 m for formation runs)."""
+    inside = np.asarray(distance) <= r_goal
+    if not inside.any():
+        return None
+    # Runs of consecutive inside samples: starts where inside begins, ends where it stops.
+    edges = np.diff(np.concatenate([[False], inside, [False]]).astype(np.int8))
+    starts = np.flatnonzero(edges == 1)
+    ends = np.flatnonzero(edges == -1) - 1
+    held = t[ends] - t[starts] >= hold_s - 1e-9
+    return float(t[starts[np.argmax(held)]]) if held.any() else None
+
+
+def heading_extrema(
+    t: np.ndarray, vel: np.ndarray, min_speed: float = 0.5, swing_deg: float = 5.0
+) -> np.ndarray:
+    """Times (E,) of the interior extrema of the unwrapped heading chi = atan2(v_y, v_x), on samples with
+    |v_xy| >= min_speed, with hysteresis: an extremum counts once the heading has swung back by swing_deg
+    (spec 10 "oscillation time")."""
+    vel = np.asarray(vel, dtype=float)
+    moving = np.hypot(vel[:, 0], vel[:, 1]) >= min_speed
+    if moving.sum() < 3:
+        return np.zeros(0)
+    times = np.asarray(t)[moving]
+    chi = np.unwrap(np.arctan2(vel[moving, 1], vel[moving, 0]))
+    swing = math.radians(swing_deg)
+    found: list[int] = []
+    hi_idx = lo_idx = 0
+    direction = 0  # +1 tracking a maximum, -1 a minimum, 0 not yet known
+    for k in range(1, len(chi)):
+        if chi[k] > chi[hi_idx]:
+            hi_idx = k
+        if chi[k] < chi[lo_idx]:
+            lo_idx = k
+        if direction >= 0 and chi[hi_idx] - chi[k] >= swing:
+            if hi_idx > 0:
+                found.append(hi_idx)
+            direction, lo_idx = -1, k
+        elif direction <= 0 and chi[k] - chi[lo_idx] >= swing:
+            if lo_idx > 0:
+                found.append(lo_idx)
+            direction, hi_idx = 1, k
+    return times[np.array(found, dtype=int)]
+
+
+def oscillation(
+    t: np.ndarray, vel: np.ndarray, min_speed: float = 0.5, swing_deg: float = 5.0
+) -> tuple[float, int]:
+    """Oscillation time T_osc (s, last minus first interior heading extremum, 0 if fewer than two) and the
+    heading reversal count (spec 10)."""
+    ext = heading_extrema(t, vel, min_speed, swing_deg)
+    return (float(ext[-1] - ext[0]) if len(ext) >= 2 else 0.0), len(ext)
+
+
+def path_length(p: np.ndarray) -> float:
+    """Length of a polyline (T, D), m."""
+    return float(np.linalg.norm(np.diff(np.asarray(p, dtype=float), axis=0), axis=1).sum())
+
+
+def min_separation(p: np.ndarray) -> float:
+    """d_min = min over t and i < j of |p_i - p_j| from (T, N, D); inf for fewer than 2 vehicles (spec 10)."""
+    p = np.asarray(p, dtype=float)
+    n = p.shape[1]
+    if n < 2:
+        return math.inf
+    iu, ju = np.triu_indices(n, k=1)
+    best = math.inf
+    chunk = max(1, 2_000_000 // len(iu))
+    for s in range(0, len(p), chunk):
+        block = p[s : s + chunk]
+        d = np.linalg.norm(block[:, iu] - block[:, ju], axis=-1)
+        best = min(best, float(np.nanmin(d)))
+    return best
+
+
+def min_obstacle_clearance(
+    p: np.ndarray, centres: np.ndarray, radii: np.ndarray, l_arm: float = 0.175
+) -> tuple[float, bool]:
+    """c_min = min over t, i, k of |p_i - c_k(t)| - r_k and the collision flag c_min <= l_arm (spec 10).
+
+    p (T, N, D); centres (K, D) static or (T, K, D) moving; radii (K,). Without obstacles: (inf, False).
+    """
+    p = np.asarray(p, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    if radii.size == 0:
+        return math.inf, False
+    c = np.asarray(centres, dtype=float)
+    c = np.broadcast_to(c, (p.shape[0],) + c.shape) if c.ndim == 2 else c
+    d = np.linalg.norm(p[:, :, None, :] - c[:, None, :, :], axis=-1) - radii
+    c_min = float(np.nanmin(d))
+    return c_min, c_min <= l_arm
+
+
+@dataclass(frozen=True)
+class FormationError:
+    """e_F (T, N) m per sample and vehicle; t_settle s (None if never settled); max and RMS over the window
+    [t_settle, end] (the whole run if never settled)."""
+
+    error: np.ndarray
+    t_settle: float | None
+    max: float
+    rms: float
+
+
+def formation_error(
+    t: np.ndarray,
+    p: np.ndarray,
+    leader: int,
+    psi_leader: np.ndarray,
+    offsets: np.ndarray,
+    settle_threshold: float = 1.0,
+) -> FormationError:
+    """e_F,i(t) = |p_i(t) - s_i(t)| with slots from the leader's actual position and psi_L (spec 10).
+
+    p (T, N, 3); psi_leader (T,) rad; offsets (N, 3) leader frame. Settled when max_i e_F,i <= threshold for
+    the rest of the run.
+    """
+    p = np.asarray(p, dtype=float)
+    slots = slot_positions(p[:, leader, :], psi_leader, offsets)
+    err = np.linalg.norm(p - slots, axis=-1)
+    worst = err.max(axis=1)
+    above = np.flatnonzero(worst > settle_threshold)
+    if len(above) == 0:
+        first = 0
+    elif above[-1] + 1 < len(t):
+        first = int(above[-1] + 1)
+    else:
+        first = -1
+    window = err if first < 0 else err[first:]
+    return FormationError(
+        error=err,
+        t_settle=None if first < 0 else float(t[first]),
+        max=float(window.max()),
+        rms=float(np.sqrt(np.mean(window * window))),
+    )
+
+
+def settling_time(t: np.ndarray, y: np.ndarray, y_abs: float) -> float:
+    """Smallest t_s with |y - y_ss| <= max(0.02 |y(0) - y_ss|, y_abs) from t_s on; y_ss = mean of the last
+    10 % of the run (spec 10). y (T,)."""
+    y = np.asarray(y, dtype=float)
+    y_ss = float(np.mean(y[-max(1, len(y) // 10) :]))
+    band = max(0.02 * abs(y[0] - y_ss), y_abs)
+    outside = np.flatnonzero(np.abs(y - y_ss) > band)
+    if len(outside) == 0:
+        return float(t[0])
+    return float(t[min(outside[-1] + 1, len(t) - 1)])
+
+
+def chattering_amplitude(
+    t: np.ndarray, y: np.ndarray, window: tuple[float, float], ma_s: float = 1.0
+) -> float:
+    """Peak-to-peak of y - MA(y) inside window (t0, t1) s; MA is a centred moving average over ma_s s,
+    narrowed symmetrically near the ends of the log so trends leave no residual (spec 10). Uniform sampling,
+    y (T,)."""
+    y = np.asarray(y, dtype=float)
+    t = np.asarray(t, dtype=float)
+    sel = (t >= window[0]) & (t <= window[1])
+    if not sel.any():
+        raise ValueError(f"no samples inside the window {window}")
+    dt = float(np.median(np.diff(t)))
+    k = np.arange(len(y))
+    half = np.minimum(max(1, int(round(ma_s / dt / 2.0))), np.minimum(k, len(y) - 1 - k))
+    sums = np.concatenate([[0.0], np.cumsum(y)])
+    avg = (sums[k + half + 1] - sums[k - half]) / (2 * half + 1)
+    resid = (y - avg)[sel]
+    return float(resid.max() - resid.min())

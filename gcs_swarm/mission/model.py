@@ -1,0 +1,226 @@
+"""What a mission file describes, as frozen dataclasses (local ENU metres, seconds; degrees where `_deg`).
+
+Vectors are read-only float numpy arrays of shape (3,). Equality compares arrays by value, so two loads of the
+same file compare equal. The loader (`gcs_swarm.mission.loader`) is the only code that builds these from text.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gcs_swarm.guidance.params import (
+    FieldParams,
+    Limits,
+    PIDParams,
+    ReferenceParams,
+    SeparationParams,
+    SMCParams,
+)
+
+
+def frozen_vector(values: Any) -> np.ndarray:
+    """A read-only float64 copy of `values` (any shape)."""
+    array = np.array(values, dtype=float)
+    array.flags.writeable = False
+    return array
+
+
+def _same(a: object, b: object) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and np.array_equal(a, b)
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    return bool(a == b)
+
+
+class _ValueEquality:
+    """Field-by-field equality that compares numpy arrays by value (dataclass eq would raise on them)."""
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(
+            _same(getattr(self, f.name), getattr(other, f.name))
+            for f in dataclasses.fields(self)  # type: ignore[arg-type]
+        )
+
+    __hash__ = None  # type: ignore[assignment]  # arrays are unhashable
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Obstacle(_ValueEquality):
+    """A sphere (a circle in 2-D planning) moving at constant velocity (spec 2.1): c(t) = c0 + v*t."""
+
+    center: np.ndarray  # (3,) m, ENU, at t = 0
+    radius: float  # m
+    velocity: np.ndarray  # (3,) m/s, ENU
+
+    def center_at(self, t: float) -> np.ndarray:
+        """Centre (3,) in m at mission time t in s."""
+        return self.center + self.velocity * t
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StartState(_ValueEquality):
+    """Where the simulator spawns a vehicle (ENU m, m/s); yaw_deg counter-clockwise from East (spec 1.1)."""
+
+    position: np.ndarray  # (3,) m
+    velocity: np.ndarray  # (3,) m/s
+    yaw_deg: float
+
+
+@dataclasses.dataclass(frozen=True)
+class WindSpec:
+    """Steady wind plus turbulence, for the simulator."""
+
+    speed: float = 0.0  # m/s
+    direction_deg: float = 0.0  # direction the wind blows FROM, compass degrees (0 = north, 90 = east)
+    turbulence: float = 0.0  # m/s, standard deviation of the gusts
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class World(_ValueEquality):
+    """What the simulator needs from a mission."""
+
+    origin: tuple[float, float, float]  # lat deg, lon deg, alt m AMSL of the local ENU origin
+    starts: tuple[StartState, ...]  # in vehicle order (vehicle i has sysid i + 1 in the simulator)
+    obstacles: tuple[Obstacle, ...]
+    wind: WindSpec
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class VehicleSpec(_ValueEquality):
+    """One vehicle of the fleet."""
+
+    name: str
+    connection: str  # pymavlink connection string, e.g. "udpout:127.0.0.1:14541"
+    role: str  # "leader" | "follower"
+    sysid: int | None  # None: taken from the vehicle's HEARTBEAT
+    slot: (
+        np.ndarray | None
+    )  # (3,) m, explicit offset in the leader's heading frame (FLU); None: from the shape
+    start: StartState
+    target: np.ndarray | None  # (3,) m ENU, a follower's own final destination g_i (spec 8 step 1)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class FormationSpec(_ValueEquality):
+    """Formation shape and communication topology (spec 6)."""
+
+    shape: str  # "v" | "line" | "column" | "grid" | "offsets"
+    spacing: float  # m
+    angle_deg: float  # V half-angle
+    altitude: float  # m above the origin: take-off and formation altitude
+    topology: str  # "broadcast" | "relay"
+    adjacency: np.ndarray | None  # (N, N) 0/1 ints in vehicle order; A[i, j] = 1: vehicle i hears vehicle j
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulatorSpec:
+    """The simulator the ground station starts for this mission (when `embedded`)."""
+
+    embedded: bool
+    time_mode: str  # "lockstep" | "realtime" | "speedup"
+    speedup: float  # simulated seconds per wall second in "speedup" mode
+    seed: int
+    rate_hz: float  # physics rate
+    base_port: int  # vehicle i listens on base_port + i
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSpec:
+    """How a mission is flown."""
+
+    control_rate_hz: float
+    time_limit_s: float
+    goal_tolerance_m: float
+    hold_s: float
+    airborne_start: bool
+    takeoff_timeout_s: float
+    preflight_timeout_s: float  # s to wait for every vehicle's position estimate and pre-arm health
+    land_timeout_s: float  # s to wait, after LAND, until every vehicle has disarmed
+    simulator: SimulatorSpec
+
+
+@dataclasses.dataclass(frozen=True)
+class SafetySpec:
+    """Separation, altitude floor, geofence (a cylinder around the origin) and the GCS-loss failsafe."""
+
+    separation: SeparationParams
+    min_altitude: float  # m above the origin
+    geofence_radius: float  # m, horizontal, around the origin
+    geofence_max_alt: float  # m above the origin
+    collision_radius: float  # m, vehicle radius for collision checks (Table 2 arm length)
+    gcs_failsafe: str  # "rtl" | "land" | "off"
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PlannerSpec(_ValueEquality):
+    """The kinematic point-mass planner of `gcs-swarm plan` (spec 9.1, 11.3)."""
+
+    dimensions: int  # 2 (x, y only) or 3
+    dt: float  # s
+    time_limit_s: float
+    speed: float  # m/s cap
+    goal_radius: float  # m
+    step: str  # "proportional" | "constant" (spec 11.3)
+    start: np.ndarray | None  # (3,) m; None: the leader's start position
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Mission(_ValueEquality):
+    """A validated mission file."""
+
+    name: str
+    description: str
+    path: Path
+    origin: tuple[float, float, float]  # lat deg, lon deg, alt m AMSL
+    vehicles: tuple[VehicleSpec, ...]
+    formation: FormationSpec
+    goal: np.ndarray  # (3,) m ENU, the leader's final goal (= waypoints[-1])
+    waypoints: tuple[np.ndarray, ...]  # leader waypoints, ending at the goal
+    obstacles: tuple[Obstacle, ...]
+    wind: WindSpec
+    field: FieldParams
+    reference: ReferenceParams
+    controller: str  # "smc" | "pid"
+    smc: SMCParams
+    pid: PIDParams
+    limits: Limits
+    safety: SafetySpec
+    run: RunSpec
+    planner: PlannerSpec
+
+    @property
+    def leader_index(self) -> int:
+        """Index of the leader in `vehicles`."""
+        return next(i for i, v in enumerate(self.vehicles) if v.role == "leader")
+
+    def world(self) -> World:
+        """The simulator's view of this mission."""
+        return World(
+            origin=self.origin,
+            starts=tuple(v.start for v in self.vehicles),
+            obstacles=self.obstacles,
+            wind=self.wind,
+        )
+
+
+__all__ = [
+    "FormationSpec",
+    "Mission",
+    "Obstacle",
+    "PlannerSpec",
+    "RunSpec",
+    "SafetySpec",
+    "SimulatorSpec",
+    "StartState",
+    "VehicleSpec",
+    "WindSpec",
+    "World",
+    "frozen_vector",
+]

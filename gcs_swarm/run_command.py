@@ -1,0 +1,139 @@
+"""`gcs-swarm run MISSION.yaml`: fly a mission (against the embedded simulator or running vehicles), write
+the run folder (telemetry.tlog, truth.csv, record.csv, flight.json, report.json/md/png) and return the exit
+status: 0 flown and every vehicle reached its goal with no collision; 1 flown but failed; 2 user error.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.link.fleet import Fleet, LinkError, VehicleConfig
+from gcs_swarm.mission import Mission, MissionError, load_mission
+from gcs_swarm.report import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE, write_report
+from gcs_swarm.run_record import RunRecord
+from gcs_swarm.runner import FlightResult, MissionRunner, PreflightError, mission_offsets
+
+EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Command-line choices of `gcs-swarm run`."""
+
+    out_dir: Path | None = None
+    connect_only: bool = False
+    base_port: int | None = None
+    time_mode: str | None = None  # override of run.simulator.time_mode
+    seed: int | None = None
+    quiet: bool = False
+
+
+def default_run_dir(mission: Mission) -> Path:
+    return Path("runs") / f"{datetime.now().strftime('%Y%m%d-%H%M%S')}-{mission.name}"
+
+
+def vehicle_configs(mission: Mission, base_port: int | None) -> list[VehicleConfig]:
+    """Connection per vehicle: the mission's strings, or 127.0.0.1:base_port+i for the embedded simulator."""
+    return [
+        VehicleConfig(
+            name=v.name,
+            connection=v.connection if base_port is None else f"udpout:127.0.0.1:{base_port + i}",
+            sysid=v.sysid,
+        )
+        for i, v in enumerate(mission.vehicles)
+    ]
+
+
+def run_command(mission_path: str, options: RunOptions) -> int:
+    """The whole `run` command; prints progress and a summary."""
+    say = (lambda _msg: None) if options.quiet else (lambda msg: print(msg, flush=True))
+    try:
+        mission = load_mission(mission_path)
+    except MissionError as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
+    run_dir = options.out_dir or default_run_dir(mission)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    sim_spec = mission.run.simulator
+    embedded = sim_spec.embedded and not options.connect_only
+    base_port = (options.base_port or sim_spec.base_port) if embedded else None
+    sim: EmbeddedSimulator | None = None
+    wall0 = time.monotonic()
+    result = FlightResult()
+    runner: MissionRunner | None = None
+    status = EXIT_OK
+    say(f"run folder {run_dir}")
+    try:
+        if embedded:
+            assert base_port is not None
+            sim = EmbeddedSimulator(
+                mission,
+                base_port=base_port,
+                truth_log=run_dir / TRUTH_FILE,
+                time_mode=options.time_mode or sim_spec.time_mode,
+                speedup=sim_spec.speedup,
+                seed=sim_spec.seed if options.seed is None else options.seed,
+            )
+            sim.start()
+            say(f"embedded simulator up: {len(mission.vehicles)} vehicles on 127.0.0.1:{base_port}..")
+        with Fleet(
+            vehicle_configs(mission, base_port), mission.origin, tlog_path=run_dir / "telemetry.tlog"
+        ) as fleet:
+            record = RunRecord(run_dir / RECORD_FILE)
+            try:
+                runner = MissionRunner(mission, fleet, record, progress=say)
+                result = runner.run()
+            finally:
+                record.close()
+                if runner is not None:
+                    result = runner.result
+    except (MissionError, SimulatorError, PreflightError) as exc:
+        print(f"error: {exc}")
+        status = EXIT_USER_ERROR
+    except LinkError as exc:
+        print(f"error: {exc}")
+        status = (
+            EXIT_USER_ERROR if result.phase_reached in ("connect", "preflight", "launch") else EXIT_FAILED
+        )
+        result.events.append(str(exc))
+    except KeyboardInterrupt:
+        print("interrupted: stopping")
+        status = EXIT_FAILED
+        result.events.append("interrupted by the operator")
+    finally:
+        if sim is not None:
+            sim.stop()
+    flight = {
+        "mission": mission.name,
+        "mission_path": str(Path(mission_path).resolve()),
+        "phase_reached": result.phase_reached,
+        "arrived": result.arrived,
+        "t_formation_start": result.t_formation_start,
+        "t_formation_end": result.t_formation_end,
+        "final_targets": None if result.final_targets is None else np.asarray(result.final_targets).tolist(),
+        "offsets": mission_offsets(mission).tolist(),
+        "lost": result.lost,
+        "events": result.events,
+        "ticks": result.ticks,
+        "wall_duration_s": time.monotonic() - wall0,
+    }
+    (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
+    if status == EXIT_USER_ERROR or result.t_formation_start is None:
+        return status if status != EXIT_OK else EXIT_FAILED
+    report = write_report(run_dir, mission)
+    say(
+        f"reached={report['reached']} time_to_goal={report['time_to_goal_s']} s "
+        f"collisions={report['collisions']} "
+        f"min_separation={report['min_separation_m']} m min_clearance={report['min_obstacle_clearance_m']} m "
+        f"formation_rms={report['formation_rms_m']} m (from {report['source']})"
+    )
+    say(f"report: {run_dir / 'report.md'}")
+    ok = report["reached"] and report["collisions"] == 0 and not result.lost
+    return status if status != EXIT_OK else (EXIT_OK if ok else EXIT_FAILED)

@@ -1,0 +1,323 @@
+"""The mission run: connect -> preflight -> launch -> formation flight -> arrival -> land -> report.
+
+`MissionRunner.run()` flies the whole mission (the `run` command). The same object is tick-driven for the
+operator console: `step()` handles one telemetry tick in the current phase, and `hold()`, `resume()`,
+`abort()`, `set_goal()`, `set_formation()` change what the next ticks do. One tick of formation flight =
+read the fleet's telemetry arrays, FleetController.tick, send SET_ATTITUDE_TARGET to every active vehicle.
+Ticks are clocked by vehicle time (telemetry time_boot_ms), so the same code flies in real time against
+hardware and in lockstep against the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gcs_swarm.guidance.fleet_controller import Command, FleetController
+from gcs_swarm.guidance.formation import formation_offsets
+from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
+from gcs_swarm.mission import Mission
+from gcs_swarm.run_record import RunRecord
+
+FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5}  # ArduCopter FS_GCS_ENABLE values
+GUID_OPTIONS_THRUST = 8  # bit 3: SET_ATTITUDE_TARGET thrust is normalised collective thrust (not climb rate)
+PHASES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")
+
+
+class PreflightError(Exception):
+    """The fleet cannot be launched (one sentence naming the vehicle and why); nothing has flown."""
+
+
+@dataclass
+class FlightResult:
+    """What the run did, from the ground station's point of view (metrics come from report.py)."""
+
+    phase_reached: str = "connect"
+    arrived: bool = False
+    t_formation_start: float | None = None
+    t_arrival: float | None = None
+    t_formation_end: float | None = None
+    lost: list[str] = field(default_factory=list)
+    events: list[str] = field(default_factory=list)
+    ticks: int = 0
+    final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
+
+
+def mission_offsets(mission: Mission, shape: str | None = None, spacing: float | None = None) -> np.ndarray:
+    """Leader-frame slot offsets (N, 3): explicit `slot`s where given, else from the formation shape
+    (`shape`/`spacing` override the mission's, for a live reshape)."""
+    n = len(mission.vehicles)
+    form = mission.formation
+    shape = shape or form.shape
+    followers = [i for i in range(n) if i != mission.leader_index]
+    offsets = np.zeros((n, 3))
+    if shape != "offsets":
+        offsets[followers] = formation_offsets(shape, len(followers), spacing or form.spacing, form.angle_deg)
+    if shape == form.shape:
+        for i, v in enumerate(mission.vehicles):
+            if v.slot is not None:
+                offsets[i] = v.slot
+    return offsets
+
+
+def follower_targets(mission: Mission) -> np.ndarray | None:
+    """Final destinations g_i (N, 3) when every follower names one, else None (controller default)."""
+    targets = [v.target for i, v in enumerate(mission.vehicles) if i != mission.leader_index]
+    if not targets or any(t is None for t in targets):
+        return None
+    out = np.array([mission.goal if v.target is None else v.target for v in mission.vehicles], dtype=float)
+    out[mission.leader_index] = mission.goal
+    return out
+
+
+def build_controller(mission: Mission) -> FleetController:
+    """The guidance + control stack configured from the mission file."""
+    return FleetController(
+        n=len(mission.vehicles),
+        leader=mission.leader_index,
+        offsets=mission_offsets(mission),
+        goal_waypoints=np.array(mission.waypoints, dtype=float),
+        follower_targets=follower_targets(mission),
+        field=mission.field,
+        separation=mission.safety.separation,
+        reference=mission.reference,
+        limits=mission.limits,
+        controller=mission.controller,
+        smc=mission.smc,
+        pid=mission.pid,
+        adjacency=mission.formation.adjacency,
+        topology=mission.formation.topology,
+        control_dt=1.0 / mission.run.control_rate_hz,
+        z_min=mission.safety.min_altitude,
+    )
+
+
+class MissionRunner:
+    """Flies one mission over a Fleet. `progress` receives one-line status updates."""
+
+    def __init__(
+        self,
+        mission: Mission,
+        fleet: Fleet,
+        record: RunRecord | None,
+        progress: Callable[[str], None] = print,
+        progress_period_s: float = 1.0,
+    ) -> None:
+        self.mission = mission
+        self.fleet = fleet
+        self.record = record
+        self.progress = progress
+        self.progress_period_s = progress_period_s
+        self.result = FlightResult()
+        self.phase = "connect"
+        self.hover = np.full(len(mission.vehicles), 0.5)
+        self.controller = build_controller(mission)
+        self.last_command: Command | None = None
+        self.formation_rms = math.nan
+        self._hold_since: float | None = None
+        self._last_progress_wall = 0.0
+        self._obstacle_radii = np.array([o.radius for o in mission.obstacles], dtype=float)
+
+    # ----- the whole mission -----
+
+    def run(self) -> FlightResult:
+        """All phases; PreflightError / LinkError before launch, FlightResult after."""
+        self.connect()
+        self.preflight()
+        self.launch()
+        self.start_formation()
+        while self.phase in ("formation", "hold"):
+            self.step()
+        self.land()
+        return self.result
+
+    def connect(self) -> None:
+        self._set_phase("connect")
+        self.fleet.connect(timeout_s=30.0)
+
+    def preflight(self) -> None:
+        """Wait for position estimates and pre-arm health; set and verify params; hover thrust; streams."""
+        self._set_phase("preflight")
+        fleet, run = self.fleet, self.mission.run
+        try:
+            fleet.wait_ready(timeout_s=run.preflight_timeout_s)
+            fleet.param_set_all("GUID_OPTIONS", GUID_OPTIONS_THRUST)
+            fleet.param_set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[self.mission.safety.gcs_failsafe])
+            self.hover = fleet.param_get_all("MOT_THST_HOVER")
+            fleet.request_streams_all(run.control_rate_hz)
+        except LinkError as exc:
+            raise PreflightError(f"preflight failed: {exc}") from exc
+        bad = [name for name, h in zip(fleet.names, self.hover, strict=True) if not 0.05 < h < 0.95]
+        if bad:
+            raise PreflightError(f"MOT_THST_HOVER of {', '.join(bad)} is outside 0.05..0.95")
+
+    def launch(self) -> None:
+        """GUIDED, arm, take off to the formation altitude (each vehicle plus its slot's dz)."""
+        self._set_phase("launch")
+        fleet, mission = self.fleet, self.mission
+        try:
+            fleet.set_mode_all("GUIDED")
+            if mission.run.airborne_start:
+                return
+            fleet.arm_all()
+            alts = mission.formation.altitude + mission_offsets(mission)[:, 2]
+            fleet.takeoff_all(alts)
+        except LinkError as exc:
+            raise PreflightError(f"launch refused: {exc}") from exc
+        fleet.wait_until(
+            lambda: bool((fleet.pos[:, 2] >= alts - 0.5).all()),
+            timeout_s=mission.run.takeoff_timeout_s,
+            what="every vehicle at its takeoff altitude",
+        )
+
+    def start_formation(self) -> None:
+        """Initialise the guidance at the measured state and enter formation flight."""
+        fleet = self.fleet
+        if not fleet.wait_tick(timeout_s=10.0):
+            raise LinkError("no telemetry tick arrived after launch")
+        self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
+        self.result.t_formation_start = self.vehicle_time()
+        self._set_phase("formation")
+
+    def step(self, timeout_s: float = 5.0) -> bool:
+        """Handle one telemetry tick in the current phase; False if no tick arrived within timeout_s."""
+        fleet = self.fleet
+        if not fleet.wait_tick(timeout_s=timeout_s):
+            fleet.answer_frame()  # a silent vehicle must not stall the others' lockstep frames
+            self._note_lost()
+            if self.phase in ("formation", "hold") and not fleet.alive.any():
+                self.result.events.append("every vehicle stopped answering")
+                self._set_phase("land")
+            return False
+        self._note_lost()
+        if self.phase == "formation":
+            self._formation_tick()
+        elif self.phase == "hold":
+            for i in np.flatnonzero(fleet.alive):
+                fleet.vehicle(int(i)).hold()
+        fleet.answer_frame()  # vehicles not commanded this tick
+        return True
+
+    def land(self) -> None:
+        """LAND every reachable vehicle and wait until they disarm (auto-disarm after touchdown)."""
+        if self.phase != "land":
+            self._set_phase("land")
+        fleet = self.fleet
+        try:
+            fleet.land_all()
+        except LinkError as exc:
+            self.result.events.append(f"landing: {exc}")
+        try:
+            fleet.wait_until(
+                lambda: not bool((fleet.armed & fleet.alive).any()),
+                timeout_s=self.mission.run.land_timeout_s,
+                what="every vehicle disarmed after landing",
+            )
+        except LinkError as exc:
+            self.result.events.append(str(exc))
+        self._set_phase("done")
+
+    # ----- operator commands (console) -----
+
+    def hold(self) -> None:
+        """Every vehicle brakes and holds its position (GUIDED position targets) until resume()."""
+        if self.phase == "formation":
+            self._set_phase("hold")
+
+    def resume(self) -> None:
+        """Back to formation flight from the current state."""
+        if self.phase == "hold":
+            fleet = self.fleet
+            self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
+            self._hold_since = None
+            self._set_phase("formation")
+
+    def abort(self) -> None:
+        """Stop the mission: the caller lands every vehicle (phase 'land')."""
+        if self.phase in ("formation", "hold"):
+            self.result.events.append("aborted by the operator")
+            self._set_phase("land")
+
+    def set_goal(self, goal: np.ndarray) -> None:
+        """Move the leader's goal (3,) ENU m live."""
+        self.controller.set_goal(np.asarray(goal, dtype=float))
+        self._hold_since = None
+        self.result.events.append(f"goal moved to {np.round(goal, 2).tolist()}")
+
+    def set_formation(self, shape: str, spacing: float | None = None) -> None:
+        """Reshape in flight (inter-UAV avoidance stays active while vehicles change slots)."""
+        self.controller.set_offsets(mission_offsets(self.mission, shape, spacing))
+        self._hold_since = None
+        self.result.events.append(f"formation changed to {shape} {spacing or ''}".strip())
+
+    # ----- formation tick -----
+
+    def _formation_tick(self) -> None:
+        fleet, run, ctl = self.fleet, self.mission.run, self.controller
+        t = self.vehicle_time()
+        self.result.t_formation_end = t
+        active = fleet.alive
+        pos, vel, att = fleet.pos, fleet.vel, fleet.att
+        centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)
+        cmd = ctl.tick(t, pos, vel, att, centres, self._obstacle_radii, active)
+        thrust = thrust_from_acc(np.nan_to_num(cmd.thrust_acc), self.hover)
+        fleet.send_attitude_targets(cmd.roll_d, cmd.pitch_d, cmd.yaw_d, thrust, mask=active)
+        self.last_command = cmd
+        self.result.ticks += 1
+        if self.record is not None:
+            self.record.write_tick(t, self.phase, pos, vel, att, cmd, thrust, active)
+        targets = np.array(cmd.slots, dtype=float)
+        targets[self.mission.leader_index] = ctl.waypoints[-1]
+        self.result.final_targets = targets
+        errors = np.linalg.norm(pos - targets, axis=1)
+        followers = active.copy()
+        followers[self.mission.leader_index] = False
+        self.formation_rms = math.sqrt(float(np.mean(errors[followers] ** 2))) if followers.any() else 0.0
+        last_leg = cmd.waypoint_index == len(ctl.waypoints) - 1
+        if last_leg and bool((errors[active] <= run.goal_tolerance_m).all()):
+            self._hold_since = t if self._hold_since is None else self._hold_since
+            if t - self._hold_since >= run.hold_s:
+                self.result.arrived = True
+                self.result.t_arrival = self._hold_since
+                self._set_phase("land")
+                return
+        else:
+            self._hold_since = None
+        self._report_progress(t - (self.result.t_formation_start or t), cmd)
+        if t - (self.result.t_formation_start or t) > run.time_limit_s:
+            self.result.events.append(f"time limit {run.time_limit_s:g} s reached before arrival")
+            self._set_phase("land")
+
+    # ----- helpers -----
+
+    def vehicle_time(self) -> float:
+        """Vehicle time in s: the newest time_boot_ms among live vehicles."""
+        times = self.fleet.time_ms
+        alive = times[self.fleet.alive]
+        return float(alive.max() if alive.size else times.max()) / 1000.0
+
+    def _note_lost(self) -> None:
+        for i, name in enumerate(self.fleet.names):
+            if not self.fleet.alive[i] and name not in self.result.lost:
+                self.result.lost.append(name)
+                self.result.events.append(f"{name} lost")
+                self.progress(f"! {name} lost: the rest keep flying")
+
+    def _set_phase(self, name: str) -> None:
+        self.phase = name
+        self.result.phase_reached = name
+        self.progress(f"phase {name}")
+
+    def _report_progress(self, t: float, cmd: Command) -> None:
+        now = time.monotonic()
+        if now - self._last_progress_wall < self.progress_period_s:
+            return
+        self._last_progress_wall = now
+        self.progress(
+            f"t={t:7.1f} s  leader to goal {cmd.leader_goal_distance:8.1f} m  "
+            f"formation rms {self.formation_rms:6.2f} m"
+        )

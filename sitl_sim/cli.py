@@ -1,0 +1,248 @@
+"""`sitl-sim`: the command line of the simulator (a contract other tools rely on; docs/sitl.md).
+
+    sitl-sim --vehicles N [--base-port P=14540] [--bind 127.0.0.1] [--sysid-base 1]
+             [--speedup X | --lockstep] [--rate-hz 1000] [--home LAT,LON,ALT] [--mission FILE.yaml]
+             [--truth-log PATH] [--seed S]  (+ --lockstep-hz, --lockstep-timeout, --outer-hz,
+             --truth-rate-hz, --ready-delay)
+
+Prints one line per vehicle (index, sysid, UDP address), then READY, and runs until SIGINT/SIGTERM.
+Bad arguments: one line "sitl-sim: error: ..." and exit status 2; a port that cannot be bound: exit 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import math
+import signal
+import socket
+import sys
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from sitl_sim.clock import plan_timing
+from sitl_sim.simulator import SimConfig, Simulator
+from sitl_sim.world import Obstacles
+
+DEFAULT_HOME = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's default location (CMAC)
+LINE_SPACING_M = 5.0  # default start line along East
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with single-line errors: "sitl-sim: error: <message>" on stderr, exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def build_parser() -> OneLineParser:
+    """The argument parser (all options documented in --help)."""
+    parser = OneLineParser(
+        prog="sitl-sim", description="Simulated ArduCopter-like quadrotors speaking MAVLink 2."
+    )
+    parser.add_argument(
+        "--vehicles", type=int, help="number of vehicles N (default with --mission: its vehicles)"
+    )
+    parser.add_argument("--base-port", type=int, default=14540, help="vehicle i listens on UDP base-port+i")
+    parser.add_argument("--bind", default="127.0.0.1", help="IPv4 address to bind (default 127.0.0.1)")
+    parser.add_argument(
+        "--sysid-base", type=int, default=1, help="vehicle i has MAVLink system id sysid-base+i"
+    )
+    clock = parser.add_mutually_exclusive_group()
+    clock.add_argument("--speedup", type=float, default=1.0, help="run X times faster than real time")
+    clock.add_argument("--lockstep", action="store_true", help="advance only when the clients answer (docs)")
+    parser.add_argument("--lockstep-hz", type=float, default=50.0, help="lockstep frame rate (default 50)")
+    parser.add_argument(
+        "--lockstep-timeout",
+        type=float,
+        default=5.0,
+        help="wall s before a silent lockstep client is dropped",
+    )
+    parser.add_argument("--rate-hz", type=float, default=1000.0, help="physics rate, Hz (default 1000)")
+    parser.add_argument(
+        "--outer-hz", type=float, default=100.0, help="autopilot outer-loop rate, Hz (default 100)"
+    )
+    parser.add_argument("--home", help="LAT,LON,ALT of the local ENU origin (deg, deg, m AMSL)")
+    parser.add_argument("--mission", type=Path, help="mission YAML: start states, obstacles and wind")
+    parser.add_argument("--truth-log", type=Path, help="ground-truth CSV path (+ .obstacles.csv sidecar)")
+    parser.add_argument("--truth-rate-hz", type=float, default=50.0, help="truth-log samples per simulated s")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (wind turbulence)")
+    parser.add_argument(
+        "--ready-delay",
+        type=float,
+        default=5.0,
+        help="simulated s from boot until a position estimate (default 5)",
+    )
+    return parser
+
+
+def _check(parser: OneLineParser, ok: bool, message: str) -> None:
+    if not ok:
+        parser.error(message)
+
+
+def _finite_positive(value: float) -> bool:
+    return math.isfinite(value) and value > 0
+
+
+def parse_home(parser: OneLineParser, text: str) -> tuple[float, float, float]:
+    """LAT,LON,ALT -> floats, or a one-line error."""
+    try:
+        lat, lon, alt = (float(part) for part in text.split(","))
+    except ValueError:
+        parser.error(f"--home must be LAT,LON,ALT (three numbers), not {text!r}")
+    _check(parser, math.isfinite(lat) and -90.0 <= lat <= 90.0, f"--home latitude {lat:g} is not in -90..90")
+    _check(
+        parser, math.isfinite(lon) and -180.0 <= lon <= 180.0, f"--home longitude {lon:g} is not in -180..180"
+    )
+    _check(
+        parser,
+        math.isfinite(alt) and -1000.0 <= alt <= 10000.0,
+        f"--home altitude {alt:g} m is not plausible",
+    )
+    return lat, lon, alt
+
+
+def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
+    """Validate the arguments (one-line errors, exit 2) and load the mission's world."""
+    home = None
+    obstacles = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    wind = (0.0, 0.0, 0.0)
+    if args.mission is not None:
+        try:
+            from gcs_swarm.mission import MissionError, load_world
+        except ImportError as exc:
+            parser.error(f"--mission needs gcs_swarm.mission, which cannot be imported ({exc})")
+        try:
+            world = load_world(args.mission)
+        except MissionError as exc:
+            parser.error(str(exc))
+        except OSError as exc:
+            parser.error(f"cannot read mission {args.mission}: {exc.strerror or exc}")
+        n = len(world.starts)
+        _check(
+            parser, args.vehicles in (None, n), f"--vehicles {args.vehicles} but the mission has {n} vehicles"
+        )
+        start_pos = np.array([s.position for s in world.starts], dtype=float)
+        start_vel = np.array([s.velocity for s in world.starts], dtype=float)
+        start_yaw = np.radians([s.yaw_deg for s in world.starts])
+        if world.obstacles:
+            obstacles = Obstacles(
+                np.array([o.center for o in world.obstacles]),
+                np.array([o.radius for o in world.obstacles]),
+                np.array([o.velocity for o in world.obstacles]),
+            )
+        wind = (world.wind.speed, world.wind.direction_deg, world.wind.turbulence)
+        home = tuple(float(v) for v in world.origin)
+    else:
+        _check(parser, args.vehicles is not None, "--vehicles N is required without --mission")
+        n = args.vehicles
+        _check(parser, n >= 1, f"--vehicles must be >= 1, not {n}")
+        start_pos = np.column_stack((LINE_SPACING_M * np.arange(n), np.zeros(n), np.zeros(n)))
+        start_vel = np.zeros((n, 3))
+        start_yaw = np.full(n, math.pi / 2)  # facing north, like ArduPilot SITL
+    if args.home is not None:
+        home = parse_home(parser, args.home)
+    _check(parser, 1 <= args.sysid_base <= 255, f"--sysid-base must be in 1..255, not {args.sysid_base}")
+    _check(
+        parser, args.sysid_base + n - 1 <= 255, f"{n} vehicles from sysid {args.sysid_base} exceed sysid 255"
+    )
+    _check(parser, 1 <= args.base_port <= 65535, f"--base-port must be in 1..65535, not {args.base_port}")
+    _check(
+        parser, args.base_port + n - 1 <= 65535, f"{n} vehicles from port {args.base_port} exceed port 65535"
+    )
+    try:
+        ipaddress.IPv4Address(args.bind)
+    except ValueError:
+        parser.error(f"--bind must be an IPv4 address such as 127.0.0.1, not {args.bind!r}")
+    _check(
+        parser,
+        _finite_positive(args.speedup) and args.speedup <= 1e6,
+        "--speedup must be a number in (0, 1e6]",
+    )
+    _check(parser, _finite_positive(args.lockstep_hz), "--lockstep-hz must be > 0")
+    _check(parser, _finite_positive(args.lockstep_timeout), "--lockstep-timeout must be > 0 s")
+    _check(
+        parser,
+        _finite_positive(args.rate_hz) and args.rate_hz == round(args.rate_hz) and args.rate_hz <= 100000,
+        "--rate-hz must be a whole number of Hz in 1..100000",
+    )
+    _check(parser, _finite_positive(args.outer_hz), "--outer-hz must be > 0")
+    _check(parser, _finite_positive(args.truth_rate_hz), "--truth-rate-hz must be > 0")
+    _check(parser, args.seed >= 0, f"--seed must be >= 0, not {args.seed}")
+    _check(
+        parser,
+        math.isfinite(args.ready_delay) and 0 <= args.ready_delay <= 600,
+        "--ready-delay must be 0..600 s",
+    )
+    if args.truth_log is not None:
+        parent = args.truth_log.resolve().parent
+        _check(parser, parent.is_dir(), f"--truth-log directory {parent} does not exist")
+    try:
+        timing = plan_timing(
+            args.rate_hz, args.outer_hz, args.lockstep_hz if args.lockstep else None, args.truth_rate_hz
+        )
+    except ValueError as exc:
+        parser.error(str(exc))
+    return SimConfig(
+        base_port=args.base_port,
+        bind=args.bind,
+        sysid_base=args.sysid_base,
+        timing=timing,
+        speedup=args.speedup,
+        lockstep=args.lockstep,
+        lockstep_timeout=args.lockstep_timeout,
+        home=home or DEFAULT_HOME,
+        start_pos=start_pos,
+        start_vel=start_vel,
+        start_yaw=start_yaw,
+        obstacles=obstacles,
+        wind=wind,
+        truth_log=args.truth_log,
+        seed=args.seed,
+        ready_delay=args.ready_delay,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the simulator; returns the exit status (0 after SIGINT/SIGTERM)."""
+    parser = build_parser()
+    config = build_config(parser, parser.parse_args(argv))
+    try:
+        sim = Simulator(config)
+    except OSError as exc:
+        where = (
+            exc.filename
+            or f"udp {config.bind} ports {config.base_port}..{config.base_port + config.vehicles - 1}"
+        )
+        print(f"sitl-sim: error: cannot open {where}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    stop_requested = False
+
+    def request_stop(signum: int, frame: object) -> None:
+        nonlocal stop_requested
+        stop_requested = True
+
+    wake_read, wake_write = socket.socketpair()
+    wake_write.setblocking(False)
+    previous_fd = signal.set_wakeup_fd(wake_write.fileno())
+    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for endpoint in sim.endpoints:
+            print(
+                f"vehicle {endpoint.index} sysid {endpoint.sysid} udp {config.bind}:{config.base_port + endpoint.index}"
+            )
+        print("READY", flush=True)
+        sim.run(lambda: stop_requested, wake_read)
+        for line in sim.counters_report():
+            print(f"sitl-sim: {line}", file=sys.stderr)
+    finally:
+        sim.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        signal.set_wakeup_fd(previous_fd)
+        wake_read.close()
+        wake_write.close()
+    return 0

@@ -1,0 +1,135 @@
+"""Pacing of simulated time against the wall clock: real time, --speedup X, and --lockstep bookkeeping.
+
+Lockstep rule (docs/sitl.md): simulated time advances in frames of 1/--lockstep-hz. At each frame end the
+simulator emits the telemetry due, then waits until every lockstep client has answered the frame: a client
+(one peer address of one vehicle endpoint) answers by sending that vehicle a SYSTEM_TIME, SET_ATTITUDE_TARGET,
+SET_POSITION_TARGET_LOCAL_NED or SET_POSITION_TARGET_GLOBAL_INT whose time_boot_ms >= the frame's. Sending
+such a message with time_boot_ms > 0 makes a peer a lockstep client; one that stays silent for
+--lockstep-timeout wall seconds is dropped until it answers again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+MAX_LAG_S = 0.25  # wall seconds a paced run may fall behind before it stops trying to catch up
+
+
+class RealTimePacer:
+    """Maps simulated seconds to wall deadlines at `speedup` x real time; forgives lags above MAX_LAG_S."""
+
+    def __init__(self, speedup: float) -> None:
+        self.speedup = speedup
+        self.wall0: float | None = None
+        self.sim0 = 0.0
+
+    def restart(self, sim_t: float, wall_now: float) -> None:
+        """Anchor: simulated time sim_t corresponds to wall_now."""
+        self.sim0 = sim_t
+        self.wall0 = wall_now
+
+    def deadline(self, sim_t: float, wall_now: float) -> float:
+        """Wall time at which sim_t is due (re-anchored first if the run is more than MAX_LAG_S behind)."""
+        if self.wall0 is None:
+            self.restart(sim_t, wall_now)
+        assert self.wall0 is not None
+        due = self.wall0 + (sim_t - self.sim0) / self.speedup
+        if wall_now - due > MAX_LAG_S:
+            self.restart(sim_t, wall_now)
+            due = wall_now
+        return due
+
+
+@dataclass
+class LockstepClient:
+    """One lockstep client: the latest time_boot_ms it echoed, whether it was dropped for silence."""
+
+    answered_ms: int
+    dropped: bool = False
+
+
+class LockstepClients:
+    """Lockstep clients per (vehicle index, peer address)."""
+
+    def __init__(self, n: int, timeout_s: float) -> None:
+        self.n = n
+        self.timeout_s = timeout_s
+        self.clients: dict[tuple[int, tuple[str, int]], LockstepClient] = {}
+        self.first_seen_wall: float | None = None
+
+    def answer(self, vehicle: int, addr: tuple[str, int], time_boot_ms: int, wall_now: float) -> None:
+        """A qualifying message with time_boot_ms arrived from addr at vehicle (0 never registers a client)."""
+        client = self.clients.get((vehicle, addr))
+        if client is None:
+            if time_boot_ms <= 0:
+                return
+            client = self.clients[(vehicle, addr)] = LockstepClient(time_boot_ms)
+            if self.first_seen_wall is None:
+                self.first_seen_wall = wall_now
+        client.answered_ms = max(client.answered_ms, time_boot_ms)
+        if time_boot_ms > 0:
+            client.dropped = False
+
+    def active(self) -> list[tuple[tuple[int, tuple[str, int]], LockstepClient]]:
+        """Clients not dropped."""
+        return [(key, c) for key, c in self.clients.items() if not c.dropped]
+
+    def pending(self, frame_ms: int) -> list[tuple[int, tuple[str, int]]]:
+        """Active clients that have not answered frame_ms yet."""
+        return [key for key, c in self.active() if c.answered_ms < frame_ms]
+
+    def drop(self, keys: list[tuple[int, tuple[str, int]]]) -> None:
+        """Stop waiting for these clients until they answer again."""
+        for key in keys:
+            self.clients[key].dropped = True
+
+    def vehicle_answered(self, vehicle: int, frame_ms: int) -> bool:
+        """The vehicle has active lockstep clients and all of them answered frame_ms."""
+        answers = [c.answered_ms for (v, _), c in self.active() if v == vehicle]
+        return bool(answers) and min(answers) >= frame_ms
+
+    def every_vehicle_has_client(self) -> bool:
+        """Each vehicle endpoint has at least one active lockstep client."""
+        return {vehicle for (vehicle, _), _c in self.active()} >= set(range(self.n))
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Integer step counts that tie the loops together (all in physics steps of 1/rate_hz)."""
+
+    rate_hz: float
+    steps_per_tick: int  # physics steps per autopilot tick
+    ticks_per_frame: int  # autopilot ticks per lockstep frame (1 when not in lockstep)
+    steps_per_truth: int  # physics steps between truth-log samples
+
+    @property
+    def tick_s(self) -> float:
+        """Autopilot tick length, s."""
+        return self.steps_per_tick / self.rate_hz
+
+
+def plan_timing(rate_hz: float, outer_hz: float, lockstep_hz: float | None, truth_rate_hz: float) -> Timing:
+    """Choose the step counts; ValueError (one sentence naming the option) when the rates do not fit together.
+
+    The autopilot tick is rate_hz/outer_hz physics steps; in lockstep it is shortened, if needed, to the largest
+    divisor of the frame so that frames hold a whole number of ticks.
+    """
+
+    def steps(per_hz: float, option: str) -> int:
+        ratio = rate_hz / per_hz
+        if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
+            raise ValueError(f"--rate-hz ({rate_hz:g}) must be a whole multiple of {option} ({per_hz:g})")
+        return round(ratio)
+
+    steps_per_tick = steps(outer_hz, "--outer-hz")
+    ticks_per_frame = 1
+    if lockstep_hz is not None:
+        frame = steps(lockstep_hz, "--lockstep-hz")
+        steps_per_tick = max(d for d in range(1, min(steps_per_tick, frame) + 1) if frame % d == 0)
+        ticks_per_frame = frame // steps_per_tick
+    steps_per_truth = steps(truth_rate_hz, "--truth-rate-hz")
+    if steps_per_truth % steps_per_tick:
+        raise ValueError(
+            f"--truth-rate-hz ({truth_rate_hz:g}) must divide the autopilot rate ({rate_hz / steps_per_tick:g} Hz)"
+        )
+    return Timing(rate_hz, steps_per_tick, ticks_per_frame, steps_per_truth)

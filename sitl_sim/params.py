@@ -1,0 +1,116 @@
+"""ArduCopter-like parameters of N simulated vehicles (names, types, ranges as ArduCopter 4.6 where it has them).
+
+Values live in one (N, P) float64 array so the vectorised autopilot reads a whole column per parameter.
+Parameters are listed (PARAM_REQUEST_LIST, param_index) in alphabetical order. World parameters (SIM_WIND_*)
+describe the one shared world: setting them on any vehicle sets them on all.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+INT_TYPES = {
+    mavlink.MAV_PARAM_TYPE_INT8: (-128, 127),
+    mavlink.MAV_PARAM_TYPE_INT16: (-32768, 32767),
+    mavlink.MAV_PARAM_TYPE_INT32: (-(2**31), 2**31 - 1),
+}
+REAL32 = mavlink.MAV_PARAM_TYPE_REAL32
+INT8 = mavlink.MAV_PARAM_TYPE_INT8
+INT16 = mavlink.MAV_PARAM_TYPE_INT16
+INT32 = mavlink.MAV_PARAM_TYPE_INT32
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter: name (<= 16 chars), MAV_PARAM_TYPE, default, inclusive range, units, meaning."""
+
+    name: str
+    type: int
+    default: float
+    low: float
+    high: float
+    units: str
+    doc: str
+    world: bool = False  # shared by all vehicles (simulator world settings)
+
+
+def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
+    """The parameter table, alphabetical; MOT_THST_HOVER defaults to the airframe's true hover fraction."""
+    specs = (
+        ParamSpec("ANGLE_MAX", INT16, 3000, 1000, 8000, "cdeg", "maximum lean angle in all modes"),
+        ParamSpec("DISARM_DELAY", INT8, 10, 0, 127, "s", "auto-disarm after this long landed (0 = never)"),
+        ParamSpec("FS_GCS_ENABLE", INT8, 0, 0, 7, "", "GCS failsafe: 0 off, 1/2/3/6 RTL, 4/5 LAND, 7 BRAKE"),
+        ParamSpec("FS_GCS_TIMEOUT", REAL32, 5.0, 2.0, 120.0, "s", "GCS heartbeat loss before the failsafe"),
+        ParamSpec("GUID_OPTIONS", INT32, 0, 0, 65535, "", "bit 3 (8): SET_ATTITUDE_TARGET thrust is thrust"),
+        ParamSpec("GUID_TIMEOUT", REAL32, 3.0, 0.1, 5.0, "s", "guided velocity/attitude target timeout"),
+        ParamSpec("LAND_SPEED", INT16, 50, 30, 200, "cm/s", "final descent speed below 10 m"),
+        ParamSpec("MOT_THST_HOVER", REAL32, hover_fraction, 0.125, 0.6875, "", "hover thrust fraction"),
+        ParamSpec("PSC_POSXY_P", REAL32, 1.0, 0.5, 2.0, "1/s", "horizontal position P"),
+        ParamSpec("PSC_POSZ_P", REAL32, 1.0, 0.5, 3.0, "1/s", "vertical position P"),
+        ParamSpec("PSC_VELXY_I", REAL32, 1.0, 0.0, 4.0, "1/s^2", "horizontal velocity I"),
+        ParamSpec("PSC_VELXY_P", REAL32, 2.0, 0.1, 6.0, "1/s", "horizontal velocity P"),
+        ParamSpec("PSC_VELZ_I", REAL32, 2.0, 0.0, 10.0, "1/s^2", "vertical velocity I"),
+        ParamSpec("PSC_VELZ_P", REAL32, 5.0, 1.0, 8.0, "1/s", "vertical velocity P"),
+        ParamSpec("RTL_ALT", INT32, 1500, 200, 300000, "cm", "minimum return altitude above home"),
+        ParamSpec("SIM_WIND_DIR", REAL32, 0.0, 0.0, 360.0, "deg", "wind comes from (0 = north)", True),
+        ParamSpec("SIM_WIND_SPD", REAL32, 0.0, 0.0, 100.0, "m/s", "steady wind speed", True),
+        ParamSpec("SIM_WIND_TURB", REAL32, 0.0, 0.0, 20.0, "m/s", "turbulence standard deviation", True),
+        ParamSpec("SYSID_MYGCS", INT16, 255, 1, 255, "", "ground station sysid whose heartbeat counts"),
+        ParamSpec("SYSID_THISMAV", INT16, 1, 1, 255, "", "this vehicle's sysid (takes effect on restart)"),
+        ParamSpec("WPNAV_ACCEL", REAL32, 250.0, 50.0, 500.0, "cm/s^2", "horizontal acceleration limit"),
+        ParamSpec("WPNAV_SPEED", REAL32, 1000.0, 10.0, 2000.0, "cm/s", "horizontal speed to a target"),
+        ParamSpec("WPNAV_SPEED_DN", REAL32, 150.0, 10.0, 500.0, "cm/s", "descent speed"),
+        ParamSpec("WPNAV_SPEED_UP", REAL32, 250.0, 10.0, 1000.0, "cm/s", "climb speed"),
+    )
+    return tuple(sorted(specs, key=lambda s: s.name))
+
+
+class ParamTable:
+    """Parameter values of N vehicles: `values` (N, P) float64, column j belongs to specs[j]."""
+
+    def __init__(
+        self, n: int, specs: tuple[ParamSpec, ...], overrides: dict[str, np.ndarray | float]
+    ) -> None:
+        self.specs = specs
+        self.index = {spec.name: j for j, spec in enumerate(specs)}
+        self.values = np.array([[spec.default for spec in specs]] * n, dtype=float)
+        for name, value in overrides.items():
+            self.values[:, self.index[name]] = value
+
+    def __len__(self) -> int:
+        return len(self.specs)
+
+    def column(self, name: str) -> np.ndarray:
+        """(N,) current values of parameter `name` (a view)."""
+        return self.values[:, self.index[name]]
+
+    def value(self, i: int, name: str) -> float:
+        """Value of `name` on vehicle i."""
+        return float(self.values[i, self.index[name]])
+
+    def check(self, name: str, value: float) -> str | None:
+        """Why `value` cannot be stored in `name` (a short sentence), or None when it can."""
+        j = self.index.get(name)
+        if j is None:
+            return f"unknown parameter {name}"
+        spec = self.specs[j]
+        if not math.isfinite(value):
+            return f"{name}: not finite"
+        if spec.type in INT_TYPES and abs(value - round(value)) > 1e-6:
+            return f"{name}: must be an integer"
+        if not spec.low <= value <= spec.high:
+            return f"{name}: out of range {spec.low:g}..{spec.high:g}"
+        return None
+
+    def set(self, i: int, name: str, value: float) -> list[int]:
+        """Store a checked value; returns the vehicles whose value changed (all of them for world params)."""
+        j = self.index[name]
+        spec = self.specs[j]
+        stored = float(round(value)) if spec.type in INT_TYPES else float(np.float32(value))
+        rows = list(range(len(self.values))) if spec.world else [i]
+        self.values[rows, j] = stored
+        return rows

@@ -1,0 +1,328 @@
+"""The simulator process's main loop: N vehicles, their endpoints, the world, the clock, the truth log.
+
+One autopilot tick (outer loop, vectorised): autopilot.update -> physics for steps_per_tick steps (one fused
+call) -> collisions -> truth log sample when due -> telemetry due. Network input is read between ticks in
+real-time/speedup runs, and only at frame ends (while paused) in lockstep, so that a lockstep run depends on
+the clients' messages and the seed only, never on wall-clock timing. Single-threaded, selectors over all
+sockets.
+"""
+
+from __future__ import annotations
+
+import math
+import selectors
+import socket
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sitl_sim.autopilot import Autopilot
+from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
+from sitl_sim.dynamics import FleetDynamics, FleetState, QuadParams
+from sitl_sim.endpoint import VehicleEndpoint
+from sitl_sim.params import ParamTable, param_specs
+from sitl_sim.streams import Geodesy, StreamSchedule, TelemetryView
+from sitl_sim.truth_log import TruthLog
+from sitl_sim.wind import Wind
+from sitl_sim.world import Obstacles, find_collisions
+
+KEEPALIVE_S = 1.0  # wall seconds between HEARTBEATs while paused for lockstep clients
+FLUSH_LOG_S = 1.0  # wall seconds between truth-log flushes
+STAMPED_MESSAGES = (  # streams that carry time_boot_ms
+    mavlink.MAVLINK_MSG_ID_ATTITUDE,
+    mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+    mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,
+)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything a run needs (validated by the CLI). Arrays: start_pos, start_vel (N,3) ENU m, m/s;
+    start_yaw (N,) rad ENU. speedup applies when lockstep is False."""
+
+    base_port: int
+    bind: str
+    sysid_base: int
+    timing: Timing
+    speedup: float
+    lockstep: bool
+    lockstep_timeout: float
+    home: tuple[float, float, float]
+    start_pos: np.ndarray
+    start_vel: np.ndarray
+    start_yaw: np.ndarray
+    obstacles: Obstacles
+    wind: tuple[float, float, float]  # speed m/s, from-direction deg, turbulence m/s
+    truth_log: Path | None
+    seed: int
+    ready_delay: float
+
+    @property
+    def vehicles(self) -> int:
+        """Number of vehicles N."""
+        return len(self.start_pos)
+
+
+class Simulator:
+    """Owns the fleet and its sockets; `run` until stop() is true, then `close`."""
+
+    def __init__(self, config: SimConfig) -> None:
+        self.config = config
+        self.timing = config.timing
+        n = config.vehicles
+        quad = QuadParams()
+        self.sysids = config.sysid_base + np.arange(n)
+        speed, direction, turbulence = config.wind
+        direction = wind_from_degrees(direction)
+        self.params = ParamTable(
+            n,
+            param_specs(quad.hover_fraction),
+            {
+                "SYSID_THISMAV": self.sysids,
+                "SIM_WIND_SPD": speed,
+                "SIM_WIND_DIR": direction,
+                "SIM_WIND_TURB": turbulence,
+            },
+        )
+        state = FleetState.at_rest(config.start_pos, config.start_yaw, config.start_vel, quad)
+        self.dyn = FleetDynamics(n, quad, self.timing.rate_hz, state=state)
+        origin = state.pos.copy()
+        home = origin * np.array([1.0, 1.0, 0.0])
+        airborne = ~state.landed
+        self.autopilot = Autopilot(
+            self.dyn, self.params, origin, home, airborne, config.start_vel, config.ready_delay
+        )
+        self.wind = Wind(n, config.seed, speed, direction, turbulence)
+        self.obstacles = config.obstacles
+        self.geodesy = Geodesy(config.home)
+        self.streams = StreamSchedule(n, round(self.timing.tick_s * 1e6))
+        self.lockstep = LockstepClients(n, config.lockstep_timeout) if config.lockstep else None
+        self.lockstep_started = False
+        self.pacer = RealTimePacer(config.speedup)
+        self.unix_epoch_us = (
+            int(time.time()) * 1_000_000
+        )  # GPS clock at boot; telemetry only, never the world
+        self.step = 0
+        self.ticks = 0
+        self._view: TelemetryView | None = None
+        self._last_log_flush = time.monotonic()
+        self.selector = selectors.DefaultSelector()
+        self.endpoints: list[VehicleEndpoint] = []
+        self.truth: TruthLog | None = None
+        try:
+            for i in range(n):
+                endpoint = VehicleEndpoint(i, int(self.sysids[i]), config.bind, config.base_port + i, self)
+                self.endpoints.append(endpoint)
+                self.selector.register(endpoint, selectors.EVENT_READ)
+            if config.truth_log is not None:
+                self.truth = TruthLog(config.truth_log, self.sysids)
+        except BaseException:
+            self.close()
+            raise
+
+    # --- clock ----------------------------------------------------------------------------------------------
+
+    @property
+    def t(self) -> float:
+        """Simulated seconds since boot."""
+        return self.step / self.timing.rate_hz
+
+    @property
+    def time_us(self) -> int:
+        """Simulated microseconds since boot (exact integer)."""
+        return self.step * 1_000_000 // round(self.timing.rate_hz)
+
+    # --- main loop ------------------------------------------------------------------------------------------
+
+    def run(self, stop: Callable[[], bool], wakeup: socket.socket | None = None) -> None:
+        """Simulate until stop() returns True; wakeup (a socket readable on signals) interrupts waits."""
+        if wakeup is not None:
+            self.selector.register(wakeup, selectors.EVENT_READ)
+        self._write_truth()
+        while not stop():
+            self._tick()
+            if self.lockstep is None:
+                self._pace(stop)
+            elif self.ticks % self.timing.ticks_per_frame == 0:
+                self._end_frame(stop)
+
+    def _tick(self) -> None:
+        """One autopilot tick and the physics it covers."""
+        timing = self.timing
+        dt = timing.tick_s
+        t0 = self.t
+        state = self.dyn.state
+        was_ready = self.autopilot.ready.copy()
+        self.autopilot.update(t0, dt)
+        before = state.pos.copy()
+        self.dyn.step(self.wind.sample(dt), timing.steps_per_tick)
+        self.step += timing.steps_per_tick
+        self.ticks += 1
+        for i, what in find_collisions(before, state.pos, self.obstacles, t0, self.t, state.crashed):
+            self.autopilot.crash(i, what)
+        if self.step % timing.steps_per_truth == 0:
+            self._write_truth()
+        for i in np.flatnonzero(self.autopilot.ready & ~was_ready):  # EKF origin and home just got set
+            self._send_now(
+                int(i), (mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+            )
+        self._emit_telemetry()
+
+    def _emit_telemetry(self) -> None:
+        stamped = np.zeros(len(self.endpoints), dtype=bool)
+        for i, msg_id in self.streams.due(self.time_us):
+            endpoint = self.endpoints[i]
+            if endpoint.peers:
+                msg = self.telemetry_view().encode(endpoint.tx, msg_id, i)
+                if msg is not None:
+                    endpoint.send(msg)
+                    stamped[i] |= msg_id in STAMPED_MESSAGES
+        if self.lockstep is not None and self.ticks % self.timing.ticks_per_frame == 0:
+            for i in np.flatnonzero(~stamped):  # every frame end carries a time_boot_ms to answer
+                if self.endpoints[i].peers:
+                    self._send_now(int(i), (mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,))
+        wall = time.monotonic()
+        for endpoint in self.endpoints:
+            endpoint.flush(wall)
+        if self.truth is not None and wall - self._last_log_flush > FLUSH_LOG_S:
+            self.truth.flush()
+            self._last_log_flush = wall
+
+    def _pace(self, stop: Callable[[], bool]) -> None:
+        """Serve the network until the current simulated time is due on the (sped-up) wall clock."""
+        deadline = self.pacer.deadline(self.t, time.monotonic())
+        while True:
+            self._serve(max(0.0, deadline - time.monotonic()))
+            if time.monotonic() >= deadline or stop():
+                return
+
+    def _end_frame(self, stop: Callable[[], bool]) -> None:
+        """Lockstep frame end: wait for every lockstep client's answer (see sitl_sim.clock)."""
+        assert self.lockstep is not None
+        clients = self.lockstep
+        frame_ms = self.time_us // 1000
+        frame_wall = keepalive = time.monotonic()
+        while not stop():
+            now = time.monotonic()
+            if not self.lockstep_started:
+                ready = clients.every_vehicle_has_client() and not clients.pending(frame_ms)
+                late = (
+                    clients.first_seen_wall is not None and now - clients.first_seen_wall > clients.timeout_s
+                )
+                if ready or late:
+                    clients.drop(clients.pending(frame_ms))
+                    self.lockstep_started = True
+                    self.pacer.restart(self.t, now)
+                    return
+            elif not clients.active():
+                self._pace(stop)  # nobody to wait for: real-time pace
+                return
+            else:
+                pending = clients.pending(frame_ms)
+                if not pending:
+                    self.pacer.restart(self.t, now)
+                    return
+                if now - frame_wall > clients.timeout_s:
+                    clients.drop(pending)
+                    for vehicle, addr in pending:
+                        print(f"sitl-sim: lockstep client {addr[0]}:{addr[1]} of vehicle {vehicle} dropped "
+                              f"(no answer for {clients.timeout_s:g} s)", file=sys.stderr, flush=True)  # fmt: skip
+                    continue
+            if now - keepalive >= KEEPALIVE_S:
+                keepalive = now
+                for i in range(len(self.endpoints)):
+                    self._send_now(i, (mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_SYSTEM_TIME))
+            self._serve(min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
+
+    def _serve(self, timeout: float, frame_ms: int | None = None) -> None:
+        """Wait up to timeout s for input, handle it, send the replies (frame_ms: paused at that frame end)."""
+        wall = time.monotonic()
+        handled = 0
+        for endpoint in self.endpoints:  # first what arrived after the clients' previous answers
+            if endpoint.inbox:
+                handled += endpoint.receive(wall, frame_ms)
+        events = self.selector.select(0.0 if handled else timeout)
+        wall = time.monotonic()
+        for key, _ in events:
+            if isinstance(key.fileobj, VehicleEndpoint):
+                key.fileobj.receive(wall, frame_ms)
+            else:  # the signal wake-up socket: drain it, stop() tells the rest
+                try:
+                    key.fileobj.recv(4096)  # type: ignore[union-attr]
+                except OSError:
+                    pass
+        for endpoint in self.endpoints:
+            endpoint.flush(wall)
+
+    # --- services for the endpoints -------------------------------------------------------------------------
+
+    def telemetry_view(self) -> TelemetryView:
+        """The fleet's telemetry at the current instant (cached for the tick)."""
+        if self._view is None or self._view.time_us != self.time_us:
+            self._view = TelemetryView(self.autopilot, self.time_us, self.geodesy, self.unix_epoch_us)
+        return self._view
+
+    def on_new_peer(self, endpoint: VehicleEndpoint) -> None:
+        """A client spoke for the first time: greet it at once (it may be waiting while the clock is paused)."""
+        self._send_now(endpoint.index, (mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_SYSTEM_TIME))
+
+    def _send_now(self, i: int, msg_ids: tuple[int, ...]) -> None:
+        endpoint = self.endpoints[i]
+        for msg_id in msg_ids:
+            msg = self.telemetry_view().encode(endpoint.tx, msg_id, i)
+            if msg is not None:
+                endpoint.send(msg)
+
+    def set_param(self, i: int, name: str, value: float) -> None:
+        """Store a checked parameter value set on vehicle i; world parameters change the world at once."""
+        j = self.params.index[name]
+        for row in self.params.set(i, name, value):
+            self.endpoints[row].send_param(j)
+        if name.startswith("SIM_WIND_"):
+            p = self.params
+            self.wind.set(p.value(i, "SIM_WIND_SPD"), p.value(i, "SIM_WIND_DIR"), p.value(i, "SIM_WIND_TURB"))
+
+    # --- truth log and shutdown -----------------------------------------------------------------------------
+
+    def _write_truth(self) -> None:
+        if self.truth is None:
+            return
+        s = self.dyn.state
+        ap = self.autopilot
+        flags = np.column_stack((ap.mode, ap.armed, s.crashed, ap.land_complete))
+        self.truth.write(
+            self.t,
+            s.pos,
+            s.vel,
+            s.quat,
+            s.euler(),
+            s.motor,
+            flags,
+            self.obstacles.at(self.t),
+            self.obstacles.radii,
+        )
+
+    def counters_report(self) -> list[str]:
+        """One line per vehicle with its link counters."""
+        return [f"vehicle {ep.index} (sysid {ep.sysid}): {ep.counters.summary()}" for ep in self.endpoints]
+
+    def close(self) -> None:
+        """Free the ports, flush and close the truth log (idempotent)."""
+        for endpoint in self.endpoints:
+            endpoint.close()
+        self.endpoints = []
+        self.selector.close()
+        if self.truth is not None:
+            self.truth.close()
+
+
+def wind_from_degrees(direction_deg: float) -> float:
+    """Normalise a from-direction to [0, 360) degrees (SIM_WIND_DIR's range)."""
+    return math.fmod(math.fmod(direction_deg, 360.0) + 360.0, 360.0)

@@ -1,0 +1,75 @@
+"""Ground-truth CSV log of the simulated world (the contract every metric is computed from).
+
+PATH: header then one row per vehicle per sample,
+    t,vehicle,sysid,x,y,z,vx,vy,vz,qw,qx,qy,qz,roll,pitch,yaw,f1,f2,f3,f4,mode,armed,crashed,landed
+t simulated s since boot; vehicle 0-based; ENU m and m/s in the mission frame; quaternion body FLU -> world
+ENU; Euler ZYX rad; motor thrusts N (ArduCopter motor order); mode = ArduCopter custom_mode; flags 0/1
+(landed = the autopilot's land_complete). PATH with its suffix replaced by `.obstacles.csv`:
+    t,obstacle,x,y,z,radius
+Numbers are printed with fixed precision so that identical runs give identical bytes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+VEHICLE_HEADER = (
+    "t,vehicle,sysid,x,y,z,vx,vy,vz,qw,qx,qy,qz,roll,pitch,yaw,f1,f2,f3,f4,mode,armed,crashed,landed"
+)
+OBSTACLE_HEADER = "t,obstacle,x,y,z,radius"
+VEHICLE_ROW = "%.4f,%d,%d" + ",%.4f" * 6 + ",%.6f" * 7 + ",%.4f" * 4 + ",%d,%d,%d,%d\n"
+OBSTACLE_ROW = "%.4f,%d,%.4f,%.4f,%.4f,%.4f\n"
+
+
+def obstacles_path(path: Path) -> Path:
+    """The obstacle sidecar of a truth log: PATH with its suffix replaced by .obstacles.csv."""
+    return path.with_suffix(".obstacles.csv")
+
+
+class TruthLog:
+    """Writes samples of N vehicles and K obstacles; `close` flushes and closes both files."""
+
+    def __init__(self, path: Path, sysids: np.ndarray) -> None:
+        self.path = path
+        self.sysids = np.asarray(sysids, dtype=float)
+        self.vehicles = open(path, "w", encoding="ascii", newline="")  # noqa: SIM115 - closed in close()
+        self.obstacles = open(obstacles_path(path), "w", encoding="ascii", newline="")  # noqa: SIM115
+        self.vehicles.write(VEHICLE_HEADER + "\n")
+        self.obstacles.write(OBSTACLE_HEADER + "\n")
+
+    def write(
+        self,
+        t: float,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        quat: np.ndarray,
+        euler: np.ndarray,
+        motor: np.ndarray,
+        flags: np.ndarray,
+        obstacle_centers: np.ndarray,
+        obstacle_radii: np.ndarray,
+    ) -> None:
+        """One sample at t (s): pos, vel, euler (N,3), quat (N,4), motor (N,4), flags (N,4) = mode, armed,
+        crashed, landed; obstacle centres (K,3) and radii (K,)."""
+        n = len(pos)
+        table = np.column_stack(
+            (np.full(n, t), np.arange(n), self.sysids, pos, vel, quat, euler, motor, flags.astype(float))
+        )
+        self.vehicles.write((VEHICLE_ROW * n) % tuple(table.ravel().tolist()))
+        k = len(obstacle_radii)
+        if k:
+            rows = np.column_stack((np.full(k, t), np.arange(k), obstacle_centers, obstacle_radii))
+            self.obstacles.write((OBSTACLE_ROW * k) % tuple(rows.ravel().tolist()))
+
+    def flush(self) -> None:
+        """Push buffered rows to the files."""
+        self.vehicles.flush()
+        self.obstacles.flush()
+
+    def close(self) -> None:
+        """Flush and close both files (idempotent)."""
+        for handle in (self.vehicles, self.obstacles):
+            if not handle.closed:
+                handle.close()

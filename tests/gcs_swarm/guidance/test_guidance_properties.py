@@ -1,0 +1,133 @@
+"""Property tests: forces and commands stay finite and point the right way at the awkward points (at the goal,
+on and inside an obstacle, two vehicles at one point, zero velocity, vertical thrust vector)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gcs_swarm.guidance import field as fieldmod
+from gcs_swarm.guidance import iaapf
+from gcs_swarm.guidance.fleet_controller import FleetController
+from gcs_swarm.guidance.inversion import invert
+from gcs_swarm.guidance.params import FieldParams, Limits, SeparationParams
+from gcs_swarm.guidance.separation import uav_repulsion
+
+coord = st.floats(-100, 100, allow_nan=False)
+vec3 = st.tuples(coord, coord, coord).map(np.array)
+unit = (
+    st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1))
+    .filter(lambda v: np.linalg.norm(v) > 1e-3)
+    .map(lambda v: np.array(v) / np.linalg.norm(v))
+)
+methods = st.sampled_from(["apf", "iaapf"])
+FAST = settings(max_examples=60, deadline=None)
+
+
+@FAST
+@given(goal=vec3, method=methods, n=st.floats(0.2, 2.0))
+def test_at_the_goal_attraction_and_rep2_vanish(goal, method, n):
+    centre = goal + np.array([[10.0, 0.0, 0.0]])  # goal 5 m from the surface, inside l0
+    fp = FieldParams(method=method, n=n)
+    q = goal[None, :]
+    att = fieldmod.attraction(q, goal, fp, 15.0)
+    rep, inside = fieldmod.obstacle_repulsion(q, goal, centre, np.array([5.0]), fp)
+    assert np.all(att == 0.0)
+    assert np.isfinite(rep).all() and not inside.any()
+    if method == "iaapf":
+        f1, f2 = iaapf.adaptive_repulsion_terms(q, centre, np.array([5.0]), goal, 1e5, 20.0, n, 0.05, 1e-3)
+        assert np.all(f1 == 0.0) and np.all(f2 == 0.0)  # the goal is an equilibrium (spec 3.2)
+    else:
+        assert rep[0] @ (goal - centre[0]) > 0  # APF still pushes off the goal: the GNRON offset
+
+
+@FAST
+@given(
+    centre=vec3,
+    radius=st.floats(0.5, 20),
+    direction=unit,
+    depth=st.one_of(st.just(0.0), st.floats(1e-6, 1.0)),
+    method=methods,
+    goal=vec3,
+)
+def test_on_and_inside_an_obstacle_is_finite_flagged_and_pushes_out(
+    centre, radius, direction, depth, method, goal
+):
+    """depth 0 = on the surface, 1 = at the centre (direction +z there, spec 2.1)."""
+    q = (centre + direction * radius * (1.0 - depth))[None, :]
+    fp = FieldParams(method=method)
+    rep, inside = fieldmod.obstacle_repulsion(q, goal, centre[None, :], np.array([radius]), fp)
+    assert np.isfinite(rep).all()
+    assert inside.all() or depth == 0.0  # exactly on the surface rounding may put q a hair outside
+    offset = q[0] - centre  # rounding can put q exactly on the centre before depth reaches 1
+    gap = np.linalg.norm(offset)
+    outward = offset / gap if gap > 0 else np.array([0.0, 0.0, 1.0])
+    if method == "apf":
+        assert rep[0] @ outward > 0
+    else:
+        f1, _ = iaapf.adaptive_repulsion_terms(
+            q, centre[None, :], np.array([radius]), goal, fp.k_rep, fp.l0, fp.n, fp.l_min, fp.rho_eps
+        )
+        assert f1[0] @ outward >= 0
+
+
+@FAST
+@given(p=vec3, i=st.integers(0, 4), j=st.integers(0, 4), mode=st.sampled_from(["constant", "formula"]))
+def test_two_vehicles_at_one_point_are_pushed_apart_vertically(p, i, j, mode):
+    if i == j:
+        j = (i + 1) % 5
+    pos = np.full((5, 3), 1e4) + np.arange(5)[:, None] * 100.0  # the others far away
+    pos[i] = pos[j] = p
+    force, emergency = uav_repulsion(
+        pos, pos, np.zeros_like(pos), 5e4, 0.8, 10.0, SeparationParams(mode=mode), 0.05
+    )
+    assert np.isfinite(force).all()
+    assert emergency[i] and emergency[j]
+    up, down = (i, j) if i > j else (j, i)  # larger index pushed up (Eq 18)
+    assert force[up, 2] > 0 > force[down, 2]
+    np.testing.assert_allclose(force[i], -force[j])
+
+
+@FAST
+@given(
+    u=st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-50, 50)).map(np.array),
+    yaw=st.floats(-np.pi, np.pi),
+    roll=st.floats(-1.5, 1.5),
+    pitch=st.floats(-1.5, 1.5),
+)
+def test_inversion_is_finite_and_within_limits_for_any_demand(u, yaw, roll, pitch):
+    lim = Limits()
+    for measured in (None, (roll, pitch)):
+        mr, mp = (None, None) if measured is None else (np.array([measured[0]]), np.array([measured[1]]))
+        cmd = invert(u[None, :], np.array([yaw]), lim, 9.8, mr, mp)
+        assert np.isfinite([cmd.roll[0], cmd.pitch[0], cmd.thrust_acc[0]]).all()
+        tilt = np.arccos(np.cos(cmd.roll[0]) * np.cos(cmd.pitch[0]))
+        assert tilt <= lim.tilt_max + 1e-9
+        assert 0 < cmd.thrust_acc[0] <= lim.thrust_max_g * 9.8 + 1e-9
+
+
+@FAST
+@given(yaw=st.floats(-np.pi, np.pi), thrust=st.floats(0.3 * 9.8, 2 * 9.8))
+def test_vertical_thrust_vector_gives_level_attitude(yaw, thrust):
+    cmd = invert(np.array([[0.0, 0.0, thrust]]), np.array([yaw]), Limits())
+    assert abs(cmd.roll[0]) < 1e-12 and abs(cmd.pitch[0]) < 1e-12
+    assert cmd.thrust_acc[0] == thrust
+
+
+@FAST
+@given(yaw=st.floats(-np.pi, np.pi), spread=st.floats(0.0, 30.0))
+def test_fleet_at_rest_gives_finite_commands_and_holds_heading(yaw, spread):
+    """Zero velocity everywhere (and possibly every vehicle at one point): finite commands, psi_L held."""
+    n = 4
+    offsets = np.array([[0, 0, 0], [-10, 10, 0], [-10, -10, 0], [-20, 0, 0]], dtype=float)
+    ctl = FleetController(n, 0, offsets, np.array([[0.0, 0.0, 20.0]]))
+    pos = np.array([[0.0, 0.0, 20.0]]) + offsets * (spread / 30.0)
+    vel = np.zeros((n, 3))
+    att = np.zeros((n, 3))
+    att[:, 2] = yaw
+    ctl.reset(pos, vel, att[:, 2])
+    cmd = ctl.tick(0.0, pos, vel, att, np.zeros((0, 3)), np.zeros(0), np.ones(n, dtype=bool))
+    for arr in (cmd.roll_d, cmd.pitch_d, cmd.yaw_d, cmd.thrust_acc, cmd.ref_pos, cmd.field_force):
+        assert np.isfinite(arr).all()
+    assert cmd.psi_leader == np.float64(np.asarray(yaw + np.pi) % (2 * np.pi) - np.pi)

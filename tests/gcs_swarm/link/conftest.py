@@ -1,0 +1,48 @@
+"""Fixtures: fake vehicles (threads on 127.0.0.1 free ports) and fleets over them, always cleaned up."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+
+import pytest
+from fake_vehicle import ORIGIN, FakeVehicle
+
+from gcs_swarm.link.fleet import Fleet, VehicleConfig
+
+
+@pytest.fixture
+def fake() -> Iterator[Callable[..., FakeVehicle]]:
+    """Factory: fake(sysid, **options) -> a started FakeVehicle, stopped at teardown."""
+    started: list[FakeVehicle] = []
+
+    def make(sysid: int = 1, **options: object) -> FakeVehicle:
+        vehicle = FakeVehicle(sysid, **options).start()  # type: ignore[arg-type]
+        started.append(vehicle)
+        return vehicle
+
+    yield make
+    for vehicle in started:
+        vehicle.stop()
+
+
+@pytest.fixture
+def fleet_of() -> Iterator[Callable[..., Fleet]]:
+    """Factory: fleet_of(*fakes, names=, sysids=, **fleet options) -> unconnected Fleet, closed after."""
+    fleets: list[Fleet] = []
+
+    def make(
+        *fakes: FakeVehicle,
+        names: list[str] | None = None,
+        sysids: list[int | None] | None = None,
+        **options: object,
+    ) -> Fleet:
+        names = names or [f"v{k}" for k in range(len(fakes))]
+        sysids = sysids or [None] * len(fakes)
+        configs = [VehicleConfig(n, f.connection, s) for n, f, s in zip(names, fakes, sysids, strict=True)]
+        fleet = Fleet(configs, ORIGIN, **options)  # type: ignore[arg-type]
+        fleets.append(fleet)
+        return fleet
+
+    yield make
+    for fleet in fleets:
+        fleet.close()

@@ -1,0 +1,136 @@
+"""Commands, modes, arming and parameters against the fake ArduCopter (lockstep: vehicle time runs fast)."""
+
+from __future__ import annotations
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_swarm.link.fleet import LinkError
+
+
+@pytest.fixture
+def lead(fake, fleet_of):
+    """(fleet, link, fake) with one connected lockstep vehicle named lead."""
+
+    def make(**options):
+        vehicle = fake(1, lockstep=True, **options)
+        fleet = fleet_of(vehicle, names=["lead"])
+        fleet.connect(timeout_s=3.0)
+        link = fleet.vehicle("lead")
+        link.param_get("SYSID_THISMAV")  # a round trip: the vehicle has now handled connect's requests
+        return fleet, link, vehicle
+
+    return make
+
+
+def test_refused_arm_names_result_and_prearm_reason_then_force_arms(lead) -> None:
+    fleet, link, vehicle = lead(arm_refusal="PreArm: Need 3D Fix")
+    with pytest.raises(
+        LinkError, match=r"^lead refused MAV_CMD_COMPONENT_ARM_DISARM: FAILED \(PreArm: Need 3D Fix\)$"
+    ):
+        link.arm()
+    assert not fleet.armed[0]
+    link.arm(force=True)
+    assert fleet.armed[0]  # confirmed by HEARTBEAT, not just by the ACK
+    arm_commands = [c for c in vehicle.commands if c[0] == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM]
+    assert len(arm_commands) == 2
+    link.disarm()
+    assert not fleet.armed[0]
+
+
+def test_mode_counts_once_heartbeat_shows_it(lead) -> None:
+    fleet, link, vehicle = lead()
+    link.set_mode("guided")
+    assert fleet.mode[0] == 4  # set_mode returned only after a HEARTBEAT showed GUIDED
+    vehicle.ignore_mode_changes = True
+    with pytest.raises(
+        LinkError, match="^lead accepted mode LAND but its HEARTBEAT still shows GUIDED after 0.5 s$"
+    ):
+        link.set_mode("LAND", timeout_s=0.5)
+    with pytest.raises(LinkError, match="lead: unknown ArduCopter mode 'HOVER'"):
+        link.set_mode("HOVER")
+
+
+def test_command_retries_with_confirmation_and_times_out(lead) -> None:
+    fleet, link, vehicle = lead()
+    vehicle.ignore_commands = 2
+    cmd = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
+    link.command_long(cmd, mavlink2.MAVLINK_MSG_ID_ATTITUDE, 20000, timeout_s=0.2)
+    assert [conf for c, conf, _ in vehicle.commands if c == cmd] == [0, 1, 2]
+    vehicle.ignore_commands = 10
+    with pytest.raises(
+        LinkError, match="^lead did not acknowledge MAV_CMD_SET_MESSAGE_INTERVAL \\(2 attempts, 0.2 s"
+    ):
+        link.command_long(cmd, mavlink2.MAVLINK_MSG_ID_ATTITUDE, 20000, retries=1, timeout_s=0.2)
+
+
+def test_in_progress_then_accepted_and_unsupported(lead) -> None:
+    _, link, _ = lead()
+    assert (
+        link.command_long(mavlink2.MAV_CMD_PREFLIGHT_CALIBRATION, timeout_s=0.5)
+        == mavlink2.MAV_RESULT_ACCEPTED
+    )
+    with pytest.raises(LinkError, match="^lead refused MAV_CMD_DO_SET_SERVO: UNSUPPORTED$"):
+        link.command_long(mavlink2.MAV_CMD_DO_SET_SERVO, 1, 1500)
+
+
+def test_takeoff_needs_guided_and_armed(lead) -> None:
+    fleet, link, _ = lead()
+    with pytest.raises(LinkError, match="lead refused MAV_CMD_NAV_TAKEOFF: FAILED"):
+        link.takeoff(5.0)
+    link.request_streams({"EXTENDED_SYS_STATE": 10.0, "GLOBAL_POSITION_INT": 10.0})
+    link.set_mode("GUIDED")
+    link.arm()
+    link.takeoff(5.0)
+    fleet.wait_until(
+        lambda: fleet.landed_state[0] == mavlink2.MAV_LANDED_STATE_IN_AIR, 3.0, "lead in the air"
+    )
+    fleet.wait_until(lambda: fleet.pos[0, 2] > 4.9, 3.0, "lead at 5 m")
+
+
+def test_param_set_is_verified_by_its_echo(lead) -> None:
+    _, link, vehicle = lead(readonly_params=("SYSID_THISMAV",))
+    assert link.param_set("GUID_OPTIONS", 8) == 8.0
+    assert vehicle.params["GUID_OPTIONS"] == 8.0
+    assert link.param_get("MOT_THST_HOVER") == pytest.approx(0.35)
+    with pytest.raises(LinkError, match="^lead did not accept SYSID_THISMAV = 3: it reads back 1$"):
+        link.param_set("SYSID_THISMAV", 3, retries=1)
+    with pytest.raises(LinkError, match="^lead did not confirm parameter NOPE"):
+        link.param_set("NOPE", 1, retries=1, timeout_s=0.2)
+    with pytest.raises(LinkError, match="^lead did not report parameter NOPE"):
+        link.param_get("NOPE", retries=0, timeout_s=0.2)
+    with pytest.raises(LinkError, match="1-16 ASCII characters"):
+        link.param_get("A_NAME_MUCH_TOO_LONG")
+
+
+def test_params_all_fills_gaps_by_index(lead) -> None:
+    _, link, _ = lead(drop_param_indices=(1, 2))
+    params = link.params_all(timeout_s=5.0)
+    assert params == pytest.approx(
+        {"GUID_OPTIONS": 0.0, "FS_GCS_ENABLE": 0.0, "MOT_THST_HOVER": 0.35, "SYSID_THISMAV": 1.0}
+    )
+
+
+def test_message_interval_is_acked_and_the_stream_flows(lead) -> None:
+    fleet, link, vehicle = lead()
+    link.set_message_interval("GLOBAL_POSITION_INT", 25.0)
+    assert vehicle.intervals_ms[mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT] == 40
+    fleet.wait_until(lambda: fleet.state.position_count[0] >= 3, 3.0, "positions")
+    with pytest.raises(LinkError, match="unknown MAVLink message 'NOT_A_MESSAGE'"):
+        link.set_message_interval("NOT_A_MESSAGE", 1.0)
+
+
+def test_fleet_wide_operations_report_only_the_failing_vehicle(fake, fleet_of) -> None:
+    good, bad = fake(1, lockstep=True), fake(2, lockstep=True, arm_refusal="PreArm: Battery low")
+    fleet = fleet_of(good, bad, names=["f1", "f2"])
+    fleet.connect(timeout_s=3.0)
+    fleet.set_mode_all("GUIDED")
+    assert fleet.mode.tolist() == [4, 4]
+    with pytest.raises(
+        LinkError, match=r"^f2 refused MAV_CMD_COMPONENT_ARM_DISARM: FAILED \(PreArm: Battery low\)$"
+    ):
+        fleet.arm_all()
+    assert fleet.armed.tolist() == [True, False]
+    fleet.param_set_all("GUID_OPTIONS", 8)
+    assert fleet.param_get_all("GUID_OPTIONS").tolist() == [8.0, 8.0]
+    assert good.lockstep_drops == 0 and bad.lockstep_drops == 0
