@@ -1,4 +1,4 @@
-"""`gcs-swarm` command line: run, check, plan, report."""
+"""`gcs-swarm` command line: run, console, check, plan, report."""
 
 from __future__ import annotations
 
@@ -22,6 +22,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
         quiet=args.quiet,
     )
     return run_command(args.mission, options)
+
+
+def _cmd_console(args: argparse.Namespace) -> int:
+    from gcs_swarm.console.main import ConsoleOptions, console_command
+
+    options = ConsoleOptions(
+        out_dir=Path(args.out) if args.out else None,
+        connect_only=args.connect_only,
+        base_port=args.base_port,
+        script=Path(args.script) if args.script else None,
+        yes=args.yes,
+    )
+    return console_command(args.mission, options)
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -107,6 +120,23 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--seed", type=int, help="embedded simulator seed override")
     run.add_argument("--quiet", action="store_true", help="no progress output")
     run.set_defaults(func=_cmd_run)
+
+    console = sub.add_parser("console", help="operator console: watch and command the swarm live")
+    console.add_argument("mission", help="mission file (YAML)")
+    console.add_argument("--yes", action="store_true", help="do not ask before commands that arm or launch")
+    console.add_argument(
+        "--script", metavar="FILE", help="run the commands in FILE (plain output, no full-screen UI)"
+    )
+    console.add_argument(
+        "--connect-only",
+        action="store_true",
+        help="command vehicles that are already running (no embedded simulator)",
+    )
+    console.add_argument(
+        "--base-port", type=int, help="embedded simulator: first UDP port (vehicle i on port+i)"
+    )
+    console.add_argument("--out", help="run folder (default runs/<time>-<mission>/)")
+    console.set_defaults(func=_cmd_console)
 
     check = sub.add_parser("check", help="validate a mission file without flying")
     check.add_argument("mission")

@@ -35,6 +35,17 @@ class RunOptions:
     quiet: bool = False
 
 
+def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
+    """Median, p99 and max of per-tick latencies, in ms (None without ticks)."""
+    if not latencies_s:
+        return None
+    ms = np.asarray(latencies_s) * 1000.0
+    return {
+        k: round(float(v), 4)
+        for k, v in (("median", np.median(ms)), ("p99", np.percentile(ms, 99)), ("max", ms.max()))
+    }
+
+
 def default_run_dir(mission: Mission) -> Path:
     return Path("runs") / f"{datetime.now().strftime('%Y%m%d-%H%M%S')}-{mission.name}"
 
@@ -122,6 +133,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
         "lost": result.lost,
         "events": result.events,
         "ticks": result.ticks,
+        "tick_latency_ms": latency_summary(runner.tick_latency_s if runner is not None else []),
         "wall_duration_s": time.monotonic() - wall0,
     }
     (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")

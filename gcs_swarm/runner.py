@@ -1,9 +1,11 @@
 """The mission run: connect -> preflight -> launch -> formation flight -> arrival -> land -> report.
 
 `MissionRunner.run()` flies the whole mission (the `run` command). The same object is tick-driven for the
-operator console: `step()` handles one telemetry tick in the current phase, and `hold()`, `resume()`,
-`abort()`, `set_goal()`, `set_formation()` change what the next ticks do. One tick of formation flight =
-read the fleet's telemetry arrays, FleetController.tick, send SET_ATTITUDE_TARGET to every active vehicle.
+operator console: `begin()` preflights and commands the launch, `step()` handles one telemetry tick in the
+current phase (climb, formation flight, hold, landing), `idle()` keeps the links served while nothing flies,
+and `hold()`, `resume()`, `abort()`, `set_goal()`, `set_formation()` change what the next ticks do. One tick
+of formation flight = read the fleet's telemetry arrays, FleetController.tick, send SET_ATTITUDE_TARGET to
+every active vehicle.
 Ticks are clocked by vehicle time (telemetry time_boot_ms), so the same code flies in real time against
 hardware and in lockstep against the simulator.
 """
@@ -25,6 +27,7 @@ from gcs_swarm.run_record import RunRecord
 
 FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5}  # ArduCopter FS_GCS_ENABLE values
 GUID_OPTIONS_THRUST = 8  # bit 3: SET_ATTITUDE_TARGET thrust is normalised collective thrust (not climb rate)
+HOLD_LATCH_SPEED = 0.5  # m/s: in hold, a vehicle's position is latched once it has braked below this
 PHASES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")
 
 
@@ -119,8 +122,12 @@ class MissionRunner:
         self.last_command: Command | None = None
         self.formation_rms = math.nan
         self._hold_since: float | None = None
+        self._launch_since: float | None = None  # vehicle time of the tick-driven launch (console)
+        self._land_since: float | None = None  # vehicle time LAND was commanded by a landing tick (console)
+        self._hold_points = np.full((len(mission.vehicles), 3), np.nan)  # (N, 3) ENU m, latched in hold
         self._last_progress_wall = 0.0
         self._obstacle_radii = np.array([o.radius for o in mission.obstacles], dtype=float)
+        self.tick_latency_s: list[float] = []  # wall s from a complete telemetry tick to its last command out
 
     # ----- the whole mission -----
 
@@ -135,9 +142,10 @@ class MissionRunner:
         self.land()
         return self.result
 
-    def connect(self) -> None:
+    def connect(self, timeout_s: float = 30.0) -> None:
+        """Wait up to timeout_s for every vehicle's HEARTBEAT (LinkError naming the silent ones)."""
         self._set_phase("connect")
-        self.fleet.connect(timeout_s=30.0)
+        self.fleet.connect(timeout_s=timeout_s)
 
     def preflight(self) -> None:
         """Wait for position estimates and pre-arm health; set and verify params; hover thrust; streams."""
@@ -157,6 +165,17 @@ class MissionRunner:
 
     def launch(self) -> None:
         """GUIDED, arm, take off to the formation altitude (each vehicle plus its slot's dz)."""
+        self.command_launch()
+        if self.mission.run.airborne_start:
+            return
+        self.fleet.wait_until(
+            self.launched,
+            timeout_s=self.mission.run.takeoff_timeout_s,
+            what="every vehicle at its takeoff altitude",
+        )
+
+    def command_launch(self) -> None:
+        """Phase 'launch': GUIDED, arm and take off (each acknowledged); the climb itself is not awaited."""
         self._set_phase("launch")
         fleet, mission = self.fleet, self.mission
         try:
@@ -164,24 +183,39 @@ class MissionRunner:
             if mission.run.airborne_start:
                 return
             fleet.arm_all()
-            alts = mission.formation.altitude + mission_offsets(mission)[:, 2]
-            fleet.takeoff_all(alts)
+            fleet.takeoff_all(self.takeoff_altitudes())
         except LinkError as exc:
             raise PreflightError(f"launch refused: {exc}") from exc
-        fleet.wait_until(
-            lambda: bool((fleet.pos[:, 2] >= alts - 0.5).all()),
-            timeout_s=mission.run.takeoff_timeout_s,
-            what="every vehicle at its takeoff altitude",
-        )
+
+    def takeoff_altitudes(self) -> np.ndarray:
+        """(N,) m: the formation altitude plus each vehicle's slot dz."""
+        return self.mission.formation.altitude + mission_offsets(self.mission)[:, 2]
+
+    def launched(self) -> bool:
+        """Every vehicle is within 0.5 m of its takeoff altitude (always, for an airborne start)."""
+        if self.mission.run.airborne_start:
+            return True
+        return bool((self.fleet.pos[:, 2] >= self.takeoff_altitudes() - 0.5).all())
 
     def start_formation(self) -> None:
         """Initialise the guidance at the measured state and enter formation flight."""
-        fleet = self.fleet
-        if not fleet.wait_tick(timeout_s=10.0):
+        if not self.fleet.wait_tick(timeout_s=10.0):
             raise LinkError("no telemetry tick arrived after launch")
+        self._enter_formation()
+
+    def _enter_formation(self) -> None:
+        fleet = self.fleet
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
         self.result.t_formation_start = self.vehicle_time()
         self._set_phase("formation")
+
+    def begin(self) -> None:
+        """Console `start`: preflight and command the launch; later `step()`s finish the climb (phase
+        'launch'), fly the formation and land on arrival. PreflightError / LinkError if nothing took off."""
+        self.preflight()
+        self.command_launch()
+        self._launch_since = self.vehicle_time()
+        self._land_since = None
 
     def step(self, timeout_s: float = 5.0) -> bool:
         """Handle one telemetry tick in the current phase; False if no tick arrived within timeout_s."""
@@ -193,24 +227,33 @@ class MissionRunner:
                 self.result.events.append("every vehicle stopped answering")
                 self._set_phase("land")
             return False
+        tick_in = time.perf_counter()
         self._note_lost()
-        if self.phase == "formation":
+        if self.phase == "launch":
+            self._launch_tick()
+        elif self.phase == "formation":
             self._formation_tick()
+            self.tick_latency_s.append(time.perf_counter() - tick_in)
         elif self.phase == "hold":
-            for i in np.flatnonzero(fleet.alive):
-                fleet.vehicle(int(i)).hold()
+            self._hold_tick()
+        elif self.phase == "land":
+            self._landing_tick()
         fleet.answer_frame()  # vehicles not commanded this tick
         return True
+
+    def idle(self, timeout_s: float = 0.02) -> None:
+        """Keep the links served while the mission is not flying (before `begin`, after 'done'): receive for
+        up to timeout_s, note lost vehicles, answer every new lockstep frame."""
+        self.fleet.pump(timeout_s)
+        self._note_lost()
+        self.fleet.answer_frame()
 
     def land(self) -> None:
         """LAND every reachable vehicle and wait until they disarm (auto-disarm after touchdown)."""
         if self.phase != "land":
             self._set_phase("land")
         fleet = self.fleet
-        try:
-            fleet.land_all()
-        except LinkError as exc:
-            self.result.events.append(f"landing: {exc}")
+        self._command_landing()
         try:
             fleet.wait_until(
                 lambda: not bool((fleet.armed & fleet.alive).any()),
@@ -226,6 +269,7 @@ class MissionRunner:
     def hold(self) -> None:
         """Every vehicle brakes and holds its position (GUIDED position targets) until resume()."""
         if self.phase == "formation":
+            self._hold_points[:] = np.nan
             self._set_phase("hold")
 
     def resume(self) -> None:
@@ -237,8 +281,8 @@ class MissionRunner:
             self._set_phase("formation")
 
     def abort(self) -> None:
-        """Stop the mission: the caller lands every vehicle (phase 'land')."""
-        if self.phase in ("formation", "hold"):
+        """Stop the mission: phase 'land' (the caller's `land()` or the next `step()` lands every vehicle)."""
+        if self.phase in ("launch", "formation", "hold"):
             self.result.events.append("aborted by the operator")
             self._set_phase("land")
 
@@ -253,6 +297,57 @@ class MissionRunner:
         self.controller.set_offsets(mission_offsets(self.mission, shape, spacing))
         self._hold_since = None
         self.result.events.append(f"formation changed to {shape} {spacing or ''}".strip())
+
+    # ----- tick-driven launch and landing (console) -----
+
+    def _launch_tick(self) -> None:
+        if self.launched():
+            self._enter_formation()
+            return
+        t0 = self._launch_since if self._launch_since is not None else self.vehicle_time()
+        self._launch_since = t0
+        timeout = self.mission.run.takeoff_timeout_s
+        if self.vehicle_time() - t0 > timeout:
+            self.result.events.append(
+                f"timed out after {timeout:g} s waiting for every vehicle at its takeoff altitude"
+            )
+            self._set_phase("land")
+
+    def _landing_tick(self) -> None:
+        fleet, t = self.fleet, self.vehicle_time()
+        if self._land_since is None:
+            self._land_since = t
+            self._command_landing()
+        if not bool((fleet.armed & fleet.alive).any()):
+            self._set_phase("done")
+        elif t - self._land_since > self.mission.run.land_timeout_s:
+            self.result.events.append(
+                f"timed out after {self.mission.run.land_timeout_s:g} s waiting for every vehicle disarmed "
+                "after landing"
+            )
+            self._set_phase("done")
+
+    def _hold_tick(self) -> None:
+        """Brake (target: where the vehicle is) until slower than HOLD_LATCH_SPEED, then hold that point.
+
+        Re-targeting the current position on every tick would let the autopilot's velocity integrator,
+        wound up while braking, drift the vehicle back; a fixed point is held by its position loop."""
+        fleet = self.fleet
+        pos, vel, yaw = fleet.pos, fleet.vel, fleet.att[:, 2]
+        for i in np.flatnonzero(fleet.alive & np.isfinite(pos).all(axis=1)):
+            latched = bool(np.isfinite(self._hold_points[i]).all())
+            if not latched and np.linalg.norm(vel[i]) < HOLD_LATCH_SPEED:
+                self._hold_points[i], latched = pos[i], True
+            target = self._hold_points[i] if latched else pos[i]
+            fleet.vehicle(int(i)).send_position_target(
+                target, yaw=float(yaw[i]) if np.isfinite(yaw[i]) else None
+            )
+
+    def _command_landing(self) -> None:
+        try:
+            self.fleet.land_all()
+        except LinkError as exc:
+            self.result.events.append(f"landing: {exc}")
 
     # ----- formation tick -----
 

@@ -19,7 +19,15 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from sitl_sim.attitude_control import level_quat, yaw_from_quat
 from sitl_sim.dynamics import FleetDynamics
 from sitl_sim.params import ParamTable
-from sitl_sim.position_control import PositionGains, accel_demand, attitude_from_accel, velocity_demand
+from sitl_sim.position_control import (
+    I_MAX_XY,
+    I_MAX_Z,
+    MIN_UP_ACCEL,
+    attitude_from_accel,
+    njit,
+    velocity_demand,
+    velocity_pi,
+)
 
 M = mavlink
 STABILIZE, ALT_HOLD, GUIDED, LOITER, RTL, LAND, BRAKE, GUIDED_NOGPS = 0, 2, 4, 5, 6, 9, 17, 20
@@ -153,6 +161,26 @@ class Autopilot:
         self.angle_timed_out = np.ones(n, dtype=bool)
         self.integrator = np.zeros((n, 3))
         self.texts: list[list[tuple[int, str]]] = [[] for _ in range(n)]
+        # outputs of the outer loop
+        self._quat_sp = np.zeros((n, 4))
+        self._rate_ff = np.zeros((n, 3))
+        self._motors_on = np.zeros(n, dtype=bool)
+        self._tilt = np.zeros(n)
+        self._rate_mask = np.zeros(n, dtype=bool)
+        self._rate_control = False  # some vehicle was under rate-only control at the last tick
+        self._events = np.zeros(n, dtype=np.int64)
+        self._columns = np.array([params.index[name] for name in LOOP_PARAMS], dtype=np.int64)
+        s = self.state
+        self._loop_arrays = (
+            s.pos, s.vel, s.quat, s.landed, s.crashed, self.home,
+            self.mode, self.armed, self.control, self.nav_kind, self.nav_pos, self.nav_vel, self.nav_acc,
+            self.nav_yaw, self.nav_yaw_rate, self.target_time, self.rtl_stage, self.takeoff_active,
+            self.land_complete, self.land_timer, self.disarm_timer, self.thrust_demand,
+            self.angle_quat, self.angle_rates, self.angle_rate_ff, self.rates_only, self.climb_rate,
+            self.collective, self.use_thrust, self.angle_timed_out, self.integrator,
+            self.last_gcs_heartbeat, self.failsafe_gcs,
+            self._quat_sp, self._rate_ff, self._motors_on, self._tilt, self._rate_mask, self._events,
+        )  # fmt: skip
         for i in np.flatnonzero(~self.armed):
             self._enter_mode(int(i), STABILIZE)
 
@@ -217,7 +245,7 @@ class Autopilot:
         """EXTENDED_SYS_STATE landed_state (ArduCopter's GCS_MAVLINK_Copter::landed_state)."""
         if self.land_complete[i]:
             return M.MAV_LANDED_STATE_ON_GROUND
-        if self._landing()[i]:
+        if self._landing(i):
             return M.MAV_LANDED_STATE_LANDING
         if self.takeoff_active[i]:
             return M.MAV_LANDED_STATE_TAKEOFF
@@ -379,160 +407,39 @@ class Autopilot:
         """One outer tick at simulated time t (s) covering dt (s): modes, controllers, targets to the physics."""
         self.t = t
         self.ready = t >= self.ready_at
-        s = self.state
-        p = self.params
-        g = self.dyn.params.g
-        hover = p.column("MOT_THST_HOVER")
-        tilt_max = np.radians(p.column("ANGLE_MAX") / 100.0)
-        yaw_now = yaw_from_quat(s.quat)
-        guided = self.mode == GUIDED
-        angle_guided = (guided | (self.mode == GUIDED_NOGPS)) & (self.control == CTRL_ANGLE)
-        stale = (t - self.target_time) > p.column("GUID_TIMEOUT")
-
-        # GUID_TIMEOUT: velocity/acceleration targets stop; attitude targets level and hold altitude.
-        vel_stale = guided & (self.control == CTRL_POS) & stale & (self.nav_kind != KIND_POS)
-        self.nav_vel[vel_stale] = 0.0
-        self.nav_acc[vel_stale] = 0.0
-        ang_stale = angle_guided & stale & ~self.angle_timed_out
-        if ang_stale.any():
-            self.angle_quat[ang_stale] = level_quat(yaw_now[ang_stale])
-            self.angle_rates[ang_stale] = 0.0
-            self.angle_rate_ff[ang_stale] = False
-            self.rates_only[ang_stale] = False
-            self.climb_rate[ang_stale] = 0.0
-            self.use_thrust[ang_stale] = False
-            self.angle_timed_out[ang_stale] = True
-
-        self._update_navigation(dt)
-        self._update_land_detector(hover, dt)
-
-        # A positive climb/thrust demand in guided angle control takes off (ArduCopter angle_control_run).
-        positive = angle_guided & np.where(self.use_thrust, self.collective > 0.0, self.climb_rate > 0.0)
-        self.land_complete &= ~positive
-        self.land_timer[positive] = 0.0
-
-        stabilize = self.mode == STABILIZE
-        self.collective[stabilize] = hover[stabilize]  # no RC: the throttle stick rests at mid (hover)
-        angle = angle_guided | stabilize | (self.mode == ALT_HOLD)
-        direct = angle & self.use_thrust
-        airborne_ctl = self.armed & ~self.land_complete
-        gains = self._gains(tilt_max)
-        vel_sp = velocity_demand(s.pos, self.nav_pos, self.nav_vel, gains)
-        vel_sp[:, 2] = np.where(angle, self.climb_rate, vel_sp[:, 2])
-        active = np.stack((~angle, ~angle, ~direct), axis=1) & airborne_ctl[:, None]
-        acc_ff = np.where(angle[:, None], 0.0, self.nav_acc)
-        acc = accel_demand(s.vel, vel_sp, acc_ff, self.integrator, active, gains, dt)
-        quat_pos, thrust_g = attitude_from_accel(acc, self.nav_yaw, tilt_max, g)
-
-        up = 1.0 - 2.0 * (s.quat[:, 1] ** 2 + s.quat[:, 2] ** 2)  # cos(tilt) of the actual attitude
-        up = np.maximum(up, np.cos(tilt_max))
-        climb_fraction = hover * np.maximum(g + acc[:, 2], 0.3 * g) / g / up
-        fraction = np.where(angle, np.where(direct, self.collective, climb_fraction), hover * thrust_g)
-        quat = np.where(angle[:, None], self.angle_quat, quat_pos)
-
-        idle = self.armed & self.land_complete
-        quat = np.where(idle[:, None], level_quat(yaw_now), quat)
-        fraction = np.where(idle, SPIN_ARMED, fraction)
-        motors_on = self.armed & ~s.crashed
-        fraction = np.where(motors_on, np.clip(fraction, 0.0, 1.0), 0.0)
-        self.thrust_demand = fraction
-        rate_ff = np.where(
-            (angle_guided & self.angle_rate_ff & ~self.rates_only)[:, None], self.angle_rates, 0.0
+        _outer_loop(t, dt, self.dyn.params.g, self.params.values, self._columns, *self._loop_arrays)
+        self.dyn.set_targets(
+            self._quat_sp,
+            self._rate_ff,
+            self.thrust_demand * self.dyn.params.thrust_max,
+            self._motors_on,
+            self._tilt,
         )
-        self.dyn.set_targets(quat, rate_ff, fraction * self.dyn.params.thrust_max, motors_on, tilt_max)
-        self.dyn.set_rate_targets(angle_guided & self.rates_only & ~idle, self.angle_rates)
+        if self._rate_mask.any() or self._rate_control:  # rate-only control started, continues or ends
+            self.dyn.set_rate_targets(self._rate_mask, self.angle_rates)
+            self._rate_control = bool(self._rate_mask.any())
+        for i in np.flatnonzero(self._events):
+            self._handle_event(int(i), int(self._events[i]))
 
-        self._auto_disarm(dt)
-        self._check_gcs_failsafe()
+    def _handle_event(self, i: int, event: int) -> None:
+        if event == EVENT_DISARM:
+            self._disarm(i)
+            return
+        self.failsafe_gcs[i] = True  # EVENT_GCS_FAILSAFE
+        if self.land_complete[i]:
+            self.say(i, M.MAV_SEVERITY_CRITICAL, "GCS Failsafe - Disarming")
+            self._disarm(i)
+            return
+        self.say(i, M.MAV_SEVERITY_CRITICAL, "GCS Failsafe")
+        action = GCS_FAILSAFE_ACTIONS[int(self.params.value(i, "FS_GCS_ENABLE"))]
+        if self.mode[i] not in (LAND, RTL) or action == LAND:
+            self._enter_mode(i, action)
 
     # --- internals ------------------------------------------------------------------------------------------
 
-    def _gains(self, tilt_max: np.ndarray) -> PositionGains:
-        p = self.params
-        return PositionGains(
-            pos_xy_p=p.column("PSC_POSXY_P"),
-            pos_z_p=p.column("PSC_POSZ_P"),
-            vel_xy_p=p.column("PSC_VELXY_P"),
-            vel_xy_i=p.column("PSC_VELXY_I"),
-            vel_z_p=p.column("PSC_VELZ_P"),
-            vel_z_i=p.column("PSC_VELZ_I"),
-            speed_xy=p.column("WPNAV_SPEED") / 100.0,
-            speed_up=p.column("WPNAV_SPEED_UP") / 100.0,
-            speed_dn=p.column("WPNAV_SPEED_DN") / 100.0,
-            accel_xy=p.column("WPNAV_ACCEL") / 100.0,
-            tilt_max=tilt_max,
-        )
-
-    def _landing(self) -> np.ndarray:
-        """(N,) vehicles in a landing descent (LAND, or RTL's final descent)."""
-        return (self.mode == LAND) | ((self.mode == RTL) & (self.rtl_stage == RTL_DESCEND))
-
-    def _update_navigation(self, dt: float) -> None:
-        """Per-mode target updates: takeoff completion, RTL stages, LAND descent speed, BRAKE, yaw rate."""
-        s = self.state
-        height = s.pos[:, 2] - self.home[:, 2]
-        done = self.takeoff_active & (s.pos[:, 2] >= self.nav_pos[:, 2] - TAKEOFF_REACHED_M)
-        self.takeoff_active &= ~done
-
-        rtl = (self.mode == RTL) & self.armed
-        climbed = rtl & (self.rtl_stage == RTL_CLIMB) & (s.pos[:, 2] >= self.nav_pos[:, 2] - 0.5)
-        self.nav_pos[climbed, :2] = self.home[climbed, :2]
-        self.rtl_stage[climbed] = RTL_RETURN
-        distance = np.hypot(*(s.pos[:, :2] - self.home[:, :2]).T)
-        arrived = rtl & (self.rtl_stage == RTL_RETURN) & (distance < RTL_REACHED_M)
-        self.nav_pos[arrived, 2] = np.nan
-        self.rtl_stage[arrived] = RTL_DESCEND
-
-        landing = self._landing()
-        speed = np.where(
-            height > LAND_ALT_LOW,
-            self.params.column("WPNAV_SPEED_DN") / 100.0,
-            self.params.column("LAND_SPEED") / 100.0,
-        )
-        self.nav_vel[landing, 2] = -speed[landing]
-
-        braking = (self.mode == BRAKE) & np.isnan(self.nav_pos[:, 0]) & (np.hypot(*s.vel[:, :2].T) < 0.2)
-        self.nav_pos[braking, :2] = s.pos[braking, :2]
-
-        turning = (self.mode == GUIDED) & (self.control == CTRL_POS)
-        self.nav_yaw[turning] += self.nav_yaw_rate[turning] * dt
-
-    def _update_land_detector(self, hover: np.ndarray, dt: float) -> None:
-        """land_complete after LAND_DETECT_S on the ground without a climb demand (immediately if disarmed)."""
-        on_ground = self.state.landed & ~self.takeoff_active
-        quiet = on_ground & (~self.armed | (self.thrust_demand < hover))
-        self.land_timer = np.where(quiet, self.land_timer + dt, 0.0)
-        self.land_complete = (self.land_complete & self.state.landed) | (quiet & ~self.armed)
-        self.land_complete |= quiet & (self.land_timer >= LAND_DETECT_S)
-
-    def _auto_disarm(self, dt: float) -> None:
-        """Disarm on touchdown in LAND/RTL, and after DISARM_DELAY landed in any other mode."""
-        for i in np.flatnonzero(self.armed & self.land_complete & self._landing()):
-            self._disarm(int(i))
-        delay = self.params.column("DISARM_DELAY")
-        waiting = self.armed & self.land_complete & (delay > 0)
-        self.disarm_timer = np.where(waiting, self.disarm_timer + dt, 0.0)
-        for i in np.flatnonzero(waiting & (self.disarm_timer >= delay)):
-            self._disarm(int(i))
-
-    def _check_gcs_failsafe(self) -> None:
-        """FS_GCS_ENABLE: armed, heard SYSID_MYGCS once, silent FS_GCS_TIMEOUT s -> RTL/LAND/BRAKE (or disarm)."""
-        enable = self.params.column("FS_GCS_ENABLE")
-        silent = (self.t - self.last_gcs_heartbeat) > self.params.column("FS_GCS_TIMEOUT")
-        trigger = (
-            (enable > 0) & self.armed & np.isfinite(self.last_gcs_heartbeat) & silent & ~self.failsafe_gcs
-        )
-        for i in np.flatnonzero(trigger):
-            i = int(i)
-            self.failsafe_gcs[i] = True
-            if self.land_complete[i]:
-                self.say(i, M.MAV_SEVERITY_CRITICAL, "GCS Failsafe - Disarming")
-                self._disarm(i)
-                continue
-            self.say(i, M.MAV_SEVERITY_CRITICAL, "GCS Failsafe")
-            action = GCS_FAILSAFE_ACTIONS[int(enable[i])]
-            if self.mode[i] not in (LAND, RTL) or action == LAND:
-                self._enter_mode(i, action)
+    def _landing(self, i: int) -> bool:
+        """Vehicle i is in a landing descent (LAND, or RTL's final descent)."""
+        return bool(self.mode[i] == LAND or (self.mode[i] == RTL and self.rtl_stage[i] == RTL_DESCEND))
 
     def _disarm(self, i: int) -> None:
         self.armed[i] = False
@@ -580,3 +487,159 @@ class Autopilot:
             self.nav_pos[i] = (stop[0], stop[1], np.nan)
         else:
             self.nav_pos[i] = np.nan
+
+
+# --- the fused outer loop (numba when available) ----------------------------------------------------------
+
+EVENT_DISARM, EVENT_GCS_FAILSAFE = 1, 2
+LOOP_PARAMS = (
+    "MOT_THST_HOVER", "ANGLE_MAX", "GUID_TIMEOUT", "PSC_POSXY_P", "PSC_POSZ_P", "PSC_VELXY_P", "PSC_VELXY_I",
+    "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL", "LAND_SPEED",
+    "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT",
+)  # fmt: skip
+(
+    P_HOVER, P_ANGLE_MAX, P_GUID_TIMEOUT, P_POSXY_P, P_POSZ_P, P_VELXY_P, P_VELXY_I, P_VELZ_P, P_VELZ_I,
+    P_SPEED, P_SPEED_UP, P_SPEED_DN, P_ACCEL, P_LAND_SPEED, P_DISARM_DELAY, P_FS_ENABLE, P_FS_TIMEOUT,
+) = range(len(LOOP_PARAMS))  # fmt: skip
+
+
+@njit(cache=True)
+def _set_level(quats: np.ndarray, i: int, yaw: float) -> None:
+    """Row i of (N,4) quaternions := level attitude at heading yaw (rad)."""
+    quats[i, 0], quats[i, 1], quats[i, 2], quats[i, 3] = math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)
+
+
+@njit(cache=True)
+def _outer_loop(
+    t, dt, g, params, columns,
+    pos, vel, quat, landed, crashed, home,
+    mode, armed, control, nav_kind, nav_pos, nav_vel, nav_acc, nav_yaw, nav_yaw_rate, target_time, rtl_stage,
+    takeoff_active, land_complete, land_timer, disarm_timer, thrust_demand,
+    angle_quat, angle_rates, angle_rate_ff, rates_only, climb_rate, collective, use_thrust, angle_timed_out,
+    integrator, last_gcs_heartbeat, failsafe_gcs,
+    quat_sp, rate_ff, motors_on, tilt_max, rate_mask, events,
+):  # fmt: skip  # noqa: ANN001, ANN202 - numba kernel over the Autopilot's arrays (see Autopilot.update)
+    """Per vehicle: guided timeouts, navigation targets, land detector, control law, disarm/failsafe events.
+
+    Writes quat_sp (N,4), rate_ff (N,3), thrust_demand (fraction of full thrust), motors_on, tilt_max (rad),
+    rate_mask (rate-only control) and events (0, EVENT_DISARM, EVENT_GCS_FAILSAFE) for Python to act on.
+    """
+    for i in range(len(mode)):
+        p = params[i]
+        hover = p[columns[P_HOVER]]
+        tilt = math.radians(p[columns[P_ANGLE_MAX]] / 100.0)
+        w, x, y, z = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+        yaw_now = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        m = mode[i]
+        guided = m == GUIDED
+        angle_guided = (guided or m == GUIDED_NOGPS) and control[i] == CTRL_ANGLE
+        stale = t - target_time[i] > p[columns[P_GUID_TIMEOUT]]
+
+        # GUID_TIMEOUT: velocity/acceleration targets stop; attitude targets level and hold altitude.
+        if guided and control[i] == CTRL_POS and stale and nav_kind[i] != KIND_POS:
+            nav_vel[i] = 0.0
+            nav_acc[i] = 0.0
+        if angle_guided and stale and not angle_timed_out[i]:
+            _set_level(angle_quat, i, yaw_now)
+            angle_rates[i] = 0.0
+            angle_rate_ff[i] = False
+            rates_only[i] = False
+            climb_rate[i] = 0.0
+            use_thrust[i] = False
+            angle_timed_out[i] = True
+
+        # Navigation: takeoff completion, RTL stages, LAND descent speed, BRAKE hold, guided yaw rate.
+        if takeoff_active[i] and pos[i, 2] >= nav_pos[i, 2] - TAKEOFF_REACHED_M:
+            takeoff_active[i] = False
+        if m == RTL and armed[i]:
+            if rtl_stage[i] == RTL_CLIMB and pos[i, 2] >= nav_pos[i, 2] - 0.5:
+                nav_pos[i, 0], nav_pos[i, 1] = home[i, 0], home[i, 1]
+                rtl_stage[i] = RTL_RETURN
+            elif (
+                rtl_stage[i] == RTL_RETURN
+                and math.hypot(pos[i, 0] - home[i, 0], pos[i, 1] - home[i, 1]) < RTL_REACHED_M
+            ):
+                nav_pos[i, 2] = math.nan
+                rtl_stage[i] = RTL_DESCEND
+        landing = m == LAND or (m == RTL and rtl_stage[i] == RTL_DESCEND)
+        if landing:
+            low = pos[i, 2] - home[i, 2] <= LAND_ALT_LOW
+            nav_vel[i, 2] = -(p[columns[P_LAND_SPEED]] if low else p[columns[P_SPEED_DN]]) / 100.0
+        if m == BRAKE and math.isnan(nav_pos[i, 0]) and math.hypot(vel[i, 0], vel[i, 1]) < 0.2:
+            nav_pos[i, 0], nav_pos[i, 1] = pos[i, 0], pos[i, 1]
+        if guided and control[i] == CTRL_POS:
+            nav_yaw[i] += nav_yaw_rate[i] * dt
+
+        # Land detector: on the ground LAND_DETECT_S without a climb demand (at once when disarmed).
+        quiet = landed[i] and not takeoff_active[i] and (not armed[i] or thrust_demand[i] < hover)
+        land_timer[i] = land_timer[i] + dt if quiet else 0.0
+        land_complete[i] = (land_complete[i] and landed[i]) or (
+            quiet and (not armed[i] or land_timer[i] >= LAND_DETECT_S)
+        )
+        # A positive climb/thrust demand in guided angle control takes off (ArduCopter angle_control_run).
+        if angle_guided and (
+            (use_thrust[i] and collective[i] > 0.0) or (not use_thrust[i] and climb_rate[i] > 0.0)
+        ):
+            land_complete[i] = False
+            land_timer[i] = 0.0
+
+        # Control law.
+        if m == STABILIZE:
+            collective[i] = hover  # no RC: the throttle stick rests at mid (hover)
+        angle = angle_guided or m == STABILIZE or m == ALT_HOLD
+        direct = angle and use_thrust[i]
+        flying = armed[i] and not land_complete[i]
+        speed_dn = p[columns[P_SPEED_DN]] / 100.0
+        speed_up = p[columns[P_SPEED_UP]] / 100.0
+        vx, vy, vz = velocity_demand(
+            pos[i], nav_pos[i], nav_vel[i], p[columns[P_POSXY_P]], p[columns[P_POSZ_P]],
+            p[columns[P_ACCEL]] / 100.0, p[columns[P_SPEED]] / 100.0, speed_up, speed_dn,
+        )  # fmt: skip
+        ax = ay = az = 0.0
+        if angle:
+            vz = min(max(climb_rate[i], -speed_dn), speed_up)
+        elif flying:
+            ax, integrator[i, 0] = velocity_pi(vx - vel[i, 0], integrator[i, 0], p[columns[P_VELXY_P]],
+                                               p[columns[P_VELXY_I]], I_MAX_XY, dt)  # fmt: skip
+            ay, integrator[i, 1] = velocity_pi(vy - vel[i, 1], integrator[i, 1], p[columns[P_VELXY_P]],
+                                               p[columns[P_VELXY_I]], I_MAX_XY, dt)  # fmt: skip
+            ax += nav_acc[i, 0]
+            ay += nav_acc[i, 1]
+        if flying and not direct:
+            az, integrator[i, 2] = velocity_pi(vz - vel[i, 2], integrator[i, 2], p[columns[P_VELZ_P]],
+                                               p[columns[P_VELZ_I]], I_MAX_Z, dt)  # fmt: skip
+            az += 0.0 if angle else nav_acc[i, 2]
+        if angle or not flying:
+            integrator[i, 0] = integrator[i, 1] = 0.0
+        if not flying or direct:
+            integrator[i, 2] = 0.0
+        if angle:
+            quat_sp[i] = angle_quat[i]
+            up = max(1.0 - 2.0 * (x * x + y * y), math.cos(tilt))  # cos(tilt) of the actual attitude
+            fraction = collective[i] if direct else hover * max(g + az, MIN_UP_ACCEL * g) / g / up
+        else:
+            qw, qx, qy, qz, thrust_g = attitude_from_accel(ax, ay, az, nav_yaw[i], tilt, g)
+            quat_sp[i, 0], quat_sp[i, 1], quat_sp[i, 2], quat_sp[i, 3] = qw, qx, qy, qz
+            fraction = hover * thrust_g
+        if armed[i] and land_complete[i]:  # armed on the ground: level, motors spinning slowly
+            _set_level(quat_sp, i, yaw_now)
+            fraction = SPIN_ARMED
+        motors_on[i] = armed[i] and not crashed[i]
+        thrust_demand[i] = min(max(fraction, 0.0), 1.0) if motors_on[i] else 0.0
+        tilt_max[i] = tilt
+        use_ff = angle_guided and angle_rate_ff[i] and not rates_only[i]
+        for k in range(3):
+            rate_ff[i, k] = angle_rates[i, k] if use_ff else 0.0
+        rate_mask[i] = angle_guided and rates_only[i] and not (armed[i] and land_complete[i])
+
+        # Events for Python: disarm on touchdown in LAND/RTL or after DISARM_DELAY landed; GCS failsafe.
+        events[i] = 0
+        delay = p[columns[P_DISARM_DELAY]]
+        waiting = armed[i] and land_complete[i] and delay > 0.0
+        disarm_timer[i] = disarm_timer[i] + dt if waiting else 0.0
+        if armed[i] and land_complete[i] and (landing or (waiting and disarm_timer[i] >= delay)):
+            events[i] = EVENT_DISARM
+        silent = t - last_gcs_heartbeat[i] > p[columns[P_FS_TIMEOUT]]
+        if p[columns[P_FS_ENABLE]] > 0 and armed[i] and math.isfinite(last_gcs_heartbeat[i]) and silent:
+            if not failsafe_gcs[i] and events[i] == 0:
+                events[i] = EVENT_GCS_FAILSAFE

@@ -49,48 +49,59 @@ class LockstepClient:
 
 
 class LockstepClients:
-    """Lockstep clients per (vehicle index, peer address)."""
+    """Lockstep clients of each vehicle, keyed by peer address."""
 
     def __init__(self, n: int, timeout_s: float) -> None:
         self.n = n
         self.timeout_s = timeout_s
-        self.clients: dict[tuple[int, tuple[str, int]], LockstepClient] = {}
+        self.by_vehicle: list[dict[tuple[str, int], LockstepClient]] = [{} for _ in range(n)]
         self.first_seen_wall: float | None = None
 
     def answer(self, vehicle: int, addr: tuple[str, int], time_boot_ms: int, wall_now: float) -> None:
         """A qualifying message with time_boot_ms arrived from addr at vehicle (0 never registers a client)."""
-        client = self.clients.get((vehicle, addr))
+        clients = self.by_vehicle[vehicle]
+        client = clients.get(addr)
         if client is None:
             if time_boot_ms <= 0:
                 return
-            client = self.clients[(vehicle, addr)] = LockstepClient(time_boot_ms)
+            client = clients[addr] = LockstepClient(time_boot_ms)
             if self.first_seen_wall is None:
                 self.first_seen_wall = wall_now
         client.answered_ms = max(client.answered_ms, time_boot_ms)
         if time_boot_ms > 0:
             client.dropped = False
 
-    def active(self) -> list[tuple[tuple[int, tuple[str, int]], LockstepClient]]:
-        """Clients not dropped."""
-        return [(key, c) for key, c in self.clients.items() if not c.dropped]
+    def any_active(self) -> bool:
+        """Some client is not dropped."""
+        return any(not c.dropped for clients in self.by_vehicle for c in clients.values())
 
     def pending(self, frame_ms: int) -> list[tuple[int, tuple[str, int]]]:
-        """Active clients that have not answered frame_ms yet."""
-        return [key for key, c in self.active() if c.answered_ms < frame_ms]
+        """(vehicle, address) of the active clients that have not answered frame_ms yet."""
+        return [
+            (vehicle, addr)
+            for vehicle, clients in enumerate(self.by_vehicle)
+            for addr, c in clients.items()
+            if not c.dropped and c.answered_ms < frame_ms
+        ]
 
     def drop(self, keys: list[tuple[int, tuple[str, int]]]) -> None:
         """Stop waiting for these clients until they answer again."""
-        for key in keys:
-            self.clients[key].dropped = True
+        for vehicle, addr in keys:
+            self.by_vehicle[vehicle][addr].dropped = True
 
     def vehicle_answered(self, vehicle: int, frame_ms: int) -> bool:
         """The vehicle has active lockstep clients and all of them answered frame_ms."""
-        answers = [c.answered_ms for (v, _), c in self.active() if v == vehicle]
-        return bool(answers) and min(answers) >= frame_ms
+        answered = False
+        for client in self.by_vehicle[vehicle].values():
+            if not client.dropped:
+                if client.answered_ms < frame_ms:
+                    return False
+                answered = True
+        return answered
 
     def every_vehicle_has_client(self) -> bool:
         """Each vehicle endpoint has at least one active lockstep client."""
-        return {vehicle for (vehicle, _), _c in self.active()} >= set(range(self.n))
+        return all(any(not c.dropped for c in clients.values()) for clients in self.by_vehicle)
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl_sim import autopilot as ap
 from sitl_sim.attitude_control import yaw_from_quat
-from sitl_sim.streams import DATA_STREAM_GROUPS, STREAM_IDS, swap_quat_enu_ned
+from sitl_sim.streams import DATA_STREAM_GROUPS, STREAM_IDS, Framer, swap_quat_enu_ned
 
 if TYPE_CHECKING:
     from sitl_sim.simulator import Simulator
@@ -109,7 +109,8 @@ class VehicleEndpoint:
             raise
         self.rx = mavlink.MAVLink(None)
         self.rx.robust_parsing = True
-        self.tx = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=1)
+        self.framer = Framer(sysid, 1)
+        self.tx = self.framer.mav  # pymavlink encoder of this vehicle's messages
         self.peers: dict[tuple[str, int], float] = {}
         self.out: list[bytes] = []
         self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
@@ -211,7 +212,7 @@ class VehicleEndpoint:
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
         """Queue a message for every live peer (sent by flush)."""
-        self.out.append(msg.pack(self.tx))
+        self.out.append(self.framer.pack(msg))
 
     def flush(self, wall_now: float) -> None:
         """Queue pending STATUSTEXTs, then send everything queued to the live peers, batched in datagrams."""
@@ -349,11 +350,11 @@ class VehicleEndpoint:
         if msg_id not in STREAM_IDS:
             self.counters.refused += 1
             return M.MAV_RESULT_FAILED
-        msg = self.sim.telemetry_view().encode(self.tx, msg_id, self.index)
-        if msg is None:
+        data = self.sim.telemetry_view().encode(self.framer, msg_id, self.index)
+        if data is None:
             self.counters.refused += 1
             return M.MAV_RESULT_FAILED
-        self.send(msg)
+        self.out.append(data)
         return M.MAV_RESULT_ACCEPTED
 
     def _on_request_data_stream(

@@ -1,17 +1,28 @@
-"""ArduCopter-like position/velocity/altitude controllers, vectorised over N vehicles (world ENU, SI units).
+"""ArduCopter-like position/velocity/altitude control of one vehicle (world ENU, SI units), compiled by numba.
 
 Cascade as AC_PosControl: position error -> sqrt controller -> velocity demand (speed limited) -> velocity PI
 -> acceleration demand -> thrust vector (spec 5 inversion: U = a + g e3, tilt limited altitude first) ->
-attitude target and collective as a fraction of full thrust (hover fraction * |U| / g, MOT_THST_HOVER).
+attitude target and collective in units of g (times MOT_THST_HOVER = fraction of full thrust).
+Scalar functions over one vehicle, called from the autopilot's fused outer loop; without numba they run as
+plain (slow) Python.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from sitl_sim.attitude_control import quat_from_euler, sqrt_controller
+try:
+    from numba import njit
+except ImportError:  # pragma: no cover - numba is optional (extra "fast")
+
+    def njit(*args, **kwargs):  # noqa: ANN002, ANN003, ANN201
+        """No-op stand-in for numba.njit."""
+        if args and callable(args[0]):
+            return args[0]
+        return lambda function: function
+
 
 ACCEL_Z_MAX = 2.5  # m/s^2, vertical acceleration of the sqrt shaping (PILOT_ACCEL_Z 250 cm/s^2)
 I_MAX_XY = 2.0  # m/s^2, horizontal velocity integrator limit
@@ -19,82 +30,82 @@ I_MAX_Z = 4.0  # m/s^2, vertical velocity integrator limit (covers a MOT_THST_HO
 MIN_UP_ACCEL = 0.3  # fraction of g: U_z floor, no free-fall commands (spec 5, limit 1)
 
 
-@dataclass
-class PositionGains:
-    """Per-vehicle gains and limits, each (N,): P in 1/s, I in 1/s^2, speeds m/s, accel m/s^2, tilt rad."""
-
-    pos_xy_p: np.ndarray
-    pos_z_p: np.ndarray
-    vel_xy_p: np.ndarray
-    vel_xy_i: np.ndarray
-    vel_z_p: np.ndarray
-    vel_z_i: np.ndarray
-    speed_xy: np.ndarray
-    speed_up: np.ndarray
-    speed_dn: np.ndarray
-    accel_xy: np.ndarray
-    tilt_max: np.ndarray
+@njit(cache=True)
+def sqrt_controller(error: float, p: float, accel_max: float) -> float:
+    """ArduCopter's sqrt_controller: P near zero error, constant-deceleration sqrt law beyond accel_max/p^2."""
+    linear_dist = accel_max / (p * p)
+    if abs(error) <= linear_dist:
+        return p * error
+    return math.copysign(math.sqrt(2.0 * accel_max * (abs(error) - 0.5 * linear_dist)), error)
 
 
+@njit(cache=True)
 def velocity_demand(
-    pos: np.ndarray, pos_sp: np.ndarray, vel_ff: np.ndarray, gains: PositionGains
-) -> np.ndarray:
-    """(N,3) velocity demand m/s: feed-forward plus sqrt-shaped position correction, speed limited.
-
-    pos_sp (N,3) may hold NaN per component: no position control on that axis (horizontal x/y together).
-    """
-    error = np.where(np.isnan(pos_sp), 0.0, pos_sp - pos)
-    dist = np.hypot(error[:, 0], error[:, 1])
-    speed = np.minimum(sqrt_controller(dist, gains.pos_xy_p, gains.accel_xy), gains.speed_xy)
-    scale = np.where(dist > 1e-9, speed / np.where(dist > 1e-9, dist, 1.0), 0.0)
-    vel = vel_ff.copy()
-    vel[:, :2] += error[:, :2] * scale[:, None]
-    vel[:, 2] += sqrt_controller(error[:, 2], gains.pos_z_p, ACCEL_Z_MAX)
-    horizontal = np.hypot(vel[:, 0], vel[:, 1])
-    limit = np.where(horizontal > gains.speed_xy, gains.speed_xy / np.maximum(horizontal, 1e-9), 1.0)
-    vel[:, :2] *= limit[:, None]
-    vel[:, 2] = np.clip(vel[:, 2], -gains.speed_dn, gains.speed_up)
-    return vel
-
-
-def accel_demand(
-    vel: np.ndarray,
-    vel_sp: np.ndarray,
-    acc_ff: np.ndarray,
-    integrator: np.ndarray,
-    active: np.ndarray,
-    gains: PositionGains,
-    dt: float,
-) -> np.ndarray:
-    """(N,3) acceleration demand m/s^2 of the velocity PI; integrator (N,3) updated in place.
-
-    active (N,3) bool: axes under velocity control this tick; the others have their integrator cleared.
-    """
-    error = vel_sp - vel
-    ki = np.stack((gains.vel_xy_i, gains.vel_xy_i, gains.vel_z_i), axis=1)
-    kp = np.stack((gains.vel_xy_p, gains.vel_xy_p, gains.vel_z_p), axis=1)
-    i_new = np.clip(
-        integrator + ki * error * dt, [-I_MAX_XY, -I_MAX_XY, -I_MAX_Z], [I_MAX_XY, I_MAX_XY, I_MAX_Z]
-    )
-    integrator[:] = np.where(active, i_new, 0.0)
-    return acc_ff + kp * error + integrator
+    pos: np.ndarray,
+    pos_sp: np.ndarray,
+    vel_ff: np.ndarray,
+    p_xy: float,
+    p_z: float,
+    accel_xy: float,
+    speed_xy: float,
+    speed_up: float,
+    speed_dn: float,
+) -> tuple[float, float, float]:
+    """Velocity demand (m/s) from position (3,), target (3,) and feed-forward (3,); NaN target components
+    switch position control off on that axis (x and y together). Horizontal speed <= speed_xy, vertical in
+    [-speed_dn, speed_up]."""
+    vx, vy, vz = vel_ff[0], vel_ff[1], vel_ff[2]
+    if not math.isnan(pos_sp[0]):
+        ex, ey = pos_sp[0] - pos[0], pos_sp[1] - pos[1]
+        dist = math.hypot(ex, ey)
+        if dist > 1e-9:
+            speed = min(sqrt_controller(dist, p_xy, accel_xy), speed_xy)
+            vx += ex * speed / dist
+            vy += ey * speed / dist
+    if not math.isnan(pos_sp[2]):
+        vz += sqrt_controller(pos_sp[2] - pos[2], p_z, ACCEL_Z_MAX)
+    horizontal = math.hypot(vx, vy)
+    if horizontal > speed_xy:
+        vx *= speed_xy / horizontal
+        vy *= speed_xy / horizontal
+    return vx, vy, min(max(vz, -speed_dn), speed_up)
 
 
+@njit(cache=True)
+def velocity_pi(
+    error: float, integrator: float, kp: float, ki: float, i_max: float, dt: float
+) -> tuple[float, float]:
+    """(acceleration demand, new integrator) of one velocity PI axis."""
+    integrator = min(max(integrator + ki * error * dt, -i_max), i_max)
+    return kp * error + integrator, integrator
+
+
+@njit(cache=True)
 def attitude_from_accel(
-    accel: np.ndarray, yaw: np.ndarray, tilt_max: np.ndarray, g: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Attitude target (N,4) FLU->ENU and thrust in units of g (N,) for acceleration demands (N,3), yaw (N,) rad.
+    ax: float, ay: float, az: float, yaw: float, tilt_max: float, g: float
+) -> tuple[float, float, float, float, float]:
+    """(qw, qx, qy, qz, thrust in g) for an acceleration demand (m/s^2, ENU) at heading yaw (rad, ENU).
 
-    Spec 5, paper Eqs 23-25: U = a + g e3 with U_z >= 0.3 g and the tilt limited by shortening U_xy.
+    Spec 5, paper Eqs 23-25: U = a + g e3 with U_z >= 0.3 g and the tilt limited by shortening U_xy;
+    quaternion body FLU -> world ENU of R = Rz(yaw) Ry(pitch) Rx(roll).
     """
-    u = accel + np.array([0.0, 0.0, g])
-    u[:, 2] = np.maximum(u[:, 2], MIN_UP_ACCEL * g)
-    horizontal = np.hypot(u[:, 0], u[:, 1])
-    allowed = u[:, 2] * np.tan(tilt_max)
-    shrink = np.where(horizontal > allowed, allowed / np.maximum(horizontal, 1e-9), 1.0)
-    u[:, :2] *= shrink[:, None]
-    norm = np.linalg.norm(u, axis=1)
-    cy, sy = np.cos(yaw), np.sin(yaw)
-    pitch = np.arctan2(u[:, 0] * cy + u[:, 1] * sy, u[:, 2])
-    roll = np.arcsin(np.clip((u[:, 0] * sy - u[:, 1] * cy) / norm, -1.0, 1.0))
-    return quat_from_euler(roll, pitch, yaw), norm / g
+    uz = max(az + g, MIN_UP_ACCEL * g)
+    horizontal = math.hypot(ax, ay)
+    allowed = uz * math.tan(tilt_max)
+    if horizontal > allowed:
+        ax *= allowed / horizontal
+        ay *= allowed / horizontal
+    norm = math.sqrt(ax * ax + ay * ay + uz * uz)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    pitch = math.atan2(ax * cy + ay * sy, uz)
+    roll = math.asin(min(max((ax * sy - ay * cy) / norm, -1.0), 1.0))
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    ch, sh = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    return (
+        ch * cp * cr + sh * sp * sr,
+        ch * cp * sr - sh * sp * cr,
+        ch * sp * cr + sh * cp * sr,
+        sh * cp * cr - ch * sp * sr,
+        norm / g,
+    )

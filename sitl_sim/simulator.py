@@ -26,13 +26,14 @@ from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
 from sitl_sim.dynamics import FleetDynamics, FleetState, QuadParams
 from sitl_sim.endpoint import VehicleEndpoint
 from sitl_sim.params import ParamTable, param_specs
-from sitl_sim.streams import Geodesy, StreamSchedule, TelemetryView
+from sitl_sim.streams import Geodesy, StreamSchedule, TelemetryView, ned_telemetry
 from sitl_sim.truth_log import TruthLog
 from sitl_sim.wind import Wind
 from sitl_sim.world import Obstacles, find_collisions
 
 KEEPALIVE_S = 1.0  # wall seconds between HEARTBEATs while paused for lockstep clients
 FLUSH_LOG_S = 1.0  # wall seconds between truth-log flushes
+SPIN_S = 0.002  # wall seconds a lockstep frame end polls for the answers before sleeping in select
 STAMPED_MESSAGES = (  # streams that carry time_boot_ms
     mavlink.MAVLINK_MSG_ID_ATTITUDE,
     mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
@@ -77,6 +78,7 @@ class Simulator:
         self.config = config
         self.timing = config.timing
         n = config.vehicles
+        warm_up_kernels()
         quad = QuadParams()
         self.sysids = config.sysid_base + np.arange(n)
         speed, direction, turbulence = config.wind
@@ -173,18 +175,19 @@ class Simulator:
             self._send_now(
                 int(i), (mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
             )
-        self._emit_telemetry()
+        if self.lockstep is None or self.ticks % timing.ticks_per_frame == 0:  # lockstep: frame ends only
+            self._emit_telemetry()
 
     def _emit_telemetry(self) -> None:
         stamped = np.zeros(len(self.endpoints), dtype=bool)
         for i, msg_id in self.streams.due(self.time_us):
             endpoint = self.endpoints[i]
             if endpoint.peers:
-                msg = self.telemetry_view().encode(endpoint.tx, msg_id, i)
-                if msg is not None:
-                    endpoint.send(msg)
+                data = self.telemetry_view().encode(endpoint.framer, msg_id, i)
+                if data is not None:
+                    endpoint.out.append(data)
                     stamped[i] |= msg_id in STAMPED_MESSAGES
-        if self.lockstep is not None and self.ticks % self.timing.ticks_per_frame == 0:
+        if self.lockstep is not None:
             for i in np.flatnonzero(~stamped):  # every frame end carries a time_boot_ms to answer
                 if self.endpoints[i].peers:
                     self._send_now(int(i), (mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,))
@@ -221,7 +224,7 @@ class Simulator:
                     self.lockstep_started = True
                     self.pacer.restart(self.t, now)
                     return
-            elif not clients.active():
+            elif not clients.any_active():
                 self._pace(stop)  # nobody to wait for: real-time pace
                 return
             else:
@@ -239,7 +242,8 @@ class Simulator:
                 keepalive = now
                 for i in range(len(self.endpoints)):
                     self._send_now(i, (mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_SYSTEM_TIME))
-            self._serve(min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
+            spinning = now - frame_wall < SPIN_S  # poll first: a wake-up costs more than a short busy wait
+            self._serve(0.0 if spinning else min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
 
     def _serve(self, timeout: float, frame_ms: int | None = None) -> None:
         """Wait up to timeout s for input, handle it, send the replies (frame_ms: paused at that frame end)."""
@@ -258,8 +262,10 @@ class Simulator:
                     key.fileobj.recv(4096)  # type: ignore[union-attr]
                 except OSError:
                     pass
+        texts = self.autopilot.texts
         for endpoint in self.endpoints:
-            endpoint.flush(wall)
+            if endpoint.out or texts[endpoint.index]:
+                endpoint.flush(wall)
 
     # --- services for the endpoints -------------------------------------------------------------------------
 
@@ -276,9 +282,9 @@ class Simulator:
     def _send_now(self, i: int, msg_ids: tuple[int, ...]) -> None:
         endpoint = self.endpoints[i]
         for msg_id in msg_ids:
-            msg = self.telemetry_view().encode(endpoint.tx, msg_id, i)
-            if msg is not None:
-                endpoint.send(msg)
+            data = self.telemetry_view().encode(endpoint.framer, msg_id, i)
+            if data is not None:
+                endpoint.out.append(data)
 
     def set_param(self, i: int, name: str, value: float) -> None:
         """Store a checked parameter value set on vehicle i; world parameters change the world at once."""
@@ -321,6 +327,20 @@ class Simulator:
         self.selector.close()
         if self.truth is not None:
             self.truth.close()
+
+
+def warm_up_kernels() -> None:
+    """Compile (or load from numba's cache) the physics and autopilot kernels on a throwaway one-vehicle fleet,
+    so that the first frames after READY are not late by the JIT time."""
+    quad = QuadParams()
+    dyn = FleetDynamics(1, quad)
+    params = ParamTable(1, param_specs(quad.hover_fraction), {})
+    zeros = np.zeros((1, 3))
+    Autopilot(dyn, params, zeros, zeros, np.zeros(1, dtype=bool), zeros, 0.0).update(0.0, 0.01)
+    dyn.step(zeros, 1)
+    Geodesy((0.0, 0.0, 0.0)).to_geodetic(zeros)
+    ned_telemetry(zeros, zeros, np.array([[1.0, 0.0, 0.0, 0.0]]), zeros, zeros)
+    find_collisions(zeros, zeros, Obstacles(zeros, np.ones(1), zeros), 0.0, 0.01, np.zeros(1, dtype=bool))
 
 
 def wind_from_degrees(direction_deg: float) -> float:

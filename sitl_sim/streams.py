@@ -9,12 +9,15 @@ everything built here is NED/FRD (spec 1.1).
 from __future__ import annotations
 
 import math
+import struct
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pymap3d
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sitl_sim.position_control import njit
 
 if TYPE_CHECKING:
     from sitl_sim.autopilot import Autopilot
@@ -61,13 +64,24 @@ def swap_quat_enu_ned(q: np.ndarray) -> np.ndarray:
     return SQRT_HALF * np.stack((w + z, x + y, x - y, w - z), axis=-1)
 
 
-def euler_zyx(q: np.ndarray) -> np.ndarray:
-    """(N,4) quaternions -> (N,3) roll, pitch, yaw (ZYX, rad) in the quaternion's own frames."""
-    w, x, y, z = q.T
-    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
-    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return np.stack((roll, pitch, yaw), axis=1)
+@njit(cache=True)
+def ned_telemetry(
+    pos: np.ndarray, vel: np.ndarray, quat: np.ndarray, omega: np.ndarray, origin: np.ndarray
+) -> np.ndarray:
+    """(N,16) per vehicle: quaternion FRD->NED (4), roll, pitch, yaw NED (3), body rates FRD (3), position NED
+    from origin (3), velocity NED (3); from ENU/FLU pos, vel, origin (N,3), quat (N,4), omega (N,3)."""
+    out = np.empty((pos.shape[0], 16))
+    for i in range(pos.shape[0]):
+        w, x, y, z = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+        qw, qx, qy, qz = SQRT_HALF * (w + z), SQRT_HALF * (x + y), SQRT_HALF * (x - y), SQRT_HALF * (w - z)
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = qw, qx, qy, qz
+        out[i, 4] = math.atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
+        out[i, 5] = math.asin(min(max(2.0 * (qw * qy - qz * qx), -1.0), 1.0))
+        out[i, 6] = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        out[i, 7], out[i, 8], out[i, 9] = omega[i, 0], -omega[i, 1], -omega[i, 2]
+        out[i, 10], out[i, 11], out[i, 12] = pos[i, 1] - origin[i, 1], pos[i, 0] - origin[i, 0], origin[i, 2] - pos[i, 2]
+        out[i, 13], out[i, 14], out[i, 15] = vel[i, 1], vel[i, 0], -vel[i, 2]
+    return out
 
 
 def enu_to_ned(v: np.ndarray) -> np.ndarray:
@@ -76,16 +90,59 @@ def enu_to_ned(v: np.ndarray) -> np.ndarray:
     return np.stack((v[..., 1], v[..., 0], -v[..., 2]), axis=-1)
 
 
+WGS84_A = 6378137.0  # m, semi-major axis
+WGS84_F = 1.0 / 298.257223563
+WGS84_B = WGS84_A * (1.0 - WGS84_F)
+WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+
+
+@njit(cache=True)
+def enu_to_geodetic(enu: np.ndarray, lat0: float, lon0: float, alt0: float) -> np.ndarray:
+    """(N,3) ENU m around (lat0, lon0 deg, alt0 m) -> (N,3) lat, lon (deg), alt (m), WGS84, exact.
+
+    ENU -> ECEF by rotation, ECEF -> geodetic by Heikkinen's closed form (no iteration).
+    """
+    phi, lam = math.radians(lat0), math.radians(lon0)
+    sp, cp, sl, cl = math.sin(phi), math.cos(phi), math.sin(lam), math.cos(lam)
+    a, b, e2 = WGS84_A, WGS84_B, WGS84_E2
+    n0 = a / math.sqrt(1.0 - e2 * sp * sp)
+    x0, y0, z0 = (n0 + alt0) * cp * cl, (n0 + alt0) * cp * sl, (n0 * (1.0 - e2) + alt0) * sp
+    out = np.empty_like(enu)
+    for i in range(enu.shape[0]):
+        e, n, u = enu[i, 0], enu[i, 1], enu[i, 2]
+        x = x0 - sl * e - sp * cl * n + cp * cl * u
+        y = y0 + cl * e - sp * sl * n + cp * sl * u
+        z = z0 + cp * n + sp * u
+        p = math.hypot(x, y)
+        f54 = 54.0 * b * b * z * z
+        g = p * p + (1.0 - e2) * z * z - e2 * (a * a - b * b)
+        c = e2 * e2 * f54 * p * p / (g * g * g)
+        s = (1.0 + c + math.sqrt(c * c + 2.0 * c)) ** (1.0 / 3.0)
+        k = s + 1.0 + 1.0 / s
+        pp = f54 / (3.0 * k * k * g * g)
+        q = math.sqrt(1.0 + 2.0 * e2 * e2 * pp)
+        r0 = -(pp * e2 * p) / (1.0 + q) + math.sqrt(
+            0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * p * p
+        )
+        t = p - e2 * r0
+        uu = math.sqrt(t * t + z * z)
+        vv = math.sqrt(t * t + (1.0 - e2) * z * z)
+        zz = b * b * z / (a * vv)
+        out[i, 0] = math.degrees(math.atan2(z + (e2 / (1.0 - e2)) * zz, p))
+        out[i, 1] = math.degrees(math.atan2(y, x))
+        out[i, 2] = uu * (1.0 - b * b / (a * vv))
+    return out
+
+
 class Geodesy:
     """Local ENU metres (mission frame) <-> WGS84 around home = the ENU origin (lat, lon deg, alt m AMSL)."""
 
     def __init__(self, home: tuple[float, float, float]) -> None:
         self.lat0, self.lon0, self.alt0 = home
 
-    def to_geodetic(self, enu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(N,3) ENU -> lat, lon (deg), alt (m AMSL), each (N,)."""
-        lat, lon, alt = pymap3d.enu2geodetic(enu[:, 0], enu[:, 1], enu[:, 2], self.lat0, self.lon0, self.alt0)
-        return np.asarray(lat), np.asarray(lon), np.asarray(alt)
+    def to_geodetic(self, enu: np.ndarray) -> np.ndarray:
+        """(N,3) ENU -> (N,3) lat, lon (deg), alt (m AMSL)."""
+        return enu_to_geodetic(np.ascontiguousarray(enu, dtype=float), self.lat0, self.lon0, self.alt0)
 
     def to_enu(self, lat: float, lon: float, alt: float) -> np.ndarray:
         """One WGS84 point (deg, deg, m AMSL) -> (3,) ENU m."""
@@ -144,6 +201,38 @@ class StreamSchedule:
         return [(int(r), STREAM_IDS[c]) for r, c in zip(rows, cols, strict=True)]
 
 
+class Framer:
+    """MAVLink 2 framing of one sender (sysid, compid) with its own sequence number.
+
+    `pack` frames a pymavlink message object; `frame` builds the same bytes straight from a message class and
+    its field values in wire order (the hot telemetry path: no per-message objects).
+    """
+
+    HEADER = struct.Struct("<BBBBBBBHB")
+    CRC = struct.Struct("<H")
+
+    def __init__(self, sysid: int, compid: int) -> None:
+        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+
+    def pack(self, msg: mavlink.MAVLink_message) -> bytes:
+        """Bytes of a pymavlink message (then the sequence number advances)."""
+        data = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return data
+
+    def frame(self, cls: type[mavlink.MAVLink_message], *values: float) -> bytes:
+        """Bytes of message class cls with field values in wire order (ordered_fieldnames, arrays flattened)."""
+        payload = cls.unpacker.pack(*values).rstrip(b"\0") or b"\0"  # MAVLink 2 trailing-zero truncation
+        mav = self.mav
+        header = self.HEADER.pack(
+            253, len(payload), 0, 0, mav.seq, mav.srcSystem, mav.srcComponent, cls.id & 0xFFFF, cls.id >> 16
+        )
+        mav.seq = (mav.seq + 1) % 256
+        body = header + payload
+        crc = mavlink.x25crc(body[1:] + bytes((cls.crc_extra,)))
+        return body + self.CRC.pack(crc.crc)
+
+
 class TelemetryView:
     """The fleet as MAVLink sees it at one instant; arrays computed on first use, as Python lists."""
 
@@ -155,125 +244,117 @@ class TelemetryView:
         self.unix_epoch_us = unix_epoch_us
 
     @cached_property
-    def attitude(self) -> tuple[list, list, list]:
-        """(quat NED/FRD (N,4), euler NED (N,3), body rates FRD (N,3)) as lists."""
+    def ned(self) -> list[list[float]]:
+        """Per vehicle (ned_telemetry): q FRD->NED 0:4, roll pitch yaw 4:7, rates FRD 7:10, position NED 10:13
+        (from its EKF origin), velocity NED 13:16."""
         state = self.ap.state
-        q_ned = swap_quat_enu_ned(state.quat)
-        rates = state.omega * np.array([1.0, -1.0, -1.0])
-        return q_ned.tolist(), euler_zyx(q_ned).tolist(), rates.tolist()
-
-    @cached_property
-    def local(self) -> tuple[list, list]:
-        """(position NED from each vehicle's EKF origin, velocity NED) as (N,3) lists."""
-        state = self.ap.state
-        return enu_to_ned(state.pos - self.ap.origin).tolist(), enu_to_ned(state.vel).tolist()
+        return ned_telemetry(state.pos, state.vel, state.quat, state.omega, self.ap.origin).tolist()
 
     @cached_property
     def global_position(self) -> tuple[list, list, list, list]:
         """(lat 1e7, lon 1e7, alt mm AMSL, alt mm above home) as (N,) integer lists."""
-        lat, lon, alt = self.geodesy.to_geodetic(self.ap.state.pos)
+        geodetic = self.geodesy.to_geodetic(self.ap.state.pos) * np.array([1e7, 1e7, 1000.0])
         rel = (self.ap.state.pos[:, 2] - self.ap.home[:, 2]) * 1000.0
-        return (
-            np.round(lat * 1e7).astype(np.int64).tolist(),
-            np.round(lon * 1e7).astype(np.int64).tolist(),
-            np.round(alt * 1000.0).astype(np.int64).tolist(),
-            np.round(rel).astype(np.int64).tolist(),
-        )
+        lat, lon, alt = np.round(geodetic).astype(np.int64).T.tolist()
+        return lat, lon, alt, np.round(rel).astype(np.int64).tolist()
 
-    def encode(self, mav: mavlink.MAVLink, msg_id: int, i: int) -> mavlink.MAVLink_message | None:
-        """The message msg_id of vehicle i now, or None when the vehicle has nothing to say yet."""
-        return _ENCODERS[msg_id](self, mav, i)
+    def encode(self, framer: Framer, msg_id: int, i: int) -> bytes | None:
+        """The framed message msg_id of vehicle i now, or None when the vehicle has nothing to say yet."""
+        return _ENCODERS[msg_id](self, framer, i)
 
 
-def _heartbeat(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
+def _heartbeat(v: TelemetryView, f: Framer, i: int) -> bytes:
     ap = v.ap
-    return mav.heartbeat_encode(
-        M.MAV_TYPE_QUADROTOR,
-        M.MAV_AUTOPILOT_ARDUPILOTMEGA,
-        ap.base_mode(i),
-        int(ap.mode[i]),
-        ap.system_status(i),
-        3,
+    return f.pack(
+        f.mav.heartbeat_encode(
+            M.MAV_TYPE_QUADROTOR,
+            M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            ap.base_mode(i),
+            int(ap.mode[i]),
+            ap.system_status(i),
+            3,
+        )
     )
 
 
-def _sys_status(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
+def _sys_status(v: TelemetryView, f: Framer, i: int) -> bytes:
     present, enabled, health = v.ap.sensor_bits(i)
-    return mav.sys_status_encode(present, enabled, health, 120, 12600, 100, 100, 0, 0, 0, 0, 0, 0)
+    return f.pack(f.mav.sys_status_encode(present, enabled, health, 120, 12600, 100, 100, 0, 0, 0, 0, 0, 0))
 
 
-def _ekf_status(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
-    return mav.ekf_status_report_encode(v.ap.ekf_flags(i), 0.02, 0.02, 0.02, 0.02, 0.0, 0.0)
+def _ekf_status(v: TelemetryView, f: Framer, i: int) -> bytes:
+    return f.pack(f.mav.ekf_status_report_encode(v.ap.ekf_flags(i), 0.02, 0.02, 0.02, 0.02, 0.0, 0.0))
 
 
-def _attitude(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
-    _, euler, rates = v.attitude
-    return mav.attitude_encode(v.time_boot_ms, *euler[i], *rates[i])
+def _attitude(v: TelemetryView, f: Framer, i: int) -> bytes:
+    return f.frame(M.MAVLink_attitude_message, v.time_boot_ms, *v.ned[i][4:10])
 
 
-def _attitude_quaternion(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
-    quat, _, rates = v.attitude
-    return mav.attitude_quaternion_encode(v.time_boot_ms, *quat[i], *rates[i])
+def _attitude_quaternion(v: TelemetryView, f: Framer, i: int) -> bytes:
+    row = v.ned[i]
+    return f.frame(M.MAVLink_attitude_quaternion_message, v.time_boot_ms, *row[0:4], *row[7:10], 0.0, 0.0, 0.0, 0.0)
 
 
-def _local_position(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message | None:
+def _local_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
     if not v.ap.position_ok(i):
         return None  # ArduPilot sends it only once the EKF has an origin
-    pos, vel = v.local
-    return mav.local_position_ned_encode(v.time_boot_ms, *pos[i], *vel[i])
+    return f.frame(M.MAVLink_local_position_ned_message, v.time_boot_ms, *v.ned[i][10:16])
 
 
-def _global_position(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message | None:
+def _global_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
     if not v.ap.position_ok(i):
         return None
     lat, lon, alt, rel = v.global_position
-    _, vel = v.local
-    _, euler, _ = v.attitude
-    hdg = round(math.degrees(euler[i][2]) * 100.0) % 36000
-    vn, ve, vd = (max(-32768, min(32767, round(c * 100.0))) for c in vel[i])
-    return mav.global_position_int_encode(v.time_boot_ms, lat[i], lon[i], alt[i], rel[i], vn, ve, vd, hdg)
+    row = v.ned[i]
+    hdg = round(math.degrees(row[6]) * 100.0) % 36000
+    vn, ve, vd = (max(-32768, min(32767, round(c * 100.0))) for c in row[13:16])
+    return f.frame(
+        M.MAVLink_global_position_int_message, v.time_boot_ms, lat[i], lon[i], alt[i], rel[i], vn, ve, vd, hdg
+    )
 
 
-def _gps_raw(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
+def _gps_raw(v: TelemetryView, f: Framer, i: int) -> bytes:
     if not v.ap.position_ok(i):
-        return mav.gps_raw_int_encode(v.time_us, M.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 9999, 9999, 0, 0, 0)
+        return f.pack(
+            f.mav.gps_raw_int_encode(v.time_us, M.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 9999, 9999, 0, 0, 0)
+        )
     lat, lon, alt, _ = v.global_position
-    _, vel = v.local
-    speed = math.hypot(vel[i][0], vel[i][1])
-    cog = round(math.degrees(math.atan2(vel[i][1], vel[i][0])) * 100.0) % 36000 if speed > 0.2 else 0
-    return mav.gps_raw_int_encode(
+    vn, ve = v.ned[i][13:15]
+    speed = math.hypot(vn, ve)
+    cog = round(math.degrees(math.atan2(ve, vn)) * 100.0) % 36000 if speed > 0.2 else 0
+    return f.pack(f.mav.gps_raw_int_encode(
         v.time_us, M.GPS_FIX_TYPE_3D_FIX, lat[i], lon[i], alt[i], 121, 200, round(speed * 100.0), cog, 10,
         alt[i], 300, 500, 200, 0, 0,
-    )  # fmt: skip
+    ))  # fmt: skip
 
 
-def _extended_sys_state(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
-    return mav.extended_sys_state_encode(M.MAV_VTOL_STATE_UNDEFINED, v.ap.landed_state(i))
+def _extended_sys_state(v: TelemetryView, f: Framer, i: int) -> bytes:
+    return f.pack(f.mav.extended_sys_state_encode(M.MAV_VTOL_STATE_UNDEFINED, v.ap.landed_state(i)))
 
 
-def _system_time(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message:
+def _system_time(v: TelemetryView, f: Framer, i: int) -> bytes:
     unix_us = v.unix_epoch_us + v.time_us if v.ap.position_ok(i) else 0  # GPS time once there is a fix
-    return mav.system_time_encode(unix_us, v.time_boot_ms)
+    return f.frame(M.MAVLink_system_time_message, unix_us, v.time_boot_ms)
 
 
-def _home_position(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message | None:
+def _home_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
     if not v.ap.position_ok(i):
         return None
     home = v.ap.home[i : i + 1]
-    lat, lon, alt = v.geodesy.to_geodetic(home)
+    lat, lon, alt = v.geodesy.to_geodetic(home)[0]
     x, y, z = enu_to_ned(home[0] - v.ap.origin[i]).tolist()
-    return mav.home_position_encode(
-        round(lat[0] * 1e7), round(lon[0] * 1e7), round(alt[0] * 1000.0), x, y, z, [1.0, 0.0, 0.0, 0.0],
+    return f.pack(f.mav.home_position_encode(
+        round(lat * 1e7), round(lon * 1e7), round(alt * 1000.0), x, y, z, [1.0, 0.0, 0.0, 0.0],
         0.0, 0.0, 0.0, v.time_us,
-    )  # fmt: skip
+    ))  # fmt: skip
 
 
-def _gps_global_origin(v: TelemetryView, mav: mavlink.MAVLink, i: int) -> mavlink.MAVLink_message | None:
+def _gps_global_origin(v: TelemetryView, f: Framer, i: int) -> bytes | None:
     if not v.ap.position_ok(i):
         return None
-    lat, lon, alt = v.geodesy.to_geodetic(v.ap.origin[i : i + 1])
-    return mav.gps_global_origin_encode(
-        round(lat[0] * 1e7), round(lon[0] * 1e7), round(alt[0] * 1000.0), v.time_us
+    lat, lon, alt = v.geodesy.to_geodetic(v.ap.origin[i : i + 1])[0]
+    return f.pack(
+        f.mav.gps_global_origin_encode(round(lat * 1e7), round(lon * 1e7), round(alt * 1000.0), v.time_us)
     )
 
 

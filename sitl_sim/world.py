@@ -8,7 +8,11 @@ obstacle's surface, and with another vehicle when the two centres come within 2 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from sitl_sim.position_control import njit
 
 FUSELAGE_RADIUS = 0.175  # m (the paper's arm length, Table 2)
 
@@ -31,12 +35,43 @@ class Obstacles:
         return self.centers + self.velocities * t
 
 
-def closest_approach(rel0: np.ndarray, rel1: np.ndarray) -> np.ndarray:
-    """Minimum norm of the segment rel0 -> rel1 (..., 3), for relative positions moving linearly."""
-    delta = rel1 - rel0
-    length2 = np.einsum("...k,...k->...", delta, delta)
-    s = np.clip(-np.einsum("...k,...k->...", rel0, delta) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
-    return np.linalg.norm(rel0 + s[..., None] * delta, axis=-1)
+@njit(cache=True)
+def closest_approach(rx0: float, ry0: float, rz0: float, rx1: float, ry1: float, rz1: float) -> float:
+    """Minimum norm of the segment (rx0, ry0, rz0) -> (rx1, ry1, rz1): relative positions moving linearly."""
+    dx, dy, dz = rx1 - rx0, ry1 - ry0, rz1 - rz0
+    length2 = dx * dx + dy * dy + dz * dz
+    s = 0.0 if length2 <= 0.0 else min(max(-(rx0 * dx + ry0 * dy + rz0 * dz) / length2, 0.0), 1.0)
+    return math.sqrt((rx0 + s * dx) ** 2 + (ry0 + s * dy) ** 2 + (rz0 + s * dz) ** 2)
+
+
+@njit(cache=True)
+def swept_hits(
+    pos0: np.ndarray, pos1: np.ndarray, c0: np.ndarray, c1: np.ndarray, radii: np.ndarray, ignore: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per vehicle: first obstacle hit (N,) and first other vehicle hit (N,), -1 for none (see find_collisions)."""
+    n, k = pos0.shape[0], c0.shape[0]
+    obstacle_hit = np.full(n, -1, dtype=np.int64)
+    vehicle_hit = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        if ignore[i]:
+            continue
+        for j in range(k):
+            rel0 = pos0[i] - c0[j]
+            rel1 = pos1[i] - c1[j]
+            if closest_approach(rel0[0], rel0[1], rel0[2], rel1[0], rel1[1], rel1[2]) <= radii[j] + FUSELAGE_RADIUS:
+                obstacle_hit[i] = j
+                break
+        for j in range(i + 1, n):
+            if ignore[j]:
+                continue
+            rel0 = pos0[i] - pos0[j]
+            rel1 = pos1[i] - pos1[j]
+            if closest_approach(rel0[0], rel0[1], rel0[2], rel1[0], rel1[1], rel1[2]) <= 2.0 * FUSELAGE_RADIUS:
+                if vehicle_hit[i] < 0:
+                    vehicle_hit[i] = j
+                if vehicle_hit[j] < 0:
+                    vehicle_hit[j] = i
+    return obstacle_hit, vehicle_hit
 
 
 def find_collisions(
@@ -46,22 +81,13 @@ def find_collisions(
 
     ignore (N,) bool: vehicles already crashed (not tested, and not obstacles for the others either: debris
     on the ground is not tracked). Vehicle indices in the text are 0-based like the CLI's vehicle numbers.
+    An obstacle hit is reported before a vehicle hit.
     """
-    hits: dict[int, str] = {}
-    live = np.flatnonzero(~ignore)
-    if len(obstacles) and len(live):
-        c0, c1 = obstacles.at(t0), obstacles.at(t1)
-        rel0 = pos0[live, None, :] - c0[None, :, :]
-        rel1 = pos1[live, None, :] - c1[None, :, :]
-        touching = closest_approach(rel0, rel1) <= obstacles.radii[None, :] + FUSELAGE_RADIUS
-        for a, k in zip(*np.nonzero(touching), strict=True):
-            hits.setdefault(int(live[a]), f"collision with obstacle {int(k)}")
-    if len(live) > 1:
-        a, b = np.triu_indices(len(live), k=1)
-        rel0 = pos0[live[a]] - pos0[live[b]]
-        rel1 = pos1[live[a]] - pos1[live[b]]
-        for pair in np.flatnonzero(closest_approach(rel0, rel1) <= 2.0 * FUSELAGE_RADIUS):
-            i, j = int(live[a[pair]]), int(live[b[pair]])
-            hits.setdefault(i, f"collision with vehicle {j}")
-            hits.setdefault(j, f"collision with vehicle {i}")
-    return sorted(hits.items())
+    obstacle_hit, vehicle_hit = swept_hits(
+        pos0, pos1, obstacles.at(t0), obstacles.at(t1), obstacles.radii, np.asarray(ignore, dtype=np.bool_)
+    )
+    hits = []
+    for i in np.flatnonzero((obstacle_hit >= 0) | (vehicle_hit >= 0)):
+        what = f"obstacle {obstacle_hit[i]}" if obstacle_hit[i] >= 0 else f"vehicle {vehicle_hit[i]}"
+        hits.append((int(i), f"collision with {what}"))
+    return hits

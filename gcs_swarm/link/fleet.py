@@ -65,6 +65,7 @@ __all__ = [
 ]
 
 _POLL_S = 0.02  # longest single select() inside blocking waits; they return as soon as packets arrive
+_FRAME_GRACE_S = 0.25  # wall s a blocking wait waits for a complete telemetry frame before acting anyway
 _SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before connect refuses it
 
 
@@ -322,10 +323,33 @@ class Fleet:
                 return
         self.unrouted += 1
 
+    def _frame_ready(self) -> bool:
+        """Every alive vehicle has a telemetry frame that no answer has covered yet: in lockstep, the fleet's
+        frame is complete and the simulator waits for us."""
+        alive = [link for link in self.links if self.state.alive[link.index] and link.endpoint is not None]
+        return bool(alive) and all(link.needs_answer for link in alive)
+
+    def _next_frame(self, deadline: float) -> None:
+        """Pump until a complete unanswered frame is here (immediately if one already is), or a short
+        wall-clock grace passes (so vehicles that do not stream keep a real fleet moving), or the deadline."""
+        if not self.lockstep_answers:
+            self.pump(max(0.0, min(deadline - time.monotonic(), _POLL_S)))
+            return
+        limit = min(deadline, time.monotonic() + _FRAME_GRACE_S)
+        while not self._frame_ready():
+            remaining = limit - time.monotonic()
+            if remaining <= 0:
+                return
+            self.pump(min(remaining, _POLL_S))
+
     def _pump_answering(self, timeout_s: float) -> None:
-        self.pump(timeout_s)
+        """Answer the current frame (the caller has checked its condition on it and sent its commands), then
+        pump until the next complete frame. Deciding only on complete frames, and acting before answering
+        them, is what makes a lockstep run deterministic: every command takes effect at the frame it was
+        decided on, however the packets interleave on the wire."""
         if self.lockstep_answers:
             self.answer_frame()
+        self._next_frame(time.monotonic() + timeout_s)
 
     def wait_tick(self, timeout_s: float) -> bool:
         """Pump until every alive vehicle has a GLOBAL_POSITION_INT newer than its last tick or lockstep
@@ -343,13 +367,18 @@ class Fleet:
             self.pump(remaining)
 
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
-        """Pump (answering frames) until `predicate()`; LinkError "timed out after T s waiting for {what}"."""
+        """Pump (answering frames) until `predicate()`; LinkError "timed out after T s waiting for {what}".
+
+        The predicate is evaluated on complete frames, and the frame on which it first holds is left
+        unanswered, so the caller's next commands take effect at that very frame.
+        """
         deadline = time.monotonic() + timeout_s
+        self._next_frame(deadline)
         while not predicate():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise LinkError(f"timed out after {timeout_s:g} s waiting for {what}")
-            self._pump_answering(min(remaining, _POLL_S))
+            self._pump_answering(remaining)
 
     def run(self, ops: Iterable[Operation[Any]], strict: bool = True) -> list[Any]:
         """Drive several vehicle operations together, pumping (and answering frames) between their steps.
@@ -360,6 +389,7 @@ class Fleet:
         ops = list(ops)
         results: list[Any] = [None] * len(ops)
         pending = list(range(len(ops)))
+        self._next_frame(time.monotonic() + _FRAME_GRACE_S)  # start (send) on a complete frame
         while pending:
             still = []
             for k in pending:
@@ -372,7 +402,7 @@ class Fleet:
                     results[k] = err
             pending = still
             if pending:
-                self._pump_answering(_POLL_S)
+                self._pump_answering(_FRAME_GRACE_S)
         errors = [r for r in results if isinstance(r, LinkError)]
         if strict and errors:
             raise errors[0] if len(errors) == 1 else LinkError("; ".join(str(e) for e in errors))
@@ -447,6 +477,7 @@ class Fleet:
         """Wait until each vehicle (default: all) is ready to arm; LinkError naming the others and why."""
         links = self.links if vehicles is None else self.select(vehicles)
         deadline = time.monotonic() + timeout_s
+        self._next_frame(deadline)
         while True:
             reasons = [(link, link.not_ready_reason()) for link in links]
             late = [(link, why) for link, why in reasons if why is not None]
@@ -456,7 +487,7 @@ class Fleet:
             if remaining <= 0:
                 detail = "; ".join(f"{link.name}: {why}" for link, why in late)
                 raise LinkError(f"not ready to fly after {timeout_s:g} s: {detail}")
-            self._pump_answering(min(remaining, _POLL_S))
+            self._pump_answering(remaining)
 
     def request_streams_all(
         self,

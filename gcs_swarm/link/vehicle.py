@@ -36,7 +36,8 @@ Operation = Generator[None, None, T]
 ARDUCOPTER_MODES: dict[str, int] = {name: number for number, name in mavutil.mode_mapping_acm.items()}
 """ArduCopter flight mode name -> custom_mode number (pymavlink's table)."""
 
-FORCE_ARM_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre-arm / allow in-flight disarm
+FORCE_ARM_MAGIC = 2989  # MAV_CMD_COMPONENT_ARM_DISARM param2 (ArduPilot): arm skipping the pre-arm checks
+FORCE_DISARM_MAGIC = 21196  # ... and disarm even in flight
 ATTITUDE_TARGET_IGNORE_RATES = 0b00000111  # SET_ATTITUDE_TARGET.type_mask: use quaternion + thrust only
 STATUSTEXT_GRACE_S = 0.3  # ArduPilot queues the "PreArm: ..." text, so it may arrive just after the ACK
 
@@ -697,7 +698,9 @@ class VehicleLink:
         if bool(st.armed[i]) == arm:
             return
         yield from self.op_command(
-            mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 1.0 if arm else 0.0, FORCE_ARM_MAGIC if force else 0.0
+            mavlink2.MAV_CMD_COMPONENT_ARM_DISARM,
+            1.0 if arm else 0.0,
+            (FORCE_ARM_MAGIC if arm else FORCE_DISARM_MAGIC) if force else 0.0,
         )
         word = "armed" if arm else "disarmed"
         yield from self._op_wait(

@@ -126,7 +126,10 @@ class Vehicle:
     def __init__(self, port: int, sysid: int, source_system: int = GCS_SYSID) -> None:
         self.sysid = sysid
         self.conn = mavutil.mavlink_connection(
-            f"udpout:127.0.0.1:{port}", source_system=source_system, source_component=GCS_COMPID, dialect="ardupilotmega"
+            f"udpout:127.0.0.1:{port}",
+            source_system=source_system,
+            source_component=GCS_COMPID,
+            dialect="ardupilotmega",
         )
         self.latest: dict[str, mavlink.MAVLink_message] = {}
         self.texts: list[str] = []
@@ -178,7 +181,9 @@ class Vehicle:
     def attitude(self, roll: float, pitch: float, yaw: float, thrust: float, type_mask: int = 0b111) -> None:
         """SET_ATTITUDE_TARGET of NED/FRD Euler angles (rad), rates ignored by default."""
         q = euler_to_quat_ned(roll, pitch, yaw)
-        self.mav.set_attitude_target_send(self.time_boot_ms, self.sysid, 1, type_mask, q, 0.0, 0.0, 0.0, thrust)
+        self.mav.set_attitude_target_send(
+            self.time_boot_ms, self.sysid, 1, type_mask, q, 0.0, 0.0, 0.0, thrust
+        )
 
     @property
     def armed(self) -> bool:
@@ -262,7 +267,9 @@ class Pilot:
                     self.holding = True
                     return
                 self.holding = False
-                assert max(v.t for v in self.vehicles) - start <= sim_s, f"not met within {sim_s} s of vehicle time"
+                assert max(v.t for v in self.vehicles) - start <= sim_s, (
+                    f"not met within {sim_s} s of vehicle time"
+                )
                 for v in self.vehicles:
                     if self.heartbeat and v.time_boot_ms - (v.last_heartbeat_ms or 0) >= 1000:
                         v.heartbeat()

@@ -8,7 +8,7 @@ import pytest
 from conftest import M, read_truth
 
 GUIDED, LAND, RTL = 4, 9, 6
-FAST = ("--lockstep", "--ready-delay", "1")
+FAST = ("--lockstep", "--lockstep-timeout", "60", "--ready-delay", "1")  # generous timeout: a loaded CI
 
 
 def test_guided_takeoff_to_10_m_then_land_disarms(sitl, pilot_for, tmp_path):

@@ -17,7 +17,18 @@ LAND = 9
 
 def scripted_flight(sitl, pilot_for, log) -> None:
     """Two vehicles, turbulent wind, take-offs, an attitude-target stream, a landing; stopped at t = 9 s."""
-    sim = sitl("--lockstep", "--ready-delay", "1", "--seed", "7", "--truth-log", str(log), vehicles=2)
+    sim = sitl(
+        "--lockstep",
+        "--lockstep-timeout",
+        "60",
+        "--ready-delay",
+        "1",
+        "--seed",
+        "7",
+        "--truth-log",
+        str(log),
+        vehicles=2,
+    )
     pilot = pilot_for(sim)
     pilot.spin(lambda: pilot[0].ready and pilot[1].ready, 5.0)
     pilot.set_param(1, "SIM_WIND_SPD", 4.0)
@@ -56,7 +67,9 @@ def test_passive_client_does_not_stall_and_silent_client_is_dropped(sitl, pilot_
         assert watcher.time_boot_ms == 20
 
         pilot = pilot_for(sim)
-        pilot.spin(lambda: pilot[0].t >= 2.0, 3.0)  # the lockstep client drives; the watcher does not stall it
+        pilot.spin(
+            lambda: pilot[0].t >= 2.0, 3.0
+        )  # the lockstep client drives; the watcher does not stall it
         watcher.drain()
         assert watcher.time_boot_ms >= 1900
         stopped_at = pilot[0].time_boot_ms

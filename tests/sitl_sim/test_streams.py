@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from sitl_sim.attitude_control import quat_from_euler
-from sitl_sim.streams import StreamSchedule, enu_to_ned, euler_zyx, swap_quat_enu_ned
+from sitl_sim.streams import StreamSchedule, enu_to_ned, ned_telemetry, swap_quat_enu_ned
 
 ENU_TO_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 FRD_TO_FLU = np.diag([1.0, -1.0, -1.0])
@@ -39,7 +39,10 @@ def test_quaternion_conversion_matches_the_frame_rotations(roll, pitch, yaw):
     q_ned = swap_quat_enu_ned(q_enu)
     assert np.allclose(rotation(q_ned), ENU_TO_NED @ rotation(q_enu) @ FRD_TO_FLU, atol=1e-9)
     assert np.allclose(swap_quat_enu_ned(q_ned), q_enu, atol=1e-12)
-    ned_roll, ned_pitch, ned_yaw = euler_zyx(q_ned[None, :])[0]  # spec 1.1 relations
+    pos, vel, omega = np.array([[1.0, 2.0, 3.0]]), np.array([[4.0, 5.0, 6.0]]), np.array([[0.1, 0.2, 0.3]])
+    row = ned_telemetry(pos, vel, q_enu[None, :], omega, np.array([[0.5, 0.5, 0.5]]))[0]
+    assert np.allclose(row[0:4], q_ned) and np.allclose(row[7:], [0.1, -0.2, -0.3, 1.5, 0.5, -2.5, 5, 4, -6])
+    ned_roll, ned_pitch, ned_yaw = row[4:7]  # spec 1.1 relations
     assert ned_roll == pytest.approx(roll, abs=1e-6)
     assert ned_pitch == pytest.approx(-pitch, abs=1e-6)
     assert math.remainder(ned_yaw - (math.pi / 2 - yaw), 2 * math.pi) == pytest.approx(0.0, abs=1e-6)

@@ -12,16 +12,18 @@ NONE = np.zeros(3, dtype=bool)
 
 
 def test_closest_approach_of_a_segment():
-    assert closest_approach(np.array([-1.0, 0.5, 0.0]), np.array([1.0, 0.5, 0.0])) == pytest.approx(0.5)
-    assert closest_approach(np.array([2.0, 0.0, 0.0]), np.array([3.0, 0.0, 0.0])) == pytest.approx(2.0)
-    assert closest_approach(np.array([1.0, 1.0, 1.0]), np.array([1.0, 1.0, 1.0])) == pytest.approx(3**0.5)
+    assert closest_approach(-1.0, 0.5, 0.0, 1.0, 0.5, 0.0) == pytest.approx(0.5)
+    assert closest_approach(2.0, 0.0, 0.0, 3.0, 0.0, 0.0) == pytest.approx(2.0)
+    assert closest_approach(1.0, 1.0, 1.0, 1.0, 1.0, 1.0) == pytest.approx(3**0.5)
 
 
 def test_moving_obstacle_and_fast_vehicle_cannot_tunnel():
     obstacles = Obstacles(np.array([[10.0, 0.0, 5.0]]), np.array([1.0]), np.array([[0.0, -2.0, 0.0]]))
     assert np.allclose(obstacles.at(2.0), [[10.0, -4.0, 5.0]])
     pos0 = np.array([[8.0, 0.0, 5.0], [0.0, 50.0, 5.0], [0.0, 60.0, 5.0]])
-    pos1 = np.array([[12.0, 0.0, 5.0], [0.0, 51.0, 5.0], [0.0, 61.0, 5.0]])  # vehicle 0 crosses it in one tick
+    pos1 = np.array(
+        [[12.0, 0.0, 5.0], [0.0, 51.0, 5.0], [0.0, 61.0, 5.0]]
+    )  # vehicle 0 crosses it in one tick
     assert find_collisions(pos0, pos1, obstacles, 0.0, 0.01, NONE) == [(0, "collision with obstacle 0")]
     grazing = np.array([[8.0, 1.0 + FUSELAGE_RADIUS + 0.01, 5.0], *pos0[1:]])
     assert find_collisions(grazing, grazing + [4.0, 0.0, 0.0], obstacles, 0.0, 0.01, NONE) == []
@@ -56,7 +58,9 @@ def test_taking_off_into_an_obstacle_crashes(sitl, pilot_for, tmp_path):
     mission = tmp_path / "crash.yaml"
     mission.write_text(MISSION)
     log = tmp_path / "truth.csv"
-    sim = sitl("--mission", str(mission), "--lockstep", "--ready-delay", "1", "--truth-log", str(log), vehicles=2)
+    sim = sitl(
+        "--mission", str(mission), "--lockstep", "--ready-delay", "1", "--truth-log", str(log), vehicles=2
+    )
     pilot = pilot_for(sim)
     v = pilot[0]
     pilot.spin(lambda: v.ready, 5.0)

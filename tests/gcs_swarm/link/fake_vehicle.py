@@ -353,7 +353,7 @@ class FakeVehicle:
         source = (msg.get_srcSystem(), msg.get_srcComponent())
         result = mavlink2.MAV_RESULT_ACCEPTED
         if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
-            if msg.param1 == 1 and self.arm_refusal and msg.param2 != 21196:
+            if msg.param1 == 1 and self.arm_refusal and msg.param2 != 2989:  # ArduPilot force-arm
                 self._ack(command, mavlink2.MAV_RESULT_FAILED, source)
                 self._statustext(self.arm_refusal)  # after the ACK, as ArduPilot's queued text
                 return

@@ -1,0 +1,149 @@
+"""`gcs-swarm console MISSION.yaml`: the same wiring as `gcs-swarm run` (embedded simulator or running
+vehicles, Fleet, RunRecord, MissionRunner, run folder and report) with the operator in the loop.
+
+Interactive (full-screen prompt_toolkit UI) when stdin and stdout are terminals and no --script is given;
+plain line mode otherwise. Exit status: 0 ok; 1 a scripted command failed; 2 user error (mission file,
+simulator, vehicles not reachable).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gcs_swarm.console.script import PlainConsole
+from gcs_swarm.console.session import FlightSession
+from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.mission import Mission, MissionError, load_mission
+from gcs_swarm.report import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE, write_report
+from gcs_swarm.run_command import default_run_dir, vehicle_configs
+from gcs_swarm.run_record import RunRecord
+from gcs_swarm.runner import FlightResult, MissionRunner, mission_offsets
+
+EXIT_OK, EXIT_USER_ERROR = 0, 2
+HISTORY_FILE = "console_history.txt"
+
+
+@dataclass(frozen=True)
+class ConsoleOptions:
+    """Command-line choices of `gcs-swarm console`."""
+
+    out_dir: Path | None = None
+    connect_only: bool = False
+    base_port: int | None = None
+    script: Path | None = None
+    yes: bool = False
+
+
+def console_command(mission_path: str, options: ConsoleOptions) -> int:
+    """The whole `console` command."""
+    try:
+        mission = load_mission(mission_path)
+    except MissionError as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
+    script = None
+    if options.script is not None:
+        try:
+            script = options.script.read_text().splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            print(f"error: cannot read the script {options.script}: {exc}")
+            return EXIT_USER_ERROR
+    interactive = script is None and sys.stdin.isatty() and sys.stdout.isatty()
+    run_dir = options.out_dir or default_run_dir(mission)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    sim_spec = mission.run.simulator
+    embedded = sim_spec.embedded and not options.connect_only
+    base_port = (options.base_port or sim_spec.base_port) if embedded else None
+    wall0 = time.monotonic()
+    sim: EmbeddedSimulator | None = None
+    result = FlightResult()
+    status = EXIT_OK
+    if not interactive:
+        print(f"run folder {run_dir}", flush=True)
+    try:
+        if embedded:
+            assert base_port is not None
+            sim = EmbeddedSimulator(
+                mission,
+                base_port=base_port,
+                truth_log=run_dir / TRUTH_FILE,
+                time_mode=sim_spec.time_mode,
+                speedup=sim_spec.speedup,
+                seed=sim_spec.seed,
+            )
+            sim.start()
+        where = (
+            f"embedded simulator on 127.0.0.1:{base_port}.." if embedded else "vehicles of the mission file"
+        )
+        with Fleet(
+            vehicle_configs(mission, base_port), mission.origin, tlog_path=run_dir / "telemetry.tlog"
+        ) as fleet:
+            record = RunRecord(run_dir / RECORD_FILE)
+            runner = MissionRunner(
+                mission, fleet, record, progress_period_s=2.0 if script is not None else 1e9
+            )
+            # A person typing wants vehicle time at wall-clock pace; a script runs as fast as the link goes.
+            session = FlightSession(runner, realtime=sys.stdin.isatty() and script is None)
+            session.start()
+            try:
+                if interactive:
+                    from gcs_swarm.console.app import ConsoleApp
+
+                    title = f"swarm-gcs console: {mission.name}, {len(mission.vehicles)} vehicles, {where}"
+                    app = ConsoleApp(session, mission, title, run_dir / HISTORY_FILE, options.yes)
+                    status = app.run()
+                else:
+                    print(f"connecting to the {where}", flush=True)
+                    lines = script if script is not None else sys.stdin
+                    status = PlainConsole(session, mission, lines, options.yes, _print).run()
+            finally:
+                session.stop()
+                record.close()
+                result = runner.result
+    except (SimulatorError, MissionError) as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
+    finally:
+        if sim is not None:
+            sim.stop()
+    _write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0)
+    if result.t_formation_start is not None:
+        report = write_report(run_dir, mission)
+        print(
+            f"reached={report['reached']} collisions={report['collisions']} "
+            f"min_separation={report['min_separation_m']} m formation_rms={report['formation_rms_m']} m"
+        )
+    print(f"run folder {run_dir}")
+    return status
+
+
+def _print(line: str) -> None:
+    print(line, flush=True)
+
+
+def _write_flight(
+    run_dir: Path, mission: Mission, mission_path: str, result: FlightResult, wall_s: float
+) -> None:
+    """flight.json, as `gcs-swarm run` writes it, so `gcs-swarm report` works on a console run folder."""
+    flight = {
+        "mission": mission.name,
+        "mission_path": str(Path(mission_path).resolve()),
+        "phase_reached": result.phase_reached,
+        "arrived": result.arrived,
+        "t_formation_start": result.t_formation_start,
+        "t_formation_end": result.t_formation_end,
+        "final_targets": None if result.final_targets is None else np.asarray(result.final_targets).tolist(),
+        "offsets": mission_offsets(mission).tolist(),
+        "lost": result.lost,
+        "events": result.events,
+        "ticks": result.ticks,
+        "wall_duration_s": wall_s,
+    }
+    (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")

@@ -1,0 +1,105 @@
+"""End-to-end fixtures: fly missions with the real `gcs-swarm run` process against the real simulator process,
+both on 127.0.0.1 free ports, bounded in time."""
+
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+MISSIONS = ROOT / "missions"
+
+
+def free_udp_base(count: int, start: int = 20000, stop: int = 60000) -> int:
+    """A base port such that base..base+count-1 are all free UDP ports on 127.0.0.1."""
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    guess = probe.getsockname()[1]
+    probe.close()
+    for base in list(range(guess, min(guess + 2000, stop), count + 1)) + list(range(start, stop, count + 7)):
+        socks = []
+        try:
+            for i in range(count):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", base + i))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise RuntimeError("no block of free UDP ports found")
+
+
+@dataclass
+class RunOutcome:
+    """A finished `gcs-swarm run`: exit status, output, and its run folder."""
+
+    status: int
+    output: str
+    run_dir: Path
+
+    @property
+    def report(self) -> dict[str, Any]:
+        return json.loads((self.run_dir / "report.json").read_text())
+
+
+def fly(mission: Path, run_dir: Path, timeout_s: float = 400.0, extra: list[str] | None = None) -> RunOutcome:
+    """Run `python -m gcs_swarm run` to completion (killed after timeout_s)."""
+    n = len(yaml.safe_load(mission.read_text())["vehicles"])
+    cmd = [
+        sys.executable,
+        "-m",
+        "gcs_swarm",
+        "run",
+        str(mission),
+        "--out",
+        str(run_dir),
+        "--base-port",
+        str(free_udp_base(n)),
+        *(extra or []),
+    ]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout_s)
+    return RunOutcome(proc.returncode, proc.stdout + proc.stderr, run_dir)
+
+
+def _numbers(node: Any) -> Any:
+    """PyYAML reads `1e5` as a string (YAML 1.1); turn such strings back into numbers before re-dumping."""
+    if isinstance(node, dict):
+        return {k: _numbers(v) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_numbers(v) for v in node]
+    if isinstance(node, str):
+        try:
+            return float(node)
+        except ValueError:
+            return node
+    return node
+
+
+def derived_mission(tmp_path: Path, source: str, name: str, **changes: Any) -> Path:
+    """A copy of a bundled mission with top-level sections replaced or updated (dicts are merged one level)."""
+    data = _numbers(yaml.safe_load((MISSIONS / source).read_text()))
+    for key, value in changes.items():
+        if isinstance(value, dict) and isinstance(data.get(key), dict):
+            data[key].update(value)
+        else:
+            data[key] = value
+    data.setdefault("mission", {})["name"] = name
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+@pytest.fixture
+def quickstart() -> Path:
+    return MISSIONS / "quickstart.yaml"

@@ -1,0 +1,102 @@
+"""`gcs-swarm run` end to end: the real ground station flies the real simulator in lockstep over UDP."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import yaml
+from pymavlink import mavutil
+
+from gcs_swarm.cli import main
+
+from tests.e2e.conftest import derived_mission, fly
+
+REPORT_KEYS = {
+    "reached",
+    "time_to_goal_s",
+    "collisions",
+    "min_separation_m",
+    "min_obstacle_clearance_m",
+    "formation_rms_m",
+    "oscillation_time_s",
+    "settling_time_s",
+    "sim_duration_s",
+    "wall_duration_s",
+    "vehicles",
+    "source",
+}
+
+
+def _figures(report: dict) -> dict:
+    """The report without the wall-clock figure, which legitimately differs between runs."""
+    return {k: v for k, v in report.items() if k != "wall_duration_s"}
+
+
+def test_quickstart_reaches_goal_and_repeats_exactly(quickstart: Path, tmp_path: Path) -> None:
+    first = fly(quickstart, tmp_path / "first")
+    assert first.status == 0, first.output[-3000:]
+    report = first.report
+    assert REPORT_KEYS <= report.keys()
+    assert report["source"] == "truth"
+    assert report["reached"] is True
+    assert report["collisions"] == 0
+    assert report["min_separation_m"] > 3.0  # D_Emg of the mission
+    assert report["min_obstacle_clearance_m"] > 0.175
+    assert report["formation_rms_m"] < 1.5
+    assert 5.0 < report["time_to_goal_s"] < 60.0
+    assert all(v["reached"] for v in report["vehicles"])
+    for name in ("truth.csv", "record.csv", "report.md", "telemetry.tlog"):
+        assert (first.run_dir / name).stat().st_size > 0, name
+    # The telemetry log is a standard tlog that pymavlink reads back.
+    log = mavutil.mavlink_connection(str(first.run_dir / "telemetry.tlog"))
+    types = set()
+    while (msg := log.recv_match()) is not None:
+        types.add(msg.get_type())
+    assert {"HEARTBEAT", "GLOBAL_POSITION_INT", "SET_ATTITUDE_TARGET"} <= types
+
+    # flight.json ties the run folder to its mission: `gcs-swarm report` rebuilds the same report.
+    flight = json.loads((first.run_dir / "flight.json").read_text())
+    assert flight["arrived"] is True and flight["ticks"] > 100
+    (first.run_dir / "report.json").unlink()
+    assert main(["report", str(first.run_dir)]) == 0
+    assert _figures(first.report) == _figures(report)
+
+    second = fly(quickstart, tmp_path / "second")
+    assert second.status == 0, second.output[-3000:]
+    assert _figures(second.report) == _figures(report)
+    assert (second.run_dir / "truth.csv").read_bytes() == (first.run_dir / "truth.csv").read_bytes()
+
+
+def test_six_uav_static_paper_scenario_shortened(tmp_path: Path) -> None:
+    """Section 5.2.1 with the goal moved to (600, 600, 200) so the flight past obstacle (250, 160, 200) and
+    (520, 350, 200) stays short; followers keep their Table 3 slots."""
+    mission = derived_mission(
+        tmp_path,
+        "paper_static_6.yaml",
+        "static6_short",
+        goal=[600.0, 600.0, 200.0],
+        run={"time_limit_s": 240},
+    )
+    # Table 3 targets lie 6 km away; without them each follower's destination is its final slot.
+    data = yaml.safe_load(mission.read_text())
+    for v in data["vehicles"]:
+        v.pop("target", None)
+    mission.write_text(yaml.safe_dump(data, sort_keys=False))
+    outcome = fly(mission, tmp_path / "run", timeout_s=500)
+    assert outcome.status == 0, outcome.output[-3000:]
+    report = outcome.report
+    assert report["reached"] and report["collisions"] == 0
+    assert report["min_separation_m"] > 10.0  # D_max: no pair ever inside the safe distance
+    assert report["min_obstacle_clearance_m"] > 0.175
+
+
+def test_bad_mission_is_refused_with_its_sentence(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("vehicles:\n  - {name: a, role: leader, start: {position: [0, 0, 0]}}\ngoal: [10, 10]\n")
+    outcome = fly(bad, tmp_path / "run", timeout_s=60)
+    assert outcome.status == 2
+    line = next(ln for ln in outcome.output.splitlines() if ln.startswith("error:"))
+    assert "bad.yaml:3" in line and "goal" in line
+    assert "Traceback" not in outcome.output
+    assert not (tmp_path / "run" / "report.json").exists()
