@@ -148,7 +148,8 @@ def tick_cost(vehicles: int, ticks: int = 400) -> tuple[float, float]:
     config = SimConfig(
         base_port=free_base_port(vehicles), bind="127.0.0.1", sysid_base=1,
         timing=plan_timing(RATE_HZ, 100.0, None, 50.0), speedup=1.0, lockstep=False, lockstep_timeout=5.0,
-        home=(-35.36, 149.16, 584.0), start_pos=np.column_stack((5.0 * np.arange(vehicles), np.zeros((vehicles, 2)))),
+        home=(-35.36, 149.16, 584.0),
+        start_pos=np.column_stack((5.0 * np.arange(vehicles), np.zeros((vehicles, 2)))),
         start_vel=np.zeros((vehicles, 3)), start_yaw=np.zeros(vehicles),
         obstacles=Obstacles(np.array([[0.0, 50.0, 10.0]]), np.array([3.0]), np.zeros((1, 3))),
         wind=(3.0, 90.0, 1.0), truth_log=None, seed=0, ready_delay=0.0,

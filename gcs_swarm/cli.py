@@ -1,4 +1,4 @@
-"""`gcs-swarm` command line: run, console, check, plan, report."""
+"""`gcs-swarm` command line: run, console, check, plan, report, compare, montecarlo."""
 
 from __future__ import annotations
 
@@ -96,6 +96,41 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0 if report["reached"] and report["collisions"] == 0 else 1
 
 
+def _csv_list(kind: type, text: str) -> list:
+    try:
+        return [kind(x.strip()) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a comma-separated list, got {text!r}") from None
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from gcs_swarm.evaluation.compare import CompareOptions, compare_command
+
+    options = CompareOptions(
+        methods=args.variants,
+        controllers=args.controllers,
+        winds=args.wind,
+        out_dir=Path(args.out) if args.out else None,
+    )
+    return compare_command(args.mission, options)
+
+
+def _cmd_montecarlo(args: argparse.Namespace) -> int:
+    from gcs_swarm.evaluation.montecarlo import CampaignOptions, montecarlo_command
+
+    options = CampaignOptions(
+        runs=args.runs,
+        seed=args.seed,
+        variants=tuple(args.variants or ()),
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        out_dir=Path(args.out) if args.out else None,
+        ranges_path=Path(args.ranges) if args.ranges else None,
+        keep_runs=args.keep_runs,
+    )
+    return montecarlo_command(args.mission, options)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="gcs-swarm",
@@ -153,6 +188,28 @@ def build_parser() -> argparse.ArgumentParser:
     report.add_argument("run_dir")
     report.add_argument("--mission", help="mission file (default: the one recorded in the run folder)")
     report.set_defaults(func=_cmd_report)
+
+    compare = sub.add_parser("compare", help="fly a mission under several variants and compare them")
+    compare.add_argument("mission")
+    compare.add_argument(
+        "--variants", type=lambda s: _csv_list(str, s), help="guidance methods, e.g. apf,iaapf"
+    )
+    compare.add_argument("--controllers", type=lambda s: _csv_list(str, s), help="e.g. smc,pid")
+    compare.add_argument("--wind", type=lambda s: _csv_list(float, s), help="wind speeds m/s, e.g. 0,5,10")
+    compare.add_argument("--out", help="output folder (default runs/compare-<mission>-<time>/)")
+    compare.set_defaults(func=_cmd_compare)
+
+    mc = sub.add_parser("montecarlo", help="resumable Monte Carlo campaign of randomised flights")
+    mc.add_argument("mission")
+    mc.add_argument("--runs", type=int, required=True, help="number of random worlds (seeds)")
+    mc.add_argument("--seed", type=int, default=0, help="first seed; run k uses seed+k (default 0)")
+    mc.add_argument("--variants", type=lambda s: _csv_list(str, s), help="guidance methods, e.g. apf,iaapf")
+    mc.add_argument("--jobs", type=int, default=2, help="local worker processes (default 2)")
+    mc.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask distributed scheduler")
+    mc.add_argument("--ranges", metavar="FILE", help="YAML of randomisation ranges (docs/paper-results.md)")
+    mc.add_argument("--out", help="campaign folder (default runs/montecarlo-<mission>-seed<S>/)")
+    mc.add_argument("--keep-runs", action="store_true", help="keep truth, record and tlog of every run")
+    mc.set_defaults(func=_cmd_montecarlo)
     return parser
 
 

@@ -1,5 +1,6 @@
-"""A run's report: metrics of spec 10 from ground truth (the simulator's truth log) when there is one,
-else from the ground station's own telemetry record; written as report.json + report.md, plus report.png when
+"""A run's report: metrics of spec 10 from ground truth (the simulator's truth log) when there is one, else
+from the ground station's own telemetry record, plus the commanded attitude rates (Fig 26) from the record;
+written as report.json + report.md, and figures in the paper's style (gcs_swarm.evaluation.figures) when
 matplotlib is installed.
 """
 
@@ -14,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm import metrics
+from gcs_swarm.evaluation import figures, signals
 from gcs_swarm.guidance.formation import slot_positions
 
 TRUTH_FILE = "truth.csv"
@@ -35,33 +37,45 @@ class Trajectories:
     source: str
 
 
-def _read_csv(path: Path) -> np.ndarray:
-    data = np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
-    return np.atleast_1d(data)
+def read_columns(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
+    """Numeric columns of a CSV file with a header line, as float arrays (rows,). A last line cut short (a
+    killed writer) is dropped. KeyError names a missing column."""
+    text = path.read_text()
+    if not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+    lines = text.splitlines()
+    header = lines[0].split(",") if lines else []
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise KeyError(f"{path.name}: no column {', '.join(missing)}")
+    if len(lines) < 2:
+        return {c: np.zeros(0) for c in columns}
+    index = [header.index(c) for c in columns]
+    data = np.loadtxt(lines[1:], delimiter=",", usecols=index, ndmin=2)
+    return {c: data[:, k] for k, c in enumerate(columns)}
 
 
-def _by_vehicle(rows: np.ndarray, key: str, columns: list[str]) -> tuple[np.ndarray, np.ndarray]:
+def _by_vehicle(table: dict[str, np.ndarray], key: str, columns: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """Pivot long rows (one per vehicle per sample) into t (T,) and values (T, N, len(columns))."""
-    ids = np.unique(rows[key])
-    n = len(ids)
-    usable = len(rows) // n * n  # a log cut mid-sample (killed process) drops its partial last sample
-    rows = rows[:usable]
-    t = rows["t"].reshape(-1, n)[:, 0].astype(float)
-    values = np.stack([rows[c].astype(float) for c in columns], axis=-1).reshape(len(t), n, len(columns))
+    n = max(1, len(np.unique(table[key])))
+    usable = len(table[key]) // n * n  # a log cut mid-sample (killed process) drops its partial last sample
+    t = table["t"][:usable].reshape(-1, n)[:, 0]
+    values = np.stack([table[c][:usable] for c in columns], axis=-1).reshape(len(t), n, len(columns))
     return t, values
 
 
 def load_truth(path: Path) -> Trajectories:
     """Read the simulator's truth log (and its .obstacles.csv sidecar)."""
-    rows = _read_csv(path)
-    t, v = _by_vehicle(rows, "vehicle", ["x", "y", "z", "vx", "vy", "vz", "crashed"])
+    columns = ["x", "y", "z", "vx", "vy", "vz", "crashed"]
+    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns)
     obstacle_path = path.with_suffix(".obstacles.csv")
     centres = np.zeros((len(t), 0, 3))
     radii = np.zeros(0)
     if obstacle_path.exists() and obstacle_path.stat().st_size > 0:
-        orows = _read_csv(obstacle_path)
-        if orows.size and orows.dtype.names and "obstacle" in orows.dtype.names:
-            ot, ov = _by_vehicle(orows, "obstacle", ["x", "y", "z", "radius"])
+        columns = ["x", "y", "z", "radius"]
+        otable = read_columns(obstacle_path, ["t", "obstacle", *columns])
+        if len(otable["t"]):
+            ot, ov = _by_vehicle(otable, "obstacle", columns)
             idx = np.clip(np.searchsorted(ot, t), 0, len(ot) - 1)
             centres, radii = ov[idx, :, :3], ov[0, :, 3]
     return Trajectories(t, v[..., :3], v[..., 3:6], v[..., 6] > 0.5, centres, radii, "truth")
@@ -69,38 +83,74 @@ def load_truth(path: Path) -> Trajectories:
 
 def load_record(path: Path, obstacles: list[Any]) -> Trajectories:
     """The ground station's telemetry record as trajectories (used when no truth log exists)."""
-    rows = _read_csv(path)
-    t, v = _by_vehicle(rows, "vehicle", ["x", "y", "z", "vx", "vy", "vz"])
+    columns = ["x", "y", "z", "vx", "vy", "vz"]
+    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns)
     centres = np.array([[o.center_at(tt) for o in obstacles] for tt in t]).reshape(len(t), len(obstacles), 3)
     radii = np.array([o.radius for o in obstacles], dtype=float)
     crashed = np.zeros(v.shape[:2], dtype=bool)
     return Trajectories(t, v[..., :3], v[..., 3:6], crashed, centres, radii, "telemetry")
 
 
-def _leader_heading(record_path: Path, t: np.ndarray) -> np.ndarray | None:
-    """psi_L (T,) from the run record, held between ticks; None without a record."""
-    if not record_path.exists():
+@dataclass(frozen=True)
+class CommandLog:
+    """What the ground station commanded per control tick (record.csv): t (T,) s; attitude_d (T, N, 3)
+    commanded roll, pitch, yaw rad; psi_l (T,) rad the leader heading psi_L (spec 6)."""
+
+    t: np.ndarray
+    attitude_d: np.ndarray
+    psi_l: np.ndarray
+
+
+def load_commands(record_path: Path) -> CommandLog | None:
+    """The run record's commands; None without a record or without a tick in it."""
+    if not record_path.exists() or record_path.stat().st_size == 0:
         return None
-    rows = _read_csv(record_path)
-    if rows.size == 0:
+    columns = ["roll_d", "pitch_d", "yaw_d", "psi_l"]
+    table = read_columns(record_path, ["t", "vehicle", *columns])
+    if len(table["t"]) == 0:
         return None
-    rt, psi = _by_vehicle(rows, "vehicle", ["psi_l"])
-    idx = np.clip(np.searchsorted(rt, t, side="right") - 1, 0, len(rt) - 1)
-    return psi[idx, 0, 0]
+    t, v = _by_vehicle(table, "vehicle", columns)
+    return CommandLog(t, v[..., :3], v[:, 0, 3])
+
+
+def load_trajectories(run_dir: Path, mission: Any) -> Trajectories:
+    """Ground truth when the run has a truth log, else the ground station's telemetry record."""
+    truth_path = run_dir / TRUTH_FILE
+    if truth_path.exists() and truth_path.stat().st_size > 0:
+        return load_truth(truth_path)
+    return load_record(run_dir / RECORD_FILE, list(mission.obstacles))
+
+
+def _reach_time(t: np.ndarray, distance: np.ndarray, tol: float, hold: float, arrived: bool) -> float | None:
+    """Spec 10 reach time; when the ground station ended the formation phase on arrival, an interval inside
+    the tolerance that lasts to the end of the phase also counts (the landing cut it short, and the ground
+    station's own hold, against the moving slots, can begin a little before the truth's)."""
+    held = metrics.reach_time(t, distance, tol, hold)
+    if held is not None or not arrived or len(t) == 0 or distance[-1] > tol:
+        return held
+    outside = np.flatnonzero(distance > tol)
+    return float(t[outside[-1] + 1]) if len(outside) else float(t[0])
 
 
 def _finite(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(x) else round(float(x), 4)
 
 
+def _deg(x: float) -> float | None:
+    return _finite(math.degrees(x)) if math.isfinite(x) else None
+
+
 def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[str, Any]:
     """All figures of report.json from the files in run_dir and the flight summary (flight.json)."""
-    truth_path = run_dir / TRUTH_FILE
-    record_path = run_dir / RECORD_FILE
-    if truth_path.exists() and truth_path.stat().st_size > 0:
-        traj = load_truth(truth_path)
-    else:
-        traj = load_record(record_path, list(mission.obstacles))
+    return report_from(
+        load_trajectories(run_dir, mission), load_commands(run_dir / RECORD_FILE), mission, flight
+    )
+
+
+def report_from(
+    traj: Trajectories, commands: CommandLog | None, mission: Any, flight: dict[str, Any]
+) -> dict[str, Any]:
+    """The figures of report.json from loaded trajectories and commands."""
     leader = mission.leader_index
     names = [v.name for v in mission.vehicles]
     offsets = np.array(flight["offsets"], dtype=float)
@@ -111,26 +161,36 @@ def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[
         window = np.ones_like(traj.t, dtype=bool)
     tw, pw, vw = traj.t[window], traj.pos[window], traj.vel[window]
 
-    psi = _leader_heading(record_path, tw)
+    psi = None if commands is None else signals.held_at(commands.t, commands.psi_l, tw)
     psi_final = float(psi[-1]) if psi is not None else 0.0
     goals = slot_positions(np.asarray(mission.goal, dtype=float)[None, :], np.array([psi_final]), offsets)[0]
     if flight.get("final_targets") is not None:
         goals = np.array(flight["final_targets"], dtype=float)
     tol, hold = mission.run.goal_tolerance_m, mission.run.hold_s
+    arrived = bool(flight.get("arrived"))
     reach = [
-        metrics.reach_time(tw, np.linalg.norm(pw[:, i] - goals[i], axis=1), tol, hold)
+        _reach_time(tw, np.linalg.norm(pw[:, i] - goals[i], axis=1), tol, hold, arrived)
         for i in range(len(names))
     ]
     crashed_any = traj.crashed.any(axis=0)
-    reached = all(r is not None for r in reach) and not crashed_any.any() and bool(flight.get("arrived"))
+    reached = all(r is not None for r in reach) and not crashed_any.any() and arrived
     min_sep = metrics.min_separation(traj.pos)
     clearance, _ = metrics.min_obstacle_clearance(traj.pos, traj.obstacle_centres, traj.obstacle_radii)
+    cruise = None
+    angles = np.full((len(tw), len(names)), np.nan)
     if psi is not None and len(tw) > 1:
         fe = metrics.formation_error(tw, pw, leader, psi, offsets)
         formation_rms, formation_max = fe.rms, fe.max
         settling = None if fe.t_settle is None else fe.t_settle - tw[0]
+        d_g = mission.field.d_g if mission.field.d_g is not None else mission.limits.v_xy_leader
+        cruise = signals.cruise_figures(
+            tw - tw[0], pw, vw, leader, np.asarray(mission.goal), offsets, fe.error, 2.0 * d_g
+        )
+        angles = signals.relative_angles(pw, leader, psi)
     else:
         formation_rms = formation_max = settling = None
+    desired_angles = signals.desired_relative_angles(offsets, leader)
+    last = slice(-max(1, len(tw) // 10), None)
     t_osc, reversals = metrics.oscillation(tw, vw[:, leader, :2])
     per_vehicle = []
     for i, name in enumerate(names):
@@ -138,6 +198,7 @@ def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[
         clear_i, _ = metrics.min_obstacle_clearance(
             traj.pos[:, i : i + 1], traj.obstacle_centres, traj.obstacle_radii
         )
+        final_angle = angles[last, i]
         per_vehicle.append(
             {
                 "name": name,
@@ -147,10 +208,17 @@ def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[
                 "min_separation_m": _finite(float(sep_i.min()) if sep_i.size else None),
                 "min_obstacle_clearance_m": _finite(clear_i),
                 "max_speed_m_s": _finite(float(np.linalg.norm(traj.vel[:, i], axis=1).max())),
+                "relative_angle_deg": _deg(float(np.nanmedian(final_angle)))
+                if np.isfinite(final_angle).any()
+                else None,
+                "relative_angle_desired_deg": _deg(float(desired_angles[i])),
                 "crashed": bool(crashed_any[i]),
             }
         )
     times = [r for r in reach if r is not None]
+    rates = None
+    if commands is not None and len(commands.t) > 2:
+        rates = signals.command_rate_figures(commands.t - commands.t[0], commands.attitude_d, names)
     return {
         "mission": mission.name,
         "reached": bool(reached),
@@ -163,6 +231,11 @@ def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[
         "oscillation_time_s": _finite(t_osc),
         "heading_reversals": int(reversals),
         "settling_time_s": _finite(settling),
+        "command_rate_settling_s": None if rates is None else rates["settling_s"],
+        "command_chatter_first_20s_rad_s": None if rates is None else rates["chatter_first_20s_rad_s"],
+        "command_chatter_last_20s_rad_s": None if rates is None else rates["chatter_last_20s_rad_s"],
+        "command_rates": rates,
+        "cruise": cruise,
         "sim_duration_s": _finite(float(traj.t[-1])),
         "wall_duration_s": _finite(flight.get("wall_duration_s")),
         "vehicles": per_vehicle,
@@ -172,12 +245,31 @@ def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[
     }
 
 
+SUMMARY_KEYS = (
+    "reached",
+    "time_to_goal_s",
+    "collisions",
+    "min_separation_m",
+    "min_obstacle_clearance_m",
+    "formation_rms_m",
+    "formation_max_m",
+    "oscillation_time_s",
+    "heading_reversals",
+    "settling_time_s",
+    "command_rate_settling_s",
+    "command_chatter_first_20s_rad_s",
+    "command_chatter_last_20s_rad_s",
+    "sim_duration_s",
+    "wall_duration_s",
+)
+
+
+def _fmt(v: Any) -> str:
+    return "-" if v is None else (f"{v:.2f}" if isinstance(v, float) else str(v))
+
+
 def render_markdown(report: dict[str, Any]) -> str:
     """Human-readable report.md."""
-
-    def fmt(v: Any) -> str:
-        return "-" if v is None else (f"{v:.2f}" if isinstance(v, float) else str(v))
-
     lines = [
         f"# Run report: {report['mission']}",
         "",
@@ -186,89 +278,54 @@ def render_markdown(report: dict[str, Any]) -> str:
         "| figure | value |",
         "|---|---|",
     ]
-    for key in (
-        "reached",
-        "time_to_goal_s",
-        "collisions",
-        "min_separation_m",
-        "min_obstacle_clearance_m",
-        "formation_rms_m",
-        "formation_max_m",
-        "oscillation_time_s",
-        "heading_reversals",
-        "settling_time_s",
-        "sim_duration_s",
-        "wall_duration_s",
-    ):
-        lines.append(f"| {key} | {fmt(report.get(key))} |")
+    lines += [f"| {key} | {_fmt(report.get(key))} |" for key in SUMMARY_KEYS]
     lines += [
         "",
-        "| vehicle | reached | time to goal s | final error m | min sep m | min clearance m | crashed |",
+        "| vehicle | reached | time to goal s | final error m | min sep m | min clearance m | "
+        "relative angle deg (slot) | crashed |",
+        "|---|---|---|---|---|---|---|---|",
     ]
-    lines.append("|---|---|---|---|---|---|---|")
     for v in report["vehicles"]:
         lines.append(
-            f"| {v['name']} | {v['reached']} | {fmt(v['time_to_goal_s'])} | {fmt(v['final_error_m'])} | "
-            f"{fmt(v['min_separation_m'])} | {fmt(v['min_obstacle_clearance_m'])} | {v['crashed']} |"
+            f"| {v['name']} | {v['reached']} | {_fmt(v['time_to_goal_s'])} | {_fmt(v['final_error_m'])} | "
+            f"{_fmt(v['min_separation_m'])} | {_fmt(v['min_obstacle_clearance_m'])} | "
+            f"{_fmt(v.get('relative_angle_deg'))} ({_fmt(v.get('relative_angle_desired_deg'))}) | "
+            f"{v['crashed']} |"
         )
+    cruise = report.get("cruise")
+    if cruise:
+        lines += [
+            "",
+            f"Cruise {cruise['window_s'][0]}-{cruise['window_s'][1]} s after the formation start: "
+            "median speeds "
+            f"{', '.join(_fmt(s) for s in cruise['speed_median_m_s'])} m/s; neighbour spacing "
+            f"{', '.join(_fmt(s) for s in cruise['spacing_median_m'])} m (slots "
+            f"{', '.join(_fmt(s) for s in cruise['spacing_desired_m'])} m, worst error "
+            f"{_fmt(cruise['spacing_max_abs_error_m'])} m).",
+        ]
+    figures = report.get("figures")
+    if figures is not None:
+        lines += ["", "## Figures", ""]
+        lines += [f"- [{f}]({f})" for f in figures] if figures else [f"- {NO_PLOT_NOTE}"]
     if report["lost"] or report["events"]:
         lines += ["", "## Events", ""] + [f"- {e}" for e in report["events"]]
     return "\n".join(lines) + "\n"
 
 
-def plot_report(run_dir: Path, mission: Any, path: Path) -> bool:
-    """Trajectories (top view) and inter-vehicle distances as PNG; False when matplotlib is missing."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return False
-    truth_path = run_dir / TRUTH_FILE
-    if truth_path.exists() and truth_path.stat().st_size > 0:
-        traj = load_truth(truth_path)
-    else:
-        traj = load_record(run_dir / RECORD_FILE, list(mission.obstacles))
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))
-    for i, v in enumerate(mission.vehicles):
-        ax1.plot(traj.pos[:, i, 0], traj.pos[:, i, 1], lw=1.2, label=v.name)
-    for k, r in enumerate(traj.obstacle_radii):
-        c = traj.obstacle_centres[0, k]
-        ax1.add_patch(plt.Circle((c[0], c[1]), r, color="0.4", alpha=0.6))
-        if traj.obstacle_centres.shape[0] > 1:
-            path_k = traj.obstacle_centres[:, k]
-            ax1.plot(path_k[:, 0], path_k[:, 1], ":", color="0.4", lw=0.8)
-    goal = np.asarray(mission.goal)
-    ax1.plot(goal[0], goal[1], "k*", ms=12, label="goal")
-    ax1.set_aspect("equal")
-    ax1.set_xlabel("East (m)")
-    ax1.set_ylabel("North (m)")
-    ax1.set_title("Trajectories (top view)")
-    ax1.legend(fontsize=8, loc="best")
-    n = traj.pos.shape[1]
-    for i in range(n):
-        for j in range(i + 1, n):
-            d = np.linalg.norm(traj.pos[:, i] - traj.pos[:, j], axis=1)
-            ax2.plot(traj.t, d, lw=0.8, label=f"{mission.vehicles[i].name}-{mission.vehicles[j].name}")
-    d_emg = mission.safety.separation.d_emg
-    ax2.axhline(d_emg, color="r", ls="--", lw=1, label=f"D_Emg {d_emg:g} m")
-    ax2.set_xlabel("time (s)")
-    ax2.set_ylabel("distance (m)")
-    ax2.set_title("Inter-vehicle distances")
-    if n * (n - 1) // 2 <= 15:
-        ax2.legend(fontsize=7, loc="best")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+NO_PLOT_NOTE = (
+    "no figures: matplotlib is not installed (pip install 'swarm-gcs[plot]'), or figures were switched off "
+    "(Monte Carlo runs); `gcs-swarm report RUN_DIR` draws them"
+)
 
 
 def write_report(run_dir: Path, mission: Any) -> dict[str, Any]:
-    """(Re)build report.json, report.md and report.png of a run folder; returns the report."""
+    """(Re)build report.json and report.md of a run folder, and its figures (report.png and the paper-style
+    fig_*.png, gcs_swarm.evaluation.figures) when matplotlib is installed; returns the report."""
     flight = json.loads((run_dir / FLIGHT_FILE).read_text())
-    report = compute_report(run_dir, mission, flight)
+    traj, commands = load_trajectories(run_dir, mission), load_commands(run_dir / RECORD_FILE)
+    report = report_from(traj, commands, mission, flight)
+    written = figures.write_run_figures(run_dir, mission, flight, traj, commands)
+    report["figures"] = [p.name for p in written]
     (run_dir / "report.json").write_text(json.dumps(report, indent=2) + "\n")
     (run_dir / "report.md").write_text(render_markdown(report))
-    plot_report(run_dir, mission, run_dir / "report.png")
     return report

@@ -1,8 +1,9 @@
 """ArduCopter-like autopilot of N vehicles: modes, arming, guided targets, land detector, failsafes.
 
-`update` runs once per outer tick, vectorised over vehicles, and hands attitude/thrust targets to the physics
-(FleetDynamics, whose attitude controller runs at the physics rate). Discrete events (a command, a mode change,
-a crash) are per-vehicle methods. Every mode reduces to one of two control laws:
+`update` runs once per outer tick: one fused loop over all vehicles (`_outer_loop`, compiled by numba when
+available) hands attitude/thrust targets to the physics (FleetDynamics, whose attitude controller runs at the
+physics rate) and flags the rare events (disarm, failsafe) that Python then handles. Discrete inputs (a
+command, a mode change, a crash) are per-vehicle methods. Every mode reduces to one of two control laws:
 - position/velocity control (GUIDED position/velocity targets, LOITER, BRAKE, RTL, LAND): position_control;
 - angle control (GUIDED attitude targets, GUIDED_NOGPS, ALT_HOLD, STABILIZE): an attitude target plus a climb
   rate (vertical velocity loop) or a direct collective.
@@ -41,12 +42,8 @@ MODE_NAMES = {
     BRAKE: "BRAKE",
     GUIDED_NOGPS: "GUIDED_NOGPS",
 }
-POSITION_MODES = (
-    GUIDED,
-    LOITER,
-    RTL,
-    BRAKE,
-)  # ArduCopter requires_GPS(): refused when armed without position
+# ArduCopter requires_GPS(): refused when armed without a position estimate
+POSITION_MODES = (GUIDED, LOITER, RTL, BRAKE)
 NOT_ARMABLE = (RTL, LAND, BRAKE)
 GUIDED_ENABLED_MODES = (GUIDED, LOITER, RTL, BRAKE)  # ArduCopter base_mode() GUIDED_ENABLED list
 FORCE_ARM = 2989  # MAV_CMD_COMPONENT_ARM_DISARM param2 that skips the arming checks
@@ -106,7 +103,8 @@ class Autopilot:
     """Flight software of N vehicles over one FleetDynamics; arrays (N,) or (N,k), world ENU, SI units.
 
     origin (N,3): each vehicle's EKF origin (its start point); home (N,3): its start point on the ground.
-    airborne (N,) bool: vehicles that start flying (armed, GUIDED, holding start_vel (N,3) until GUID_TIMEOUT).
+    airborne (N,) bool: vehicles that start flying (armed, GUIDED, holding start_vel (N,3) until
+    GUID_TIMEOUT).
     ready_delay: simulated seconds until a vehicle on the ground has a position estimate.
     """
 
@@ -201,7 +199,7 @@ class Autopilot:
         return bits
 
     def system_status(self, i: int) -> int:
-        """HEARTBEAT system_status: BOOT, STANDBY, ACTIVE when armed, CRITICAL in failsafe, EMERGENCY crashed."""
+        """HEARTBEAT system_status: BOOT, STANDBY, ACTIVE armed, CRITICAL in failsafe, EMERGENCY crashed."""
         if self.state.crashed[i]:
             return M.MAV_STATE_EMERGENCY
         if self.failsafe_gcs[i]:
@@ -355,8 +353,9 @@ class Autopilot:
     def set_attitude_target(
         self, i: int, quat: np.ndarray | None, rates: np.ndarray | None, thrust: float
     ) -> bool:
-        """GUIDED/GUIDED_NOGPS attitude target: quat (4,) FLU->ENU or None (rates only), rates (3,) FLU rad/s or
-        None, thrust 0..1 (a climb-rate demand, 0.5 = hold, unless GUID_OPTIONS bit 3); False if ignored.
+        """GUIDED/GUIDED_NOGPS attitude target: quat (4,) FLU->ENU or None (rates only), rates (3,) FLU
+        rad/s or None, thrust 0..1 (a climb-rate demand, 0.5 = hold, unless GUID_OPTIONS bit 3); False if
+        ignored.
         """
         if self.mode[i] not in (GUIDED, GUIDED_NOGPS):
             return False
@@ -404,7 +403,7 @@ class Autopilot:
     # --- the outer loop -------------------------------------------------------------------------------------
 
     def update(self, t: float, dt: float) -> None:
-        """One outer tick at simulated time t (s) covering dt (s): modes, controllers, targets to the physics."""
+        """One outer tick at simulated time t (s) covering dt (s): modes, control, targets to the physics."""
         self.t = t
         self.ready = t >= self.ready_at
         _outer_loop(t, dt, self.dyn.params.g, self.params.values, self._columns, *self._loop_arrays)
@@ -494,8 +493,8 @@ class Autopilot:
 EVENT_DISARM, EVENT_GCS_FAILSAFE = 1, 2
 LOOP_PARAMS = (
     "MOT_THST_HOVER", "ANGLE_MAX", "GUID_TIMEOUT", "PSC_POSXY_P", "PSC_POSZ_P", "PSC_VELXY_P", "PSC_VELXY_I",
-    "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL", "LAND_SPEED",
-    "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT",
+    "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
+    "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT",
 )  # fmt: skip
 (
     P_HOVER, P_ANGLE_MAX, P_GUID_TIMEOUT, P_POSXY_P, P_POSZ_P, P_VELXY_P, P_VELXY_I, P_VELZ_P, P_VELZ_I,
@@ -599,15 +598,14 @@ def _outer_loop(
         if angle:
             vz = min(max(climb_rate[i], -speed_dn), speed_up)
         elif flying:
-            ax, integrator[i, 0] = velocity_pi(vx - vel[i, 0], integrator[i, 0], p[columns[P_VELXY_P]],
-                                               p[columns[P_VELXY_I]], I_MAX_XY, dt)  # fmt: skip
-            ay, integrator[i, 1] = velocity_pi(vy - vel[i, 1], integrator[i, 1], p[columns[P_VELXY_P]],
-                                               p[columns[P_VELXY_I]], I_MAX_XY, dt)  # fmt: skip
+            kp, ki = p[columns[P_VELXY_P]], p[columns[P_VELXY_I]]
+            ax, integrator[i, 0] = velocity_pi(vx - vel[i, 0], integrator[i, 0], kp, ki, I_MAX_XY, dt)
+            ay, integrator[i, 1] = velocity_pi(vy - vel[i, 1], integrator[i, 1], kp, ki, I_MAX_XY, dt)
             ax += nav_acc[i, 0]
             ay += nav_acc[i, 1]
         if flying and not direct:
-            az, integrator[i, 2] = velocity_pi(vz - vel[i, 2], integrator[i, 2], p[columns[P_VELZ_P]],
-                                               p[columns[P_VELZ_I]], I_MAX_Z, dt)  # fmt: skip
+            kp, ki = p[columns[P_VELZ_P]], p[columns[P_VELZ_I]]
+            az, integrator[i, 2] = velocity_pi(vz - vel[i, 2], integrator[i, 2], kp, ki, I_MAX_Z, dt)
             az += 0.0 if angle else nav_acc[i, 2]
         if angle or not flying:
             integrator[i, 0] = integrator[i, 1] = 0.0

@@ -38,42 +38,50 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 def build_parser() -> OneLineParser:
-    """The argument parser (all options documented in --help)."""
+    """The argument parser (all options documented in --help and docs/sitl.md)."""
     parser = OneLineParser(
-        prog="sitl-sim", description="Simulated ArduCopter-like quadrotors speaking MAVLink 2."
+        prog="sitl-sim",
+        description="Simulated ArduCopter-like quadrotors speaking MAVLink 2 over UDP, one port per vehicle.",
+        epilog="Reference: docs/sitl.md (modes, parameters, MAVLink surface, lockstep rule, truth log).",
     )
-    parser.add_argument(
-        "--vehicles", type=int, help="number of vehicles N (default with --mission: its vehicles)"
+    add = parser.add_argument
+    add("--vehicles", type=int, metavar="N", help="number of vehicles (default with --mission: its vehicles)")
+    add(
+        "--base-port",
+        type=int,
+        default=14540,
+        metavar="P",
+        help="vehicle i listens on UDP P+i (default 14540)",
     )
-    parser.add_argument("--base-port", type=int, default=14540, help="vehicle i listens on UDP base-port+i")
-    parser.add_argument("--bind", default="127.0.0.1", help="IPv4 address to bind (default 127.0.0.1)")
-    parser.add_argument(
-        "--sysid-base", type=int, default=1, help="vehicle i has MAVLink system id sysid-base+i"
-    )
+    add("--bind", default="127.0.0.1", metavar="ADDR", help="IPv4 address to bind (default 127.0.0.1)")
+    add("--sysid-base", type=int, default=1, metavar="S", help="vehicle i has MAVLink sysid S+i (default 1)")
     clock = parser.add_mutually_exclusive_group()
-    clock.add_argument("--speedup", type=float, default=1.0, help="run X times faster than real time")
-    clock.add_argument("--lockstep", action="store_true", help="advance only when the clients answer (docs)")
-    parser.add_argument("--lockstep-hz", type=float, default=50.0, help="lockstep frame rate (default 50)")
-    parser.add_argument(
-        "--lockstep-timeout",
-        type=float,
-        default=5.0,
-        help="wall s before a silent lockstep client is dropped",
+    clock.add_argument(
+        "--speedup", type=float, default=1.0, metavar="X", help="X times real time (default 1)"
     )
-    parser.add_argument("--rate-hz", type=float, default=1000.0, help="physics rate, Hz (default 1000)")
-    parser.add_argument(
-        "--outer-hz", type=float, default=100.0, help="autopilot outer-loop rate, Hz (default 100)"
+    clock.add_argument(
+        "--lockstep", action="store_true", help="advance only as the clients answer (see docs)"
     )
-    parser.add_argument("--home", help="LAT,LON,ALT of the local ENU origin (deg, deg, m AMSL)")
-    parser.add_argument("--mission", type=Path, help="mission YAML: start states, obstacles and wind")
-    parser.add_argument("--truth-log", type=Path, help="ground-truth CSV path (+ .obstacles.csv sidecar)")
-    parser.add_argument("--truth-rate-hz", type=float, default=50.0, help="truth-log samples per simulated s")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (wind turbulence)")
-    parser.add_argument(
+    add("--lockstep-hz", type=float, default=50.0, metavar="HZ", help="lockstep frame rate (default 50)")
+    add("--lockstep-timeout", type=float, default=5.0, metavar="S", help="drop silent lockstep clients (5 s)")
+    add("--rate-hz", type=float, default=1000.0, metavar="HZ", help="physics rate (default 1000)")
+    add("--outer-hz", type=float, default=100.0, metavar="HZ", help="autopilot outer-loop rate (default 100)")
+    add("--home", metavar="LAT,LON,ALT", help="geodetic ENU origin (default: mission origin, else CMAC)")
+    add("--mission", type=Path, metavar="FILE.yaml", help="mission file: start states, obstacles, wind")
+    add(
+        "--truth-log",
+        type=Path,
+        metavar="PATH",
+        help="ground-truth CSV (obstacles in PATH with suffix .obstacles.csv)",
+    )
+    add("--truth-rate-hz", type=float, default=50.0, metavar="HZ", help="truth-log sample rate (default 50)")
+    add("--seed", type=int, default=0, metavar="S", help="random seed of the wind turbulence (default 0)")
+    add(
         "--ready-delay",
         type=float,
         default=5.0,
-        help="simulated s from boot until a position estimate (default 5)",
+        metavar="S",
+        help="simulated s to a position fix (default 5)",
     )
     return parser
 
@@ -135,7 +143,8 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
                 np.array([o.velocity for o in world.obstacles]),
             )
         wind = (world.wind.speed, world.wind.direction_deg, world.wind.turbulence)
-        home = tuple(float(v) for v in world.origin)
+        lat, lon, alt = world.origin
+        home = (float(lat), float(lon), float(alt))
     else:
         _check(parser, args.vehicles is not None, "--vehicles N is required without --mission")
         n = args.vehicles
@@ -231,9 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         for endpoint in sim.endpoints:
-            print(
-                f"vehicle {endpoint.index} sysid {endpoint.sysid} udp {config.bind}:{config.base_port + endpoint.index}"
-            )
+            port = config.base_port + endpoint.index
+            print(f"vehicle {endpoint.index} sysid {endpoint.sysid} udp {config.bind}:{port}")
         print("READY", flush=True)
         sim.run(lambda: stop_requested, wake_read)
         for line in sim.counters_report():

@@ -58,7 +58,7 @@ class LockstepClients:
         self.first_seen_wall: float | None = None
 
     def answer(self, vehicle: int, addr: tuple[str, int], time_boot_ms: int, wall_now: float) -> None:
-        """A qualifying message with time_boot_ms arrived from addr at vehicle (0 never registers a client)."""
+        """A qualifying message with time_boot_ms came from addr to vehicle (0 never registers a client)."""
         clients = self.by_vehicle[vehicle]
         client = clients.get(addr)
         if client is None:
@@ -122,8 +122,8 @@ class Timing:
 def plan_timing(rate_hz: float, outer_hz: float, lockstep_hz: float | None, truth_rate_hz: float) -> Timing:
     """Choose the step counts; ValueError (one sentence naming the option) when the rates do not fit together.
 
-    The autopilot tick is rate_hz/outer_hz physics steps; in lockstep it is shortened, if needed, to the largest
-    divisor of the frame so that frames hold a whole number of ticks.
+    The autopilot tick is rate_hz/outer_hz physics steps; in lockstep it is shortened, if needed, to the
+    largest divisor of the frame so that frames hold a whole number of ticks.
     """
 
     def steps(per_hz: float, option: str) -> int:
@@ -141,6 +141,7 @@ def plan_timing(rate_hz: float, outer_hz: float, lockstep_hz: float | None, trut
     steps_per_truth = steps(truth_rate_hz, "--truth-rate-hz")
     if steps_per_truth % steps_per_tick:
         raise ValueError(
-            f"--truth-rate-hz ({truth_rate_hz:g}) must divide the autopilot rate ({rate_hz / steps_per_tick:g} Hz)"
+            f"--truth-rate-hz ({truth_rate_hz:g}) must divide the autopilot rate "
+            f"({rate_hz / steps_per_tick:g} Hz)"
         )
     return Timing(rate_hz, steps_per_tick, ticks_per_frame, steps_per_truth)

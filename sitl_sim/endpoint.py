@@ -144,8 +144,8 @@ class VehicleEndpoint:
     def receive(self, wall_now: float, frame_ms: int | None = None) -> int:
         """Read every datagram waiting on the socket and handle them in order; returns how many were handled.
 
-        frame_ms: the simulator is paused at this lockstep frame end. Once this vehicle's lockstep clients have
-        all answered it, later datagrams wait in the inbox for the next frame end, so what a client sends
+        frame_ms: the simulator is paused at this lockstep frame end. Once this vehicle's lockstep clients
+        have all answered it, later datagrams wait in the inbox for the next frame end, so what a client sends
         after its answer never depends on how fast the simulator read it.
         """
         while True:
@@ -158,7 +158,11 @@ class VehicleEndpoint:
         lockstep = self.sim.lockstep
         handled = 0
         while self.inbox:
-            if frame_ms is not None and lockstep is not None and lockstep.vehicle_answered(self.index, frame_ms):
+            if (
+                frame_ms is not None
+                and lockstep is not None
+                and lockstep.vehicle_answered(self.index, frame_ms)
+            ):
                 break
             data, addr = self.inbox.popleft()
             handled += 1

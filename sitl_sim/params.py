@@ -1,4 +1,4 @@
-"""ArduCopter-like parameters of N simulated vehicles (names, types, ranges as ArduCopter 4.6 where it has them).
+"""ArduCopter-like parameters of N simulated vehicles (names, types and ranges as ArduCopter 4.6 has them).
 
 Values live in one (N, P) float64 array so the vectorised autopilot reads a whole column per parameter.
 Parameters are listed (PARAM_REQUEST_LIST, param_index) in alphabetical order. World parameters (SIM_WIND_*)

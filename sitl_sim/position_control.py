@@ -17,7 +17,7 @@ try:
     from numba import njit
 except ImportError:  # pragma: no cover - numba is optional (extra "fast")
 
-    def njit(*args, **kwargs):  # noqa: ANN002, ANN003, ANN201
+    def njit(*args, **kwargs):  # type: ignore[no-redef]  # noqa: ANN002, ANN003, ANN201
         """No-op stand-in for numba.njit."""
         if args and callable(args[0]):
             return args[0]
@@ -32,7 +32,7 @@ MIN_UP_ACCEL = 0.3  # fraction of g: U_z floor, no free-fall commands (spec 5, l
 
 @njit(cache=True)
 def sqrt_controller(error: float, p: float, accel_max: float) -> float:
-    """ArduCopter's sqrt_controller: P near zero error, constant-deceleration sqrt law beyond accel_max/p^2."""
+    """ArduCopter's sqrt_controller: P near zero error, constant deceleration beyond accel_max/p^2."""
     linear_dist = accel_max / (p * p)
     if abs(error) <= linear_dist:
         return p * error

@@ -108,9 +108,8 @@ class Simulator:
         self.lockstep = LockstepClients(n, config.lockstep_timeout) if config.lockstep else None
         self.lockstep_started = False
         self.pacer = RealTimePacer(config.speedup)
-        self.unix_epoch_us = (
-            int(time.time()) * 1_000_000
-        )  # GPS clock at boot; telemetry only, never the world
+        # GPS clock at boot, for SYSTEM_TIME only: the wall clock never enters the simulated world
+        self.unix_epoch_us = int(time.time()) * 1_000_000
         self.step = 0
         self.ticks = 0
         self._view: TelemetryView | None = None
@@ -167,13 +166,13 @@ class Simulator:
         self.dyn.step(self.wind.sample(dt), timing.steps_per_tick)
         self.step += timing.steps_per_tick
         self.ticks += 1
-        for i, what in find_collisions(before, state.pos, self.obstacles, t0, self.t, state.crashed):
-            self.autopilot.crash(i, what)
+        for crashed, what in find_collisions(before, state.pos, self.obstacles, t0, self.t, state.crashed):
+            self.autopilot.crash(crashed, what)
         if self.step % timing.steps_per_truth == 0:
             self._write_truth()
-        for i in np.flatnonzero(self.autopilot.ready & ~was_ready):  # EKF origin and home just got set
+        for ready in np.flatnonzero(self.autopilot.ready & ~was_ready):  # EKF origin and home just got set
             self._send_now(
-                int(i), (mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+                int(ready), (mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
             )
         if self.lockstep is None or self.ticks % timing.ticks_per_frame == 0:  # lockstep: frame ends only
             self._emit_telemetry()
@@ -188,9 +187,9 @@ class Simulator:
                     endpoint.out.append(data)
                     stamped[i] |= msg_id in STAMPED_MESSAGES
         if self.lockstep is not None:
-            for i in np.flatnonzero(~stamped):  # every frame end carries a time_boot_ms to answer
-                if self.endpoints[i].peers:
-                    self._send_now(int(i), (mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,))
+            for silent in np.flatnonzero(~stamped):  # every frame end carries a time_boot_ms to answer
+                if self.endpoints[silent].peers:
+                    self._send_now(int(silent), (mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,))
         wall = time.monotonic()
         for endpoint in self.endpoints:
             endpoint.flush(wall)
@@ -235,8 +234,9 @@ class Simulator:
                 if now - frame_wall > clients.timeout_s:
                     clients.drop(pending)
                     for vehicle, addr in pending:
-                        print(f"sitl-sim: lockstep client {addr[0]}:{addr[1]} of vehicle {vehicle} dropped "
-                              f"(no answer for {clients.timeout_s:g} s)", file=sys.stderr, flush=True)  # fmt: skip
+                        client = f"{addr[0]}:{addr[1]} of vehicle {vehicle}"
+                        message = f"lockstep client {client} dropped (no answer for {clients.timeout_s:g} s)"
+                        print(f"sitl-sim: {message}", file=sys.stderr, flush=True)
                     continue
             if now - keepalive >= KEEPALIVE_S:
                 keepalive = now
@@ -246,7 +246,7 @@ class Simulator:
             self._serve(0.0 if spinning else min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
 
     def _serve(self, timeout: float, frame_ms: int | None = None) -> None:
-        """Wait up to timeout s for input, handle it, send the replies (frame_ms: paused at that frame end)."""
+        """Wait up to timeout s for input, handle it, send replies (frame_ms: paused at that frame end)."""
         wall = time.monotonic()
         handled = 0
         for endpoint in self.endpoints:  # first what arrived after the clients' previous answers
@@ -276,7 +276,7 @@ class Simulator:
         return self._view
 
     def on_new_peer(self, endpoint: VehicleEndpoint) -> None:
-        """A client spoke for the first time: greet it at once (it may be waiting while the clock is paused)."""
+        """A client spoke for the first time: greet it at once (it may wait while the clock is paused)."""
         self._send_now(endpoint.index, (mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_SYSTEM_TIME))
 
     def _send_now(self, i: int, msg_ids: tuple[int, ...]) -> None:
@@ -330,8 +330,8 @@ class Simulator:
 
 
 def warm_up_kernels() -> None:
-    """Compile (or load from numba's cache) the physics and autopilot kernels on a throwaway one-vehicle fleet,
-    so that the first frames after READY are not late by the JIT time."""
+    """Compile (or load from numba's cache) the physics and autopilot kernels on a throwaway one-vehicle
+    fleet, so that the first frames after READY are not late by the JIT time."""
     quad = QuadParams()
     dyn = FleetDynamics(1, quad)
     params = ParamTable(1, param_specs(quad.hover_fraction), {})

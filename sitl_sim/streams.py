@@ -79,7 +79,11 @@ def ned_telemetry(
         out[i, 5] = math.asin(min(max(2.0 * (qw * qy - qz * qx), -1.0), 1.0))
         out[i, 6] = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
         out[i, 7], out[i, 8], out[i, 9] = omega[i, 0], -omega[i, 1], -omega[i, 2]
-        out[i, 10], out[i, 11], out[i, 12] = pos[i, 1] - origin[i, 1], pos[i, 0] - origin[i, 0], origin[i, 2] - pos[i, 2]
+        out[i, 10], out[i, 11], out[i, 12] = (
+            pos[i, 1] - origin[i, 1],
+            pos[i, 0] - origin[i, 0],
+            origin[i, 2] - pos[i, 2],
+        )
         out[i, 13], out[i, 14], out[i, 15] = vel[i, 1], vel[i, 0], -vel[i, 2]
     return out
 
@@ -166,7 +170,7 @@ class StreamSchedule:
         return 0 if rate <= 0 else max(self.tick_us, round(1e6 / rate))
 
     def set_interval(self, i: int, msg_id: int, interval_us: float, now_us: int) -> bool:
-        """SET_MESSAGE_INTERVAL semantics: us > 0 period, 0 default, -1 off. False if msg_id is not a stream."""
+        """SET_MESSAGE_INTERVAL semantics: us > 0 period, 0 default, -1 off; False if msg_id is no stream."""
         j = self.column.get(msg_id)
         if j is None:
             return False
@@ -190,7 +194,7 @@ class StreamSchedule:
         return value if value else -1
 
     def due(self, now_us: int) -> list[tuple[int, int]]:
-        """(vehicle, msg_id) pairs due at now_us, in vehicle then STREAM_IDS order; schedules the next ones."""
+        """(vehicle, msg_id) pairs due at now_us (vehicle, then STREAM_IDS order); schedules the next."""
         on = self.interval_us > 0
         mask = on & (self.next_due_us <= now_us)
         if not mask.any():
@@ -221,7 +225,7 @@ class Framer:
         return data
 
     def frame(self, cls: type[mavlink.MAVLink_message], *values: float) -> bytes:
-        """Bytes of message class cls with field values in wire order (ordered_fieldnames, arrays flattened)."""
+        """Bytes of message class cls from field values in wire order (ordered_fieldnames, flat arrays)."""
         payload = cls.unpacker.pack(*values).rstrip(b"\0") or b"\0"  # MAVLink 2 trailing-zero truncation
         mav = self.mav
         header = self.HEADER.pack(
@@ -292,7 +296,9 @@ def _attitude(v: TelemetryView, f: Framer, i: int) -> bytes:
 
 def _attitude_quaternion(v: TelemetryView, f: Framer, i: int) -> bytes:
     row = v.ned[i]
-    return f.frame(M.MAVLink_attitude_quaternion_message, v.time_boot_ms, *row[0:4], *row[7:10], 0.0, 0.0, 0.0, 0.0)
+    return f.frame(
+        M.MAVLink_attitude_quaternion_message, v.time_boot_ms, *row[0:4], *row[7:10], 0.0, 0.0, 0.0, 0.0
+    )
 
 
 def _local_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:

@@ -48,7 +48,7 @@ def closest_approach(rx0: float, ry0: float, rz0: float, rx1: float, ry1: float,
 def swept_hits(
     pos0: np.ndarray, pos1: np.ndarray, c0: np.ndarray, c1: np.ndarray, radii: np.ndarray, ignore: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per vehicle: first obstacle hit (N,) and first other vehicle hit (N,), -1 for none (see find_collisions)."""
+    """Per vehicle: first obstacle hit (N,) and first vehicle hit (N,), -1 for none (find_collisions)."""
     n, k = pos0.shape[0], c0.shape[0]
     obstacle_hit = np.full(n, -1, dtype=np.int64)
     vehicle_hit = np.full(n, -1, dtype=np.int64)
@@ -56,17 +56,21 @@ def swept_hits(
         if ignore[i]:
             continue
         for j in range(k):
-            rel0 = pos0[i] - c0[j]
-            rel1 = pos1[i] - c1[j]
-            if closest_approach(rel0[0], rel0[1], rel0[2], rel1[0], rel1[1], rel1[2]) <= radii[j] + FUSELAGE_RADIUS:
+            reach = closest_approach(
+                pos0[i, 0] - c0[j, 0], pos0[i, 1] - c0[j, 1], pos0[i, 2] - c0[j, 2],
+                pos1[i, 0] - c1[j, 0], pos1[i, 1] - c1[j, 1], pos1[i, 2] - c1[j, 2],
+            )  # fmt: skip
+            if reach <= radii[j] + FUSELAGE_RADIUS:
                 obstacle_hit[i] = j
                 break
         for j in range(i + 1, n):
             if ignore[j]:
                 continue
-            rel0 = pos0[i] - pos0[j]
-            rel1 = pos1[i] - pos1[j]
-            if closest_approach(rel0[0], rel0[1], rel0[2], rel1[0], rel1[1], rel1[2]) <= 2.0 * FUSELAGE_RADIUS:
+            reach = closest_approach(
+                pos0[i, 0] - pos0[j, 0], pos0[i, 1] - pos0[j, 1], pos0[i, 2] - pos0[j, 2],
+                pos1[i, 0] - pos1[j, 0], pos1[i, 1] - pos1[j, 1], pos1[i, 2] - pos1[j, 2],
+            )  # fmt: skip
+            if reach <= 2.0 * FUSELAGE_RADIUS:
                 if vehicle_hit[i] < 0:
                     vehicle_hit[i] = j
                 if vehicle_hit[j] < 0:

@@ -251,11 +251,11 @@ class Pilot:
         sim_s: float,
         each_frame: Callable[[Vehicle], None] | None = None,
     ) -> None:
-        """Serve the link until until() holds; AssertionError after sim_s more simulated seconds (or a wall limit).
+        """Serve the link until until() holds; AssertionError after sim_s more simulated s (or a wall limit).
 
-        A decision (until, then each_frame and the answers) is taken once per frame, when every vehicle has sent
-        newer telemetry than the last answer. When until() holds, spin returns *before* answering: what the
-        caller sends next belongs to that frame, and the next spin answers it first. So the script acts on
+        A decision (until, then each_frame and the answers) is taken once per frame, when every vehicle has
+        sent newer telemetry than the last answer. When until() holds, spin returns *before* answering: what
+        the caller sends next belongs to that frame, and the next spin answers it first. So the script acts on
         exactly the messages sent before each frame end, whatever the timing.
         """
         start = max(v.t for v in self.vehicles)

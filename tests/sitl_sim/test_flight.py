@@ -144,3 +144,63 @@ def test_gcs_failsafe_switches_to_rtl_when_heartbeats_stop(sitl, pilot_for):
     pilot.heartbeat = True
     pilot.spin(lambda: "GCS Failsafe Cleared" in v.texts, 3.0)
     assert v.mode == RTL  # ArduCopter does not switch back
+
+
+AIRBORNE = """\
+vehicles:
+  - {role: leader, start: {position: [0, 0, 20], velocity: [3, 0, 0], yaw_deg: 0}}
+goal: [500, 0, 20]
+run: {airborne_start: true}
+"""
+
+
+def test_airborne_start_flies_on_then_stops_at_guid_timeout(sitl, pilot_for, tmp_path):
+    mission = tmp_path / "airborne.yaml"
+    mission.write_text(AIRBORNE)
+    sim = sitl("--mission", str(mission), "--lockstep", "--lockstep-timeout", "60")
+    pilot = pilot_for(sim)
+    v = pilot[0]
+    pilot.spin(lambda: {"HEARTBEAT", "LOCAL_POSITION_NED", "SYS_STATUS"} <= set(v.latest), 1.0)
+    assert v.armed and v.mode == GUIDED and v.ready  # in flight from the first moment
+    assert v.latest["HEARTBEAT"].system_status == M.MAV_STATE_ACTIVE
+    pilot.spin(lambda: v.t > 2.5, 3.0)
+    assert v.latest["LOCAL_POSITION_NED"].vy == pytest.approx(3.0, abs=0.3)  # flying east at its start speed
+    assert v.altitude == pytest.approx(20.0, abs=0.2)
+    pilot.spin(lambda: v.t > 6.0, 7.0)  # GUID_TIMEOUT (3 s) stops the velocity target
+    local = v.latest["LOCAL_POSITION_NED"]
+    assert abs(local.vx) < 0.3 and abs(local.vy) < 0.3 and abs(local.vz) < 0.3
+    assert v.altitude == pytest.approx(20.0, abs=0.5)
+
+
+def test_position_and_velocity_targets_then_rtl_home(sitl, pilot_for):
+    sim = sitl(*FAST, "--home", "47.0,8.0,400")
+    pilot = pilot_for(sim)
+    v = pilot[0]
+    pilot.take_off(0, 5.0)
+    position_only = 0b110111111000  # velocity, acceleration, yaw and yaw rate ignored
+    v.mav.set_position_target_local_ned_send(
+        v.time_boot_ms, 1, 1, M.MAV_FRAME_LOCAL_NED, position_only, 10, 5, -8, 0, 0, 0, 0, 0, 0, 0, 0
+    )
+    local = lambda: v.latest["LOCAL_POSITION_NED"]  # noqa: E731
+    pilot.spin(lambda: math.dist((local().x, local().y, local().z), (10, 5, -8)) < 0.3, 20.0)
+
+    north, east = 20.0, -10.0  # a global target, 6 m above home
+    lat, lon = 47.0 + math.degrees(north / 6_367_000), 8.0 + math.degrees(east / (6_389_000 * math.cos(0.82)))
+    v.mav.set_position_target_global_int_send(
+        v.time_boot_ms, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, position_only,
+        round(lat * 1e7), round(lon * 1e7), 6.0, 0, 0, 0, 0, 0, 0, 0, 0,
+    )  # fmt: skip
+    pilot.spin(lambda: math.dist((local().x, local().y, local().z), (north, east, -6)) < 0.5, 20.0)
+
+    velocity_only = 0b110111000111
+    pilot.spin(
+        lambda: abs(local().vx + 2.0) < 0.1 and abs(local().vy) < 0.1,
+        5.0,
+        each_frame=lambda veh: veh.mav.set_position_target_local_ned_send(
+            veh.time_boot_ms, 1, 1, M.MAV_FRAME_LOCAL_NED, velocity_only, 0, 0, 0, -2.0, 0, 0, 0, 0, 0, 0, 0
+        ),
+    )
+    assert pilot.set_mode(0, RTL) == M.MAV_RESULT_ACCEPTED
+    pilot.spin(lambda: v.altitude > 14.5, 10.0)  # climbs to RTL_ALT (15 m) first
+    pilot.spin(lambda: not v.armed, 60.0)  # returns, lands, disarms
+    assert math.hypot(local().x, local().y) < 1.0 and abs(v.altitude) < 0.05

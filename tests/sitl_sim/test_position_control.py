@@ -1,4 +1,4 @@
-"""Position controller pieces: sqrt controller, speed limits, spec 5 thrust-vector inversion with the tilt limit."""
+"""Position control pieces: sqrt controller, speed limits, spec 5 thrust-vector inversion with tilt limit."""
 
 from __future__ import annotations
 

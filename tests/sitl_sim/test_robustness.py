@@ -34,8 +34,12 @@ def test_garbage_is_counted_and_traffic_continues(sitl, pilot_for):
         bad_crc,
         bytes(np.random.default_rng(1).integers(0, 256, 60000, dtype=np.uint8)),
         b"\xfd\xff" + b"\x00" * 20,  # claims 255 bytes of payload, has 20
-        gcs.command_long_encode(9, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(gcs),  # other sysid
-        gcs.command_long_encode(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, math.nan, 1e5, 0, 0, 0, 0, 0).pack(gcs),
+        gcs.command_long_encode(9, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(
+            gcs
+        ),  # other sysid
+        gcs.command_long_encode(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, math.nan, 1e5, 0, 0, 0, 0, 0).pack(
+            gcs
+        ),
         gcs.set_attitude_target_encode(0, 1, 1, 0, [math.nan, 0, 0, 0], 0, 0, 0, 0.5).pack(gcs),
         gcs.set_position_target_local_ned_encode(0, 1, 1, 1, 0, 1e12, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0).pack(gcs),
         v1.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(v1),  # MAVLink 1 is fine
@@ -47,7 +51,9 @@ def test_garbage_is_counted_and_traffic_continues(sitl, pilot_for):
         pilot.spin(lambda: "ANGLE_MAX" in v.params, 5.0)  # answered to MAVLink 1, after all the garbage
     before = v.latest["HEARTBEAT"]
     pilot.spin(lambda: v.latest["HEARTBEAT"] is not before, 3.0)
-    assert any(a.command == M.MAV_CMD_SET_MESSAGE_INTERVAL and a.result == M.MAV_RESULT_DENIED for a in v.acks)
+    assert any(
+        a.command == M.MAV_CMD_SET_MESSAGE_INTERVAL and a.result == M.MAV_RESULT_DENIED for a in v.acks
+    )
     status, err = sim.stop()
     assert status == 0
     counters = dict(item.split("=") for item in err.split(": ", 2)[-1].split())

@@ -89,7 +89,9 @@ def test_requests_of_a_connecting_ground_station(sitl, pilot_for):
     assert pilot.command(1, M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_HOME_POSITION) == 0
     pilot.spin(lambda: "HOME_POSITION" in v.latest and "GLOBAL_POSITION_INT" in v.latest, 1.0)
     home = v.latest["HOME_POSITION"]
-    east, north, up = pymap3d.geodetic2enu(home.latitude / 1e7, home.longitude / 1e7, home.altitude / 1e3, 47, 8, 400)
+    east, north, up = pymap3d.geodetic2enu(
+        home.latitude / 1e7, home.longitude / 1e7, home.altitude / 1e3, 47, 8, 400
+    )
     assert (east, north, up) == pytest.approx((5.0, 0.0, 0.0), abs=0.02)  # vehicle 1 starts 5 m east
     position = v.latest["GLOBAL_POSITION_INT"]
     assert (position.lat, position.lon, position.alt) == (home.latitude, home.longitude, home.altitude)

@@ -17,13 +17,25 @@ def test_columns_and_numpy_round_trip(tmp_path):
     quat = np.array([[1.0, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5]])
     flags = np.array([[4, 1, 0, 0], [9, 0, 1, 1]])
     for t in (0.0, 0.02):
-        log.write(t, pos, pos * 2, quat, pos / 10, np.ones((2, 4)), flags, np.array([[7.0, 8.0, 9.0]]), np.array([3.0]))
+        log.write(
+            t,
+            pos,
+            pos * 2,
+            quat,
+            pos / 10,
+            np.ones((2, 4)),
+            flags,
+            np.array([[7.0, 8.0, 9.0]]),
+            np.array([3.0]),
+        )
     log.close()
     log.close()  # idempotent
     assert VEHICLE_HEADER == CONTRACT and OBSTACLE_HEADER == "t,obstacle,x,y,z,radius"
     data = np.genfromtxt(tmp_path / "run.csv", names=True, delimiter=",")
     assert data.dtype.names == tuple(CONTRACT.split(","))
-    assert len(data) == 4 and list(data["sysid"]) == [1, 2, 1, 2] and list(data["t"]) == [0.0, 0.0, 0.02, 0.02]
+    assert (
+        len(data) == 4 and list(data["sysid"]) == [1, 2, 1, 2] and list(data["t"]) == [0.0, 0.0, 0.02, 0.02]
+    )
     assert np.allclose(data[data["vehicle"] == 1][["x", "y", "z"]].tolist(), [[-4.0, 5.5, 0.0]] * 2)
     assert list(data["mode"][:2]) == [4, 9] and list(data["crashed"][:2]) == [0, 1]
     obstacles = np.genfromtxt(tmp_path / "run.obstacles.csv", names=True, delimiter=",")

@@ -1,0 +1,388 @@
+"""Mission files derived from a base mission: a variant (guidance method, controller, wind speed) for
+`gcs-swarm compare`, or a randomised world (obstacles in the flight corridor, start states, wind) for one
+Monte Carlo run. The simulator reads the world from the mission FILE, so every derivation is written as YAML
+and checked with `load_mission`.
+
+Ranges of the randomisation come from a small YAML file (`--ranges FILE`); every key is optional:
+
+    obstacles:
+      count: [2, 4]              # obstacles per run (integers, both ends included)
+      radius: [2, 4]             # m
+      along_track: [0.2, 0.8]    # where along the leader's route (start -> waypoints -> goal), fraction
+      cross_track: [-10, 10]     # m, horizontal offset from the route, to its left (+) or right (-)
+      altitude: [0, 0]           # m, vertical offset from the route
+      speed: [0, 0]              # m/s, horizontal, random direction (0: static)
+      keep_out: 4                # m beyond the radius kept free around starts, goal and final slots
+      replace: true              # true: only the random obstacles; false: added to the mission's
+    starts:
+      position_jitter: 2         # m, each start moved by up to this in x and y
+      velocity: 1                # m/s, per axis, airborne starts only (ground starts stay at rest)
+    wind:
+      speed: [0, 5]              # m/s
+      direction_deg: [0, 360]    # compass, where it blows from
+      turbulence: [0, 0.5]       # m/s
+
+Link loss is not randomised: the simulator has no link-loss option (`python -m sitl_sim --help`).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import itertools
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from gcs_swarm.guidance.formation import rotate_to_world
+from gcs_swarm.mission import Mission, MissionError, load_mission
+from gcs_swarm.runner import mission_offsets
+
+METHODS = ("apf", "iaapf")
+CONTROLLERS = ("smc", "pid")
+MIN_START_GAP_M = 2.0  # m between jittered start positions
+PLACEMENT_TRIES = 2000
+
+
+class VariantError(Exception):
+    """A variant or a ranges file that cannot be used (one sentence)."""
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads YAML 1.2 floats such as 1e5 (as the mission loader does)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def read_yaml(path: Path) -> Any:
+    """A YAML file as plain Python data; VariantError on unreadable files or syntax errors."""
+    try:
+        return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_Loader)  # noqa: S506 (safe loader)
+    except OSError as exc:
+        raise VariantError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    except yaml.YAMLError as exc:
+        raise VariantError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+
+
+def write_mission(data: dict[str, Any], path: Path) -> Mission:
+    """Write mission data as YAML and load it back (MissionError if the derivation is not a valid mission)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return load_mission(path)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """What differs from the base mission; None keeps the mission's own setting."""
+
+    method: str | None = None  # guidance.method: "apf" | "iaapf"
+    controller: str | None = None  # control.controller: "smc" | "pid"
+    wind_speed: float | None = None  # world.wind.speed, m/s
+
+    @property
+    def label(self) -> str:
+        """Short name, e.g. "iaapf", "apf-pid-wind5", "mission" when nothing differs."""
+        parts = [p for p in (self.method, self.controller) if p is not None]
+        if self.wind_speed is not None:
+            parts.append(f"wind{self.wind_speed:g}")
+        return "-".join(parts) or "mission"
+
+
+def variant_grid(
+    methods: list[str] | None, controllers: list[str] | None, winds: list[float] | None
+) -> list[Variant]:
+    """Every combination of the given methods, controllers and wind speeds (an absent list keeps the
+    mission's value); VariantError on an unknown method or controller or a bad wind speed."""
+    for value in methods or []:
+        if value not in METHODS:
+            raise VariantError(f"unknown variant {value!r}: methods are {', '.join(METHODS)}")
+    for value in controllers or []:
+        if value not in CONTROLLERS:
+            raise VariantError(f"unknown controller {value!r}: controllers are {', '.join(CONTROLLERS)}")
+    for value in winds or []:
+        if not (math.isfinite(value) and 0.0 <= value <= 100.0):
+            raise VariantError(f"wind speed {value:g} m/s is outside 0..100")
+    combos = itertools.product(methods or [None], controllers or [None], winds or [None])
+    grid = [Variant(m, c, w) for m, c, w in combos]
+    if len({v.label for v in grid}) != len(grid):
+        raise VariantError("the same variant is listed twice")
+    return grid
+
+
+def apply_variant(data: dict[str, Any], variant: Variant, name: str) -> dict[str, Any]:
+    """A copy of mission data with the variant's settings and mission.name = name."""
+    out = copy.deepcopy(data)
+    out.setdefault("mission", {})
+    out["mission"] = {**(out["mission"] or {}), "name": name}
+    if variant.method is not None:
+        out["guidance"] = {**(out.get("guidance") or {}), "method": variant.method}
+    if variant.controller is not None:
+        out["control"] = {**(out.get("control") or {}), "controller": variant.controller}
+    if variant.wind_speed is not None:
+        world = dict(out.get("world") or {})
+        world["wind"] = {**(world.get("wind") or {}), "speed": float(variant.wind_speed)}
+        out["world"] = world
+    return out
+
+
+# ----- Monte Carlo ranges -----
+
+
+@dataclass(frozen=True)
+class Ranges:
+    """Randomisation ranges of a Monte Carlo run (module docstring); pairs are (low, high)."""
+
+    obstacle_count: tuple[float, float] = (2, 4)
+    obstacle_radius: tuple[float, float] = (2.0, 4.0)
+    along_track: tuple[float, float] = (0.2, 0.8)
+    cross_track: tuple[float, float] = (-10.0, 10.0)
+    altitude: tuple[float, float] = (0.0, 0.0)
+    obstacle_speed: tuple[float, float] = (0.0, 0.0)
+    keep_out: float = 4.0
+    replace: bool = True
+    position_jitter: float = 2.0
+    start_velocity: float = 1.0
+    wind_speed: tuple[float, float] = (0.0, 5.0)
+    wind_direction_deg: tuple[float, float] = (0.0, 360.0)
+    turbulence: tuple[float, float] = (0.0, 0.5)
+
+
+# YAML section.key -> (Ranges field, kind); kind "pair", "scalar" (>= 0) or "bool"
+_RANGE_KEYS = {
+    "obstacles": {
+        "count": ("obstacle_count", "pair"),
+        "radius": ("obstacle_radius", "pair"),
+        "along_track": ("along_track", "pair"),
+        "cross_track": ("cross_track", "pair"),
+        "altitude": ("altitude", "pair"),
+        "speed": ("obstacle_speed", "pair"),
+        "keep_out": ("keep_out", "scalar"),
+        "replace": ("replace", "bool"),
+    },
+    "starts": {"position_jitter": ("position_jitter", "scalar"), "velocity": ("start_velocity", "scalar")},
+    "wind": {
+        "speed": ("wind_speed", "pair"),
+        "direction_deg": ("wind_direction_deg", "pair"),
+        "turbulence": ("turbulence", "pair"),
+    },
+}
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _check_value(where: str, kind: str, value: Any) -> Any:
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise VariantError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if kind == "scalar":
+        if not _is_number(value) or value < 0:
+            raise VariantError(f"{where}: expected a number >= 0, got {value!r}")
+        return float(value)
+    if not (isinstance(value, list) and len(value) == 2 and all(_is_number(x) for x in value)):
+        raise VariantError(f"{where}: expected two numbers [low, high], got {value!r}")
+    if value[0] > value[1]:
+        raise VariantError(f"{where}: low {value[0]:g} is above high {value[1]:g}")
+    return (float(value[0]), float(value[1]))
+
+
+def parse_ranges(data: Any, source: str) -> Ranges:
+    """Ranges from parsed YAML (None or {} = the defaults); VariantError naming the key on any mistake."""
+    if data is None:
+        return Ranges()
+    if not isinstance(data, dict):
+        raise VariantError(f"{source}: expected sections obstacles, starts, wind")
+    changes: dict[str, Any] = {}
+    for section, body in data.items():
+        keys = _RANGE_KEYS.get(section)
+        if keys is None:
+            raise VariantError(f"{source}: unknown section {section!r} (sections: {', '.join(_RANGE_KEYS)})")
+        if body is None:
+            continue
+        if not isinstance(body, dict):
+            raise VariantError(f"{source}: {section}: expected keys {', '.join(keys)}")
+        for key, value in body.items():
+            if key not in keys:
+                raise VariantError(f"{source}: {section}.{key}: unknown key (keys: {', '.join(keys)})")
+            field, kind = keys[key]
+            changes[field] = _check_value(f"{source}: {section}.{key}", kind, value)
+    ranges = dataclasses.replace(Ranges(), **changes)
+    lo, hi = ranges.obstacle_count
+    if lo < 0 or lo != int(lo) or hi != int(hi):
+        raise VariantError(f"{source}: obstacles.count: expected whole numbers >= 0, got [{lo:g}, {hi:g}]")
+    if ranges.obstacle_radius[0] <= 0:
+        raise VariantError(f"{source}: obstacles.radius: radii must be > 0")
+    if not (0.0 <= ranges.along_track[0] and ranges.along_track[1] <= 1.0):
+        raise VariantError(f"{source}: obstacles.along_track: fractions must lie in 0..1")
+    if ranges.wind_speed[0] < 0 or ranges.turbulence[0] < 0 or ranges.obstacle_speed[0] < 0:
+        raise VariantError(f"{source}: speeds must be >= 0")
+    return ranges
+
+
+def load_ranges(path: Path | None) -> Ranges:
+    """The ranges file (None: the defaults)."""
+    return Ranges() if path is None else parse_ranges(read_yaml(path), str(path))
+
+
+def _route(mission: Mission) -> np.ndarray:
+    """The leader's route (W, 3) m: its start, then its waypoints (the last is the goal); the start is taken
+    at formation altitude for a ground start."""
+    start = np.array(mission.vehicles[mission.leader_index].start.position, dtype=float)
+    if not mission.run.airborne_start:
+        start[2] = mission.formation.altitude
+    return np.vstack([start, *[np.asarray(w, dtype=float) for w in mission.waypoints]])
+
+
+def _point_on_route(route: np.ndarray, fraction: float) -> tuple[np.ndarray, np.ndarray]:
+    """Point (3,) at `fraction` of the route's length and the unit horizontal direction (2,) of that leg."""
+    legs = np.diff(route, axis=0)
+    lengths = np.linalg.norm(legs, axis=1)
+    total = float(lengths.sum())
+    if total <= 0:
+        raise VariantError("the leader starts at its goal: there is no route to place obstacles on")
+    s = fraction * total
+    k = int(min(np.searchsorted(np.cumsum(lengths), s), len(legs) - 1))
+    into = s - float(lengths[:k].sum())
+    point = route[k] + legs[k] * (into / lengths[k] if lengths[k] > 0 else 0.0)
+    horizontal = legs[k, :2]
+    norm = float(np.linalg.norm(horizontal))
+    return point, (horizontal / norm if norm > 0 else np.array([1.0, 0.0]))
+
+
+def _protected_points(mission: Mission, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (P, 3) that obstacles keep clear of and whether each is a column (ground start: the vehicle
+    climbs vertically there, so only horizontal distance counts): starts, waypoints, goal, final slots,
+    targets."""
+    route = _route(mission)
+    last = route[-1] - route[-2]
+    psi_final = math.atan2(last[1], last[0]) if np.linalg.norm(last[:2]) > 0 else 0.0
+    slots = np.asarray(mission.goal, dtype=float) + rotate_to_world(mission_offsets(mission), psi_final)
+    targets = [np.asarray(v.target, dtype=float) for v in mission.vehicles if v.target is not None]
+    points = np.vstack([starts, *mission.waypoints, slots, *targets])
+    column = np.zeros(len(points), dtype=bool)
+    column[: len(starts)] = not mission.run.airborne_start
+    return points, column
+
+
+def _clear(centre: np.ndarray, radius: float, points: np.ndarray, column: np.ndarray, gap: float) -> bool:
+    d = np.linalg.norm(points - centre, axis=1)
+    d_h = np.linalg.norm(points[:, :2] - centre[:2], axis=1)
+    return bool(np.all(np.where(column, d_h, d) > radius + gap))
+
+
+def _random_starts(mission: Mission, ranges: Ranges, rng: np.random.Generator) -> list[dict[str, Any]]:
+    """Jittered start states in vehicle order (positions apart by MIN_START_GAP_M)."""
+    base = np.array([v.start.position for v in mission.vehicles], dtype=float)
+    for _ in range(PLACEMENT_TRIES):
+        pos = base.copy()
+        pos[:, :2] += rng.uniform(-ranges.position_jitter, ranges.position_jitter, size=(len(base), 2))
+        gaps = np.linalg.norm(pos[:, None] - pos[None], axis=-1) + np.eye(len(pos)) * 1e9
+        if gaps.min() >= MIN_START_GAP_M:
+            break
+    else:
+        raise VariantError("cannot place the jittered starts 2 m apart: lower starts.position_jitter")
+    starts = []
+    for v, p in zip(mission.vehicles, pos, strict=True):
+        vel = np.zeros(3)
+        if mission.run.airborne_start:
+            vel = np.asarray(v.start.velocity, dtype=float) + rng.uniform(
+                -ranges.start_velocity, ranges.start_velocity, size=3
+            )
+        starts.append(
+            {"position": [round(float(x), 3) for x in p], "velocity": [round(float(x), 3) for x in vel]}
+            | {"yaw_deg": float(v.start.yaw_deg)}
+        )
+    return starts
+
+
+def _random_obstacles(
+    mission: Mission, ranges: Ranges, starts: np.ndarray, rng: np.random.Generator
+) -> list[dict[str, Any]]:
+    """Obstacles in the flight corridor, each clear of the protected points by keep_out beyond its radius."""
+    route = _route(mission)
+    points, column = _protected_points(mission, starts)
+    lo, hi = int(ranges.obstacle_count[0]), int(ranges.obstacle_count[1])
+    count = int(rng.integers(lo, hi + 1))
+    gap = ranges.keep_out + mission.safety.collision_radius
+    obstacles = []
+    for k in range(count):
+        for _ in range(PLACEMENT_TRIES):
+            point, direction = _point_on_route(route, rng.uniform(*ranges.along_track))
+            left = np.array([-direction[1], direction[0], 0.0])
+            centre = point + left * rng.uniform(*ranges.cross_track)
+            centre[2] += rng.uniform(*ranges.altitude)
+            radius = rng.uniform(*ranges.obstacle_radius)
+            if _clear(centre, radius, points, column, gap):
+                break
+        else:
+            raise VariantError(
+                f"cannot place obstacle {k + 1} clear of the starts, goal and slots: widen "
+                "obstacles.along_track / cross_track or lower obstacles.radius / keep_out"
+            )
+        heading = rng.uniform(0.0, 2.0 * math.pi)
+        speed = rng.uniform(*ranges.obstacle_speed)
+        obstacles.append(
+            {
+                "center": [round(float(x), 3) for x in centre],
+                "radius": round(float(radius), 3),
+                "velocity": [round(speed * math.cos(heading), 3), round(speed * math.sin(heading), 3), 0.0],
+            }
+        )
+    return obstacles
+
+
+def randomise(data: dict[str, Any], mission: Mission, ranges: Ranges, seed: int) -> dict[str, Any]:
+    """A copy of mission data (`mission` = its loaded form) with a random world drawn from `ranges` by
+    numpy's default_rng(seed): the same seed gives the same world. Also sets run.simulator.seed = seed."""
+    rng = np.random.default_rng(seed)
+    out = copy.deepcopy(data)
+    starts = _random_starts(mission, ranges, rng)
+    for vehicle, start in zip(out["vehicles"], starts, strict=True):
+        vehicle["start"] = start
+    obstacles = _random_obstacles(mission, ranges, np.array([s["position"] for s in starts]), rng)
+    world = dict(out.get("world") or {})
+    kept = [] if ranges.replace else list(world.get("obstacles") or [])
+    world["obstacles"] = kept + obstacles
+    world["wind"] = {
+        "speed": round(float(rng.uniform(*ranges.wind_speed)), 3),
+        "direction_deg": round(float(rng.uniform(*ranges.wind_direction_deg)) % 360.0, 3),
+        "turbulence": round(float(rng.uniform(*ranges.turbulence)), 3),
+    }
+    out["world"] = world
+    run = dict(out.get("run") or {})
+    run["simulator"] = {**(run.get("simulator") or {}), "seed": int(seed)}
+    out["run"] = run
+    return out
+
+
+def derive_monte_carlo_run(
+    base_path: Path, ranges: Ranges, seed: int, variant: Variant, out_path: Path
+) -> Mission:
+    """Write the mission of Monte Carlo run (seed, variant) to out_path: the base mission with the world of
+    `seed` (identical for every variant of that seed) and the variant's settings; returns it loaded."""
+    base = load_mission(base_path)
+    data = read_yaml(base_path)
+    name = f"{base.name[:40]}-s{seed}-{variant.label}"[:64]
+    try:
+        return write_mission(apply_variant(randomise(data, base, ranges, seed), variant, name), out_path)
+    except MissionError as exc:
+        raise VariantError(f"seed {seed}: the randomised mission is not valid: {exc}") from None
+
+
+def derive_variant(base_path: Path, variant: Variant, out_path: Path) -> Mission:
+    """Write the base mission with the variant's settings to out_path; returns it loaded."""
+    base = load_mission(base_path)
+    name = f"{base.name[:40]}-{variant.label}"[:64]
+    return write_mission(apply_variant(read_yaml(base_path), variant, name), out_path)
