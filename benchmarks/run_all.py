@@ -26,6 +26,8 @@ BENCHMARKS: list[tuple[str, str, list[str], list[str]]] = [
     ("guidance", "bench_guidance.py", [], ["--quick"]),
     ("sitl", "bench_sitl.py", [], ["--quick"]),
     ("end_to_end", "bench_end_to_end.py", [], ["--quick"]),
+    ("fleet_capacity", "bench_fleet_capacity.py", [], ["--quick"]),
+    ("montecarlo", "bench_montecarlo.py", [], ["--quick"]),
 ]
 
 

@@ -20,6 +20,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         time_mode=args.time_mode,
         seed=args.seed,
         quiet=args.quiet,
+        sim_args=tuple(args.sim_arg),
     )
     return run_command(args.mission, options)
 
@@ -154,6 +155,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--seed", type=int, help="embedded simulator seed override")
     run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.add_argument(
+        "--sim-arg",
+        action="append",
+        default=[],
+        metavar="ARG",
+        help="pass ARG verbatim to the embedded simulator, e.g. --sim-arg=--link-loss=0.1 (repeatable)",
+    )
     run.set_defaults(func=_cmd_run)
 
     console = sub.add_parser("console", help="operator console: watch and command the swarm live")

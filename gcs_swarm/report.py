@@ -198,7 +198,7 @@ def report_from(
         clear_i, _ = metrics.min_obstacle_clearance(
             traj.pos[:, i : i + 1], traj.obstacle_centres, traj.obstacle_radii
         )
-        final_angle = angles[last, i]
+        final_angle = signals.near(angles[last, i], desired_angles[i] if i != leader else 0.0)
         per_vehicle.append(
             {
                 "name": name,
@@ -218,7 +218,10 @@ def report_from(
     times = [r for r in reach if r is not None]
     rates = None
     if commands is not None and len(commands.t) > 2:
-        rates = signals.command_rate_figures(commands.t - commands.t[0], commands.attitude_d, names)
+        t_end_rates = None if cruise is None else cruise["window_s"][1]
+        rates = signals.command_rate_figures(
+            commands.t - commands.t[0], commands.attitude_d, names, t_end_rates
+        )
     return {
         "mission": mission.name,
         "reached": bool(reached),
@@ -232,6 +235,8 @@ def report_from(
         "heading_reversals": int(reversals),
         "settling_time_s": _finite(settling),
         "command_rate_settling_s": None if rates is None else rates["settling_s"],
+        "command_rate_trend_settling_s": None if rates is None else rates["trend_settling_s"],
+        "command_rate_first_settled_s": None if rates is None else rates["trend_first_settled_s"],
         "command_chatter_first_20s_rad_s": None if rates is None else rates["chatter_first_20s_rad_s"],
         "command_chatter_last_20s_rad_s": None if rates is None else rates["chatter_last_20s_rad_s"],
         "command_rates": rates,
@@ -257,6 +262,8 @@ SUMMARY_KEYS = (
     "heading_reversals",
     "settling_time_s",
     "command_rate_settling_s",
+    "command_rate_trend_settling_s",
+    "command_rate_first_settled_s",
     "command_chatter_first_20s_rad_s",
     "command_chatter_last_20s_rad_s",
     "sim_duration_s",
@@ -301,7 +308,8 @@ def render_markdown(report: dict[str, Any]) -> str:
             f"{', '.join(_fmt(s) for s in cruise['speed_median_m_s'])} m/s; neighbour spacing "
             f"{', '.join(_fmt(s) for s in cruise['spacing_median_m'])} m (slots "
             f"{', '.join(_fmt(s) for s in cruise['spacing_desired_m'])} m, worst error "
-            f"{_fmt(cruise['spacing_max_abs_error_m'])} m).",
+            f"{_fmt(cruise['spacing_max_abs_error_m'])} m, all within 1 m "
+            f"{_fmt(cruise['spacing_within_1m_fraction'])} of the time).",
         ]
     figures = report.get("figures")
     if figures is not None:

@@ -33,6 +33,7 @@ class RunOptions:
     time_mode: str | None = None  # override of run.simulator.time_mode
     seed: int | None = None
     quiet: bool = False
+    sim_args: tuple[str, ...] = ()  # passed verbatim to the embedded simulator (e.g. --link-loss=0.1)
 
 
 def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
@@ -44,6 +45,34 @@ def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
         k: round(float(v), 4)
         for k, v in (("median", np.median(ms)), ("p99", np.percentile(ms, 99)), ("max", ms.max()))
     }
+
+
+def write_flight(
+    run_dir: Path,
+    mission: Mission,
+    mission_path: str,
+    result: FlightResult,
+    wall_s: float,
+    tick_latency_s: list[float],
+) -> None:
+    """flight.json: what the ground station did (phases, arrival, lost vehicles, events, tick latency); with
+    the mission path it lets `gcs-swarm report` rebuild the report of a run folder."""
+    flight = {
+        "mission": mission.name,
+        "mission_path": str(Path(mission_path).resolve()),
+        "phase_reached": result.phase_reached,
+        "arrived": result.arrived,
+        "t_formation_start": result.t_formation_start,
+        "t_formation_end": result.t_formation_end,
+        "final_targets": None if result.final_targets is None else np.asarray(result.final_targets).tolist(),
+        "offsets": mission_offsets(mission).tolist(),
+        "lost": result.lost,
+        "events": result.events,
+        "ticks": result.ticks,
+        "tick_latency_ms": latency_summary(tick_latency_s),
+        "wall_duration_s": wall_s,
+    }
+    (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
 
 
 def default_run_dir(mission: Mission) -> Path:
@@ -91,6 +120,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
                 time_mode=options.time_mode or sim_spec.time_mode,
                 speedup=sim_spec.speedup,
                 seed=sim_spec.seed if options.seed is None else options.seed,
+                extra_args=list(options.sim_args),
             )
             sim.start()
             say(f"embedded simulator up: {len(mission.vehicles)} vehicles on 127.0.0.1:{base_port}..")
@@ -121,22 +151,8 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     finally:
         if sim is not None:
             sim.stop()
-    flight = {
-        "mission": mission.name,
-        "mission_path": str(Path(mission_path).resolve()),
-        "phase_reached": result.phase_reached,
-        "arrived": result.arrived,
-        "t_formation_start": result.t_formation_start,
-        "t_formation_end": result.t_formation_end,
-        "final_targets": None if result.final_targets is None else np.asarray(result.final_targets).tolist(),
-        "offsets": mission_offsets(mission).tolist(),
-        "lost": result.lost,
-        "events": result.events,
-        "ticks": result.ticks,
-        "tick_latency_ms": latency_summary(runner.tick_latency_s if runner is not None else []),
-        "wall_duration_s": time.monotonic() - wall0,
-    }
-    (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
+    latencies = runner.tick_latency_s if runner is not None else []
+    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies)
     if status == EXIT_USER_ERROR or result.t_formation_start is None:
         return status if status != EXIT_OK else EXIT_FAILED
     report = write_report(run_dir, mission)

@@ -202,6 +202,8 @@ class MissionRunner:
         if not self.fleet.wait_tick(timeout_s=10.0):
             raise LinkError("no telemetry tick arrived after launch")
         self._enter_formation()
+        self._formation_tick()  # act on the tick just consumed, then answer it (lockstep rule)
+        self.fleet.answer_frame()
 
     def _enter_formation(self) -> None:
         fleet = self.fleet

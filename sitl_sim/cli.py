@@ -4,6 +4,8 @@
              [--speedup X | --lockstep] [--rate-hz 1000] [--home LAT,LON,ALT] [--mission FILE.yaml]
              [--truth-log PATH] [--seed S]  (+ --lockstep-hz, --lockstep-timeout, --outer-hz,
              --truth-rate-hz, --ready-delay)
+             [--link-loss P] [--link-delay-ms MS] [--link-jitter-ms MS] [--link-dup P] [--link-corrupt P]
+             [--link-reorder P] [--link-from S] [--link-outage [I@]START:DURATION ...]
 
 Prints one line per vehicle (index, sysid, UDP address), then READY, and runs until SIGINT/SIGTERM.
 Bad arguments: one line "sitl-sim: error: ..." and exit status 2; a port that cannot be bound: exit 1.
@@ -23,6 +25,7 @@ from typing import NoReturn
 import numpy as np
 
 from sitl_sim.clock import plan_timing
+from sitl_sim.link_faults import LinkFaults, Outage, parse_outage
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
 
@@ -83,7 +86,50 @@ def build_parser() -> OneLineParser:
         metavar="S",
         help="simulated s to a position fix (default 5)",
     )
+    link = parser.add_argument_group("link faults (every vehicle, both directions; docs/sitl.md)")
+    link.add_argument("--link-loss", type=float, default=0.0, metavar="P", help="packet loss probability")
+    link.add_argument("--link-delay-ms", type=float, default=0.0, metavar="MS", help="one-way delay, sim ms")
+    link.add_argument("--link-jitter-ms", type=float, default=0.0, metavar="MS", help="extra delay 0..MS")
+    link.add_argument("--link-dup", type=float, default=0.0, metavar="P", help="duplication probability")
+    link.add_argument("--link-corrupt", type=float, default=0.0, metavar="P", help="corruption probability")
+    link.add_argument("--link-reorder", type=float, default=0.0, metavar="P", help="hold-back probability")
+    link.add_argument("--link-from", type=float, default=0.0, metavar="S", help="rates act from sim s S on")
+    link.add_argument(
+        "--link-outage",
+        action="append",
+        default=[],
+        metavar="[I@]START:DURATION",
+        help="no packet on vehicle I's link (default: all) for DURATION sim s (may be inf); repeatable",
+    )
     return parser
+
+
+def link_faults(parser: OneLineParser, args: argparse.Namespace, vehicles: int) -> LinkFaults:
+    """The --link-* options, checked (one-line errors)."""
+    for option in ("loss", "dup", "corrupt", "reorder"):
+        value = getattr(args, f"link_{option}")
+        _check(parser, 0.0 <= value <= 1.0, f"--link-{option} must be a probability in 0..1, not {value:g}")
+    for option in ("delay_ms", "jitter_ms"):
+        value = getattr(args, f"link_{option}")
+        flag = "--link-" + option.replace("_", "-")
+        _check(parser, 0.0 <= value <= 10000.0, f"{flag} must be 0..10000 ms, not {value:g}")
+    _check(parser, 0.0 <= args.link_from < math.inf, f"--link-from must be >= 0 s, not {args.link_from:g}")
+    outages: list[Outage] = []
+    for text in args.link_outage:
+        try:
+            outages.append(parse_outage(text, vehicles))
+        except ValueError as exc:
+            parser.error(str(exc))
+    return LinkFaults(
+        loss=args.link_loss,
+        delay_ms=args.link_delay_ms,
+        jitter_ms=args.link_jitter_ms,
+        dup=args.link_dup,
+        corrupt=args.link_corrupt,
+        reorder=args.link_reorder,
+        outages=tuple(outages),
+        start_s=args.link_from,
+    )
 
 
 def _check(parser: OneLineParser, ok: bool, message: str) -> None:
@@ -212,6 +258,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         truth_log=args.truth_log,
         seed=args.seed,
         ready_delay=args.ready_delay,
+        link=link_faults(parser, args, n),
     )
 
 

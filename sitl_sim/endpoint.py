@@ -21,6 +21,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl_sim import autopilot as ap
 from sitl_sim.attitude_control import yaw_from_quat
+from sitl_sim.link_faults import DOWN, UP, FaultChannel
 from sitl_sim.streams import DATA_STREAM_GROUPS, STREAM_IDS, Framer, swap_quat_enu_ned
 
 if TYPE_CHECKING:
@@ -109,6 +110,9 @@ class VehicleEndpoint:
             raise
         self.rx = mavlink.MAVLink(None)
         self.rx.robust_parsing = True
+        self.clock_rx = mavlink.MAVLink(None)  # reads lockstep answers before the faulty link (link_faults)
+        self.clock_rx.robust_parsing = True
+        self.channel = FaultChannel(sim.config.seed, index, sim.config.link.outages)
         self.framer = Framer(sysid, 1)
         self.tx = self.framer.mav  # pymavlink encoder of this vehicle's messages
         self.peers: dict[tuple[str, int], float] = {}
@@ -170,8 +174,59 @@ class VehicleEndpoint:
                 self.peers[addr] = wall_now
                 self.sim.on_new_peer(self)
             self.peers[addr] = wall_now
-            self._handle_datagram(data, addr, wall_now)
-        return handled
+            rates = self.link_rates()
+            if not self.channel.active(rates):
+                self._handle_datagram(data, addr, wall_now)
+                continue
+            self._register_lockstep_answers(data, addr, wall_now)
+            self.channel.push(UP, data, addr, self.sim.time_us // 1000, rates)
+            handled += self._deliver_due(wall_now)
+        return handled + self._deliver_due(wall_now)
+
+    def link_rates(self) -> tuple[float, ...]:
+        """This vehicle's SIM_LINK_* values: loss, dup, corrupt, reorder, delay_ms, jitter_ms (all zero while
+        a lockstep simulator waits at boot for its clients, as delays in simulated time could not elapse, and
+        before --link-from)."""
+        if (
+            self.sim.lockstep is not None
+            and not self.sim.lockstep_started
+            or self.sim.t < self.sim.config.link.start_s
+        ):
+            return (0.0,) * 6
+        p, i = self.sim.params, self.index
+        return tuple(
+            p.value(i, name)
+            for name in (
+                "SIM_LINK_LOSS",
+                "SIM_LINK_DUP",
+                "SIM_LINK_CORRUPT",
+                "SIM_LINK_REORDER",
+                "SIM_LINK_DELAY",
+                "SIM_LINK_JITTER",
+            )
+        )
+
+    def _deliver_due(self, wall_now: float) -> int:
+        """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""
+        if not self.channel.pending(UP):
+            return 0
+        due = self.channel.due(UP, self.sim.time_us // 1000)
+        for data, addr in due:
+            self._handle_datagram(data, addr, wall_now)  # type: ignore[arg-type]
+        return len(due)
+
+    def _register_lockstep_answers(self, data: bytes, addr: tuple[str, int], wall_now: float) -> None:
+        """The lockstep clock hears every answer that reaches the socket, whatever the radio does with it."""
+        if self.sim.lockstep is None:
+            return
+        try:
+            messages = self.clock_rx.parse_buffer(data) or []
+        except Exception:  # noqa: BLE001 - hostile bytes: the radio path counts them
+            messages = []
+        _reset_parser(self.clock_rx)
+        for msg in messages:
+            if msg.get_msgId() in LOCKSTEP_ANSWERS and getattr(msg, "target_system", 0) in (0, self.sysid):
+                self.sim.lockstep.answer(self.index, addr, int(msg.time_boot_ms), wall_now)
 
     def _handle_datagram(self, data: bytes, addr: tuple[str, int], wall_now: float) -> None:
         try:
@@ -181,9 +236,7 @@ class VehicleEndpoint:
             self.counters.bad_frames += 1
         if self.rx.buf_len() > 0:  # a datagram ended inside a frame: drop the fragment, resync on the next
             self.counters.bad_frames += 1
-            self.rx.buf = bytearray()
-            self.rx.buf_index = 0
-            self.rx.expected_length = mavlink.HEADER_LEN_V1 + 2
+            _reset_parser(self.rx)
         for msg in messages:
             self._handle_message(msg, addr, wall_now)
 
@@ -218,22 +271,32 @@ class VehicleEndpoint:
         """Queue a message for every live peer (sent by flush)."""
         self.out.append(self.framer.pack(msg))
 
-    def flush(self, wall_now: float) -> None:
-        """Queue pending STATUSTEXTs, then send everything queued to the live peers, batched in datagrams."""
+    def flush(self, wall_now: float, clock_ms: int | None = None) -> None:
+        """Queue pending STATUSTEXTs, pass everything queued through the (faulty) link, send what it lets
+        through to the live peers, batched in datagrams. clock_ms: a lockstep frame end (a faulty link then
+        ends with the fault-exempt clock tick SYSTEM_TIME(0, clock_ms), see link_faults)."""
         for severity, text in self.sim.autopilot.texts[self.index]:
             self.send(self.tx.statustext_encode(severity, text.encode("ascii", "replace")[:50]))
         self.sim.autopilot.texts[self.index].clear()
-        if not self.out:
+        packets, self.out = self.out, []
+        rates = self.link_rates()
+        if self.channel.active(rates):
+            now_ms = self.sim.time_us // 1000
+            for packet in packets:
+                self.channel.push(DOWN, packet, None, now_ms, rates)
+            packets = [packet for packet, _ in self.channel.due(DOWN, now_ms)]
+            if clock_ms is not None and self.peers:
+                packets.append(self.framer.pack(self.tx.system_time_encode(0, clock_ms)))
+        if not packets:
             return
         datagrams: list[bytes] = []
         chunk = bytearray()
-        for packet in self.out:
+        for packet in packets:
             if chunk and len(chunk) + len(packet) > MAX_DATAGRAM:
                 datagrams.append(bytes(chunk))
                 chunk = bytearray()
             chunk += packet
         datagrams.append(bytes(chunk))
-        self.out.clear()
         for addr, heard in list(self.peers.items()):
             if wall_now - heard > PEER_TIMEOUT_S:
                 del self.peers[addr]
@@ -519,6 +582,13 @@ class VehicleEndpoint:
             None if rate_bits else np.array([msg.body_roll_rate, -msg.body_pitch_rate, -msg.body_yaw_rate])
         )
         autopilot.set_attitude_target(self.index, quat, rates, msg.thrust)
+
+
+def _reset_parser(parser: mavlink.MAVLink) -> None:
+    """Forget a partial frame left in a pymavlink parser's buffer (resync on the next datagram)."""
+    parser.buf = bytearray()
+    parser.buf_index = 0
+    parser.expected_length = mavlink.HEADER_LEN_V1 + 2
 
 
 def _param_name(raw: bytes | str) -> str:

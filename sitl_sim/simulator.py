@@ -25,6 +25,7 @@ from sitl_sim.autopilot import Autopilot
 from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
 from sitl_sim.dynamics import FleetDynamics, FleetState, QuadParams
 from sitl_sim.endpoint import VehicleEndpoint
+from sitl_sim.link_faults import UP, LinkFaults
 from sitl_sim.params import ParamTable, param_specs
 from sitl_sim.streams import Geodesy, StreamSchedule, TelemetryView, ned_telemetry
 from sitl_sim.truth_log import TruthLog
@@ -64,6 +65,7 @@ class SimConfig:
     truth_log: Path | None
     seed: int
     ready_delay: float
+    link: LinkFaults = LinkFaults()  # link faults of every vehicle (SIM_LINK_* param defaults, outages)
 
     @property
     def vehicles(self) -> int:
@@ -91,6 +93,7 @@ class Simulator:
                 "SIM_WIND_SPD": speed,
                 "SIM_WIND_DIR": direction,
                 "SIM_WIND_TURB": turbulence,
+                **config.link.params(),
             },
         )
         state = FleetState.at_rest(config.start_pos, config.start_yaw, config.start_vel, quad)
@@ -191,8 +194,9 @@ class Simulator:
                 if self.endpoints[silent].peers:
                     self._send_now(int(silent), (mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,))
         wall = time.monotonic()
+        clock_ms = self.time_us // 1000 if self.lockstep is not None else None
         for endpoint in self.endpoints:
-            endpoint.flush(wall)
+            endpoint.flush(wall, clock_ms)
         if self.truth is not None and wall - self._last_log_flush > FLUSH_LOG_S:
             self.truth.flush()
             self._last_log_flush = wall
@@ -250,7 +254,7 @@ class Simulator:
         wall = time.monotonic()
         handled = 0
         for endpoint in self.endpoints:  # first what arrived after the clients' previous answers
-            if endpoint.inbox:
+            if endpoint.inbox or endpoint.channel.pending(UP):
                 handled += endpoint.receive(wall, frame_ms)
         events = self.selector.select(0.0 if handled else timeout)
         wall = time.monotonic()
@@ -317,7 +321,10 @@ class Simulator:
 
     def counters_report(self) -> list[str]:
         """One line per vehicle with its link counters."""
-        return [f"vehicle {ep.index} (sysid {ep.sysid}): {ep.counters.summary()}" for ep in self.endpoints]
+        return [
+            f"vehicle {ep.index} (sysid {ep.sysid}): {ep.counters.summary()} {ep.channel.summary()}"
+            for ep in self.endpoints
+        ]
 
     def close(self) -> None:
         """Free the ports, flush and close the truth log (idempotent)."""

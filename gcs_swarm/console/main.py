@@ -8,23 +8,20 @@ simulator, vehicles not reachable).
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from gcs_swarm.console.script import PlainConsole
 from gcs_swarm.console.session import FlightSession
 from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
 from gcs_swarm.link.fleet import Fleet
-from gcs_swarm.mission import Mission, MissionError, load_mission
-from gcs_swarm.report import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE, write_report
-from gcs_swarm.run_command import default_run_dir, vehicle_configs
+from gcs_swarm.mission import MissionError, load_mission
+from gcs_swarm.report import RECORD_FILE, TRUTH_FILE, write_report
+from gcs_swarm.run_command import default_run_dir, vehicle_configs, write_flight
 from gcs_swarm.run_record import RunRecord
-from gcs_swarm.runner import FlightResult, MissionRunner, mission_offsets
+from gcs_swarm.runner import FlightResult, MissionRunner
 
 EXIT_OK, EXIT_USER_ERROR = 0, 2
 HISTORY_FILE = "console_history.txt"
@@ -64,6 +61,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     wall0 = time.monotonic()
     sim: EmbeddedSimulator | None = None
     result = FlightResult()
+    latencies: list[float] = []
     status = EXIT_OK
     if not interactive:
         print(f"run folder {run_dir}", flush=True)
@@ -107,13 +105,14 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
                 session.stop()
                 record.close()
                 result = runner.result
+                latencies = runner.tick_latency_s
     except (SimulatorError, MissionError) as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
     finally:
         if sim is not None:
             sim.stop()
-    _write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0)
+    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies)
     if result.t_formation_start is not None:
         report = write_report(run_dir, mission)
         print(
@@ -126,24 +125,3 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
 
 def _print(line: str) -> None:
     print(line, flush=True)
-
-
-def _write_flight(
-    run_dir: Path, mission: Mission, mission_path: str, result: FlightResult, wall_s: float
-) -> None:
-    """flight.json, as `gcs-swarm run` writes it, so `gcs-swarm report` works on a console run folder."""
-    flight = {
-        "mission": mission.name,
-        "mission_path": str(Path(mission_path).resolve()),
-        "phase_reached": result.phase_reached,
-        "arrived": result.arrived,
-        "t_formation_start": result.t_formation_start,
-        "t_formation_end": result.t_formation_end,
-        "final_targets": None if result.final_targets is None else np.asarray(result.final_targets).tolist(),
-        "offsets": mission_offsets(mission).tolist(),
-        "lost": result.lost,
-        "events": result.events,
-        "ticks": result.ticks,
-        "wall_duration_s": wall_s,
-    }
-    (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")

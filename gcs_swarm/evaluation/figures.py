@@ -158,8 +158,10 @@ def _relative_angle_figure(
 ) -> Path:
     leader = mission.leader_index
     psi = signals.held_at(commands.t, commands.psi_l, traj.t)
-    angles = np.degrees(signals.relative_angles(traj.pos, leader, psi))
-    desired = np.degrees(signals.desired_relative_angles(offsets, leader))
+    desired_rad = signals.desired_relative_angles(offsets, leader)
+    reference = np.nan_to_num(desired_rad)
+    angles = np.degrees(signals.near(signals.relative_angles(traj.pos, leader, psi), reference))
+    desired = np.degrees(desired_rad)
     fig, ax = plt.subplots(figsize=(10, 5))
     s = _every(len(traj.t))
     for i, v in enumerate(mission.vehicles):
@@ -275,7 +277,8 @@ def plot_compare(runs: list[CompareRun], goal: np.ndarray, path: Path) -> bool:
     ax2.set(xlabel="time since formation start (s)", ylabel="m", title="Minimum inter-vehicle distance")
     ax3.set(xlabel="time since formation start (s)", ylabel="m", title="Formation error max_i e_F,i")
     for ax in (ax1, ax2, ax3):
-        ax.legend(fontsize=7, loc="best")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="best")
     _save(plt, fig, path)
     return True
 

@@ -27,6 +27,8 @@ RESULT_KEYS = (
     "heading_reversals",
     "settling_time_s",
     "command_rate_settling_s",
+    "command_rate_trend_settling_s",
+    "command_rate_first_settled_s",
     "command_chatter_first_20s_rad_s",
     "command_chatter_last_20s_rad_s",
     "sim_duration_s",
@@ -55,12 +57,15 @@ def free_udp_base(count: int) -> int:
     raise RuntimeError(f"no block of {count} free UDP ports found")
 
 
-def fly(mission_path: Path, run_dir: Path, vehicles: int) -> int:
-    """Fly the mission into run_dir with the embedded simulator on free ports; the run command's exit status
-    (0 reached without collision, 1 failed, 2 could not fly). Quiet: only error lines are printed."""
+def fly(mission_path: Path, run_dir: Path, vehicles: int, link_loss: float = 0.0) -> int:
+    """Fly the mission into run_dir with the embedded simulator on free ports, its links losing packets with
+    probability link_loss; the run command's exit status (0 reached without collision, 1 failed, 2 could not
+    fly). Quiet: only error lines are printed."""
     status = EXIT_USER_ERROR
+    # RunOptions.sim_args (the embedded simulator's extra arguments) is only needed for link faults.
+    link = {"sim_args": (f"--link-loss={link_loss:g}",)} if link_loss > 0 else {}
     for _ in range(FLIGHT_TRIES):
-        options = RunOptions(out_dir=run_dir, base_port=free_udp_base(vehicles), quiet=True)
+        options = RunOptions(out_dir=run_dir, base_port=free_udp_base(vehicles), quiet=True, **link)
         status = run_command(str(mission_path), options)
         if status != EXIT_USER_ERROR:
             break

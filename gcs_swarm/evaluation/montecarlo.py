@@ -44,6 +44,7 @@ class RunTask:
     run_dir: str
     collision_radius: float  # m
     keep_files: bool
+    world: dict[str, float]  # what was drawn: obstacle count, wind speed m/s, link loss probability
 
 
 def fly_task(task: RunTask) -> dict[str, Any]:
@@ -51,14 +52,14 @@ def fly_task(task: RunTask) -> dict[str, Any]:
     outside the flight becomes a line with an `error`, which a resumed campaign flies again."""
     start = time.monotonic()
     run_dir = Path(task.run_dir)
-    result: dict[str, Any] = {"seed": task.seed, "variant": task.variant}
+    result: dict[str, Any] = {"seed": task.seed, "variant": task.variant, "world": task.world}
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.default_int_handler) if in_main_thread else None
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
         mission_path = run_dir / "mission.yaml"
         mission_path.write_text(task.mission_yaml)
-        status = flights.fly(mission_path, run_dir, task.vehicles)
+        status = flights.fly(mission_path, run_dir, task.vehicles, task.world["link_loss"])
         result |= flights.flight_figures(run_dir, status, task.collision_radius)
         if status == EXIT_USER_ERROR:
             result["error"] = "the flight could not start (simulator or link); see the run folder"
@@ -153,6 +154,11 @@ def plan_tasks(
                         run_dir=str(run_dir.resolve()),
                         collision_radius=mission.safety.collision_radius,
                         keep_files=options.keep_runs,
+                        world={
+                            "obstacles": len(mission.obstacles),
+                            "wind_speed_m_s": mission.wind.speed,
+                            "link_loss": variants.link_loss(ranges, seed),
+                        },
                     )
                 )
     return tasks, labels

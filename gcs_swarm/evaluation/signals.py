@@ -15,6 +15,7 @@ from gcs_swarm.guidance.formation import leader_frame_offsets
 
 RATE_SETTLE_ABS = 0.02  # rad/s, y_abs of the settling time of rate signals (spec 10)
 CHATTER_WINDOW_S = 20.0  # s, chattering is measured over the first and the last 20 s (spec 10)
+FIRST_SETTLED_HOLD_S = 20.0  # s, the end of the initial transient: the trend stays in its band this long
 
 
 def held_at(log_t: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -42,6 +43,13 @@ def relative_angles(p: np.ndarray, leader: int, psi_leader: np.ndarray) -> np.nd
     return angles
 
 
+def near(angles: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """angles (..., N) rad shifted by whole turns to lie within pi of reference (N,) (so -179.9 deg is shown
+    as 180.1 deg next to a 180 deg slot)."""
+    ref = np.asarray(reference, dtype=float)
+    return ref + (np.asarray(angles, dtype=float) - ref + math.pi) % (2.0 * math.pi) - math.pi
+
+
 def desired_relative_angles(offsets: np.ndarray, leader: int) -> np.ndarray:
     """The slots' angles (N,) rad, atan2(d_y, d_x) of each leader-frame offset (N, 3); NaN for the leader."""
     offsets = np.asarray(offsets, dtype=float)
@@ -63,16 +71,39 @@ def attitude_rates(t: np.ndarray, attitude: np.ndarray) -> np.ndarray:
     return np.gradient(unwrapped, t, axis=0)
 
 
+def moving_average(t: np.ndarray, y: np.ndarray, span_s: float = 1.0) -> np.ndarray:
+    """Centred moving average (T,) of y (T,) over span_s s (uniform sampling), narrowed near the ends as in
+    metrics.chattering_amplitude: the trend of a chattering signal."""
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    k = np.arange(len(y))
+    half = np.minimum(max(1, int(round(span_s / dt / 2.0))), np.minimum(k, len(y) - 1 - k))
+    sums = np.concatenate([[0.0], np.cumsum(y)])
+    return (sums[k + half + 1] - sums[k - half]) / (2 * half + 1)
+
+
 def _rate_figures(t: np.ndarray, y: np.ndarray) -> dict[str, float | None]:
-    """Settling time (s after t[0]), peak |y| and chattering amplitudes of one rate signal y (T,) rad/s."""
+    """Settling time (s after t[0]) of the rate signal y (T,) rad/s and of its 1 s moving average (the trend,
+    without the chattering) (spec 10), the end of the trend's initial transient (first entry into its settling
+    band held FIRST_SETTLED_HOLD_S; later manoeuvres, e.g. around an obstacle, do not count), peak |y| and
+    the chattering amplitudes (spec 10)."""
     keep = np.isfinite(y)
     t, y = t[keep], y[keep]
     if len(t) < 3:
-        return {"settling_s": None, "peak": None, "chatter_first_20s": None, "chatter_last_20s": None}
+        return dict.fromkeys(
+            ("settling_s", "trend_settling_s", "peak", "chatter_first_20s", "chatter_last_20s")
+        )
     first = (t[0], min(t[-1], t[0] + CHATTER_WINDOW_S))
     last = (max(t[0], t[-1] - CHATTER_WINDOW_S), t[-1])
+    # The trend's last half second averages fewer samples (the window narrows): leave it out.
+    inner = slice(None, max(3, len(t) - int(round(0.5 / float(np.median(np.diff(t)))))))
+    trend = moving_average(t, y)[inner]
+    trend_ss = float(np.mean(trend[-max(1, len(trend) // 10) :]))
+    band = max(0.02 * abs(trend[0] - trend_ss), RATE_SETTLE_ABS)
+    settled = metrics.reach_time(t[inner], np.abs(trend - trend_ss), band, FIRST_SETTLED_HOLD_S)
     return {
         "settling_s": metrics.settling_time(t, y, RATE_SETTLE_ABS) - float(t[0]),
+        "trend_settling_s": metrics.settling_time(t[inner], trend, RATE_SETTLE_ABS) - float(t[0]),
+        "trend_first_settled_s": None if settled is None else settled - float(t[0]),
         "peak": float(np.abs(y).max()),
         "chatter_first_20s": metrics.chattering_amplitude(t, y, first),
         "chatter_last_20s": metrics.chattering_amplitude(t, y, last),
@@ -83,10 +114,16 @@ def _rounded(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(x) else round(float(x), 4)
 
 
-def command_rate_figures(t: np.ndarray, attitude_d: np.ndarray, names: list[str]) -> dict[str, Any]:
-    """Fig 26 figures of the commanded attitude rates (spec 10 settling time and chattering amplitude):
-    per vehicle and per axis (pitch, yaw), plus the worst over the fleet. t (T,) s from the formation start;
+def command_rate_figures(
+    t: np.ndarray, attitude_d: np.ndarray, names: list[str], t_end: float | None = None
+) -> dict[str, Any]:
+    """Fig 26 figures of the commanded attitude rates (spec 10 settling time and chattering amplitude), over
+    the formation flight up to t_end (the leader's final approach, a new transient; None: all of it): per
+    vehicle and axis (pitch, yaw), plus the worst over the fleet. t (T,) s from the formation start;
     attitude_d (T, N, 3) commanded roll, pitch, yaw rad."""
+    if t_end is not None and np.count_nonzero(t <= t_end) >= 3:
+        keep = t <= t_end
+        t, attitude_d = t[keep], attitude_d[keep]
     rates = attitude_rates(t, attitude_d)
     per_vehicle = []
     for i, name in enumerate(names):
@@ -101,6 +138,8 @@ def command_rate_figures(t: np.ndarray, attitude_d: np.ndarray, names: list[str]
 
     return {
         "settling_s": worst("settling_s"),
+        "trend_settling_s": worst("trend_settling_s"),
+        "trend_first_settled_s": worst("trend_first_settled_s"),
         "peak_rad_s": worst("peak"),
         "chatter_first_20s_rad_s": worst("chatter_first_20s"),
         "chatter_last_20s_rad_s": worst("chatter_last_20s"),
@@ -122,6 +161,10 @@ def neighbour_pairs(offsets: np.ndarray) -> list[tuple[int, int]]:
     return pairs
 
 
+CRUISE_FORMATION_M = 5.0  # m, the cruise window opens once every formation error is this small
+SPACING_BAND_M = 1.0  # m, "holding the spacing": within this of the slots' spacing
+
+
 def cruise_figures(
     t: np.ndarray,
     p: np.ndarray,
@@ -132,27 +175,30 @@ def cruise_figures(
     formation_error: np.ndarray,
     approach_m: float,
 ) -> dict[str, Any] | None:
-    """Steady formation flight (the paper's "each UAV holds 10 m/s with 20 m spacing", Fig 24): over the
-    cruise window, from the first sample with every formation error <= 1 m until the leader comes within
-    approach_m of its goal, the median speed of each vehicle and the distance between neighbouring slots'
-    vehicles. None when there is no such window. formation_error (T, N) m; goal (3,) m."""
-    settled = np.flatnonzero(np.nanmax(formation_error, axis=1) <= 1.0)
+    """Steady formation flight (the paper's "each UAV holds 10 m/s with 20 m spacing", Fig 24). The cruise
+    window runs from the first sample with every formation error <= CRUISE_FORMATION_M until the leader comes
+    within approach_m of its goal. Over it: the median speed of each vehicle, the median distance between
+    each follower and the vehicle of its nearest slot (`neighbour_pairs`), the worst deviation from the
+    slots' spacing, and the fraction of samples with every spacing within SPACING_BAND_M. None when there is
+    no such window. t (T,) s; formation_error (T, N) m; goal (3,) m."""
+    formed = np.flatnonzero(np.nanmax(formation_error, axis=1) <= CRUISE_FORMATION_M)
     far = np.linalg.norm(p[:, leader] - np.asarray(goal, dtype=float), axis=1) > approach_m
-    if len(settled) == 0:
+    if len(formed) == 0:
         return None
-    window = far & (np.arange(len(t)) >= settled[0])
+    window = far & (np.arange(len(t)) >= formed[0])
     if window.sum() < 2:
         return None
     speed = np.linalg.norm(vel[window], axis=-1)
     pairs = neighbour_pairs(offsets)
     desired = np.array([np.linalg.norm(offsets[i] - offsets[j]) for i, j in pairs])
     measured = np.array([np.linalg.norm(p[window, i] - p[window, j], axis=-1) for i, j in pairs]).T
-    error = np.abs(measured - desired) if pairs else np.zeros(1)
+    error = np.abs(measured - desired) if pairs else np.zeros((1, 1))
     return {
         "window_s": [_rounded(float(t[window][0])), _rounded(float(t[window][-1]))],
         "speed_median_m_s": [_rounded(float(s)) for s in np.median(speed, axis=0)],
         "spacing_desired_m": [_rounded(float(d)) for d in desired],
         "spacing_median_m": [_rounded(float(m)) for m in np.median(measured, axis=0)] if pairs else [],
         "spacing_max_abs_error_m": _rounded(float(error.max())),
+        "spacing_within_1m_fraction": _rounded(float(np.mean(error.max(axis=1) <= SPACING_BAND_M))),
         "formation_max_m": _rounded(float(np.nanmax(formation_error[window]))),
     }

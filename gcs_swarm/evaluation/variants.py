@@ -21,8 +21,10 @@ Ranges of the randomisation come from a small YAML file (`--ranges FILE`); every
       speed: [0, 5]              # m/s
       direction_deg: [0, 360]    # compass, where it blows from
       turbulence: [0, 0.5]       # m/s
+    link:
+      loss: [0, 0]               # packet loss probability of every vehicle's link, both directions
 
-Link loss is not randomised: the simulator has no link-loss option (`python -m sitl_sim --help`).
+The link loss is not part of the mission file: a run passes it to the embedded simulator (`--link-loss`).
 """
 
 from __future__ import annotations
@@ -155,6 +157,7 @@ class Ranges:
     wind_speed: tuple[float, float] = (0.0, 5.0)
     wind_direction_deg: tuple[float, float] = (0.0, 360.0)
     turbulence: tuple[float, float] = (0.0, 0.5)
+    link_loss: tuple[float, float] = (0.0, 0.0)
 
 
 # YAML section.key -> (Ranges field, kind); kind "pair", "scalar" (>= 0) or "bool"
@@ -175,6 +178,7 @@ _RANGE_KEYS = {
         "direction_deg": ("wind_direction_deg", "pair"),
         "turbulence": ("turbulence", "pair"),
     },
+    "link": {"loss": ("link_loss", "pair")},
 }
 
 
@@ -228,6 +232,8 @@ def parse_ranges(data: Any, source: str) -> Ranges:
         raise VariantError(f"{source}: obstacles.along_track: fractions must lie in 0..1")
     if ranges.wind_speed[0] < 0 or ranges.turbulence[0] < 0 or ranges.obstacle_speed[0] < 0:
         raise VariantError(f"{source}: speeds must be >= 0")
+    if not (0.0 <= ranges.link_loss[0] and ranges.link_loss[1] < 1.0):
+        raise VariantError(f"{source}: link.loss: probabilities must lie in 0..1 (1 excluded)")
     return ranges
 
 
@@ -367,11 +373,19 @@ def randomise(data: dict[str, Any], mission: Mission, ranges: Ranges, seed: int)
     return out
 
 
+def link_loss(ranges: Ranges, seed: int) -> float:
+    """The link loss probability of run `seed`, drawn from its own stream (so adding it leaves the worlds of
+    `randomise` unchanged)."""
+    lo, hi = ranges.link_loss
+    return 0.0 if hi <= 0.0 else round(float(np.random.default_rng([seed, 1]).uniform(lo, hi)), 4)
+
+
 def derive_monte_carlo_run(
     base_path: Path, ranges: Ranges, seed: int, variant: Variant, out_path: Path
 ) -> Mission:
     """Write the mission of Monte Carlo run (seed, variant) to out_path: the base mission with the world of
-    `seed` (identical for every variant of that seed) and the variant's settings; returns it loaded."""
+    `seed` (identical for every variant of that seed) and the variant's settings; returns it loaded. The run's
+    link loss is `link_loss(ranges, seed)`."""
     base = load_mission(base_path)
     data = read_yaml(base_path)
     name = f"{base.name[:40]}-s{seed}-{variant.label}"[:64]

@@ -326,8 +326,17 @@ class Fleet:
     def _frame_ready(self) -> bool:
         """Every alive vehicle has a telemetry frame that no answer has covered yet: in lockstep, the fleet's
         frame is complete and the simulator waits for us."""
-        alive = [link for link in self.links if self.state.alive[link.index] and link.endpoint is not None]
-        return bool(alive) and all(link.needs_answer for link in alive)
+        st = self.state
+        alive = [link for link in self.links if st.alive[link.index] and link.endpoint is not None]
+        if not alive:
+            return False
+        last = max(link.answered_ms for link in alive)
+        clocked = [  # lost, but a lockstep simulator still sends its clock ticks and waits for its answers
+            link
+            for link in self.links
+            if not st.alive[link.index] and link.endpoint is not None and st.frame_ms[link.index] >= last >= 0
+        ]
+        return all(link.needs_answer for link in alive + clocked)
 
     def _next_frame(self, deadline: float) -> None:
         """Pump until a complete unanswered frame is here (immediately if one already is), or a short
@@ -352,14 +361,22 @@ class Fleet:
         self._next_frame(time.monotonic() + timeout_s)
 
     def wait_tick(self, timeout_s: float) -> bool:
-        """Pump until every alive vehicle has a GLOBAL_POSITION_INT newer than its last tick or lockstep
-        answer (True), or `timeout_s` passes (False). Does not answer: the caller does, after its commands."""
+        """Pump until every alive vehicle has a GLOBAL_POSITION_INT (or a lockstep clock tick, which marks a
+        frame whose telemetry the link lost or delayed) newer than its last tick or lockstep answer (True),
+        or `timeout_s` passes (False). Does not answer: the caller does, after its commands.
+
+        A lost vehicle whose clock ticks were current at the last tick is waited for as well: a lockstep
+        simulator waits for its answer, which the flight loop sends after this tick's commands.
+        """
         deadline = time.monotonic() + timeout_s
         st = self.state
         while True:
             alive = st.alive
-            if alive.any() and bool(np.all((st.position_ms > st.tick_ms) | ~alive)):
-                st.tick_ms[alive] = st.position_ms[alive]
+            newest = np.maximum(st.position_ms, st.frame_ms)
+            last_tick = int(st.tick_ms[alive].max()) if alive.any() else -1
+            expected = alive | ((st.frame_ms >= 0) & (st.frame_ms >= last_tick) & (st.tick_ms >= last_tick))
+            if alive.any() and bool(np.all((newest > st.tick_ms) | ~expected)):
+                st.tick_ms[expected] = newest[expected]
                 return True
             remaining = deadline - time.monotonic()
             if remaining <= 0:

@@ -39,6 +39,7 @@ ARDUCOPTER_MODES: dict[str, int] = {name: number for number, name in mavutil.mod
 FORCE_ARM_MAGIC = 2989  # MAV_CMD_COMPONENT_ARM_DISARM param2 (ArduPilot): arm skipping the pre-arm checks
 FORCE_DISARM_MAGIC = 21196  # ... and disarm even in flight
 ATTITUDE_TARGET_IGNORE_RATES = 0b00000111  # SET_ATTITUDE_TARGET.type_mask: use quaternion + thrust only
+REBOOT_BACKSTEP_MS = 5000  # a time_boot_ms this much older than the latest means a reboot, not a late packet
 STATUSTEXT_GRACE_S = 0.3  # ArduPilot queues the "PreArm: ..." text, so it may arrive just after the ACK
 
 # EKF_STATUS_REPORT.flags: a usable position estimate (as ArduCopter's ekf_position_ok, disarmed case).
@@ -98,6 +99,7 @@ class LinkCounters:
     ignored: int = 0
     lost: int = 0
     unsent: int = 0
+    late: int = 0  # stamped telemetry older than what was already received (delayed or reordered): ignored
 
 
 def mode_number(mode: str | int) -> int:
@@ -190,6 +192,7 @@ class FleetState:
         self.position_count = np.zeros(n, dtype=np.int64)  # GLOBAL_POSITION_INT messages received
         self.position_ms = np.full(n, -1, dtype=np.int64)  # time_boot_ms of the latest GLOBAL_POSITION_INT
         self.tick_ms = np.full(n, -1, dtype=np.int64)  # latest frame consumed by a tick or a lockstep answer
+        self.frame_ms = np.full(n, -1, dtype=np.int64)  # latest lockstep clock tick (see _on_clock_tick)
         self.clock_ms = 0  # fleet vehicle clock: the largest time progress of any vehicle since connect
         self._pos = np.full((n, 3), np.nan)
         self.pos_stale = False  # set by GLOBAL_POSITION_INT: `pos` recomputes lazily
@@ -286,6 +289,9 @@ class VehicleLink:
         elif msg.get_srcComponent() != self.compid:
             self.counters.ignored += 1
             return
+        elif mtype == "SYSTEM_TIME" and msg.time_unix_usec == 0:
+            self._on_clock_tick(msg)
+            return  # a clock tick is no evidence that the radio link works
         else:
             handler = _HANDLERS.get(mtype)
             if handler is not None:
@@ -315,20 +321,37 @@ class VehicleLink:
             if self.counters.lost:
                 self.add_event("link regained", mavlink2.MAV_SEVERITY_NOTICE)
 
-    def _on_time(self, t_ms: int) -> None:
-        """A packet stamped with the vehicle's time_boot_ms: advance clocks, heartbeat per 1 s of it."""
+    def _on_time(self, t_ms: int) -> bool:
+        """A packet stamped with the vehicle's time_boot_ms: advance clocks, heartbeat per 1 s of it.
+
+        False for a late packet (older than the latest, by less than REBOOT_BACKSTEP_MS: delayed or
+        reordered on the way), whose data must not overwrite newer data; an older stamp by more is a reboot.
+        """
         st, i = self.state, self.index
         prev = int(st.time_ms[i])
         if t_ms == prev:
-            return
-        if t_ms > prev >= 0:
-            self._progress_ms += t_ms - prev
-            st.clock_ms = max(st.clock_ms, self._progress_ms)
-        elif t_ms < prev:  # rebooted: frames start again from zero
+            return True
+        if t_ms > prev:
+            if prev >= 0:
+                self._progress_ms += t_ms - prev
+                st.clock_ms = max(st.clock_ms, self._progress_ms)
+        elif t_ms >= prev - REBOOT_BACKSTEP_MS:
+            self.counters.late += 1
+            return False
+        else:  # rebooted: frames start again from zero
             st.tick_ms[i] = -1
+            st.frame_ms[i] = -1
+            st.position_ms[i] = -1
         st.time_ms[i] = t_ms
         if t_ms - self._hb_time_ms >= 1000 or t_ms < self._hb_time_ms:
             self.send_heartbeat()  # brief: the simulator times its GCS failsafe in vehicle time
+        return True
+
+    def _on_clock_tick(self, m: MAVLinkMessage) -> None:
+        """SYSTEM_TIME(time_unix_usec=0): a lockstep simulator with link faults marks each frame end with it
+        (docs/sitl.md), so a frame is complete even when the vehicle's telemetry was lost or delayed."""
+        if self._on_time(m.time_boot_ms):
+            self.state.frame_ms[self.index] = max(int(self.state.frame_ms[self.index]), m.time_boot_ms)
 
     def _on_heartbeat(self, m: MAVLinkMessage) -> None:
         st, i = self.state, self.index
@@ -338,7 +361,8 @@ class VehicleLink:
         self._heartbeats += 1
 
     def _on_global_position_int(self, m: MAVLinkMessage) -> None:
-        self._on_time(m.time_boot_ms)
+        if not self._on_time(m.time_boot_ms) or m.time_boot_ms < self.state.position_ms[self.index]:
+            return
         st, i = self.state, self.index
         st.geodetic[i] = (m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3)  # degE7, degE7, mm AMSL
         st.vel[i] = (m.vy * 0.01, m.vx * 0.01, -m.vz * 0.01)  # cm/s NED -> m/s ENU (spec 1.1)
@@ -347,12 +371,14 @@ class VehicleLink:
         st.position_ms[i] = m.time_boot_ms
 
     def _on_attitude(self, m: MAVLinkMessage) -> None:
-        self._on_time(m.time_boot_ms)
+        if not self._on_time(m.time_boot_ms):
+            return
         yaw = (0.5 * math.pi - m.yaw + math.pi) % (2.0 * math.pi) - math.pi
         self.state.att[self.index] = (m.roll, -m.pitch, yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
 
     def _on_attitude_quaternion(self, m: MAVLinkMessage) -> None:
-        self._on_time(m.time_boot_ms)
+        if not self._on_time(m.time_boot_ms):
+            return
         q_enu = frames.quaternion_ned_to_enu((m.q1, m.q2, m.q3, m.q4))
         self.state.att[self.index] = frames.quaternion_to_euler(q_enu)
 

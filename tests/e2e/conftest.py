@@ -87,7 +87,7 @@ def _numbers(node: Any) -> Any:
 
 
 def derived_mission(tmp_path: Path, source: str, name: str, **changes: Any) -> Path:
-    """A copy of a bundled mission with top-level sections replaced or updated (dicts are merged one level)."""
+    """A copy of a bundled mission with top-level sections replaced or updated (dicts merged one level)."""
     data = _numbers(yaml.safe_load((MISSIONS / source).read_text()))
     for key, value in changes.items():
         if isinstance(value, dict) and isinstance(data.get(key), dict):

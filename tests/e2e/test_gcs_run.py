@@ -9,7 +9,6 @@ import yaml
 from pymavlink import mavutil
 
 from gcs_swarm.cli import main
-
 from tests.e2e.conftest import derived_mission, fly
 
 REPORT_KEYS = {

@@ -62,6 +62,9 @@ def test_command_rate_figures_settle_after_a_ramp_and_measure_chattering() -> No
     assert pitch_rate["peak"] == pytest.approx(0.05, abs=1e-6)
     yaw_rate = figures["vehicles"][0]["yaw_rate"]
     assert yaw_rate["chatter_first_20s"] > 1.0  # 0.02 rad steps per 0.02 s
+    # The raw rate chatters to the end; its 1 s trend is zero throughout.
+    assert yaw_rate["settling_s"] > 59.0
+    assert yaw_rate["trend_settling_s"] < 1.0
     assert figures["settling_s"] >= pitch_rate["settling_s"]
 
 
@@ -86,5 +89,6 @@ def test_cruise_figures_of_a_formation_flying_at_constant_speed() -> None:
     assert cruise["spacing_median_m"] == [20.0, 20.0]
     assert cruise["spacing_max_abs_error_m"] == pytest.approx(0.0, abs=1e-9)
     assert cruise["window_s"][1] < 95.0  # ends when the leader is 50 m from the goal
-    never_settled = np.full((len(t), 3), 5.0)
+    assert cruise["spacing_within_1m_fraction"] == 1.0
+    never_settled = np.full((len(t), 3), signals.CRUISE_FORMATION_M + 1.0)
     assert signals.cruise_figures(t, p, vel, 0, np.zeros(3), offsets, never_settled, 50.0) is None

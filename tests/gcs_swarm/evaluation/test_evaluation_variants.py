@@ -139,6 +139,23 @@ def test_ranges_file_sets_keys_and_refuses_mistakes(tmp_path: Path) -> None:
         variants.load_ranges(tmp_path / "missing.yaml")
 
 
+def test_link_loss_is_drawn_per_seed_within_its_range(tmp_path: Path) -> None:
+    assert variants.link_loss(Ranges(), 4) == 0.0  # default: no link loss
+    path = tmp_path / "ranges.yaml"
+    path.write_text("link: {loss: [0.01, 0.05]}\n")
+    ranges = variants.load_ranges(path)
+    draws = [variants.link_loss(ranges, seed) for seed in range(20)]
+    assert all(0.01 <= p <= 0.05 for p in draws) and len(set(draws)) > 10
+    assert draws == [variants.link_loss(ranges, seed) for seed in range(20)]
+    # Drawn from its own stream: the worlds are those of a campaign without link loss.
+    with_loss = variants.derive_monte_carlo_run(QUICKSTART, ranges, 2, Variant(), tmp_path / "a.yaml")
+    without = variants.derive_monte_carlo_run(QUICKSTART, Ranges(), 2, Variant(), tmp_path / "b.yaml")
+    assert with_loss.obstacles == without.obstacles
+    path.write_text("link: {loss: [0, 1]}\n")
+    with pytest.raises(VariantError, match="link.loss"):
+        variants.load_ranges(path)
+
+
 def test_impossible_placement_is_a_clear_error(tmp_path: Path) -> None:
     ranges = Ranges(obstacle_count=(1, 1), obstacle_radius=(500.0, 500.0))
     with pytest.raises(VariantError, match="cannot place obstacle 1"):

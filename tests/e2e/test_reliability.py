@@ -1,0 +1,46 @@
+"""Reliability end to end: the real ground station flies the real simulator through degraded links."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from tests.e2e.conftest import fly
+
+RTL, LAND = 6, 9  # ArduCopter custom_mode
+
+
+def _truth(run_dir: Path) -> np.ndarray:
+    return np.genfromtxt(run_dir / "truth.csv", names=True, delimiter=",")
+
+
+def test_follower_killed_mid_flight_leaves_the_rest_flying_and_reported(
+    quickstart: Path, tmp_path: Path
+) -> None:
+    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=["--sim-arg=--link-outage=2@15:inf"])
+    assert run.status == 1, run.output[-2000:]  # a vehicle was lost
+    assert run.report["lost"] == ["left"]
+    assert run.report["collisions"] == 0
+    flight = json.loads((run.run_dir / "flight.json").read_text())
+    assert flight["arrived"], flight["events"]
+    truth = _truth(run.run_dir)
+    targets = np.array(flight["final_targets"])
+    formation_end = truth[np.isclose(truth["t"], round(flight["t_formation_end"] / 0.02) * 0.02)]
+    for i in (0, 1):  # the others reached their slots while the lost one was away
+        row = formation_end[formation_end["vehicle"] == i][0]
+        assert np.linalg.norm([row["x"] - targets[i, 0], row["y"] - targets[i, 1]]) < 1.5
+    lost = truth[truth["vehicle"] == 2]
+    assert set(lost["mode"][lost["t"] > 15 + 6].astype(int)) <= {RTL, LAND}  # its own GCS failsafe
+    assert lost["armed"][-1] == 0 and lost["crashed"].max() == 0
+
+
+def test_quickstart_completes_under_ten_percent_loss_and_100ms_jitter(
+    quickstart: Path, tmp_path: Path
+) -> None:
+    # from formation flight on (preflight commands under loss: see the issue's open items)
+    faults = ["--sim-arg=--link-loss=0.1", "--sim-arg=--link-jitter-ms=100", "--sim-arg=--link-from=12"]
+    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=faults)
+    assert run.status == 0, run.output[-2000:]
+    assert run.report["collisions"] == 0 and run.report["reached"]
