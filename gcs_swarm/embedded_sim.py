@@ -34,6 +34,7 @@ class EmbeddedSimulator:
         speedup: float = 1.0,
         seed: int = 0,
         extra_args: list[str] | None = None,
+        signing_key_file: Path | None = None,
     ) -> None:
         self.mission = mission
         self.base_port = base_port
@@ -59,6 +60,8 @@ class EmbeddedSimulator:
             self.args += ["--speedup", f"{speedup:g}"]
         if truth_log is not None:
             self.args += ["--truth-log", str(truth_log)]
+        if signing_key_file is not None:
+            self.args += ["--signing-key", str(signing_key_file)]
         self.args += extra_args or []
         self.proc: subprocess.Popen[str] | None = None
         self.output: deque[str] = deque(maxlen=200)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.link import signing
 from gcs_swarm.link.fleet import Fleet, LinkError, VehicleConfig
 from gcs_swarm.mission import Mission, MissionError, load_mission
 from gcs_swarm.report import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE, write_report
@@ -99,6 +100,12 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     except MissionError as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
+    key_file = signing.key_file(mission.run.signing_key_file)
+    try:
+        key = None if key_file is None else signing.read_key(key_file)
+    except signing.SigningKeyError as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
     run_dir = options.out_dir or default_run_dir(mission)
     run_dir.mkdir(parents=True, exist_ok=True)
     sim_spec = mission.run.simulator
@@ -110,6 +117,8 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     runner: MissionRunner | None = None
     status = EXIT_OK
     say(f"run folder {run_dir}")
+    if key is not None:
+        say(f"MAVLink 2 signing with the key in {key_file}")
     try:
         if embedded:
             assert base_port is not None
@@ -121,11 +130,15 @@ def run_command(mission_path: str, options: RunOptions) -> int:
                 speedup=sim_spec.speedup,
                 seed=sim_spec.seed if options.seed is None else options.seed,
                 extra_args=list(options.sim_args),
+                signing_key_file=key_file,
             )
             sim.start()
             say(f"embedded simulator up: {len(mission.vehicles)} vehicles on 127.0.0.1:{base_port}..")
         with Fleet(
-            vehicle_configs(mission, base_port), mission.origin, tlog_path=run_dir / "telemetry.tlog"
+            vehicle_configs(mission, base_port),
+            mission.origin,
+            tlog_path=run_dir / "telemetry.tlog",
+            signing_key=key,
         ) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             try:

@@ -21,6 +21,7 @@ import numpy as np
 
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.formation import formation_offsets
+from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
 from gcs_swarm.mission import Mission
 from gcs_swarm.run_record import RunRecord
@@ -119,6 +120,14 @@ class MissionRunner:
         self.phase = "connect"
         self.hover = np.full(len(mission.vehicles), 0.5)
         self.controller = build_controller(mission)
+        self.command_limits = CommandLimits(
+            tilt_max=math.radians(mission.limits.tilt_max_deg),
+            thrust_max_g=mission.limits.thrust_max_g,
+            min_altitude=mission.safety.min_altitude,
+            geofence_radius=mission.safety.geofence_radius,
+            geofence_max_alt=mission.safety.geofence_max_alt,
+        )
+        self.commands_limited = 0  # vehicle-ticks whose command the final guard had to change
         self.last_command: Command | None = None
         self.formation_rms = math.nan
         self._hold_since: float | None = None
@@ -357,12 +366,17 @@ class MissionRunner:
         fleet, run, ctl = self.fleet, self.mission.run, self.controller
         t = self.vehicle_time()
         self.result.t_formation_end = t
-        active = fleet.alive
         pos, vel, att = fleet.pos, fleet.vel, fleet.att
+        # a vehicle whose state is not finite (broken telemetry) gets no command this tick, as if lost
+        active = fleet.alive & np.isfinite(np.hstack((pos, vel, att))).all(axis=1)
         centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)
         cmd = ctl.tick(t, pos, vel, att, centres, self._obstacle_radii, active)
         thrust = thrust_from_acc(np.nan_to_num(cmd.thrust_acc), self.hover)
-        fleet.send_attitude_targets(cmd.roll_d, cmd.pitch_d, cmd.yaw_d, thrust, mask=active)
+        roll, pitch, yaw, thrust, limited = guard_attitude_commands(
+            cmd.roll_d, cmd.pitch_d, cmd.yaw_d, thrust, pos, att[:, 2], self.hover, self.command_limits
+        )
+        self.commands_limited += int(np.count_nonzero(limited & active))
+        fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
         self.last_command = cmd
         self.result.ticks += 1
         if self.record is not None:

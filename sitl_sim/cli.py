@@ -6,6 +6,7 @@
              --truth-rate-hz, --ready-delay)
              [--link-loss P] [--link-delay-ms MS] [--link-jitter-ms MS] [--link-dup P] [--link-corrupt P]
              [--link-reorder P] [--link-from S] [--link-outage [I@]START:DURATION ...]
+             [--signing-key FILE]
 
 Prints one line per vehicle (index, sysid, UDP address), then READY, and runs until SIGINT/SIGTERM.
 Bad arguments: one line "sitl-sim: error: ..." and exit status 2; a port that cannot be bound: exit 1.
@@ -26,6 +27,7 @@ import numpy as np
 
 from sitl_sim.clock import plan_timing
 from sitl_sim.link_faults import LinkFaults, Outage, parse_outage
+from sitl_sim.signing import read_key
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
 
@@ -85,6 +87,13 @@ def build_parser() -> OneLineParser:
         default=5.0,
         metavar="S",
         help="simulated s to a position fix (default 5)",
+    )
+    add(
+        "--signing-key",
+        type=Path,
+        metavar="FILE",
+        help="MAVLink 2 signing: FILE holds the 32-byte key as 64 hex characters; vehicles then accept only "
+        "messages signed with it and sign what they send",
     )
     link = parser.add_argument_group("link faults (every vehicle, both directions; docs/sitl.md)")
     link.add_argument("--link-loss", type=float, default=0.0, metavar="P", help="packet loss probability")
@@ -259,7 +268,18 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         seed=args.seed,
         ready_delay=args.ready_delay,
         link=link_faults(parser, args, n),
+        signing_key=signing_key(parser, args.signing_key),
     )
+
+
+def signing_key(parser: OneLineParser, path: Path | None) -> bytes | None:
+    """The --signing-key file's key, or a one-line error that never shows the file's content."""
+    if path is None:
+        return None
+    try:
+        return read_key(path)
+    except ValueError as exc:
+        parser.error(f"--signing-key: {exc}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -20,6 +20,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl_sim import autopilot as ap
+from sitl_sim import signing
 from sitl_sim.attitude_control import yaw_from_quat
 from sitl_sim.link_faults import DOWN, UP, FaultChannel
 from sitl_sim.streams import DATA_STREAM_GROUPS, STREAM_IDS, Framer, swap_quat_enu_ned
@@ -80,6 +81,7 @@ class LinkCounters:
     foreign: int = 0  # messages for another system/component
     invalid: int = 0  # NaN/inf/absurd fields, unsupported frames, malformed requests
     refused: int = 0  # well-formed commands/targets the autopilot refused (ArduCopter rules)
+    unsigned: int = 0  # with a signing key: unsigned, wrongly signed or replayed messages dropped
 
     def summary(self) -> str:
         """One line "name=value ..." of all counters."""
@@ -108,10 +110,10 @@ class VehicleEndpoint:
         except OSError:
             self.sock.close()
             raise
-        self.rx = mavlink.MAVLink(None)
-        self.rx.robust_parsing = True
-        self.clock_rx = mavlink.MAVLink(None)  # reads lockstep answers before the faulty link (link_faults)
-        self.clock_rx.robust_parsing = True
+        key = sim.config.signing_key
+        self.rx = signing.new_parser(key)
+        self.clock_rx = signing.new_parser(key)  # reads lockstep answers before the faulty link (link_faults)
+        self.signer = None if key is None else signing.FrameSigner(key)
         self.channel = FaultChannel(sim.config.seed, index, sim.config.link.outages)
         self.framer = Framer(sysid, 1)
         self.tx = self.framer.mav  # pymavlink encoder of this vehicle's messages
@@ -243,7 +245,10 @@ class VehicleEndpoint:
     def _handle_message(self, msg: mavlink.MAVLink_message, addr: tuple[str, int], wall_now: float) -> None:
         msg_id = msg.get_msgId()
         if msg_id < 0:  # MAVLink_bad_data
-            self.counters.bad_frames += 1
+            if getattr(msg, "reason", "") == signing.SIGNATURE_REJECTED:
+                self.counters.unsigned += 1
+            else:
+                self.counters.bad_frames += 1
             return
         target_system = getattr(msg, "target_system", 0)
         target_component = getattr(msg, "target_component", 0)
@@ -279,6 +284,8 @@ class VehicleEndpoint:
             self.send(self.tx.statustext_encode(severity, text.encode("ascii", "replace")[:50]))
         self.sim.autopilot.texts[self.index].clear()
         packets, self.out = self.out, []
+        if self.signer is not None:
+            packets = [self.signer.sign(packet) for packet in packets]
         rates = self.link_rates()
         if self.channel.active(rates):
             now_ms = self.sim.time_us // 1000
@@ -286,7 +293,8 @@ class VehicleEndpoint:
                 self.channel.push(DOWN, packet, None, now_ms, rates)
             packets = [packet for packet, _ in self.channel.due(DOWN, now_ms)]
             if clock_ms is not None and self.peers:
-                packets.append(self.framer.pack(self.tx.system_time_encode(0, clock_ms)))
+                tick = self.framer.pack(self.tx.system_time_encode(0, clock_ms))
+                packets.append(tick if self.signer is None else self.signer.sign(tick))
         if not packets:
             return
         datagrams: list[bytes] = []

@@ -15,7 +15,7 @@ import socket
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +66,7 @@ class SimConfig:
     seed: int
     ready_delay: float
     link: LinkFaults = LinkFaults()  # link faults of every vehicle (SIM_LINK_* param defaults, outages)
+    signing_key: bytes | None = field(default=None, repr=False)  # MAVLink 2 signing key (sitl_sim.signing)
 
     @property
     def vehicles(self) -> int:

@@ -75,6 +75,7 @@ class Fleet:
     origin: mission origin (lat deg, lon deg, alt m AMSL) of the local ENU frame.
     loss_timeout_s: a vehicle is lost after this much fleet vehicle time without a packet, or after
     `loss_wall_timeout_s` of wall time (default: the same value); it is regained at its next packet.
+    signing_key: 32-byte MAVLink 2 signing key; every packet sent is then signed (link.signing).
     """
 
     def __init__(
@@ -87,6 +88,7 @@ class Fleet:
         lockstep_answers: bool = True,
         loss_timeout_s: float = 3.0,
         loss_wall_timeout_s: float | None = None,
+        signing_key: bytes | None = None,
     ) -> None:
         _validate(vehicles, gcs_sysid, gcs_compid)
         self.configs = list(vehicles)
@@ -97,7 +99,7 @@ class Fleet:
         self.state = FleetState(len(self.configs), origin)
         self.events: deque[Event] = deque(maxlen=10_000)
         self.links = [
-            VehicleLink(i, cfg, self.state, self.events, self._run_one, gcs_sysid, gcs_compid)
+            VehicleLink(i, cfg, self.state, self.events, self._run_one, gcs_sysid, gcs_compid, signing_key)
             for i, cfg in enumerate(self.configs)
         ]
         self._by_name = {link.name: link for link in self.links}

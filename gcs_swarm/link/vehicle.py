@@ -26,6 +26,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm import frames
 from gcs_swarm.guidance.params import G
+from gcs_swarm.link import signing
 from gcs_swarm.link.connection import Endpoint, LinkError, MAVLinkMessage
 from gcs_swarm.link.tlog import TlogWriter
 
@@ -100,6 +101,7 @@ class LinkCounters:
     lost: int = 0
     unsent: int = 0
     late: int = 0  # stamped telemetry older than what was already received (delayed or reordered): ignored
+    invalid: int = 0  # well-formed packets with non-finite or impossible values (hostile or broken): ignored
 
 
 def mode_number(mode: str | int) -> int:
@@ -238,6 +240,7 @@ class VehicleLink:
         run: Callable[[Operation[Any]], Any],
         gcs_sysid: int = 255,
         gcs_compid: int = 190,
+        signing_key: bytes | None = None,
     ) -> None:
         self.index = index
         self.config = config
@@ -258,6 +261,8 @@ class VehicleLink:
         self.last_rx_wall = -math.inf  # time.monotonic() of the last packet from the autopilot
         self._run = run
         self._mav = mavlink2.MAVLink(None, gcs_sysid, gcs_compid)
+        if signing_key is not None:
+            signing.sign_outgoing(self._mav, signing_key)
         self._gcs_sysid = gcs_sysid
         self._statustexts = 0
         self._heartbeats = 0
@@ -360,7 +365,12 @@ class VehicleLink:
         st.system_status[i] = m.system_status
         self._heartbeats += 1
 
+    def _invalid(self) -> None:
+        self.counters.invalid += 1
+
     def _on_global_position_int(self, m: MAVLinkMessage) -> None:
+        if abs(m.lat) > 900_000_000 or abs(m.lon) > 1_800_000_000:
+            return self._invalid()
         if not self._on_time(m.time_boot_ms) or m.time_boot_ms < self.state.position_ms[self.index]:
             return
         st, i = self.state, self.index
@@ -371,12 +381,17 @@ class VehicleLink:
         st.position_ms[i] = m.time_boot_ms
 
     def _on_attitude(self, m: MAVLinkMessage) -> None:
+        if not all(math.isfinite(v) for v in (m.roll, m.pitch, m.yaw)):
+            return self._invalid()
         if not self._on_time(m.time_boot_ms):
             return
         yaw = (0.5 * math.pi - m.yaw + math.pi) % (2.0 * math.pi) - math.pi
         self.state.att[self.index] = (m.roll, -m.pitch, yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
 
     def _on_attitude_quaternion(self, m: MAVLinkMessage) -> None:
+        q = (m.q1, m.q2, m.q3, m.q4)
+        if not all(math.isfinite(c) for c in q) or not 0.5 < math.hypot(*q) < 1.5:
+            return self._invalid()
         if not self._on_time(m.time_boot_ms):
             return
         q_enu = frames.quaternion_ned_to_enu((m.q1, m.q2, m.q3, m.q4))
@@ -401,6 +416,8 @@ class VehicleLink:
             self._acks[m.command] = m
 
     def _on_param_value(self, m: MAVLinkMessage) -> None:
+        if not math.isfinite(m.param_value):
+            return self._invalid()
         name = m.param_id
         self.params[name] = float(m.param_value)
         self.param_types[name] = m.param_type

@@ -81,6 +81,7 @@ RUN_KEYS = (
     "preflight_timeout_s",
     "land_timeout_s",
     "simulator",
+    "signing_key_file",
 )
 SIMULATOR_KEYS = ("embedded", "time_mode", "speedup", "seed", "rate_hz", "base_port")
 SAFETY_KEYS = ("separation", "min_altitude", "geofence", "collision_radius", "gcs_failsafe")
@@ -222,7 +223,20 @@ def _run(run: Section) -> RunSpec:
         preflight_timeout_s=run.number("preflight_timeout_s", 60.0, above=0, unit="s"),
         land_timeout_s=run.number("land_timeout_s", 300.0, above=0, unit="s"),
         simulator=simulator,
+        signing_key_file=_signing_key_file(run),
     )
+
+
+def _signing_key_file(run: Section) -> Path | None:
+    """run.signing_key_file: a path, relative to the mission file's folder (read at flight time)."""
+    text_ = run.text("signing_key_file", "")
+    if not text_:
+        return None
+    path = Path(text_).expanduser()
+    source = run.node.source
+    if not path.is_absolute() and not source.startswith("<"):
+        path = Path(source).parent / path
+    return path
 
 
 def _safety(safety: Section) -> SafetySpec:

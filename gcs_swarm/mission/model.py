@@ -144,6 +144,7 @@ class RunSpec:
     preflight_timeout_s: float  # s to wait for every vehicle's position estimate and pre-arm health
     land_timeout_s: float  # s to wait, after LAND, until every vehicle has disarmed
     simulator: SimulatorSpec
+    signing_key_file: Path | None = None  # MAVLink 2 signing key (64 hex chars); relative to the mission file
 
 
 @dataclasses.dataclass(frozen=True)

@@ -37,7 +37,7 @@ def tiny(tmp_path: Path) -> Path:
         formation={"altitude": 5.0},
         goal=[24.0, 18.0, 5.0],
         world={"obstacles": [{"center": [12.0, 4.0, 5.0], "radius": 1.5}]},
-        run={"airborne_start": True, "time_limit_s": 25.0},
+        run={"airborne_start": True, "time_limit_s": 15.0},
     )
 
 

@@ -772,3 +772,13 @@ def test_mutated_valid_missions_raise_only_mission_error(data: st.DataObject) ->
 def test_numbers_beyond_float_range_are_mission_errors() -> None:
     message = error_of(MINIMAL + f"guidance: {{k_att: {10**400}}}\n")
     assert message.startswith("m.yaml:5: guidance.k_att: "), message
+
+
+def test_signing_key_file_is_relative_to_the_mission_file(tmp_path) -> None:
+    assert parse_mission(MINIMAL).run.signing_key_file is None
+    path = tmp_path / "m.yaml"
+    path.write_text(MINIMAL + "run:\n  signing_key_file: keys/swarm.key\n")
+    assert load_mission(path).run.signing_key_file == tmp_path / "keys" / "swarm.key"
+    absolute = parse_mission(MINIMAL + "run:\n  signing_key_file: /etc/swarm.key\n")
+    assert str(absolute.run.signing_key_file) == "/etc/swarm.key"
+    assert "signing_key_file" in error_of(MINIMAL + "run:\n  signing_key_file: [1, 2]\n")

@@ -1,0 +1,145 @@
+"""Hostile input to a simulated vehicle's MAVLink intake (VehicleEndpoint._handle_datagram, in-process):
+random bytes, truncated and oversized frames, valid frames with NaN/inf/extreme fields, spoofed sysids,
+floods. No exception, the physical state stays finite, what is dropped is counted, valid commands are still
+obeyed."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from sitl_sim import autopilot as ap
+from sitl_sim.clock import plan_timing
+from sitl_sim.simulator import SimConfig, Simulator
+from sitl_sim.world import Obstacles
+from tests.sitl_sim.conftest import free_udp_ports
+
+FUZZ = settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+EXTREME = st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 1e9, 0.0])
+GCS = ("127.0.0.1", 1)
+
+
+@pytest.fixture(scope="module")
+def sim():
+    config = SimConfig(
+        base_port=free_udp_ports(1),
+        bind="127.0.0.1",
+        sysid_base=1,
+        timing=plan_timing(1000.0, 100.0, None, 50.0),
+        speedup=1.0,
+        lockstep=False,
+        lockstep_timeout=5.0,
+        home=(-35.0, 149.0, 500.0),
+        start_pos=np.array([[0.0, 0.0, 10.0]]),  # airborne in GUIDED
+        start_vel=np.zeros((1, 3)),
+        start_yaw=np.zeros(1),
+        obstacles=Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))),
+        wind=(0.0, 0.0, 0.0),
+        truth_log=None,
+        seed=0,
+        ready_delay=0.0,
+    )
+    simulator = Simulator(config)
+    yield simulator
+    simulator.close()
+
+
+def gcs(sysid: int = 255) -> M.MAVLink:
+    return M.MAVLink(None, srcSystem=sysid, srcComponent=190)
+
+
+def dropped(sim: Simulator) -> int:
+    c = sim.endpoints[0].counters
+    return c.bad_frames + c.foreign + c.invalid + c.refused
+
+
+def assert_still_served(sim: Simulator) -> None:
+    """Physics finite after a few ticks, and a valid PARAM_SET is still obeyed."""
+    for _ in range(3):
+        sim._tick()
+    state = sim.dyn.state
+    for array in (state.pos, state.vel, state.quat, state.omega):
+        assert np.isfinite(array).all()
+    value = 500.0 if sim.params.value(0, "WPNAV_SPEED") != 500.0 else 600.0
+    mav = gcs()
+    sim.endpoints[0]._handle_datagram(
+        M.MAVLink_param_set_message(1, 1, b"WPNAV_SPEED", value, M.MAV_PARAM_TYPE_REAL32).pack(mav), GCS, 0.0
+    )
+    assert sim.params.value(0, "WPNAV_SPEED") == value
+
+
+@FUZZ
+@given(data=st.binary(min_size=1, max_size=600))
+def test_random_bytes(sim, data: bytes) -> None:
+    before = dropped(sim) + sim.endpoints[0].counters.received
+    sim.endpoints[0]._handle_datagram(data, GCS, 0.0)
+    assert dropped(sim) + sim.endpoints[0].counters.received > before
+    assert_still_served(sim)
+
+
+@FUZZ
+@given(cut=st.integers(min_value=1, max_value=30), tail=st.binary(max_size=300))
+def test_truncated_and_oversized_frames(sim, cut: int, tail: bytes) -> None:
+    endpoint = sim.endpoints[0]
+    frame = M.MAVLink_set_mode_message(1, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, ap.LAND).pack(gcs())
+    before = endpoint.counters.bad_frames
+    endpoint._handle_datagram(frame[: min(cut, len(frame) - 1)], GCS, 0.0)
+    assert endpoint.counters.bad_frames > before
+    endpoint._handle_datagram(frame[:-1] + tail, GCS, 0.0)  # CRC cut short or followed by junk
+    sim.autopilot.set_mode(0, ap.GUIDED)
+    assert_still_served(sim)
+
+
+@FUZZ
+@given(v=st.lists(EXTREME, min_size=8, max_size=8), mask=st.integers(0, 0xFFF), target=st.integers(0, 255))
+def test_valid_frames_with_extreme_fields(sim, v: list[float], mask: int, target: int) -> None:
+    endpoint = sim.endpoints[0]
+    sim.autopilot.set_mode(0, ap.GUIDED)
+    mav = gcs()
+    packets = [
+        M.MAVLink_set_attitude_target_message(1, target, 1, mask & 0xFF, v[:4], v[4], v[5], v[6], v[7]),
+        M.MAVLink_set_position_target_local_ned_message(1, target, 1, 1, mask, *v, *v[:3]),
+        M.MAVLink_set_position_target_global_int_message(1, target, 1, 6, mask, 0, 0, *v, v[0]),
+        M.MAVLink_command_long_message(target, 1, M.MAV_CMD_NAV_TAKEOFF, 0, *v[:7]),
+        M.MAVLink_command_long_message(target, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, *v[:7]),
+        M.MAVLink_param_set_message(target, 1, b"WPNAV_SPEED", v[0], M.MAV_PARAM_TYPE_REAL32),
+    ]
+    before = endpoint.counters.received + dropped(sim)
+    for packet in packets:
+        endpoint._handle_datagram(packet.pack(mav), GCS, 0.0)
+    assert endpoint.counters.received + dropped(sim) >= before + len(packets)
+    assert math.isfinite(sim.params.value(0, "WPNAV_SPEED"))
+    if target not in (0, 1):
+        assert endpoint.counters.foreign >= len(packets)
+    assert_still_served(sim)
+
+
+def test_spoofed_sysid_heartbeats_do_not_refresh_the_gcs_failsafe(sim) -> None:
+    sim.autopilot.t += 10.0
+    before = float(sim.autopilot.last_gcs_heartbeat[0])
+    for sysid in (1, 2, 254, 0):  # SYSID_MYGCS is 255
+        mav = gcs(sysid)
+        sim.endpoints[0]._handle_datagram(M.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(mav), GCS, 0.0)
+    assert float(sim.autopilot.last_gcs_heartbeat[0]) == before
+
+
+def test_flood_then_valid_traffic(sim) -> None:
+    endpoint = sim.endpoints[0]
+    rng = np.random.default_rng(3)
+    before = endpoint.counters.bad_frames
+    mav = gcs()
+    for k in range(3000):
+        if k % 2:
+            endpoint._handle_datagram(
+                rng.integers(0, 256, int(rng.integers(1, 300)), np.uint8).tobytes(), GCS, 0.0
+            )
+        else:
+            endpoint._handle_datagram(M.MAVLink_param_request_list_message(1, 1).pack(mav), GCS, 0.0)
+            endpoint.out.clear()  # the replies would go to nobody
+    assert endpoint.counters.bad_frames >= before + 1500
+    assert_still_served(sim)
