@@ -22,9 +22,9 @@ ROOT = HERE.parent
 
 # (name, script, arguments for a full run, arguments for --quick)
 BENCHMARKS: list[tuple[str, str, list[str], list[str]]] = [
-    ("physics", "bench_physics.py", [], ["--quick"]),
+    ("physics", "bench_physics.py", [], []),
     ("guidance", "bench_guidance.py", [], ["--quick"]),
-    ("sitl", "bench_sitl.py", [], ["--quick"]),
+    ("sitl", "bench_sitl.py", [], []),
     ("end_to_end", "bench_end_to_end.py", [], ["--quick"]),
     ("fleet_capacity", "bench_fleet_capacity.py", [], ["--quick"]),
     ("montecarlo", "bench_montecarlo.py", [], ["--quick"]),

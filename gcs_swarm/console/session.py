@@ -305,6 +305,7 @@ class FlightSession:
                     warnings=vehicle_warnings(
                         bool(alive[i]), age, int(st.system_status[i]), bool(self._crashed[i]), emergency
                     ),
+                    rtt_ms=float(st.rtt_ms[i]),
                 )
             )
         goal = runner.controller.waypoints[-1]

@@ -39,6 +39,7 @@ class VehicleRow:
     obstacle: float | None  # m from the nearest obstacle surface; None without obstacles
     neighbour: float | None  # m to the nearest other vehicle; None when alone
     warnings: tuple[str, ...]
+    rtt_ms: float = math.nan  # wall ms of the latest TIMESYNC round trip
 
     @property
     def altitude(self) -> float:

@@ -153,6 +153,11 @@ class Fleet:
         return self.state.ready.copy()
 
     @property
+    def rtt_ms(self) -> NDArray[np.float64]:
+        """(N,) wall ms of each link's latest TIMESYNC round trip (NaN until measured)."""
+        return self.state.rtt_ms.copy()
+
+    @property
     def landed_state(self) -> NDArray[np.int64]:
         """(N,) MAV_LANDED_STATE from EXTENDED_SYS_STATE (0 undefined, 1 on ground, 2 in air, ...)."""
         return self.state.landed_state.copy()

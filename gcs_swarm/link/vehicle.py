@@ -191,6 +191,7 @@ class FleetState:
         self.landed_state = np.zeros(n, dtype=np.int64)  # MAV_LANDED_STATE (0 = undefined)
         self.ekf_flags = np.full(n, -1, dtype=np.int64)  # EKF_STATUS_REPORT.flags (-1 = none yet)
         self.prearm = np.full(n, -1, dtype=np.int8)  # SYS_STATUS pre-arm check: -1 unknown, 0 failing, 1 ok
+        self.rtt_ms = np.full(n, np.nan)  # round trip of the latest TIMESYNC exchange, wall ms
         self.position_count = np.zeros(n, dtype=np.int64)  # GLOBAL_POSITION_INT messages received
         self.position_ms = np.full(n, -1, dtype=np.int64)  # time_boot_ms of the latest GLOBAL_POSITION_INT
         self.tick_ms = np.full(n, -1, dtype=np.int64)  # latest frame consumed by a tick or a lockstep answer
@@ -269,6 +270,7 @@ class VehicleLink:
         self._progress_ms = 0  # this vehicle's time progress since connect (reboots do not count back)
         self._heard_clock_ms = 0  # fleet clock at the last packet from this vehicle
         self._hb_wall = -math.inf
+        self._timesync_ns = -1  # ts1 of our latest TIMESYNC request (monotonic ns)
         self._hb_time_ms = -1
         self._acks: dict[int, MAVLinkMessage] = {}
         self._pending_commands: set[int] = set()
@@ -504,9 +506,17 @@ class VehicleLink:
         self._hb_time_ms = int(self.state.time_ms[self.index])
 
     def heartbeat_if_due(self, now: float) -> None:
-        """Send the 1 Hz wall-clock heartbeat when due (the vehicle-time one goes out from `_on_time`)."""
+        """Send the 1 Hz wall-clock heartbeat when due (the vehicle-time one goes out from `_on_time`), with a
+        TIMESYNC request whose echo measures the link's round-trip time."""
         if now - self._hb_wall >= 1.0:
             self.send_heartbeat()
+            self._timesync_ns = time.monotonic_ns()
+            self.send(self._mav.timesync_encode(0, self._timesync_ns))
+
+    def _on_timesync(self, m: MAVLinkMessage) -> None:
+        """A vehicle's reply (tc1 != 0) to our request echoes our ts1: round trip = now - ts1."""
+        if m.tc1 != 0 and m.ts1 == self._timesync_ns:
+            self.state.rtt_ms[self.index] = (time.monotonic_ns() - m.ts1) / 1e6
 
     @property
     def needs_answer(self) -> bool:
@@ -929,4 +939,5 @@ _HANDLERS: dict[str, Callable[[VehicleLink, MAVLinkMessage], None]] = {
     "EXTENDED_SYS_STATE": VehicleLink._on_extended_sys_state,
     "COMMAND_ACK": VehicleLink._on_command_ack,
     "PARAM_VALUE": VehicleLink._on_param_value,
+    "TIMESYNC": VehicleLink._on_timesync,
 }

@@ -284,7 +284,9 @@ def test_interactive_console_in_a_pseudo_terminal(tmp_path: Path) -> None:
         screen = term.wait_for("phase ready", timeout_s=30)
         assert "name  sysid  age s" in screen
         for name in ("lead", "right", "left"):
-            assert re.search(rf"^{name}\s+\d\s+[\d.]+\s+\S+\s+GUIDED\s+ARMED\s+3\.0", screen, re.M), screen
+            # name, sysid, age, loss, round-trip time (TIMESYNC), mode, armed, altitude
+            pattern = rf"^{name}\s+\d\s+[\d.]+\s+\S+\s+[\d.]+\s+GUIDED\s+ARMED\s+3\.0"
+            assert re.search(pattern, screen, re.M), screen
 
         term.child.send("stat\t")  # Tab completes the command name
         term.read(0.3)

@@ -104,6 +104,8 @@ def test_fly_and_land_two_vehicles_in_lockstep(simulator: tuple[int, Path], tmp_
         fleet.land_all()
         fleet.wait_until(lambda: not fleet.armed.any(), 60.0, "both landed and disarmed")
         assert np.all(fleet.alive) and all(c["bad"] == 0 and c["lost"] == 0 for c in fleet.stats().values())
+        # TIMESYNC round trips (one a wall second) were measured on every link
+        assert np.all(np.isfinite(fleet.rtt_ms)) and np.all((fleet.rtt_ms > 0) & (fleet.rtt_ms < 5000))
     truth = np.genfromtxt(truth_path, names=True, delimiter=",")
     rows = {(round(t * 1000), int(v)): r for t, v, r in zip(truth["t"], truth["vehicle"], truth, strict=True)}
     for time_ms, pos, att in samples[::10]:

@@ -98,9 +98,10 @@ def test_fleet_table_lines_up_and_styles_warnings() -> None:
     lines = fleet_table(snapshot(rows))
     text = [plain(line) for line in lines]
     assert (
-        text[0].split() == "name sysid age s loss mode armed alt m m/s slot m obst m near m warnings".split()
+        text[0].split()
+        == "name sysid age s loss rtt ms mode armed alt m m/s slot m obst m near m warnings".split()
     )
-    assert text[1].split()[:9] == ["lead", "1", "0.1", "0%", "GUIDED", "ARMED", "10.0", "5.0", "lead"]
+    assert text[1].split()[:10] == ["lead", "1", "0.1", "0%", "-", "GUIDED", "ARMED", "10.0", "5.0", "lead"]
     assert text[2].endswith("EMERGENCY") and "2.1" in text[2]
     assert "LOST" in text[3] and text[3].split()[3] == "-"
     assert len({line.index("mode") if k == 0 else line.index("GUIDED") for k, line in enumerate(text)}) == 1
