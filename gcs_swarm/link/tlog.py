@@ -13,6 +13,7 @@ from pathlib import Path
 from types import TracebackType
 
 _TIMESTAMP = struct.Struct(">Q")
+FLUSH_PERIOD_S = 1.0  # wall s between flushes to the OS
 
 
 class TlogWriter:
@@ -23,6 +24,7 @@ class TlogWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = self.path.open("wb")
         self.records = 0
+        self._flushed_at = time.monotonic()
 
     def write(self, packet: bytes | bytearray, unix_time_s: float | None = None) -> None:
         """Record one packet; `unix_time_s` defaults to now."""
@@ -30,9 +32,12 @@ class TlogWriter:
         self._file.write(_TIMESTAMP.pack(int(t * 1e6)))
         self._file.write(packet)
         self.records += 1
+        if time.monotonic() - self._flushed_at >= FLUSH_PERIOD_S:  # a killed process loses at most this much
+            self.flush()
 
     def flush(self) -> None:
         self._file.flush()
+        self._flushed_at = time.monotonic()
 
     def close(self) -> None:
         if not self._file.closed:
