@@ -151,7 +151,7 @@ def report_from(
     traj: Trajectories, commands: CommandLog | None, mission: Any, flight: dict[str, Any]
 ) -> dict[str, Any]:
     """The figures of report.json from loaded trajectories and commands."""
-    leader = mission.leader_index
+    leader = int(flight.get("leader", mission.leader_index))  # the lead may have passed on (vehicle lost)
     names = [v.name for v in mission.vehicles]
     offsets = np.array(flight["offsets"], dtype=float)
     t0 = flight.get("t_formation_start")

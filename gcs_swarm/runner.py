@@ -49,6 +49,8 @@ class FlightResult:
     events: list[str] = field(default_factory=list)
     ticks: int = 0
     final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
+    leader: int | None = None  # the leading vehicle at the end (the lead passes on when a leader is lost)
+    offsets: np.ndarray | None = None  # (N, 3) slot offsets in force at the end
 
 
 def mission_offsets(mission: Mission, shape: str | None = None, spacing: float | None = None) -> np.ndarray:
@@ -78,14 +80,36 @@ def follower_targets(mission: Mission) -> np.ndarray | None:
     return out
 
 
-def build_controller(mission: Mission) -> FleetController:
-    """The guidance + control stack configured from the mission file."""
+def live_offsets(
+    mission: Mission, alive: np.ndarray, leader: int, shape: str | None = None, spacing: float | None = None
+) -> np.ndarray:
+    """Slot offsets (N, 3) for the live vehicles around `leader` (re-forming after a loss, spec 6 frame):
+    a generated shape gives its first slots to the live followers in vehicle order; explicit slots are kept,
+    shifted so that the (possibly new) leader sits at zero. Rows of lost vehicles are zero."""
+    shape = shape or mission.formation.shape
+    offsets = np.zeros((len(mission.vehicles), 3))
+    followers = [i for i in np.flatnonzero(alive) if i != leader]
+    if shape == mission.formation.shape and any(v.slot is not None for v in mission.vehicles):
+        full = mission_offsets(mission)  # explicit slots: keep them, relative to the leader
+        offsets[followers] = full[followers] - full[leader]
+    elif followers:
+        form = mission.formation
+        offsets[followers] = formation_offsets(shape, len(followers), spacing or form.spacing, form.angle_deg)
+    return offsets
+
+
+def build_controller(
+    mission: Mission, leader: int | None = None, offsets: np.ndarray | None = None
+) -> FleetController:
+    """The guidance + control stack configured from the mission file (`leader`/`offsets` override the
+    mission's, when the lead passes to another vehicle)."""
+    leader = mission.leader_index if leader is None else leader
     return FleetController(
         n=len(mission.vehicles),
-        leader=mission.leader_index,
-        offsets=mission_offsets(mission),
+        leader=leader,
+        offsets=mission_offsets(mission) if offsets is None else offsets,
         goal_waypoints=np.array(mission.waypoints, dtype=float),
-        follower_targets=follower_targets(mission),
+        follower_targets=follower_targets(mission) if leader == mission.leader_index else None,
         field=mission.field,
         separation=mission.safety.separation,
         reference=mission.reference,
@@ -120,6 +144,10 @@ class MissionRunner:
         self.phase = "connect"
         self.hover = np.full(len(mission.vehicles), 0.5)
         self.controller = build_controller(mission)
+        self.shape: tuple[str | None, float | None] = (
+            None,
+            None,
+        )  # live reshape (console), else the mission's
         self.command_limits = CommandLimits(
             tilt_max=math.radians(mission.limits.tilt_max_deg),
             thrust_max_g=mission.limits.thrust_max_g,
@@ -305,7 +333,9 @@ class MissionRunner:
 
     def set_formation(self, shape: str, spacing: float | None = None) -> None:
         """Reshape in flight (inter-UAV avoidance stays active while vehicles change slots)."""
-        self.controller.set_offsets(mission_offsets(self.mission, shape, spacing))
+        self.shape = (shape, spacing)
+        alive = self.fleet.alive
+        self.controller.set_offsets(live_offsets(self.mission, alive, self.controller.leader, shape, spacing))
         self._hold_since = None
         self.result.events.append(f"formation changed to {shape} {spacing or ''}".strip())
 
@@ -382,14 +412,15 @@ class MissionRunner:
         if self.record is not None:
             self.record.write_tick(t, self.phase, pos, vel, att, cmd, thrust, active)
         targets = np.array(cmd.slots, dtype=float)
-        targets[self.mission.leader_index] = ctl.waypoints[-1]
+        targets[ctl.leader] = ctl.waypoints[-1]
         self.result.final_targets = targets
+        self.result.leader, self.result.offsets = ctl.leader, ctl.offsets
         errors = np.linalg.norm(pos - targets, axis=1)
         followers = active.copy()
-        followers[self.mission.leader_index] = False
+        followers[ctl.leader] = False
         self.formation_rms = math.sqrt(float(np.mean(errors[followers] ** 2))) if followers.any() else 0.0
         last_leg = cmd.waypoint_index == len(ctl.waypoints) - 1
-        if last_leg and bool((errors[active] <= run.goal_tolerance_m).all()):
+        if last_leg and active.any() and bool((errors[active] <= run.goal_tolerance_m).all()):
             self._hold_since = t if self._hold_since is None else self._hold_since
             if t - self._hold_since >= run.hold_s:
                 self.result.arrived = True
@@ -412,11 +443,36 @@ class MissionRunner:
         return float(alive.max() if alive.size else times.max()) / 1000.0
 
     def _note_lost(self) -> None:
+        newly_lost = False
         for i, name in enumerate(self.fleet.names):
             if not self.fleet.alive[i] and name not in self.result.lost:
                 self.result.lost.append(name)
                 self.result.events.append(f"{name} lost")
                 self.progress(f"! {name} lost: the rest keep flying")
+                newly_lost = True
+        if newly_lost and self.phase in ("formation", "hold") and self.fleet.alive.any():
+            self._reform()
+
+    def _reform(self) -> None:
+        """Close the gaps a lost vehicle leaves (its last known position keeps repelling the others); a lost
+        leader hands the lead to the live vehicle with the lowest index, which flies on to the same goal."""
+        fleet, ctl = self.fleet, self.controller
+        alive = fleet.alive
+        leader = ctl.leader if alive[ctl.leader] else int(np.flatnonzero(alive)[0])
+        shape, spacing = self.shape
+        offsets = live_offsets(self.mission, alive, leader, shape, spacing)
+        if leader == ctl.leader:
+            ctl.set_offsets(offsets)
+            self.result.events.append("formation re-formed without the lost vehicles")
+            return
+        remaining = ctl.waypoints[ctl.waypoint_index :]
+        self.controller = build_controller(self.mission, leader=leader, offsets=offsets)
+        self.controller.set_goal_waypoints(remaining)
+        self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
+        self._hold_since = None
+        text = f"leader lost: {fleet.names[leader]} takes the lead"
+        self.result.events.append(text)
+        self.progress(f"! {text}")
 
     def _set_phase(self, name: str) -> None:
         self.phase = name

@@ -44,3 +44,22 @@ def test_quickstart_completes_under_ten_percent_loss_and_100ms_jitter(
     run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=faults)
     assert run.status == 0, run.output[-2000:]
     assert run.report["collisions"] == 0 and run.report["reached"]
+
+
+def test_leader_lost_mid_flight_hands_the_lead_on(quickstart: Path, tmp_path: Path) -> None:
+    """The leader's link dies at 15 s: the lowest-index live vehicle ("right") takes the lead to the same goal
+    and the other follower re-forms on it; the old leader does its own GCS failsafe."""
+    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=["--sim-arg=--link-outage=0@15:inf"])
+    assert run.status == 1, run.output[-2000:]  # a vehicle was lost
+    assert run.report["lost"] == ["lead"] and run.report["collisions"] == 0
+    flight = json.loads((run.run_dir / "flight.json").read_text())
+    assert flight["arrived"] and flight["leader"] == 1, flight["events"]
+    assert any("right takes the lead" in e for e in flight["events"])
+    truth = _truth(run.run_dir)
+    end = truth[np.isclose(truth["t"], round(flight["t_formation_end"] / 0.02) * 0.02)]
+    new_leader = end[end["vehicle"] == 1][0]
+    goal = np.array(flight["final_targets"])[1]
+    assert np.linalg.norm([new_leader["x"] - goal[0], new_leader["y"] - goal[1]]) < 1.5
+    assert goal.tolist() == [160.0, 120.0, 10.0]  # the mission's goal, now the new leader's
+    old = truth[truth["vehicle"] == 0]
+    assert old["armed"][-1] == 0 and old["crashed"].max() == 0
