@@ -10,30 +10,13 @@ import socket
 from pathlib import Path
 from typing import Any
 
+from gcs_swarm.report import SUMMARY_KEYS
 from gcs_swarm.run_command import EXIT_USER_ERROR, RunOptions, run_command
 
 PORT_RANGE = (20000, 60000)
 PORT_TRIES = 200
 FLIGHT_TRIES = 3  # a port taken between the probe and the simulator's bind: try again on other ports
-RESULT_KEYS = (
-    "reached",
-    "time_to_goal_s",
-    "collisions",
-    "min_separation_m",
-    "min_obstacle_clearance_m",
-    "formation_rms_m",
-    "formation_max_m",
-    "oscillation_time_s",
-    "heading_reversals",
-    "settling_time_s",
-    "command_rate_settling_s",
-    "command_rate_trend_settling_s",
-    "command_rate_first_settled_s",
-    "command_chatter_first_20s_rad_s",
-    "command_chatter_last_20s_rad_s",
-    "sim_duration_s",
-    "wall_duration_s",
-)
+RESULT_KEYS = SUMMARY_KEYS  # the report figures each campaign result line carries
 
 
 def free_udp_base(count: int) -> int:

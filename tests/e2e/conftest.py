@@ -4,7 +4,6 @@ both on 127.0.0.1 free ports, bounded in time."""
 from __future__ import annotations
 
 import json
-import socket
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -14,30 +13,10 @@ from typing import Any
 import pytest
 import yaml
 
+from gcs_swarm.evaluation.flights import free_udp_base
+
 ROOT = Path(__file__).resolve().parents[2]
 MISSIONS = ROOT / "missions"
-
-
-def free_udp_base(count: int, start: int = 20000, stop: int = 60000) -> int:
-    """A base port such that base..base+count-1 are all free UDP ports on 127.0.0.1."""
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    guess = probe.getsockname()[1]
-    probe.close()
-    for base in list(range(guess, min(guess + 2000, stop), count + 1)) + list(range(start, stop, count + 7)):
-        socks = []
-        try:
-            for i in range(count):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(s)
-                s.bind(("127.0.0.1", base + i))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError("no block of free UDP ports found")
 
 
 @dataclass
