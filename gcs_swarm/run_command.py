@@ -69,6 +69,7 @@ def write_flight(
         "leader": mission.leader_index if result.leader is None else result.leader,
         "offsets": (mission_offsets(mission) if result.offsets is None else result.offsets).tolist(),
         "lost": result.lost,
+        "lost_at_s": result.lost_at,
         "events": result.events,
         "ticks": result.ticks,
         "tick_latency_ms": latency_summary(tick_latency_s),
@@ -165,6 +166,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     finally:
         if sim is not None:
             sim.stop()
+            (run_dir / "simulator.log").write_text("\n".join(sim.output) + "\n")  # incl. its link counters
     latencies = runner.tick_latency_s if runner is not None else []
     write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies)
     if status == EXIT_USER_ERROR or result.t_formation_start is None:

@@ -46,6 +46,7 @@ class FlightResult:
     t_arrival: float | None = None
     t_formation_end: float | None = None
     lost: list[str] = field(default_factory=list)
+    lost_at: dict[str, float] = field(default_factory=dict)  # vehicle time s at which each was declared lost
     events: list[str] = field(default_factory=list)
     ticks: int = 0
     final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
@@ -447,6 +448,7 @@ class MissionRunner:
         for i, name in enumerate(self.fleet.names):
             if not self.fleet.alive[i] and name not in self.result.lost:
                 self.result.lost.append(name)
+                self.result.lost_at[name] = self.vehicle_time()
                 self.result.events.append(f"{name} lost")
                 self.progress(f"! {name} lost: the rest keep flying")
                 newly_lost = True
