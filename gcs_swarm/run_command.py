@@ -94,6 +94,39 @@ def vehicle_configs(mission: Mission, base_port: int | None) -> list[VehicleConf
     ]
 
 
+def signing_key(mission: Mission) -> tuple[Path | None, bytes | None]:
+    """The mission's MAVLink 2 signing key file and key (run.signing_key_file or SWARM_GCS_SIGNING_KEY_FILE);
+    (None, None) without one. SigningKeyError (one sentence) for an unreadable or malformed file."""
+    key_file = signing.key_file(mission.run.signing_key_file)
+    return key_file, None if key_file is None else signing.read_key(key_file)
+
+
+def start_embedded_simulator(
+    mission: Mission,
+    run_dir: Path,
+    base_port: int,
+    key_file: Path | None,
+    time_mode: str | None = None,
+    seed: int | None = None,
+    sim_args: tuple[str, ...] = (),
+) -> EmbeddedSimulator:
+    """Start the mission's simulator (ports base_port+i, truth log in run_dir, the same signing key); the
+    time mode and seed default to the mission's."""
+    spec = mission.run.simulator
+    sim = EmbeddedSimulator(
+        mission,
+        base_port=base_port,
+        truth_log=run_dir / TRUTH_FILE,
+        time_mode=time_mode or spec.time_mode,
+        speedup=spec.speedup,
+        seed=spec.seed if seed is None else seed,
+        extra_args=list(sim_args),
+        signing_key_file=key_file,
+    )
+    sim.start()
+    return sim
+
+
 def run_command(mission_path: str, options: RunOptions) -> int:
     """The whole `run` command; prints progress and a summary."""
     say = (lambda _msg: None) if options.quiet else (lambda msg: print(msg, flush=True))
@@ -102,9 +135,8 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     except MissionError as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
-    key_file = signing.key_file(mission.run.signing_key_file)
     try:
-        key = None if key_file is None else signing.read_key(key_file)
+        key_file, key = signing_key(mission)
     except signing.SigningKeyError as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
@@ -124,17 +156,15 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     try:
         if embedded:
             assert base_port is not None
-            sim = EmbeddedSimulator(
+            sim = start_embedded_simulator(
                 mission,
-                base_port=base_port,
-                truth_log=run_dir / TRUTH_FILE,
-                time_mode=options.time_mode or sim_spec.time_mode,
-                speedup=sim_spec.speedup,
-                seed=sim_spec.seed if options.seed is None else options.seed,
-                extra_args=list(options.sim_args),
-                signing_key_file=key_file,
+                run_dir,
+                base_port,
+                key_file,
+                options.time_mode,
+                options.seed,
+                tuple(options.sim_args),
             )
-            sim.start()
             say(f"embedded simulator up: {len(mission.vehicles)} vehicles on 127.0.0.1:{base_port}..")
         with Fleet(
             vehicle_configs(mission, base_port),

@@ -17,9 +17,16 @@ from gcs_swarm.console.script import PlainConsole
 from gcs_swarm.console.session import FlightSession
 from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
 from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.signing import SigningKeyError
 from gcs_swarm.mission import MissionError, load_mission
-from gcs_swarm.report import RECORD_FILE, TRUTH_FILE, write_report
-from gcs_swarm.run_command import default_run_dir, vehicle_configs, write_flight
+from gcs_swarm.report import RECORD_FILE, write_report
+from gcs_swarm.run_command import (
+    default_run_dir,
+    signing_key,
+    start_embedded_simulator,
+    vehicle_configs,
+    write_flight,
+)
 from gcs_swarm.run_record import RunRecord
 from gcs_swarm.runner import FlightResult, MissionRunner
 
@@ -52,6 +59,11 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         except (OSError, UnicodeDecodeError) as exc:
             print(f"error: cannot read the script {options.script}: {exc}")
             return EXIT_USER_ERROR
+    try:
+        key_file, key = signing_key(mission)
+    except SigningKeyError as exc:
+        print(f"error: {exc}")
+        return EXIT_USER_ERROR
     interactive = script is None and sys.stdin.isatty() and sys.stdout.isatty()
     run_dir = options.out_dir or default_run_dir(mission)
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -68,20 +80,15 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     try:
         if embedded:
             assert base_port is not None
-            sim = EmbeddedSimulator(
-                mission,
-                base_port=base_port,
-                truth_log=run_dir / TRUTH_FILE,
-                time_mode=sim_spec.time_mode,
-                speedup=sim_spec.speedup,
-                seed=sim_spec.seed,
-            )
-            sim.start()
+            sim = start_embedded_simulator(mission, run_dir, base_port, key_file)
         where = (
             f"embedded simulator on 127.0.0.1:{base_port}.." if embedded else "vehicles of the mission file"
         )
         with Fleet(
-            vehicle_configs(mission, base_port), mission.origin, tlog_path=run_dir / "telemetry.tlog"
+            vehicle_configs(mission, base_port),
+            mission.origin,
+            tlog_path=run_dir / "telemetry.tlog",
+            signing_key=key,
         ) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             runner = MissionRunner(

@@ -19,9 +19,14 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sitl_sim.clock import plan_timing
+from sitl_sim.simulator import SimConfig
+from sitl_sim.world import Obstacles
 
 M = mavlink
 GCS_SYSID, GCS_COMPID = 255, 190
@@ -46,6 +51,33 @@ def free_udp_ports(count: int) -> int:
             for sock in sockets:
                 sock.close()
     raise RuntimeError("no free UDP port range found")
+
+
+def in_process_config(start_pos: list[list[float]], **overrides: object) -> SimConfig:
+    """A real-time, fault-free SimConfig for an in-process Simulator on free 127.0.0.1 ports: vehicles at
+    `start_pos` (ENU m; z > 0 starts airborne in GUIDED), ready at once, no obstacles or wind."""
+    pos = np.array(start_pos, dtype=float)
+    n = len(pos)
+    fields: dict[str, object] = dict(
+        base_port=free_udp_ports(n),
+        bind="127.0.0.1",
+        sysid_base=1,
+        timing=plan_timing(1000.0, 100.0, None, 50.0),
+        speedup=1.0,
+        lockstep=False,
+        lockstep_timeout=5.0,
+        home=(-35.0, 149.0, 500.0),
+        start_pos=pos,
+        start_vel=np.zeros((n, 3)),
+        start_yaw=np.zeros(n),
+        obstacles=Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))),
+        wind=(0.0, 0.0, 0.0),
+        truth_log=None,
+        seed=0,
+        ready_delay=0.0,
+    )
+    fields.update(overrides)
+    return SimConfig(**fields)  # type: ignore[arg-type]
 
 
 @dataclass

@@ -9,14 +9,12 @@ import socket
 import struct
 
 import numpy as np
-from conftest import GCS_COMPID, GCS_SYSID, M, Vehicle, free_udp_ports
+from conftest import GCS_COMPID, GCS_SYSID, M, Vehicle, in_process_config
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v10 import ardupilotmega as mavlink1
 
-from sitl_sim.clock import plan_timing
-from sitl_sim.simulator import SimConfig, Simulator
-from sitl_sim.world import Obstacles
+from sitl_sim.simulator import Simulator
 
 
 def test_garbage_is_counted_and_traffic_continues(sitl, pilot_for):
@@ -108,24 +106,7 @@ HANDLED = sorted(
 
 
 def _fuzz_simulator() -> Simulator:
-    config = SimConfig(
-        base_port=free_udp_ports(2),
-        bind="127.0.0.1",
-        sysid_base=1,
-        timing=plan_timing(1000.0, 100.0, None, 50.0),
-        speedup=1.0,
-        lockstep=False,
-        lockstep_timeout=5.0,
-        home=(-35.0, 149.0, 500.0),
-        start_pos=np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 10.0]]),
-        start_vel=np.zeros((2, 3)),
-        start_yaw=np.zeros(2),
-        obstacles=Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))),
-        wind=(0.0, 0.0, 0.0),
-        truth_log=None,
-        seed=0,
-        ready_delay=0.0,
-    )
+    config = in_process_config([[0.0, 0.0, 0.0], [5.0, 0.0, 10.0]])
     return Simulator(config)
 
 

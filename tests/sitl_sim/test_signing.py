@@ -9,17 +9,14 @@ from __future__ import annotations
 import socket
 import time
 
-import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sitl_sim import autopilot as ap
 from sitl_sim import signing
 from sitl_sim.cli import build_config, build_parser
-from sitl_sim.clock import plan_timing
-from sitl_sim.simulator import SimConfig, Simulator
-from sitl_sim.world import Obstacles
-from tests.sitl_sim.conftest import free_udp_ports
+from sitl_sim.simulator import Simulator
+from tests.sitl_sim.conftest import in_process_config
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))
@@ -28,25 +25,7 @@ GCS = ("127.0.0.1", 1)
 
 @pytest.fixture
 def sim():
-    config = SimConfig(
-        base_port=free_udp_ports(1),
-        bind="127.0.0.1",
-        sysid_base=1,
-        timing=plan_timing(1000.0, 100.0, None, 50.0),
-        speedup=1.0,
-        lockstep=False,
-        lockstep_timeout=5.0,
-        home=(-35.0, 149.0, 500.0),
-        start_pos=np.array([[0.0, 0.0, 10.0]]),  # airborne, GUIDED, armed
-        start_vel=np.zeros((1, 3)),
-        start_yaw=np.zeros(1),
-        obstacles=Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))),
-        wind=(0.0, 0.0, 0.0),
-        truth_log=None,
-        seed=0,
-        ready_delay=0.0,
-        signing_key=KEY,
-    )
+    config = in_process_config([[0.0, 0.0, 10.0]], signing_key=KEY)  # airborne, GUIDED, armed
     simulator = Simulator(config)
     yield simulator
     simulator.close()
