@@ -243,6 +243,7 @@ def report_from(
         "cruise": cruise,
         "sim_duration_s": _finite(float(traj.t[-1])),
         "wall_duration_s": _finite(flight.get("wall_duration_s")),
+        "commands_limited": flight.get("commands_limited"),  # None: a flight.json from before it was kept
         "vehicles": per_vehicle,
         "lost": list(flight.get("lost", [])),
         "events": list(flight.get("events", [])),
@@ -268,6 +269,7 @@ SUMMARY_KEYS = (
     "command_chatter_last_20s_rad_s",
     "sim_duration_s",
     "wall_duration_s",
+    "commands_limited",
 )
 
 

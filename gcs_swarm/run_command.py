@@ -55,9 +55,11 @@ def write_flight(
     result: FlightResult,
     wall_s: float,
     tick_latency_s: list[float],
+    commands_limited: int,
 ) -> None:
-    """flight.json: what the ground station did (phases, arrival, lost vehicles, events, tick latency); with
-    the mission path it lets `gcs-swarm report` rebuild the report of a run folder."""
+    """flight.json: what the ground station did (phases, arrival, lost vehicles, events, tick latency, how
+    many vehicle-ticks' commands the final guard changed, stale-telemetry figures of docs/reliability.md);
+    with the mission path it lets `gcs-swarm report` rebuild the report of a run folder."""
     flight = {
         "mission": mission.name,
         "mission_path": str(Path(mission_path).resolve()),
@@ -73,6 +75,10 @@ def write_flight(
         "events": result.events,
         "ticks": result.ticks,
         "tick_latency_ms": latency_summary(tick_latency_s),
+        "commands_limited": commands_limited,
+        "degraded_s": round(result.degraded_s, 3),
+        "holds": result.holds,
+        "max_telemetry_age_s": round(result.max_telemetry_age_s, 3),
         "wall_duration_s": wall_s,
     }
     (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
@@ -171,6 +177,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
             mission.origin,
             tlog_path=run_dir / "telemetry.tlog",
             signing_key=key,
+            loss_timeout_s=mission.safety.telemetry.lost_s,
         ) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             try:
@@ -198,7 +205,8 @@ def run_command(mission_path: str, options: RunOptions) -> int:
             sim.stop()
             (run_dir / "simulator.log").write_text("\n".join(sim.output) + "\n")  # incl. its link counters
     latencies = runner.tick_latency_s if runner is not None else []
-    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies)
+    limited = runner.commands_limited if runner is not None else 0
+    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies, limited)
     if status == EXIT_USER_ERROR or result.t_formation_start is None:
         return status if status != EXIT_OK else EXIT_FAILED
     report = write_report(run_dir, mission)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gcs_swarm.guidance.degradation import StaleTelemetryMonitor, TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
@@ -52,6 +53,9 @@ class FlightResult:
     final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
     leader: int | None = None  # the leading vehicle at the end (the lead passes on when a leader is lost)
     offsets: np.ndarray | None = None  # (N, 3) slot offsets in force at the end
+    degraded_s: float = 0.0  # vehicle s flown in degraded mode (stale telemetry: slower, wider)
+    holds: int = 0  # times a vehicle was held for stale telemetry
+    max_telemetry_age_s: float = 0.0  # oldest position telemetry of a live vehicle at any formation tick
 
 
 def mission_offsets(mission: Mission, shape: str | None = None, spacing: float | None = None) -> np.ndarray:
@@ -165,6 +169,10 @@ class MissionRunner:
         self._hold_points = np.full((len(mission.vehicles), 3), np.nan)  # (N, 3) ENU m, latched in hold
         self._last_progress_wall = 0.0
         self._obstacle_radii = np.array([o.radius for o in mission.obstacles], dtype=float)
+        self.telemetry = StaleTelemetryMonitor(mission.safety.telemetry)
+        self._held = np.zeros(len(mission.vehicles), dtype=bool)
+        self._degraded = False
+        self._last_tick_t: float | None = None
         self.tick_latency_s: list[float] = []  # wall s from a complete telemetry tick to its last command out
 
     # ----- the whole mission -----
@@ -246,6 +254,8 @@ class MissionRunner:
     def _enter_formation(self) -> None:
         fleet = self.fleet
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
+        self.telemetry.reset()
+        self._held[:], self._degraded, self._last_tick_t = False, False, None
         self.result.t_formation_start = self.vehicle_time()
         self._set_phase("formation")
 
@@ -398,16 +408,32 @@ class MissionRunner:
         t = self.vehicle_time()
         self.result.t_formation_end = t
         pos, vel, att = fleet.pos, fleet.vel, fleet.att
-        # a vehicle whose state is not finite (broken telemetry) gets no command this tick, as if lost
-        active = fleet.alive & np.isfinite(np.hstack((pos, vel, att))).all(axis=1)
+        verdict = self._assess_telemetry(t, pos, vel)
+        ctl.set_degraded(verdict.speed_scale, verdict.spacing_scale)
+        # a vehicle whose state is not finite (broken telemetry) gets no command this tick, as if lost; a held
+        # one brakes on its own autopilot
+        finite = np.isfinite(np.hstack((pos, vel, att))).all(axis=1)
+        active = fleet.alive & finite & ~verdict.held
         centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)
-        cmd = ctl.tick(t, pos, vel, att, centres, self._obstacle_radii, active)
+        cmd = ctl.tick(t, verdict.pos, vel, att, centres, self._obstacle_radii, active)
         thrust = thrust_from_acc(np.nan_to_num(cmd.thrust_acc), self.hover)
         roll, pitch, yaw, thrust, limited = guard_attitude_commands(
-            cmd.roll_d, cmd.pitch_d, cmd.yaw_d, thrust, pos, att[:, 2], self.hover, self.command_limits
+            cmd.roll_d,
+            cmd.pitch_d,
+            cmd.yaw_d,
+            thrust,
+            verdict.pos,
+            att[:, 2],
+            self.hover,
+            self.command_limits,
+            vel=vel,
         )
         self.commands_limited += int(np.count_nonzero(limited & active))
         fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
+        for i in np.flatnonzero(verdict.held & fleet.alive):
+            fleet.vehicle(int(i)).send_velocity_target(
+                np.zeros(3), yaw=float(att[i, 2]) if finite[i] else None
+            )
         self.last_command = cmd
         self.result.ticks += 1
         if self.record is not None:
@@ -434,6 +460,46 @@ class MissionRunner:
         if t - (self.result.t_formation_start or t) > run.time_limit_s:
             self.result.events.append(f"time limit {run.time_limit_s:g} s reached before arrival")
             self._set_phase("land")
+
+    def telemetry_age(self) -> np.ndarray:
+        """(N,) s: each vehicle's newest time_boot_ms minus that of its latest position (inf before one)."""
+        st = self.fleet.state
+        age = (st.time_ms - st.position_ms).astype(float) / 1000.0
+        return np.where(st.position_ms >= 0, age, np.inf)
+
+    def _assess_telemetry(self, t: float, pos: np.ndarray, vel: np.ndarray) -> TelemetryAssessment:
+        """Predict, degrade or hold on stale telemetry (gcs_swarm.guidance.degradation); events on changes."""
+        alive, names = self.fleet.alive, self.fleet.names
+        verdict = self.telemetry.assess(t, pos, vel, self.telemetry_age(), alive, self.controller.leader)
+        dt = 0.0 if self._last_tick_t is None else max(0.0, t - self._last_tick_t)
+        self._last_tick_t = t
+        ages = verdict.age[alive & np.isfinite(verdict.age)]
+        if ages.size:
+            self.result.max_telemetry_age_s = max(self.result.max_telemetry_age_s, float(ages.max()))
+        if verdict.degraded:
+            self.result.degraded_s += dt
+        if verdict.degraded != self._degraded:
+            p = self.mission.safety.telemetry
+            scales = f"speed x{p.degraded_speed:g}, spacing x{p.degraded_spacing:g}"
+            text = (
+                f"stale telemetry: degraded flight ({scales})"
+                if verdict.degraded
+                else "telemetry fresh again: normal flight"
+            )
+            self.result.events.append(f"t={t:.2f} s {text}")
+            self.progress(f"! {text}")
+        for i in np.flatnonzero(verdict.held != self._held):
+            if verdict.held[i]:
+                self.result.holds += 1
+                old = not verdict.age[i] <= self.mission.safety.telemetry.hold_s
+                why = f"telemetry {verdict.age[i]:.2f} s old" if old else "the leader's telemetry is stale"
+                text = f"{names[i]} held: {why}"
+            else:
+                text = f"{names[i]} rejoins: telemetry fresh again"
+            self.result.events.append(f"t={t:.2f} s {text}")
+            self.progress(f"! {text}")
+        self._degraded, self._held = verdict.degraded, verdict.held.copy()
+        return verdict
 
     # ----- helpers -----
 

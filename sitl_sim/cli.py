@@ -21,7 +21,7 @@ import signal
 import socket
 import sys
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
@@ -30,6 +30,9 @@ from sitl_sim.link_faults import LinkFaults, Outage, parse_outage
 from sitl_sim.signing import read_key
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
+
+if TYPE_CHECKING:
+    from gcs_swarm.mission import World
 
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's default location (CMAC)
 LINE_SPACING_M = 5.0  # default start line along East
@@ -72,7 +75,9 @@ def build_parser() -> OneLineParser:
     add("--rate-hz", type=float, default=1000.0, metavar="HZ", help="physics rate (default 1000)")
     add("--outer-hz", type=float, default=100.0, metavar="HZ", help="autopilot outer-loop rate (default 100)")
     add("--home", metavar="LAT,LON,ALT", help="geodetic ENU origin (default: mission origin, else CMAC)")
-    add("--mission", type=Path, metavar="FILE.yaml", help="mission file: start states, obstacles, wind")
+    add(
+        "--mission", type=Path, metavar="FILE.yaml", help="mission file: starts, obstacles, wind, link faults"
+    )
     add(
         "--truth-log",
         type=Path,
@@ -95,49 +100,80 @@ def build_parser() -> OneLineParser:
         help="MAVLink 2 signing: FILE holds the 32-byte key as 64 hex characters; vehicles then accept only "
         "messages signed with it and sign what they send",
     )
-    link = parser.add_argument_group("link faults (every vehicle, both directions; docs/sitl.md)")
-    link.add_argument("--link-loss", type=float, default=0.0, metavar="P", help="packet loss probability")
-    link.add_argument("--link-delay-ms", type=float, default=0.0, metavar="MS", help="one-way delay, sim ms")
-    link.add_argument("--link-jitter-ms", type=float, default=0.0, metavar="MS", help="extra delay 0..MS")
-    link.add_argument("--link-dup", type=float, default=0.0, metavar="P", help="duplication probability")
-    link.add_argument("--link-corrupt", type=float, default=0.0, metavar="P", help="corruption probability")
-    link.add_argument("--link-reorder", type=float, default=0.0, metavar="P", help="hold-back probability")
-    link.add_argument("--link-from", type=float, default=0.0, metavar="S", help="rates act from sim s S on")
+    link = parser.add_argument_group(
+        "link faults (every vehicle, both directions; each option overrides the mission's world.link value; "
+        "docs/sitl.md)"
+    )
+    link.add_argument("--link-loss", type=float, metavar="P", help="packet loss probability (default 0)")
+    link.add_argument("--link-delay-ms", type=float, metavar="MS", help="one-way delay, sim ms (default 0)")
+    link.add_argument("--link-jitter-ms", type=float, metavar="MS", help="extra delay 0..MS (default 0)")
+    link.add_argument("--link-dup", type=float, metavar="P", help="duplication probability (default 0)")
+    link.add_argument("--link-corrupt", type=float, metavar="P", help="corruption probability (default 0)")
+    link.add_argument("--link-reorder", type=float, metavar="P", help="hold-back probability (default 0)")
+    link.add_argument("--link-from", type=float, metavar="S", help="rates act from sim s S on (default 0)")
     link.add_argument(
         "--link-outage",
         action="append",
-        default=[],
         metavar="[I@]START:DURATION",
-        help="no packet on vehicle I's link (default: all) for DURATION sim s (may be inf); repeatable",
+        help="no packet on vehicle I's link (default: all) for DURATION sim s (may be inf); repeatable; "
+        "replaces the mission's outages",
     )
     return parser
 
 
-def link_faults(parser: OneLineParser, args: argparse.Namespace, vehicles: int) -> LinkFaults:
-    """The --link-* options, checked (one-line errors)."""
+def link_faults(
+    parser: OneLineParser, args: argparse.Namespace, vehicles: int, base: LinkFaults
+) -> LinkFaults:
+    """The --link-* options, checked (one-line errors), over `base` (the mission's world.link): an option
+    given replaces its value; any --link-outage replaces all of base's outages."""
     for option in ("loss", "dup", "corrupt", "reorder"):
         value = getattr(args, f"link_{option}")
-        _check(parser, 0.0 <= value <= 1.0, f"--link-{option} must be a probability in 0..1, not {value:g}")
+        if value is not None and not 0.0 <= value <= 1.0:
+            parser.error(f"--link-{option} must be a probability in 0..1, not {value:g}")
     for option in ("delay_ms", "jitter_ms"):
         value = getattr(args, f"link_{option}")
-        flag = "--link-" + option.replace("_", "-")
-        _check(parser, 0.0 <= value <= 10000.0, f"{flag} must be 0..10000 ms, not {value:g}")
-    _check(parser, 0.0 <= args.link_from < math.inf, f"--link-from must be >= 0 s, not {args.link_from:g}")
-    outages: list[Outage] = []
-    for text in args.link_outage:
-        try:
-            outages.append(parse_outage(text, vehicles))
-        except ValueError as exc:
-            parser.error(str(exc))
+        if value is not None and not 0.0 <= value <= 10000.0:
+            parser.error(f"--link-{option.replace('_', '-')} must be 0..10000 ms, not {value:g}")
+    start = args.link_from
+    if start is not None and not 0.0 <= start < math.inf:
+        parser.error(f"--link-from must be >= 0 s, not {start:g}")
+    outages = base.outages
+    if args.link_outage is not None:
+        parsed: list[Outage] = []
+        for text in args.link_outage:
+            try:
+                parsed.append(parse_outage(text, vehicles))
+            except ValueError as exc:
+                parser.error(str(exc))
+        outages = tuple(parsed)
+
+    def pick(given: float | None, default: float) -> float:
+        return default if given is None else given
+
     return LinkFaults(
-        loss=args.link_loss,
-        delay_ms=args.link_delay_ms,
-        jitter_ms=args.link_jitter_ms,
-        dup=args.link_dup,
-        corrupt=args.link_corrupt,
-        reorder=args.link_reorder,
-        outages=tuple(outages),
-        start_s=args.link_from,
+        loss=pick(args.link_loss, base.loss),
+        delay_ms=pick(args.link_delay_ms, base.delay_ms),
+        jitter_ms=pick(args.link_jitter_ms, base.jitter_ms),
+        dup=pick(args.link_dup, base.dup),
+        corrupt=pick(args.link_corrupt, base.corrupt),
+        reorder=pick(args.link_reorder, base.reorder),
+        outages=outages,
+        start_s=pick(start, base.start_s),
+    )
+
+
+def mission_link(world: World) -> LinkFaults:
+    """The mission's world.link as the simulator's LinkFaults (outage vehicles are indices already)."""
+    link = world.link
+    return LinkFaults(
+        loss=link.loss,
+        delay_ms=link.delay_ms,
+        jitter_ms=link.jitter_ms,
+        dup=link.dup,
+        corrupt=link.corrupt,
+        reorder=link.reorder,
+        outages=tuple(Outage(o.vehicle, o.start_s, o.duration_s) for o in link.outages),
+        start_s=link.from_s,
     )
 
 
@@ -173,6 +209,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
     home = None
     obstacles = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
     wind = (0.0, 0.0, 0.0)
+    link = LinkFaults()
     if args.mission is not None:
         try:
             from gcs_swarm.mission import MissionError, load_world
@@ -200,6 +237,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         wind = (world.wind.speed, world.wind.direction_deg, world.wind.turbulence)
         lat, lon, alt = world.origin
         home = (float(lat), float(lon), float(alt))
+        link = mission_link(world)
     else:
         _check(parser, args.vehicles is not None, "--vehicles N is required without --mission")
         n = args.vehicles
@@ -267,7 +305,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         truth_log=args.truth_log,
         seed=args.seed,
         ready_delay=args.ready_delay,
-        link=link_faults(parser, args, n),
+        link=link_faults(parser, args, n, link),
         signing_key=signing_key(parser, args.signing_key),
     )
 

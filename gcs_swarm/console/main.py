@@ -74,6 +74,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     sim: EmbeddedSimulator | None = None
     result = FlightResult()
     latencies: list[float] = []
+    limited = 0
     status = EXIT_OK
     if not interactive:
         print(f"run folder {run_dir}", flush=True)
@@ -89,6 +90,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
             mission.origin,
             tlog_path=run_dir / "telemetry.tlog",
             signing_key=key,
+            loss_timeout_s=mission.safety.telemetry.lost_s,
         ) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             runner = MissionRunner(
@@ -113,13 +115,14 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
                 record.close()
                 result = runner.result
                 latencies = runner.tick_latency_s
+                limited = runner.commands_limited
     except (SimulatorError, MissionError) as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
     finally:
         if sim is not None:
             sim.stop()
-    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies)
+    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies, limited)
     if result.t_formation_start is not None:
         report = write_report(run_dir, mission)
         print(

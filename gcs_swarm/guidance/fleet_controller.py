@@ -8,7 +8,7 @@ SET_ATTITUDE_TARGET messages (the link converts frames and thrust).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -140,12 +140,14 @@ class FleetController:
         self.v_xy_cap = np.where(self.is_leader, self.limits.v_xy_leader, self.limits.v_xy)
         self.generator = ReferenceGenerator(self.reference, self.limits, self.field.k_att, g, z_min)
         self.controller: SMCController | PIDController = (
-            SMCController(smc or SMCParams(), g)
+            SMCController(smc or SMCParams(), g, self.limits)
             if controller == "smc"
             else PIDController(pid or PIDParams(), g)
         )
         self.heading: LeaderHeading | None = None
         self.relay: LeaderRelay | None = None
+        self.speed_scale = 1.0
+        self.spacing_scale = 1.0
 
     # ----- live changes (operator console) -----
 
@@ -167,6 +169,13 @@ class FleetController:
     def set_offsets(self, offsets: np.ndarray) -> None:
         """New leader-frame slot offsets (N, 3), leader row zero."""
         self.offsets = check_offsets(offsets, self.n, self.leader)
+
+    def set_degraded(self, speed_scale: float, spacing_scale: float) -> None:
+        """Degraded flight on stale telemetry (gcs_swarm.guidance.degradation): speed caps x speed_scale in
+        (0, 1], formation spacing and separation ranges (D_max, D_Emg) x spacing_scale >= 1; 1, 1 = normal."""
+        if not (0 < speed_scale <= 1 and spacing_scale >= 1):
+            raise ValueError("need 0 < speed_scale <= 1 and spacing_scale >= 1")
+        self.speed_scale, self.spacing_scale = float(speed_scale), float(spacing_scale)
 
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
         arr = _as_array("follower_targets", targets, (self.n, 3))
@@ -275,7 +284,7 @@ class FleetController:
         self.relay.push(self._leader_state())
         heard = self.relay.read()
         p_l, v_l, psi_l, rate_l = heard[:, 0:3], heard[:, 3:6], heard[:, 6], heard[:, 7]
-        world_off = rotate_z(self.offsets, psi_l)
+        world_off = rotate_z(self.offsets * self.spacing_scale, psi_l)
         targets = p_l + world_off
         v_ff = v_l + turn_velocity(world_off, rate_l)
         targets[lead] = goal
@@ -293,15 +302,21 @@ class FleetController:
         p_r = self.generator.p
         known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
         f_obs, _ = fieldmod.obstacle_repulsion(p_r, dest, obs_c, obs_r, self.field)
+        wide = self.spacing_scale
+        separation = (
+            self.separation
+            if wide == 1.0
+            else replace(self.separation, d_emg=self.separation.d_emg * wide, s_s=self.separation.s_s * wide)
+        )
         f_uav, emergency = uav_repulsion(
-            p_r, self.last_pos, self.last_vel, self.field.k_uav, self.field.n_uav, self.d_max,
-            self.separation, self.field.l_min, src_valid=known,
+            p_r, self.last_pos, self.last_vel, self.field.k_uav, self.field.n_uav, self.d_max * wide,
+            separation, self.field.l_min, src_valid=known,
         )  # fmt: skip
         f_att = fieldmod.attraction(p_r, targets, self.field, self.d_g)
         force = f_att + f_obs + f_uav
 
         # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
-        x_d, xd_dot, xd_ddot = self.generator.step(force, v_ff, self.v_xy_cap, dt, active)
+        x_d, xd_dot, xd_ddot = self.generator.step(force, v_ff, self.v_xy_cap * self.speed_scale, dt, active)
         if self.reference.paper_literal:
             lit = paper_literal_reference(targets, v_ff, f_obs + f_uav, self.field.k_att, self.field.l0)
             for arr, lit_arr in zip((x_d, xd_dot, xd_ddot), lit, strict=True):

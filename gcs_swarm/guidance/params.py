@@ -75,6 +75,8 @@ class SMCAxisGains:
     k3: float
     xi1: float = 0.5
     xi2: float = 1.5
+    disturbance_gain: float = 0.0  # 1/s, k_d of the estimate d_hat_dot = k_d s [add]; 0 = off (paper Eq 49)
+    disturbance_max: float = 4.0  # m/s^2, clamp of |d_hat| (xy: of its horizontal norm) [add]
 
     def __post_init__(self) -> None:
         if not (self.c1 > 0 and self.k1 > 0 and self.k2 >= 0 and self.k3 >= 0):
@@ -83,11 +85,16 @@ class SMCAxisGains:
             raise ValueError(f"SMC stability condition k1*c1 > 1/4 violated (k1*c1 = {self.k1 * self.c1:g})")
         if not 0 < self.xi1 < 1 < self.xi2 < 2:
             raise ValueError("SMC exponents need 0 < xi1 < 1 < xi2 < 2")
+        if not self.disturbance_gain >= 0:
+            raise ValueError("disturbance_gain must be >= 0 (0 turns the disturbance estimate off)")
+        if not self.disturbance_max > 0:
+            raise ValueError("disturbance_max must be > 0")
 
 
 @dataclass(frozen=True)
 class SMCParams:
-    """Sliding-mode position controller (spec 7.3 gains, 7.4 boundary layer)."""
+    """Sliding-mode position controller (spec 7.3 gains, 7.4 boundary layer, per-channel disturbance
+    estimate [add] in gcs_swarm.guidance.smc)."""
 
     xy: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(0.8, 1.5, 0.3, 0.05))
     z: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(1.0, 2.0, 0.5, 0.1))
@@ -162,3 +169,26 @@ class ReferenceParams:
                 raise ValueError(f"reference parameter {name} must be > 0")
         if self.heading_min_speed < 0:
             raise ValueError("heading_min_speed must be >= 0")
+
+
+@dataclass(frozen=True)
+class TelemetryParams:
+    """How old a vehicle's position telemetry may get, and what the ground station does as it ages [add]
+    (docs/reliability.md). A vehicle's age is its newest time_boot_ms minus that of its latest position."""
+
+    predict_s: float = 0.3  # s, up to this age the vehicle is flown on its predicted state pos + vel * age
+    hold_s: float = 1.0  # s, older: the vehicle brakes and holds on its own autopilot until fresh again
+    lost_s: float = 3.0  # s without any packet: the vehicle is declared lost and the rest re-form
+    degraded_speed: float = 0.5  # speed caps x this while any live vehicle is older than predict_s
+    degraded_spacing: float = 1.5  # formation spacing and separation ranges x this, likewise
+    recover_s: float = 2.0  # s every live vehicle must stay within predict_s before degraded mode ends
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.predict_s < self.hold_s < self.lost_s:
+            raise ValueError("telemetry ages need 0 <= predict_s < hold_s < lost_s")
+        if not 0 < self.degraded_speed <= 1:
+            raise ValueError("degraded_speed must lie in (0, 1]")
+        if not 1 <= self.degraded_spacing <= 5:
+            raise ValueError("degraded_spacing must lie in [1, 5]")
+        if not self.recover_s >= 0:
+            raise ValueError("recover_s must be >= 0")

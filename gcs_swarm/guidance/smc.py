@@ -3,13 +3,24 @@
 Inputs are (N, 3) world ENU arrays: reference position/velocity/acceleration and measured position/velocity.
 The output U = (U_x, U_y, U_z) is the commanded thrust acceleration in m/s^2 (gravity added in z), which
 `inversion` turns into attitude and thrust.
+
+[add] Disturbance estimate (integral sliding-mode action), per channel, off by default (`disturbance_gain`
+k_d = 0 leaves Eq 49 bit for bit): U = Eq 49 + d_hat with d_hat_dot = k_d s. For a plant v_dot = U + d with an
+unmodelled d (the simulator's drag, -0.28 m/s^2 per m/s) the sliding dynamics become
+s_dot = reaching_law(s) - (d + d_hat): without the estimate s settles where the reaching law balances d (with
+the spec 7.3 xy gains s = 1.55 m/s, e1 = s / c1 = 1.9 m behind at 10 m/s); with it a steady state needs s = 0,
+so d_hat = -d and e1 -> 0 along e1_dot = -c1 e1. Near s = 0 and for constant d the linear part is
+s_ddot + k1 s_dot + k_d s = 0: stable for any k_d > 0, critically damped at k_d = k1^2 / 4 (0.56 1/s for xy).
+Anti-windup: |d_hat| <= disturbance_max (xy: the horizontal norm), and while the spec 5 limits cut U a channel
+does not integrate in the direction that pushes U further into the limit (conditional integration).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from gcs_swarm.guidance.params import G, SMCAxisGains, SMCParams
+from gcs_swarm.guidance.inversion import limit_thrust_vector
+from gcs_swarm.guidance.params import G, Limits, SMCAxisGains, SMCParams
 
 
 def _per_axis(params: SMCParams, name: str) -> np.ndarray:
@@ -56,20 +67,53 @@ def smc_control(
     return u, s
 
 
-class SMCController:
-    """Stateless SMC behind the position-controller interface shared with `pid.PIDController`."""
+def clamp_estimate(d_hat: np.ndarray, params: SMCParams) -> np.ndarray:
+    """d_hat (N, 3) m/s^2 with its horizontal norm at most xy.disturbance_max and |z| at most
+    z.disturbance_max [add]."""
+    out = np.array(d_hat, dtype=float)
+    cap = params.xy.disturbance_max
+    norm = np.hypot(out[:, 0], out[:, 1])
+    over = norm > cap
+    out[over, :2] *= (cap / norm[over])[:, None]
+    out[:, 2] = np.clip(out[:, 2], -params.z.disturbance_max, params.z.disturbance_max)
+    return out
 
-    def __init__(self, params: SMCParams, g: float = G) -> None:
+
+def winding(u: np.ndarray, step: np.ndarray, limits: Limits, g: float = G) -> np.ndarray:
+    """(N, 3) bool: channels whose estimate step (N, 3) would push U (N, 3) further into a spec 5 limit that
+    the inversion applies: xy beyond the tilt cone (limit 2) or the thrust cap (limit 3, taken as
+    |U| <= thrust_max_g g); z below the U_z floor (limit 1) or above the thrust cap [add]."""
+    floor = limits.uz_min_g * g
+    tilted = np.hypot(u[:, 0], u[:, 1]) > np.maximum(u[:, 2], floor) * np.tan(limits.tilt_max)
+    capped = np.linalg.norm(limit_thrust_vector(u, limits, g), axis=1) > limits.thrust_max_g * g
+    out = np.empty(u.shape, dtype=bool)
+    out[:, :2] = (tilted | capped)[:, None] & (step[:, :2] * u[:, :2] > 0)
+    out[:, 2] = ((u[:, 2] < floor) & (step[:, 2] < 0)) | (capped & (step[:, 2] > 0))
+    return out
+
+
+class SMCController:
+    """Eq 49 behind the position-controller interface shared with `pid.PIDController`, plus the optional
+    disturbance estimate d_hat [add] (module docstring)."""
+
+    def __init__(self, params: SMCParams, g: float = G, limits: Limits | None = None) -> None:
+        """`limits`: the spec 5 limits the inversion applies, so the estimate holds while they cut U; None:
+        only the disturbance_max clamp."""
         self.params = params
         self.g = g
+        self.limits = limits
+        self.k_d = _per_axis(params, "disturbance_gain")
         self.s = np.zeros((0, 3))  # last sliding variable (N, 3), m/s, for diagnostics
+        self.d_hat = np.zeros((0, 3))  # disturbance estimate (N, 3), m/s^2, added to U
 
     def reset(self, n: int) -> None:
         """Forget the state of all n vehicles."""
         self.s = np.zeros((n, 3))
+        self.d_hat = np.zeros((n, 3))
 
     def reset_rows(self, rows: np.ndarray) -> None:
-        """Forget the state of the vehicles selected by the (N,) bool mask (nothing to forget here)."""
+        """Forget the disturbance estimate of the vehicles selected by the (N,) bool mask."""
+        self.d_hat[rows] = 0.0
 
     def __call__(
         self,
@@ -80,6 +124,19 @@ class SMCController:
         v: np.ndarray,
         dt: float,
     ) -> np.ndarray:
-        """Thrust acceleration U (N, 3), m/s^2 (dt unused: the law is static)."""
+        """Thrust acceleration U (N, 3), m/s^2; dt (s) since the previous call integrates d_hat (unused at
+        k_d = 0, where the law is static Eq 49). Without a reset the estimate starts at zero."""
         u, self.s = smc_control(x_d, xd_dot, xd_ddot, x, v, self.params, self.g)
+        if not self.k_d.any():
+            return u
+        if self.d_hat.shape != u.shape:
+            if len(self.d_hat):
+                raise ValueError(f"SMCController was reset for {len(self.d_hat)} vehicles, got {len(u)}")
+            self.d_hat = np.zeros_like(u)
+        u = u + self.d_hat
+        # Explicit Euler of d_hat_dot = k_d s; rows without a finite state (no telemetry yet) hold.
+        step = np.where(np.isfinite(self.s), self.k_d * self.s * dt, 0.0)
+        if self.limits is not None:
+            step[winding(u, step, self.limits, self.g)] = 0.0
+        self.d_hat = clamp_estimate(self.d_hat + step, self.params)
         return u

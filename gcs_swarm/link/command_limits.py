@@ -6,8 +6,11 @@ Rules, per vehicle row, cheap vectorised numpy:
 - tilt (angle of the body z axis from vertical, acos(cos r cos p)) <= tilt_max: if steeper, roll and pitch
   are scaled down together to hypot(r, p) = tilt_max (spherical Pythagoras: the tilt is then <= tilt_max);
 - thrust in [0, min(1, hover * thrust_max_g)] (normalised, GUID_OPTIONS bit 3);
-- outside the geofence radius: a tilt that accelerates further out is replaced by level; above the fence
-  ceiling thrust <= hover; below the minimum altitude thrust >= hover (never accelerate down).
+- outside the geofence radius: a tilt that accelerates further out is replaced by level, unless it only
+  brakes (given the velocity): the vehicle is moving inward, the tilt opposes its velocity (a . v < 0) and
+  points outward no more steeply than straight braking does (a_r / |a| <= -v_r / |v|), so it slows the
+  vehicle down without steering it outward; above the fence ceiling thrust <= hover; below the minimum
+  altitude thrust >= hover (never accelerate down).
 """
 
 from __future__ import annotations
@@ -41,11 +44,13 @@ def guard_attitude_commands(
     measured_yaw: FloatArray,
     hover: FloatArray,
     limits: CommandLimits,
+    vel: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
     """(roll, pitch, yaw, thrust, changed): the (N,) commands made safe, and which rows were changed.
 
     roll, pitch, yaw: (N,) rad body FLU in world ENU; thrust, hover: (N,) normalised; pos: (N,3) ENU m
-    (NaN rows skip the position rules); measured_yaw: (N,) rad (fallback heading of a non-finite row).
+    (NaN rows skip the position rules); measured_yaw: (N,) rad (fallback heading of a non-finite row);
+    vel: (N,3) ENU m/s, lets a vehicle outside the fence brake (None, or a NaN row: no outward tilt at all).
     """
     r, p, y, t = (np.array(a, dtype=float) for a in (roll, pitch, yaw, thrust))
     hover = np.broadcast_to(np.asarray(hover, dtype=float), r.shape)
@@ -61,9 +66,24 @@ def guard_attitude_commands(
         h1, h2 = np.sin(p) * np.cos(r), -np.sin(r)
         a_e, a_n = np.cos(y) * h1 - np.sin(y) * h2, np.sin(y) * h1 + np.cos(y) * h2
         outward = (np.hypot(x_e, y_n) >= limits.geofence_radius) & (a_e * x_e + a_n * y_n > 0)
+        if vel is not None:
+            outward &= ~_braking(a_e, a_n, x_e, y_n, np.asarray(vel, dtype=float))
         r[outward], p[outward] = 0.0, 0.0
         t = np.where(z_u >= limits.geofence_max_alt, np.minimum(t, hover), t)
         t = np.where(z_u <= limits.min_altitude, np.maximum(t, hover), t)
     t = np.clip(t, 0.0, np.minimum(1.0, hover * limits.thrust_max_g))
     changed = bad | (scale < 1.0) | outward | (t != np.asarray(thrust, dtype=float))
     return r, p, y, t, changed
+
+
+def _braking(
+    a_e: FloatArray, a_n: FloatArray, x_e: FloatArray, y_n: FloatArray, vel: FloatArray
+) -> NDArray[np.bool_]:
+    """(N,) the horizontal acceleration direction (a_e, a_n) only brakes the horizontal velocity: it opposes
+    the velocity and its outward part, relative to its size, is at most that of -v (which needs v inward)."""
+    v_e, v_n = vel[:, 0], vel[:, 1]
+    opposes = a_e * v_e + a_n * v_n < 0
+    # a_r / |a| <= -v_r / |v|, both sides times |a| |v| |x| (|x| > 0 outside the fence)
+    a_out, v_out = a_e * x_e + a_n * y_n, v_e * x_e + v_n * y_n
+    not_steeper = a_out * np.hypot(v_e, v_n) <= -v_out * np.hypot(a_e, a_n)
+    return opposes & not_steeper

@@ -17,6 +17,10 @@ Lockstep (team brief): the simulator waits until each frame is answered by SYSTE
 / SET_POSITION_TARGET_* carrying time_boot_ms >= the frame's. `wait_tick` and `pump` never answer (the flight
 loop does, after its commands); every blocking wait of the link (`connect`, `run`, `wait_until` and all
 `*_all` / per-vehicle blocking methods) answers each new frame itself when `lockstep_answers` is on.
+
+Timeouts of the waits for the vehicles (`wait_until`, `wait_ready`, and every command, mode, arming and
+parameter exchange) are seconds of vehicle time (vehicle.Timeout), with a wall-clock backstop for clocks that
+stop; those of the waits for the link itself (`connect`, `wait_tick`, `pump`) are wall seconds.
 """
 
 from __future__ import annotations
@@ -48,6 +52,7 @@ from gcs_swarm.link.vehicle import (
     Event,
     FleetState,
     Operation,
+    Timeout,
     VehicleConfig,
     VehicleLink,
     telemetry_rates,
@@ -391,18 +396,18 @@ class Fleet:
             self.pump(remaining)
 
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
-        """Pump (answering frames) until `predicate()`; LinkError "timed out after T s waiting for {what}".
+        """Pump (answering frames) until `predicate()`; LinkError "timed out after T s waiting for {what}"
+        after `timeout_s` of fleet vehicle time (vehicle.Timeout).
 
         The predicate is evaluated on complete frames, and the frame on which it first holds is left
         unanswered, so the caller's next commands take effect at that very frame.
         """
-        deadline = time.monotonic() + timeout_s
-        self._next_frame(deadline)
+        timeout = Timeout(timeout_s, self.state.vehicle_clock)
+        self._next_frame(time.monotonic() + _FRAME_GRACE_S)
         while not predicate():
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
+            if timeout.expired():
                 raise LinkError(f"timed out after {timeout_s:g} s waiting for {what}")
-            self._pump_answering(remaining)
+            self._pump_answering(_FRAME_GRACE_S)
 
     def run(self, ops: Iterable[Operation[Any]], strict: bool = True) -> list[Any]:
         """Drive several vehicle operations together, pumping (and answering frames) between their steps.
@@ -498,20 +503,20 @@ class Fleet:
         return [self.vehicle(v) for v in vehicles]
 
     def wait_ready(self, timeout_s: float, vehicles: Iterable[int | str] | None = None) -> None:
-        """Wait until each vehicle (default: all) is ready to arm; LinkError naming the others and why."""
+        """Wait until each vehicle (default: all) is ready to arm; after `timeout_s` of fleet vehicle time
+        (vehicle.Timeout), LinkError naming the others and why."""
         links = self.links if vehicles is None else self.select(vehicles)
-        deadline = time.monotonic() + timeout_s
-        self._next_frame(deadline)
+        timeout = Timeout(timeout_s, self.state.vehicle_clock)
+        self._next_frame(time.monotonic() + _FRAME_GRACE_S)
         while True:
             reasons = [(link, link.not_ready_reason()) for link in links]
             late = [(link, why) for link, why in reasons if why is not None]
             if not late:
                 return
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
+            if timeout.expired():
                 detail = "; ".join(f"{link.name}: {why}" for link, why in late)
                 raise LinkError(f"not ready to fly after {timeout_s:g} s: {detail}")
-            self._pump_answering(remaining)
+            self._pump_answering(_FRAME_GRACE_S)
 
     def request_streams_all(
         self,

@@ -8,6 +8,13 @@ SYS_STATUS -> readiness, EXTENDED_SYS_STATE -> landed state, STATUSTEXT -> the f
 Blocking exchanges (command + ACK, mode confirmation, parameter echo) are written as `Operation`
 generators: they send, then yield while waiting; the fleet pumps every link (and answers lockstep frames)
 between steps, so many vehicles can wait at once in one thread and the simulator is never left waiting.
+
+Their timeouts count vehicle time (`Timeout`: the vehicle's time_boot_ms as it advances), so a retry means the
+same against hardware in real time and against a lockstep simulator running 20x faster, and a lockstep run
+resends at the same frames whatever the machine's speed. Repeats are safe because ArduCopter answers them
+idempotently (arm when armed, disarm when disarmed, the current mode: ACCEPTED); the one exception, a repeated
+NAV_TAKEOFF refused because the first one (whose ACK was lost) already started the climb, is recognised by
+`op_takeoff`.
 """
 
 from __future__ import annotations
@@ -41,7 +48,14 @@ FORCE_ARM_MAGIC = 2989  # MAV_CMD_COMPONENT_ARM_DISARM param2 (ArduPilot): arm s
 FORCE_DISARM_MAGIC = 21196  # ... and disarm even in flight
 ATTITUDE_TARGET_IGNORE_RATES = 0b00000111  # SET_ATTITUDE_TARGET.type_mask: use quaternion + thrust only
 REBOOT_BACKSTEP_MS = 5000  # a time_boot_ms this much older than the latest means a reboot, not a late packet
-STATUSTEXT_GRACE_S = 0.3  # ArduPilot queues the "PreArm: ..." text, so it may arrive just after the ACK
+STATUSTEXT_GRACE_S = 0.3  # vehicle s: ArduPilot queues the "PreArm: ..." text, so it may follow the ACK
+CLOCK_STALL_S = 2.0  # [add] wall s a vehicle clock must stand still before timeouts also end on wall time
+COMMAND_RETRIES = 10  # [add] resends after a silent timeout: at 10 % loss each way 11 attempts fail ~1e-8
+CONFIRM_TIMEOUT_S = 5.0  # [add] vehicle s for a 1 Hz HEARTBEAT to show a new mode / arming state
+GCS_HEARTBEAT_MS = 500  # [add] vehicle ms between GCS HEARTBEATs: under 10 % loss a 5 s FS_GCS_TIMEOUT
+# then needs ~10 lost in a row, not 5
+TAKEOFF_EVIDENCE_S = 3.0  # [add] vehicle s to wait for signs of a climb after a repeated takeoff is refused
+TAKEOFF_CLIMB_M = 0.5  # [add] climb since the first NAV_TAKEOFF that shows the vehicle is taking off
 
 # EKF_STATUS_REPORT.flags: a usable position estimate (as ArduCopter's ekf_position_ok, disarmed case).
 _EKF_REQUIRED = (
@@ -79,6 +93,33 @@ class VehicleConfig:
     name: str
     connection: str
     sysid: int | None = None
+
+
+class Timeout:
+    """`seconds` of vehicle time, read from `clock()` -> (ms of vehicle time elapsed since some start, never
+    decreasing; monotonic wall s at which it last advanced).
+
+    Vehicle time makes a timeout mean the same in lockstep at any simulator speed and in real time against
+    hardware. Backstop for a clock that stands still (no stamped telemetry: link down, nothing streamed): once
+    it has not advanced for CLOCK_STALL_S wall seconds, `seconds` of wall time since the start also end it.
+    """
+
+    def __init__(self, seconds: float, clock: Callable[[], tuple[int, float]]) -> None:
+        self.seconds = seconds
+        self._clock = clock
+        self.restart()
+
+    def restart(self) -> None:
+        """Count from now."""
+        self._start_ms = self._clock()[0]
+        self._start_wall = time.monotonic()
+
+    def expired(self) -> bool:
+        ms, advanced_wall = self._clock()
+        if ms - self._start_ms >= self.seconds * 1000.0:
+            return True
+        now = time.monotonic()
+        return now - self._start_wall >= self.seconds and now - advanced_wall >= CLOCK_STALL_S
 
 
 class Event(NamedTuple):
@@ -197,8 +238,13 @@ class FleetState:
         self.tick_ms = np.full(n, -1, dtype=np.int64)  # latest frame consumed by a tick or a lockstep answer
         self.frame_ms = np.full(n, -1, dtype=np.int64)  # latest lockstep clock tick (see _on_clock_tick)
         self.clock_ms = 0  # fleet vehicle clock: the largest time progress of any vehicle since connect
+        self.clock_wall = -math.inf  # time.monotonic() at which clock_ms last advanced
         self._pos = np.full((n, 3), np.nan)
         self.pos_stale = False  # set by GLOBAL_POSITION_INT: `pos` recomputes lazily
+
+    def vehicle_clock(self) -> tuple[int, float]:
+        """The fleet vehicle clock for a `Timeout`: (clock_ms, wall time it last advanced)."""
+        return self.clock_ms, self.clock_wall
 
     @property
     def pos(self) -> NDArray[np.float64]:
@@ -268,6 +314,7 @@ class VehicleLink:
         self._statustexts = 0
         self._heartbeats = 0
         self._progress_ms = 0  # this vehicle's time progress since connect (reboots do not count back)
+        self._progress_wall = -math.inf  # time.monotonic() at which _progress_ms last advanced
         self._heard_clock_ms = 0  # fleet clock at the last packet from this vehicle
         self._hb_wall = -math.inf
         self._timesync_ns = -1  # ts1 of our latest TIMESYNC request (monotonic ns)
@@ -276,7 +323,8 @@ class VehicleLink:
         self._pending_commands: set[int] = set()
         self._param_updates: dict[str, int] = {}
         self._param_listing: dict[int, str] = {}
-        self._param_rx_wall = -math.inf
+        self._param_values = 0  # PARAM_VALUE messages received
+        self._latest_ms: dict[str, int] = {}  # time_boot_ms of the newest packet of each kind (see _on_time)
 
     # ------------------------------------------------------------------ receiving
 
@@ -328,36 +376,42 @@ class VehicleLink:
             if self.counters.lost:
                 self.add_event("link regained", mavlink2.MAV_SEVERITY_NOTICE)
 
-    def _on_time(self, t_ms: int) -> bool:
-        """A packet stamped with the vehicle's time_boot_ms: advance clocks, heartbeat per 1 s of it.
+    def _on_time(self, t_ms: int, kind: str | None = None) -> bool:
+        """A packet stamped with the vehicle's time_boot_ms: advance clocks, heartbeat per GCS_HEARTBEAT_MS.
 
-        False for a late packet (older than the latest, by less than REBOOT_BACKSTEP_MS: delayed or
-        reordered on the way), whose data must not overwrite newer data; an older stamp by more is a reboot.
+        False for a late packet of `kind` (older than the latest of that kind: delayed or reordered on the
+        way), whose data must not overwrite newer data. Lateness is per kind: a
+        delayed position report older than the latest attitude is still the newest position. A stamp older
+        than the vehicle's newest by more than REBOOT_BACKSTEP_MS is a reboot.
         """
         st, i = self.state, self.index
         prev = int(st.time_ms[i])
-        if t_ms == prev:
-            return True
-        if t_ms > prev:
-            if prev >= 0:
+        if t_ms > prev or t_ms < prev - REBOOT_BACKSTEP_MS:
+            if t_ms > prev and prev >= 0:
                 self._progress_ms += t_ms - prev
-                st.clock_ms = max(st.clock_ms, self._progress_ms)
-        elif t_ms >= prev - REBOOT_BACKSTEP_MS:
+                self._progress_wall = time.monotonic()
+                if self._progress_ms > st.clock_ms:
+                    st.clock_ms, st.clock_wall = self._progress_ms, self._progress_wall
+            elif t_ms < prev:  # rebooted: frames start again from zero
+                st.tick_ms[i] = -1
+                st.frame_ms[i] = -1
+                st.position_ms[i] = -1
+                self._latest_ms.clear()
+            st.time_ms[i] = t_ms
+            if t_ms - self._hb_time_ms >= GCS_HEARTBEAT_MS or t_ms < self._hb_time_ms:
+                self.send_heartbeat()  # brief: the simulator times its GCS failsafe in vehicle time
+        if kind is None:
+            return True
+        if t_ms < self._latest_ms.get(kind, -1):
             self.counters.late += 1
             return False
-        else:  # rebooted: frames start again from zero
-            st.tick_ms[i] = -1
-            st.frame_ms[i] = -1
-            st.position_ms[i] = -1
-        st.time_ms[i] = t_ms
-        if t_ms - self._hb_time_ms >= 1000 or t_ms < self._hb_time_ms:
-            self.send_heartbeat()  # brief: the simulator times its GCS failsafe in vehicle time
+        self._latest_ms[kind] = t_ms
         return True
 
     def _on_clock_tick(self, m: MAVLinkMessage) -> None:
         """SYSTEM_TIME(time_unix_usec=0): a lockstep simulator with link faults marks each frame end with it
         (docs/sitl.md), so a frame is complete even when the vehicle's telemetry was lost or delayed."""
-        if self._on_time(m.time_boot_ms):
+        if self._on_time(m.time_boot_ms, "clock"):
             self.state.frame_ms[self.index] = max(int(self.state.frame_ms[self.index]), m.time_boot_ms)
 
     def _on_heartbeat(self, m: MAVLinkMessage) -> None:
@@ -373,7 +427,7 @@ class VehicleLink:
     def _on_global_position_int(self, m: MAVLinkMessage) -> None:
         if abs(m.lat) > 900_000_000 or abs(m.lon) > 1_800_000_000:
             return self._invalid()
-        if not self._on_time(m.time_boot_ms) or m.time_boot_ms < self.state.position_ms[self.index]:
+        if not self._on_time(m.time_boot_ms, "position"):
             return
         st, i = self.state, self.index
         st.geodetic[i] = (m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3)  # degE7, degE7, mm AMSL
@@ -385,7 +439,7 @@ class VehicleLink:
     def _on_attitude(self, m: MAVLinkMessage) -> None:
         if not all(math.isfinite(v) for v in (m.roll, m.pitch, m.yaw)):
             return self._invalid()
-        if not self._on_time(m.time_boot_ms):
+        if not self._on_time(m.time_boot_ms, "attitude"):
             return
         yaw = (0.5 * math.pi - m.yaw + math.pi) % (2.0 * math.pi) - math.pi
         self.state.att[self.index] = (m.roll, -m.pitch, yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
@@ -394,7 +448,7 @@ class VehicleLink:
         q = (m.q1, m.q2, m.q3, m.q4)
         if not all(math.isfinite(c) for c in q) or not 0.5 < math.hypot(*q) < 1.5:
             return self._invalid()
-        if not self._on_time(m.time_boot_ms):
+        if not self._on_time(m.time_boot_ms, "attitude"):
             return
         q_enu = frames.quaternion_ned_to_enu((m.q1, m.q2, m.q3, m.q4))
         self.state.att[self.index] = frames.quaternion_to_euler(q_enu)
@@ -427,13 +481,18 @@ class VehicleLink:
         self._param_updates[name] = self._param_updates.get(name, 0) + 1
         if 0 <= m.param_index < m.param_count:
             self._param_listing[m.param_index] = name
-        self._param_rx_wall = time.monotonic()
+        self._param_values += 1
 
     def _on_statustext(self, m: MAVLinkMessage) -> None:
         text = m.text.decode(errors="replace") if isinstance(m.text, bytes | bytearray) else str(m.text)
         self.last_statustext = text
         self._statustexts += 1
         self.add_event(text, m.severity)
+
+    def vehicle_clock(self) -> tuple[int, float]:
+        """This vehicle's clock for a `Timeout`: (ms of its time_boot_ms progress since connect, wall time it
+        last advanced)."""
+        return self._progress_ms, self._progress_wall
 
     def add_event(self, text: str, severity: int = mavlink2.MAV_SEVERITY_WARNING) -> None:
         """Append an event for this vehicle, stamped with its latest time since boot."""
@@ -659,16 +718,32 @@ class VehicleLink:
         self,
         command: int,
         *params: float,
-        retries: int = 3,
+        retries: int = COMMAND_RETRIES,
         timeout_s: float = 1.0,
         in_progress_timeout_s: float = 10.0,
     ) -> Operation[int]:
         """COMMAND_LONG until COMMAND_ACK: resend with `confirmation` + 1 after each silent `timeout_s`.
 
         MAV_RESULT_IN_PROGRESS stops the resending and waits up to `in_progress_timeout_s` for the final
-        result. Returns MAV_RESULT_ACCEPTED; any other result raises LinkError with the result's name and
-        the vehicle's last STATUSTEXT (ArduPilot explains refusals there).
+        result. Both are seconds of vehicle time (`Timeout`). Returns MAV_RESULT_ACCEPTED; any other result
+        raises LinkError with the result's name and the vehicle's last STATUSTEXT (ArduPilot explains refusals
+        there).
         """
+        texts_before = self._statustexts
+        result, _ = yield from self._op_exchange(command, params, retries, timeout_s, in_progress_timeout_s)
+        if result != mavlink2.MAV_RESULT_ACCEPTED:
+            raise (yield from self._op_refusal(command, result, texts_before))
+        return result
+
+    def _op_exchange(
+        self,
+        command: int,
+        params: tuple[float, ...],
+        retries: int,
+        timeout_s: float,
+        in_progress_timeout_s: float,
+    ) -> Operation[tuple[int, int]]:
+        """The COMMAND_LONG / COMMAND_ACK exchange of `op_command`; returns (final MAV_RESULT, attempts)."""
         if len(params) > 7:
             raise ValueError("COMMAND_LONG has 7 parameters")
         if command in self._pending_commands:
@@ -677,22 +752,20 @@ class VehicleLink:
         values = [float(p) for p in params] + [0.0] * (7 - len(params))
         if not all(math.isfinite(v) for v in values):
             raise ValueError(f"non-finite parameter in {command_name(command)} for {self.name}: {values}")
-        texts_before = self._statustexts
         self._acks.pop(command, None)
         self._pending_commands.add(command)
         try:
             attempt, in_progress = 0, False
             self._send_command(command, attempt, values)
-            deadline = time.monotonic() + timeout_s
+            timeout = Timeout(timeout_s, self.vehicle_clock)
             while True:
                 yield
                 ack = self._acks.pop(command, None)
-                now = time.monotonic()
                 if ack is not None and ack.result != mavlink2.MAV_RESULT_IN_PROGRESS:
-                    break
+                    return int(ack.result), attempt + 1
                 if ack is not None:
-                    in_progress, deadline = True, now + in_progress_timeout_s
-                elif now >= deadline:
+                    in_progress, timeout = True, Timeout(in_progress_timeout_s, self.vehicle_clock)
+                elif timeout.expired():
                     if in_progress:
                         raise LinkError(
                             f"{self.name} did not finish {command_name(command)} within "
@@ -705,28 +778,30 @@ class VehicleLink:
                         )
                     attempt += 1
                     self._send_command(command, attempt, values)
-                    deadline = now + timeout_s
+                    timeout.restart()
         finally:
             self._pending_commands.discard(command)
-        if ack.result == mavlink2.MAV_RESULT_ACCEPTED:
-            return int(ack.result)
-        grace_end = time.monotonic() + STATUSTEXT_GRACE_S
-        while self._statustexts == texts_before and time.monotonic() < grace_end:
+
+    def _op_refusal(self, command: int, result: int, texts_before: int) -> Operation[LinkError]:
+        """The LinkError for a refused command, once the STATUSTEXT that may explain it had time to arrive."""
+        grace = Timeout(STATUSTEXT_GRACE_S, self.vehicle_clock)
+        while self._statustexts == texts_before and not grace.expired():
             yield
         reason = f" ({self.last_statustext})" if self._statustexts > texts_before else ""
-        raise LinkError(f"{self.name} refused {command_name(command)}: {result_name(ack.result)}{reason}")
+        return LinkError(f"{self.name} refused {command_name(command)}: {result_name(result)}{reason}")
 
     def _op_wait(
         self, done: Callable[[], bool], timeout_s: float, failure: Callable[[], str]
     ) -> Operation[None]:
-        deadline = time.monotonic() + timeout_s
+        timeout = Timeout(timeout_s, self.vehicle_clock)
         while not done():
-            if time.monotonic() >= deadline:
+            if timeout.expired():
                 raise LinkError(failure())
             yield
 
-    def op_set_mode(self, mode: str | int, timeout_s: float = 3.0) -> Operation[None]:
-        """MAV_CMD_DO_SET_MODE (ArduCopter custom mode); done once a HEARTBEAT shows the new mode."""
+    def op_set_mode(self, mode: str | int, timeout_s: float = CONFIRM_TIMEOUT_S) -> Operation[None]:
+        """MAV_CMD_DO_SET_MODE (ArduCopter custom mode); done once a HEARTBEAT shows the new mode, which must
+        happen within `timeout_s` of vehicle time after the ACK."""
         try:
             number = mode_number(mode)
         except ValueError as err:
@@ -765,17 +840,60 @@ class VehicleLink:
             ),
         )
 
-    def op_arm(self, force: bool = False, timeout_s: float = 3.0) -> Operation[None]:
-        """Arm (force skips pre-arm checks); done once a HEARTBEAT shows the vehicle armed."""
+    def op_arm(self, force: bool = False, timeout_s: float = CONFIRM_TIMEOUT_S) -> Operation[None]:
+        """Arm (force skips pre-arm checks); done once a HEARTBEAT shows the vehicle armed (within `timeout_s`
+        vehicle seconds of the ACK). A repeat after a lost ACK is harmless: ArduCopter accepts arming an armed
+        vehicle (AP_Arming_Copter::arm)."""
         return self._op_arm_disarm(True, force, timeout_s)
 
-    def op_disarm(self, force: bool = False, timeout_s: float = 3.0) -> Operation[None]:
+    def op_disarm(self, force: bool = False, timeout_s: float = CONFIRM_TIMEOUT_S) -> Operation[None]:
         """Disarm (force also in flight: the motors stop); done once a HEARTBEAT shows it disarmed."""
         return self._op_arm_disarm(False, force, timeout_s)
 
-    def op_takeoff(self, alt_m: float) -> Operation[int]:
-        """MAV_CMD_NAV_TAKEOFF to `alt_m` above the vehicle's home (ArduCopter: GUIDED and armed)."""
-        return self.op_command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, float(alt_m))
+    def op_takeoff(
+        self, alt_m: float, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
+    ) -> Operation[int]:
+        """MAV_CMD_NAV_TAKEOFF to `alt_m` above the vehicle's home (ArduCopter: GUIDED and armed).
+
+        ArduCopter refuses a takeoff once the vehicle has left the ground (Mode::do_user_takeoff, "can't
+        takeoff again"). So when the first command's ACK was lost and a repeat is refused, the takeoff counts
+        as done (ACCEPTED, with an event) if within TAKEOFF_EVIDENCE_S of vehicle time the vehicle, on the
+        ground at the first command, is evidently taking off: armed, in the same mode, and EXTENDED_SYS_STATE
+        shows it taking off or in the air, or it has climbed TAKEOFF_CLIMB_M.
+        """
+        st, i = self.state, self.index
+        mode, alt0 = int(st.mode[i]), float(st.geodetic[i, 2])
+        on_ground = st.landed_state[i] in (
+            mavlink2.MAV_LANDED_STATE_UNDEFINED,
+            mavlink2.MAV_LANDED_STATE_ON_GROUND,
+        )
+        command, texts_before = mavlink2.MAV_CMD_NAV_TAKEOFF, self._statustexts
+        result, attempts = yield from self._op_exchange(
+            command, (0, 0, 0, 0, 0, 0, float(alt_m)), retries, timeout_s, in_progress_timeout_s=10.0
+        )
+        if result == mavlink2.MAV_RESULT_ACCEPTED:
+            return result
+
+        def taking_off() -> bool:
+            if not (on_ground and st.armed[i] and st.mode[i] == mode):
+                return False
+            lifted = st.landed_state[i] in (
+                mavlink2.MAV_LANDED_STATE_TAKEOFF,
+                mavlink2.MAV_LANDED_STATE_IN_AIR,
+            )
+            return bool(lifted or st.geodetic[i, 2] - alt0 >= TAKEOFF_CLIMB_M)
+
+        if attempts > 1:
+            evidence = Timeout(TAKEOFF_EVIDENCE_S, self.vehicle_clock)
+            while not evidence.expired():
+                if taking_off():
+                    self.add_event(
+                        "a repeated NAV_TAKEOFF was refused while the first one (its ACK lost) is climbing",
+                        mavlink2.MAV_SEVERITY_INFO,
+                    )
+                    return mavlink2.MAV_RESULT_ACCEPTED
+                yield
+        raise (yield from self._op_refusal(command, result, texts_before))
 
     def op_set_message_interval(self, message: str | int, hz: float) -> Operation[int]:
         """MAV_CMD_SET_MESSAGE_INTERVAL: `message` every 1/hz s (hz <= 0 stops it)."""
@@ -791,15 +909,19 @@ class VehicleLink:
         for message, hz in rates.items():
             yield from self.op_set_message_interval(message, hz)
 
-    def op_param_get(self, name: str, retries: int = 3, timeout_s: float = 1.0) -> Operation[float]:
-        """PARAM_REQUEST_READ by name until its PARAM_VALUE arrives; returns the value."""
+    def op_param_get(
+        self, name: str, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
+    ) -> Operation[float]:
+        """PARAM_REQUEST_READ by name until its PARAM_VALUE arrives, resent after each silent `timeout_s` of
+        vehicle time; returns the value."""
         param_id = self._param_id(name)
         self._require_alive()
+        timeout = Timeout(timeout_s, self.vehicle_clock)
         for _ in range(retries + 1):
             seen = self._param_updates.get(name, 0)
             self.send(self._mav.param_request_read_encode(self.sysid or 0, self.compid, param_id, -1))
-            deadline = time.monotonic() + timeout_s
-            while time.monotonic() < deadline:
+            timeout.restart()
+            while not timeout.expired():
                 yield
                 if self._param_updates.get(name, 0) > seen:
                     return self.params[name]
@@ -808,23 +930,25 @@ class VehicleLink:
         )
 
     def op_param_set(
-        self, name: str, value: float, retries: int = 3, timeout_s: float = 1.0
+        self, name: str, value: float, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
     ) -> Operation[float]:
-        """PARAM_SET, verified by the PARAM_VALUE echo (float32 equality); resent up to `retries` times."""
+        """PARAM_SET, verified by the PARAM_VALUE echo (float32 equality); resent up to `retries` times, after
+        each silent `timeout_s` of vehicle time (a repeat is harmless: the same value is set again)."""
         param_id = self._param_id(name)
         if not math.isfinite(value):
             raise LinkError(f"{self.name}: parameter {name} needs a finite value, not {value}")
         self._require_alive()
         wanted = np.float32(value)
         echo: float | None = None
+        timeout = Timeout(timeout_s, self.vehicle_clock)
         for _ in range(retries + 1):
             seen = self._param_updates.get(name, 0)
             param_type = self.param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
             self.send(
                 self._mav.param_set_encode(self.sysid or 0, self.compid, param_id, float(value), param_type)
             )
-            deadline = time.monotonic() + timeout_s
-            while time.monotonic() < deadline:
+            timeout.restart()
+            while not timeout.expired():
                 yield
                 if self._param_updates.get(name, 0) > seen:
                     echo = self.params[name]
@@ -838,22 +962,27 @@ class VehicleLink:
         raise LinkError(f"{self.name} did not accept {name} = {value:g}: it reads back {echo:g}")
 
     def op_params_all(self, timeout_s: float = 60.0, gap_s: float = 0.5) -> Operation[dict[str, float]]:
-        """PARAM_REQUEST_LIST; after `gap_s` without a PARAM_VALUE, missing indices are read one by one."""
+        """PARAM_REQUEST_LIST; after `gap_s` without a PARAM_VALUE, missing indices are read one by one (both
+        seconds of vehicle time)."""
         self._require_alive()
         self._param_listing = {}
         self.send(self._mav.param_request_list_encode(self.sysid or 0, self.compid))
-        start = self._param_rx_wall = time.monotonic()
+        timeout, gap = Timeout(timeout_s, self.vehicle_clock), Timeout(gap_s, self.vehicle_clock)
+        received = self._param_values
         while self.param_count is None or len(self._param_listing) < self.param_count:
             yield
-            now = time.monotonic()
-            if now - start > timeout_s:
+            if timeout.expired():
                 raise LinkError(
                     f"{self.name} sent {len(self._param_listing)} of {self.param_count or '?'} parameters "
                     f"in {timeout_s:g} s"
                 )
-            if now - self._param_rx_wall < gap_s:
+            if self._param_values != received:
+                received = self._param_values
+                gap.restart()
                 continue
-            self._param_rx_wall = now
+            if not gap.expired():
+                continue
+            gap.restart()
             if self.param_count is None:
                 self.send(self._mav.param_request_list_encode(self.sysid or 0, self.compid))
                 continue
@@ -875,17 +1004,19 @@ class VehicleLink:
 
     # ------------------------------------------------------------------ blocking forms
 
-    def command_long(self, command: int, *params: float, retries: int = 3, timeout_s: float = 1.0) -> int:
+    def command_long(
+        self, command: int, *params: float, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
+    ) -> int:
         """Blocking `op_command`; returns MAV_RESULT_ACCEPTED or raises LinkError."""
         return int(self._run(self.op_command(command, *params, retries=retries, timeout_s=timeout_s)))
 
-    def set_mode(self, mode: str | int, timeout_s: float = 3.0) -> None:
+    def set_mode(self, mode: str | int, timeout_s: float = CONFIRM_TIMEOUT_S) -> None:
         self._run(self.op_set_mode(mode, timeout_s))
 
-    def arm(self, force: bool = False, timeout_s: float = 3.0) -> None:
+    def arm(self, force: bool = False, timeout_s: float = CONFIRM_TIMEOUT_S) -> None:
         self._run(self.op_arm(force, timeout_s))
 
-    def disarm(self, force: bool = False, timeout_s: float = 3.0) -> None:
+    def disarm(self, force: bool = False, timeout_s: float = CONFIRM_TIMEOUT_S) -> None:
         self._run(self.op_disarm(force, timeout_s))
 
     def takeoff(self, alt_m: float) -> None:
@@ -906,10 +1037,12 @@ class VehicleLink:
     def request_streams(self, rates: Mapping[str | int, float]) -> None:
         self._run(self.op_request_streams(rates))
 
-    def param_get(self, name: str, retries: int = 3, timeout_s: float = 1.0) -> float:
+    def param_get(self, name: str, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0) -> float:
         return float(self._run(self.op_param_get(name, retries, timeout_s)))
 
-    def param_set(self, name: str, value: float, retries: int = 3, timeout_s: float = 1.0) -> float:
+    def param_set(
+        self, name: str, value: float, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
+    ) -> float:
         return float(self._run(self.op_param_set(name, value, retries, timeout_s)))
 
     def params_all(self, timeout_s: float = 60.0) -> dict[str, float]:

@@ -7,8 +7,10 @@ world = mission.world()                               # what the simulator needs
 from gcs_swarm.mission.loader import load_mission, load_world, parse_mission
 from gcs_swarm.mission.model import (
     FormationSpec,
+    LinkSpec,
     Mission,
     Obstacle,
+    OutageSpec,
     PlannerSpec,
     RunSpec,
     SafetySpec,
@@ -22,9 +24,11 @@ from gcs_swarm.mission.yaml_tree import MissionError
 
 __all__ = [
     "FormationSpec",
+    "LinkSpec",
     "Mission",
     "MissionError",
     "Obstacle",
+    "OutageSpec",
     "PlannerSpec",
     "RunSpec",
     "SafetySpec",

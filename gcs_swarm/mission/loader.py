@@ -5,6 +5,8 @@ Every mistake a user can make ends in one `MissionError` naming file, line and f
 
 from __future__ import annotations
 
+import difflib
+import math
 import re
 from pathlib import Path
 
@@ -17,6 +19,7 @@ from gcs_swarm.guidance.params import (
     ReferenceParams,
     SeparationParams,
     SMCParams,
+    TelemetryParams,
 )
 from gcs_swarm.mission import checks
 from gcs_swarm.mission.checks import ParsedVehicle
@@ -33,8 +36,10 @@ from gcs_swarm.mission.fields import (
 )
 from gcs_swarm.mission.model import (
     FormationSpec,
+    LinkSpec,
     Mission,
     Obstacle,
+    OutageSpec,
     PlannerSpec,
     RunSpec,
     SafetySpec,
@@ -84,7 +89,13 @@ RUN_KEYS = (
     "signing_key_file",
 )
 SIMULATOR_KEYS = ("embedded", "time_mode", "speedup", "seed", "rate_hz", "base_port")
-SAFETY_KEYS = ("separation", "min_altitude", "geofence", "collision_radius", "gcs_failsafe")
+SAFETY_KEYS = ("separation", "min_altitude", "geofence", "collision_radius", "gcs_failsafe", "telemetry")
+WORLD_KEYS = ("obstacles", "wind", "link")
+LINK_PROBABILITIES = ("loss", "dup", "corrupt", "reorder")
+LINK_DELAYS = ("delay_ms", "jitter_ms")
+LINK_KEYS = (*LINK_PROBABILITIES, *LINK_DELAYS, "from_s", "outages")
+OUTAGE_KEYS = ("vehicle", "start_s", "duration_s")
+MAX_LINK_DELAY_MS = 10000.0  # the simulator's limit (sitl-sim --link-delay-ms)
 PLANNER_KEYS = ("dimensions", "dt", "time_limit_s", "speed", "goal_radius", "step", "start")
 ZERO3 = frozen_vector([0.0, 0.0, 0.0])
 
@@ -141,11 +152,12 @@ def parse_mission(text_: str, source: str = "<string>") -> Mission:
     controller = control.choice("controller", "smc", ("smc", "pid"))
     smc = params(Section.within(control, "smc", param_fields(SMCParams())), SMCParams())
     pid = params(Section.within(control, "pid", param_fields(PIDParams())), PIDParams())
-    world = Section.within(top, "world", ("obstacles", "wind"))
+    world = Section.within(top, "world", WORLD_KEYS)
     obstacles, obstacle_nodes = _obstacles(world)
     wind = _wind(Section.within(world, "wind", ("speed", "direction_deg", "turbulence")))
     vehicles_node = top.require("vehicles")
     vehicles = _vehicles(vehicles_node, run)
+    link = _link(Section.within(world, "link", LINK_KEYS), [v.spec.name for v in vehicles])
     formation_yaml = Section.within(top, "formation", FORMATION_KEYS)
     formation = _formation(formation_yaml, vehicles)
     waypoints, waypoint_nodes = _waypoints(top)
@@ -174,6 +186,7 @@ def parse_mission(text_: str, source: str = "<string>") -> Mission:
         waypoints=waypoints,
         obstacles=obstacles,
         wind=wind,
+        link=link,
         field=field,
         reference=reference,
         controller=controller,
@@ -259,6 +272,9 @@ def _safety(safety: Section) -> SafetySpec:
         ),
         collision_radius=safety.number("collision_radius", 0.175, above=0, unit="m"),
         gcs_failsafe=safety.choice("gcs_failsafe", "rtl", ("rtl", "land", "off")),
+        telemetry=params(
+            Section.within(safety, "telemetry", param_fields(TelemetryParams())), TelemetryParams()
+        ),
     )
 
 
@@ -284,6 +300,47 @@ def _wind(wind: Section) -> WindSpec:
         speed=wind.number("speed", 0.0, at_least=0, at_most=100, unit="m/s"),
         direction_deg=wind.number("direction_deg", 0.0, at_least=-360, at_most=360, unit="deg") % 360.0,
         turbulence=wind.number("turbulence", 0.0, at_least=0, at_most=50, unit="m/s"),
+    )
+
+
+def _link(link: Section, names: list[str]) -> LinkSpec:
+    """world.link: the simulator's link faults (sitl-sim --link-*; its flags override these values)."""
+    rates = {key: link.number(key, 0.0, at_least=0, at_most=1) for key in LINK_PROBABILITIES}
+    delays = {
+        key: link.number(key, 0.0, at_least=0, at_most=MAX_LINK_DELAY_MS, unit="ms") for key in LINK_DELAYS
+    }
+    node = link.get("outages")
+    entries = [] if node is None or node.value is None else items(node)
+    return LinkSpec(
+        **rates,
+        **delays,
+        from_s=link.number("from_s", 0.0, at_least=0, unit="s"),
+        outages=tuple(_outage(Section(entry, OUTAGE_KEYS), names) for entry in entries),
+    )
+
+
+def _outage(outage: Section, names: list[str]) -> OutageSpec:
+    """One world.link.outages entry; `vehicle` is a vehicle's name (absent: every vehicle)."""
+    vehicle_node = outage.get("vehicle")
+    vehicle = None
+    if vehicle_node is not None:
+        name = vehicle_node.value
+        if not isinstance(name, str) or name not in names:
+            close = difflib.get_close_matches(name, names, n=1) if isinstance(name, str) else []
+            hint = f"; did you mean {close[0]!r}?" if close else f" (vehicles: {', '.join(names)})"
+            raise vehicle_node.error(f"expected the name of a vehicle, got {describe(name)}{hint}")
+        vehicle = names.index(name)
+    duration_node = outage.require("duration_s")
+    if duration_node.value in ("inf", math.inf):
+        duration = math.inf
+    elif isinstance(duration_node.value, str):
+        raise duration_node.error(f"expected seconds or inf (for good), got {describe(duration_node.value)}")
+    else:
+        duration = number(duration_node, above=0, unit="s (or inf: for good)")
+    return OutageSpec(
+        vehicle=vehicle,
+        start_s=number(outage.require("start_s"), at_least=0, unit="s"),
+        duration_s=duration,
     )
 
 

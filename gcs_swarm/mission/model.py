@@ -19,6 +19,7 @@ from gcs_swarm.guidance.params import (
     ReferenceParams,
     SeparationParams,
     SMCParams,
+    TelemetryParams,
 )
 
 
@@ -82,6 +83,29 @@ class WindSpec:
     turbulence: float = 0.0  # m/s, standard deviation of the gusts
 
 
+@dataclasses.dataclass(frozen=True)
+class OutageSpec:
+    """No packet crosses a vehicle's link (None: every vehicle's) for duration_s simulated s from start_s."""
+
+    vehicle: int | None  # index in vehicle order (the simulator's vehicle number), None: every vehicle
+    start_s: float  # s, simulated time
+    duration_s: float  # s, > 0; math.inf: for good
+
+
+@dataclasses.dataclass(frozen=True)
+class LinkSpec:
+    """Radio-link faults the simulator applies to every vehicle's link, both directions (docs/sitl.md)."""
+
+    loss: float = 0.0  # probability a packet is lost
+    delay_ms: float = 0.0  # one-way delay, simulated ms
+    jitter_ms: float = 0.0  # extra delay uniform in 0..jitter_ms
+    dup: float = 0.0  # probability a packet is delivered twice
+    corrupt: float = 0.0  # probability one byte is flipped
+    reorder: float = 0.0  # probability a packet is held back 60 ms more
+    from_s: float = 0.0  # s, the rates above act from this simulated time on
+    outages: tuple[OutageSpec, ...] = ()
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class World(_ValueEquality):
     """What the simulator needs from a mission."""
@@ -90,6 +114,7 @@ class World(_ValueEquality):
     starts: tuple[StartState, ...]  # in vehicle order (vehicle i has sysid i + 1 in the simulator)
     obstacles: tuple[Obstacle, ...]
     wind: WindSpec
+    link: LinkSpec = LinkSpec()
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -149,7 +174,8 @@ class RunSpec:
 
 @dataclasses.dataclass(frozen=True)
 class SafetySpec:
-    """Separation, altitude floor, geofence (a cylinder around the origin) and the GCS-loss failsafe."""
+    """Separation, altitude floor, geofence (a cylinder around the origin), the GCS-loss failsafe and how the
+    ground station treats ageing telemetry (docs/reliability.md)."""
 
     separation: SeparationParams
     min_altitude: float  # m above the origin
@@ -157,6 +183,7 @@ class SafetySpec:
     geofence_max_alt: float  # m above the origin
     collision_radius: float  # m, vehicle radius for collision checks (Table 2 arm length)
     gcs_failsafe: str  # "rtl" | "land" | "off"
+    telemetry: TelemetryParams = TelemetryParams()
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -186,6 +213,7 @@ class Mission(_ValueEquality):
     waypoints: tuple[np.ndarray, ...]  # leader waypoints, ending at the goal
     obstacles: tuple[Obstacle, ...]
     wind: WindSpec
+    link: LinkSpec
     field: FieldParams
     reference: ReferenceParams
     controller: str  # "smc" | "pid"
@@ -208,13 +236,16 @@ class Mission(_ValueEquality):
             starts=tuple(v.start for v in self.vehicles),
             obstacles=self.obstacles,
             wind=self.wind,
+            link=self.link,
         )
 
 
 __all__ = [
     "FormationSpec",
+    "LinkSpec",
     "Mission",
     "Obstacle",
+    "OutageSpec",
     "PlannerSpec",
     "RunSpec",
     "SafetySpec",

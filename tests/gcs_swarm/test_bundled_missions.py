@@ -15,13 +15,15 @@ from gcs_swarm.guidance.params import (
     ReferenceParams,
     SeparationParams,
     SMCParams,
+    TelemetryParams,
 )
-from gcs_swarm.mission import Mission, load_mission, load_world
+from gcs_swarm.mission import LinkSpec, Mission, load_mission, load_world
 
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 # file stem -> (vehicle count, leader index, formation shape)
 DOCUMENTED = {
     "quickstart": (3, 0, "v"),
+    "quickstart_faulty": (3, 0, "v"),
     "paper_static_6": (6, 0, "offsets"),
     "paper_dense_6": (6, 0, "offsets"),
     "paper_dynamic_6": (6, 0, "offsets"),
@@ -105,6 +107,7 @@ def test_quickstart_spells_out_the_defaults() -> None:
     assert mission.pid == PIDParams()
     assert mission.limits == Limits()
     assert mission.safety.separation == SeparationParams()
+    assert mission.safety.telemetry == TelemetryParams() and mission.link == LinkSpec()
     assert not mission.run.airborne_start
     assert mission.formation.altitude == 10.0 and mission.formation.spacing == 10.0
 
@@ -117,6 +120,21 @@ def test_quickstart_is_short() -> None:
     assert distance / mission.limits.v_xy_leader < 30  # s of cruise, leaving room for take-off and hold
     assert 2 <= len(mission.obstacles) <= 3
     assert all(3 <= obstacle.radius <= 5 for obstacle in mission.obstacles)
+
+
+def test_quickstart_faulty_is_quickstart_over_a_lossy_jittery_link() -> None:
+    faulty, plain = load("quickstart_faulty"), load("quickstart")
+    assert (faulty.link.loss, faulty.link.jitter_ms, faulty.link.from_s, faulty.link.outages) == (
+        0.1,
+        100,
+        0,
+        (),
+    )
+    assert faulty.world().link == faulty.link
+    assert faulty.safety.telemetry == TelemetryParams()
+    for a, b in zip(faulty.vehicles, plain.vehicles, strict=True):
+        assert (a.name, a.role, a.sysid, a.start) == (b.name, b.role, b.sysid, b.start)
+    assert faulty.obstacles == plain.obstacles and np.array_equal(faulty.goal, plain.goal)
 
 
 @pytest.mark.parametrize("stem", SIX)

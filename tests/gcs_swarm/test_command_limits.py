@@ -5,6 +5,7 @@ wire is decoded and checked."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -44,7 +45,7 @@ def flying():
         link.sysid, link.endpoint = i + 1, capture  # type: ignore[assignment]
     st = fleet.state
     st.alive[:] = True
-    st.time_ms[:] = 1000
+    st.time_ms[:] = st.position_ms[:] = 1000  # fresh telemetry
     st._pos = np.array([v.start.position for v in mission.vehicles], dtype=float) + [0.0, 0.0, 10.0]
     st.vel[:] = 0.0
     st.att[:] = 0.0
@@ -70,6 +71,7 @@ def scenarios(runner: MissionRunner):
     yield "coincident vehicles", np.tile([5.0, 5.0, 20.0], (n, 1)), np.zeros((n, 3)), np.zeros((n, 3))
     fence = (safety.geofence_radius + 5.0) * ring + [0, 0, 20]
     yield "beyond the geofence", fence, 10.0 * ring, np.zeros((n, 3))
+    yield "beyond the geofence, flying back in", fence, -10.0 * ring, np.zeros((n, 3))
     low = np.array([v.start.position for v in runner.mission.vehicles], dtype=float)
     low[:, 2] = safety.min_altitude - 3.0
     yield "below the minimum altitude", low, np.tile([0.0, 0.0, -20.0], (n, 1)), np.zeros((n, 3))
@@ -82,15 +84,23 @@ def decode(packets: list[bytes]) -> list[mavlink2.MAVLink_set_attitude_target_me
     return [m for m in messages if m.get_type() == "SET_ATTITUDE_TARGET"]
 
 
-def test_every_attitude_target_on_the_wire_is_within_limits(flying) -> None:
+@pytest.mark.parametrize("tight", [False, True], ids=["mission-limits", "guard-tighter-than-guidance"])
+def test_every_attitude_target_on_the_wire_is_within_limits(flying, tight: bool) -> None:
+    """With the mission's limits the guidance mostly stays inside them itself; a guard tighter than the
+    guidance (10 deg tilt, 1.2 g) must change commands, and the runner counts those vehicle-ticks."""
     runner, capture = flying
     st = runner.fleet.state
+    if tight:
+        runner.command_limits = dataclasses.replace(
+            runner.command_limits, tilt_max=math.radians(10), thrust_max_g=1.2
+        )
     limits = runner.command_limits
     safety = runner.mission.safety
     for name, pos, vel, att in scenarios(runner):
         capture.packets.clear()
         st._pos, st.vel[:], st.att[:] = np.array(pos, dtype=float), vel, att
         st.time_ms[:] += 20
+        st.position_ms[:] = st.time_ms
         runner._formation_tick()
         targets = decode(capture.packets)
         finite = np.isfinite(np.hstack((pos, vel, att))).all(axis=1)
@@ -108,11 +118,78 @@ def test_every_attitude_target_on_the_wire_is_within_limits(flying) -> None:
             if pos[i, 2] <= safety.min_altitude:
                 assert msg.thrust >= runner.hover[i] - 1e-6, name  # never accelerate down below the floor
             if math.hypot(pos[i, 0], pos[i, 1]) >= safety.geofence_radius:
-                # body z (up) in ENU from the NED->FRD quaternion: horizontal part must not point outward
-                north = 2.0 * (x * z + w * y)
-                east = 2.0 * (y * z - w * x)
-                assert -(east * pos[i, 0] + north * pos[i, 1]) <= 1e-6, name
-    assert runner.commands_limited > 0
+                # thrust direction (body -z, NED->FRD quaternion) in ENU: outward only to brake
+                east, north = -2.0 * (y * z - w * x), -2.0 * (x * z + w * y)
+                outward = east * pos[i, 0] + north * pos[i, 1] > 1e-6
+                assert not outward or brakes([east, north], pos[i], vel[i]), name
+    assert runner.commands_limited > 0 or not tight
+
+
+def brakes(a: list[float], pos: np.ndarray, vel: np.ndarray) -> bool:
+    """Horizontal acceleration direction a (east, north) slows vel down without steering further out than -vel
+    (the guard's exception to "never tilt outward beyond the fence")."""
+    a_h, x, v = np.asarray(a, dtype=float), pos[:2], vel[:2]
+    steeper = np.dot(a_h, x) * np.linalg.norm(v) > -np.dot(v, x) * np.linalg.norm(a_h) + 1e-9
+    return bool(np.dot(a_h, v) < 0 and not steeper)
+
+
+FENCE = CommandLimits(math.radians(35), 2.0, 1.0, 100.0, 50.0)
+OUTSIDE = [110.0, 0.0, 10.0]  # east of the origin, 10 m beyond the fence: east is outward
+
+
+def _guard_toward(east: float, north: float, vel: list[float] | None, pos: list[float] = OUTSIDE):  # noqa: B006
+    """Guard one command at yaw 0 whose thrust tilts 0.3 rad toward the horizontal direction (east, north)."""
+    s = math.sin(0.3) / math.hypot(east, north)
+    roll = math.asin(-north * s)  # horizontal thrust direction at yaw 0: (sin p cos r, -sin r)
+    pitch = math.asin(east * s / math.cos(roll))
+    return guard_attitude_commands(
+        np.array([roll]),
+        np.array([pitch]),
+        np.zeros(1),
+        np.array([0.5]),
+        np.array([pos]),
+        np.zeros(1),
+        np.full(1, 0.5),
+        FENCE,
+        vel=None if vel is None else np.array([vel]),
+    )
+
+
+@pytest.mark.parametrize(
+    ("why", "toward", "vel"),
+    [
+        ("flying straight back in, braking", (1.0, 0.0), [-8.0, 0.0, 0.0]),
+        ("flying in and sideways, braking straight", (8.0, -3.0), [-8.0, 3.0, 0.0]),
+        ("flying in and sideways, braking less outward", (1.0, -1.0), [-8.0, 3.0, 0.0]),
+    ],
+)
+def test_outside_the_fence_a_vehicle_flying_back_in_may_brake(why: str, toward, vel) -> None:
+    roll, pitch, _, _, changed = _guard_toward(*toward, vel)
+    assert not changed[0] and math.hypot(roll[0], pitch[0]) > 0.29, why
+
+
+@pytest.mark.parametrize(
+    ("why", "toward", "vel"),
+    [
+        ("no velocity given (the old rule)", (1.0, 0.0), None),
+        ("moving outward", (1.0, 0.0), [8.0, 0.0, 0.0]),
+        ("standing still", (1.0, 0.0), [0.0, 0.0, 0.0]),
+        ("moving sideways", (1.0, -1.0), [0.0, 8.0, 0.0]),
+        ("velocity unknown", (1.0, 0.0), [math.nan, math.nan, math.nan]),
+        ("flying in and sideways, braking more outward than -v", (1.0, 0.0), [-8.0, 3.0, 0.0]),
+        ("flying in, speeding up sideways", (1.0, 3.0), [-8.0, 3.0, 0.0]),
+    ],
+)
+def test_outside_the_fence_an_outward_tilt_that_does_not_only_brake_is_levelled(
+    why: str, toward, vel
+) -> None:
+    roll, pitch, _, _, changed = _guard_toward(*toward, vel)
+    assert (roll[0], pitch[0], changed[0]) == (0.0, 0.0, True), why
+
+
+def test_inside_the_fence_velocity_changes_nothing() -> None:
+    roll, pitch, _, _, changed = _guard_toward(1.0, 0.0, [8.0, 0.0, 0.0], pos=[50.0, 0.0, 10.0])
+    assert not changed[0] and pitch[0] == pytest.approx(0.3)
 
 
 def test_guard_leaves_commands_within_limits_unchanged() -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -18,8 +19,16 @@ from gcs_swarm.guidance.params import (
     SeparationParams,
     SMCAxisGains,
     SMCParams,
+    TelemetryParams,
 )
-from gcs_swarm.mission import MissionError, load_mission, load_world, parse_mission
+from gcs_swarm.mission import (
+    LinkSpec,
+    MissionError,
+    OutageSpec,
+    load_mission,
+    load_world,
+    parse_mission,
+)
 
 VEHICLES = """vehicles:
   - {name: lead, role: leader, start: {position: [0, 0, 0]}}
@@ -51,6 +60,8 @@ def test_minimal_mission_takes_the_spec_defaults() -> None:
     assert mission.pid == PIDParams()
     assert mission.limits == Limits()
     assert mission.safety.separation == SeparationParams()
+    assert mission.safety.telemetry == TelemetryParams()
+    assert mission.link == LinkSpec() and mission.world().link == LinkSpec()
     assert mission.controller == "smc"
     assert (mission.safety.min_altitude, mission.safety.collision_radius, mission.safety.gcs_failsafe) == (
         2.0,
@@ -137,6 +148,41 @@ def test_obstacles_move_at_their_velocity_and_wind_direction_wraps() -> None:
     np.testing.assert_array_equal(still.center_at(100.0), [80, 0, 10])
     assert still.radius == 2.0
     assert (mission.wind.speed, mission.wind.direction_deg, mission.wind.turbulence) == (4.0, 270.0, 0.5)
+
+
+def test_link_faults_name_vehicles_and_reach_the_simulator_view() -> None:
+    text = MINIMAL + (
+        "world:\n"
+        "  link:\n"
+        "    loss: 0.1\n"
+        "    delay_ms: 20\n"
+        "    jitter_ms: 100\n"
+        "    dup: 0.01\n"
+        "    corrupt: 0.02\n"
+        "    reorder: 0.03\n"
+        "    from_s: 12\n"
+        "    outages:\n"
+        "      - {vehicle: f1, start_s: 15, duration_s: inf}\n"
+        "      - {start_s: 30, duration_s: 2.5}\n"
+        "      - {vehicle: lead, start_s: 0, duration_s: .inf}\n"
+    )
+    mission = parse_mission(text)
+    assert mission.world().link == LinkSpec(
+        loss=0.1,
+        delay_ms=20.0,
+        jitter_ms=100.0,
+        dup=0.01,
+        corrupt=0.02,
+        reorder=0.03,
+        from_s=12.0,
+        outages=(OutageSpec(1, 15.0, math.inf), OutageSpec(None, 30.0, 2.5), OutageSpec(0, 0.0, math.inf)),
+    )
+    assert parse_mission(MINIMAL + "world: {link: {outages: null}}\n").link == LinkSpec()
+
+
+def test_telemetry_ages_are_settable_and_partial() -> None:
+    mission = parse_mission(MINIMAL + "safety: {telemetry: {lost_s: 5, degraded_speed: 0.7}}\n")
+    assert mission.safety.telemetry == dataclasses.replace(TelemetryParams(), lost_s=5.0, degraded_speed=0.7)
 
 
 def test_world_is_the_simulator_view() -> None:
@@ -248,6 +294,65 @@ MISTAKES = [
     ("text-number", MINIMAL + "guidance: {k_att: '100'}  # <-\n", "guidance.k_att", "expected a number"),
     ("bool-number", MINIMAL + "limits: {v_xy: true}  # <-\n", "limits.v_xy", "got the boolean true"),
     ("null-number", MINIMAL + "run: {hold_s: null}  # <-\n", "run.hold_s", "expected a number"),
+    # link faults and telemetry ages
+    ("link-probability", MINIMAL + "world: {link: {loss: 1.5}}  # <-\n", "world.link.loss", "must be <= 1"),
+    ("link-negative", MINIMAL + "world: {link: {dup: -0.1}}  # <-\n", "world.link.dup", "must be >= 0"),
+    (
+        "link-delay",
+        MINIMAL + "world: {link: {jitter_ms: 20000}}  # <-\n",
+        "world.link.jitter_ms",
+        "must be <= 10000 ms",
+    ),
+    ("link-from", MINIMAL + "world: {link: {from_s: -1}}  # <-\n", "world.link.from_s", "must be >= 0 s"),
+    ("link-typo", MINIMAL + "world: {link: {los: 0.1}}  # <-\n", "world.link.los", "did you mean 'loss'?"),
+    (
+        "outage-unknown-vehicle",
+        MINIMAL + "world: {link: {outages: [{vehicle: f9, start_s: 1, duration_s: 2}]}}  # <-\n",
+        "world.link.outages[0].vehicle",
+        "expected the name of a vehicle, got the text 'f9' (vehicles: lead, f1)",
+    ),
+    (
+        "outage-vehicle-index",
+        MINIMAL + "world: {link: {outages: [{vehicle: 1, start_s: 1, duration_s: 2}]}}  # <-\n",
+        "world.link.outages[0].vehicle",
+        "expected the name of a vehicle, got the number 1",
+    ),
+    (
+        "outage-start",
+        MINIMAL + "world: {link: {outages: [{start_s: -1, duration_s: 2}]}}  # <-\n",
+        "world.link.outages[0].start_s",
+        "must be >= 0 s",
+    ),
+    (
+        "outage-duration",
+        MINIMAL + "world: {link: {outages: [{start_s: 1, duration_s: 0}]}}  # <-\n",
+        "world.link.outages[0].duration_s",
+        "must be > 0 s (or inf: for good)",
+    ),
+    (
+        "outage-duration-text",
+        MINIMAL + "world: {link: {outages: [{start_s: 1, duration_s: forever}]}}  # <-\n",
+        "world.link.outages[0].duration_s",
+        "expected seconds or inf",
+    ),
+    (
+        "outage-no-duration",
+        MINIMAL + "world: {link: {outages: [{start_s: 1}]}}  # <-\n",
+        "world.link.outages[0].duration_s",
+        "required key is missing",
+    ),
+    (
+        "telemetry-order",
+        MINIMAL + "safety: {telemetry: {hold_s: 5}}  # <-\n",
+        "safety.telemetry.hold_s",
+        "0 <= predict_s < hold_s < lost_s",
+    ),
+    (
+        "telemetry-typo",
+        MINIMAL + "safety: {telemetry: {lost: 5}}  # <-\n",
+        "safety.telemetry.lost",
+        "did you mean 'lost_s'?",
+    ),
     ("infinite", MINIMAL + "guidance: {k_att: .inf}  # <-\n", "guidance.k_att", "finite"),
     ("nan", MINIMAL + "guidance: {l0: .nan}  # <-\n", "guidance.l0", "finite"),
     (
@@ -638,11 +743,16 @@ VALID = {
     "world": {
         "obstacles": [{"center": [50, 20, 10], "radius": 3, "velocity": [1, 0, 0]}],
         "wind": {"speed": 2},
+        "link": {
+            "loss": 0.1,
+            "jitter_ms": 100,
+            "outages": [{"vehicle": "f2", "start_s": 5, "duration_s": 2}],
+        },
     },
     "guidance": {"k_rep": 1e5, "d_g": None, "reference": {"leash": 4}},
     "control": {"smc": {"xy": {"c1": 1.0}}, "pid": {"kp_xy": 1.0}},
     "limits": {"v_xy": 18},
-    "safety": {"separation": {"mode": "constant"}, "geofence": {"radius": 500}},
+    "safety": {"separation": {"mode": "constant"}, "geofence": {"radius": 500}, "telemetry": {"lost_s": 4}},
     "run": {"time_limit_s": 60, "simulator": {"seed": 3}},
     "planner": {"dimensions": 2, "start": [0, 0, 0]},
 }
@@ -716,6 +826,7 @@ def _parse_or_mission_error(text: str) -> None:
 def test_the_fuzz_base_is_valid() -> None:
     mission = parse_mission(yaml.safe_dump(VALID), "fuzz.yaml")
     assert mission.formation.topology == "relay" and mission.planner.dimensions == 2
+    assert mission.link.outages[0].vehicle == 2 and mission.safety.telemetry.lost_s == 4
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])

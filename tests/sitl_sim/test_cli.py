@@ -48,6 +48,19 @@ def test_mission_vehicle_count_must_match(tmp_path, capsys):
     assert "mission has 1 vehicles" in capsys.readouterr().err
 
 
+def test_mission_link_mistake_is_one_line_naming_the_field(tmp_path, capsys):
+    mission = tmp_path / "m.yaml"
+    mission.write_text(
+        "vehicles:\n  - {role: leader, start: {position: [0, 0, 0]}}\ngoal: [50, 0, 10]\n"
+        "world: {link: {outages: [{vehicle: nobody, start_s: 1, duration_s: 2}]}}\n"
+    )
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--mission", str(mission)])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{mission}:4: world.link.outages[0].vehicle: " in err
+
+
 def test_port_in_use_is_a_clear_error(sitl):
     sim = sitl("--speedup", "1")
     result = subprocess.run(

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sitl_sim.cli import main
+from sitl_sim.cli import build_config, build_parser, main
 from sitl_sim.link_faults import DOWN, UP, FaultChannel, LinkFaults, Outage, message_id, parse_outage
 from sitl_sim.params import ParamTable, param_specs
 
@@ -142,3 +143,49 @@ def test_link_settings_are_per_vehicle_params_with_ranges() -> None:
     assert table.check("SIM_LINK_LOSS", 1.5) is not None and table.check("SIM_LINK_DELAY", 250.0) is None
     table.set(0, "SIM_LINK_LOSS", 1.0)
     assert table.value(0, "SIM_LINK_LOSS") == 1.0 and table.value(1, "SIM_LINK_LOSS") == pytest.approx(0.1)
+
+
+FAULTY_MISSION = """vehicles:
+  - {name: lead, role: leader, start: {position: [0, 0, 0]}}
+  - {name: wing, start: {position: [-10, 0, 0]}}
+goal: [100, 50, 10]
+world:
+  link:
+    loss: 0.1
+    jitter_ms: 100
+    from_s: 12
+    outages:
+      - {vehicle: wing, start_s: 15, duration_s: inf}
+      - {start_s: 30, duration_s: 2}
+"""
+
+
+def _link_of(argv: list[str]) -> LinkFaults:
+    parser = build_parser()
+    return build_config(parser, parser.parse_args(argv)).link
+
+
+def test_mission_link_section_sets_the_faults(tmp_path) -> None:
+    mission = tmp_path / "faulty.yaml"
+    mission.write_text(FAULTY_MISSION)
+    assert _link_of(["--mission", str(mission)]) == LinkFaults(
+        loss=0.1,
+        jitter_ms=100.0,
+        start_s=12.0,
+        outages=(Outage(1, 15.0, math.inf), Outage(None, 30.0, 2.0)),
+    )
+
+
+def test_link_options_override_the_mission_one_by_one(tmp_path) -> None:
+    """Each --link-* option given replaces the mission's value; any --link-outage replaces its outages."""
+    mission = tmp_path / "faulty.yaml"
+    mission.write_text(FAULTY_MISSION)
+    link = _link_of(["--mission", str(mission), "--link-loss", "0", "--link-delay-ms", "20"])
+    assert (link.loss, link.delay_ms, link.jitter_ms, link.start_s) == (0.0, 20.0, 100.0, 12.0)
+    assert len(link.outages) == 2
+    link = _link_of(["--mission", str(mission), "--link-outage", "0@5:1"])
+    assert link.outages == (Outage(0, 5.0, 1.0),) and link.loss == 0.1
+
+
+def test_without_mission_or_options_the_link_is_clean() -> None:
+    assert _link_of(["--vehicles", "2"]) == LinkFaults()

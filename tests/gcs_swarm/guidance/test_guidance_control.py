@@ -1,7 +1,9 @@
-"""SMC on a double integrator (spec 7, 11.2), the PID baseline, and the thrust/attitude inversion (spec 5)."""
+"""SMC on a double integrator (spec 7, 11.2) and its disturbance estimate [add], the PID baseline, and the
+thrust/attitude inversion (spec 5)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,6 +14,7 @@ from gcs_swarm.guidance.inversion import invert, limit_thrust_vector, thrust_vec
 from gcs_swarm.guidance.params import G, Limits, PIDParams, SMCAxisGains, SMCParams
 from gcs_swarm.guidance.pid import PIDController
 from gcs_swarm.guidance.smc import SMCController, reaching_law, sliding_variable, smc_control
+from gcs_swarm.mission import MissionError, parse_mission
 
 
 def reference(t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -124,6 +127,164 @@ def test_boundary_layer_reduces_chattering():
     with_sgn = run(0.0)
     assert with_sgn == pytest.approx(9.2e-4, rel=0.1)
     assert run(0.05) < 0.01 * with_sgn
+
+
+DRAG = 0.25 / 0.9  # 1/s, the simulator's linear drag per unit mass (sitl_sim.dynamics drag_lin / mass)
+
+
+def with_estimate(gain: float, d_max: float = 4.0, base: SMCParams | None = None) -> SMCParams:
+    """SMCParams with the disturbance estimate [add] set on both channels."""
+    base = base or SMCParams()
+    xy = dataclasses.replace(base.xy, disturbance_gain=gain, disturbance_max=d_max)
+    z = dataclasses.replace(base.z, disturbance_gain=gain, disturbance_max=d_max)
+    return dataclasses.replace(base, xy=xy, z=z)
+
+
+def test_zero_disturbance_gain_is_eq_49_bit_for_bit():
+    """k_d = 0 (the default) leaves the paper's static law: identical bits to smc_control on every call,
+    whatever disturbance_max, and smc_control is Eq 49 written out."""
+    rng = np.random.default_rng(7)
+    params = with_estimate(0.0, d_max=0.5)
+    ctl = SMCController(params, G, Limits())
+    ctl.reset(5)
+    for _ in range(50):
+        x_d, xd_dot, xd_ddot, x, v = (rng.normal(0.0, 5.0, (5, 3)) for _ in range(5))
+        u = ctl(x_d, xd_dot, xd_ddot, x, v, 0.02)
+        expected, s = smc_control(x_d, xd_dot, xd_ddot, x, v, SMCParams())
+        np.testing.assert_array_equal(u, expected)
+        np.testing.assert_array_equal(ctl.s, s)
+        assert not ctl.d_hat.any()
+    c1 = np.array([0.8, 0.8, 1.0])
+    e1 = x_d - x
+    s_hand = c1 * e1 + xd_dot - v
+    eq49 = xd_ddot - c1**2 * e1 + c1 * s_hand - reaching_law(s_hand, params) + np.array([0.0, 0.0, G])
+    np.testing.assert_allclose(u, eq49, rtol=1e-12, atol=1e-12)
+
+
+def fly_ramp(params: SMCParams, limits: Limits | None, t_end: float = 60.0, dt: float = 0.02):
+    """Point mass v_dot = U - g e_z - DRAG v tracking x_d = (10 t, 0, 10) from rest at (0, 0, 10), sampled at
+    dt like the ground station; returns times (T,), e1 (T, 3) and the controller."""
+    ctl = SMCController(params, G, limits)
+    ctl.reset(1)
+    x, v = np.array([[0.0, 0.0, 10.0]]), np.zeros((1, 3))
+    times, errors = [], []
+    for k in range(int(t_end / dt)):
+        t = k * dt
+        x_d, xd_dot = np.array([[10.0 * t, 0.0, 10.0]]), np.array([[10.0, 0.0, 0.0]])
+        u = ctl(x_d, xd_dot, np.zeros((1, 3)), x, v, dt)
+        times.append(t)
+        errors.append((x_d - x)[0])
+        v = v + (u - np.array([0.0, 0.0, G]) - DRAG * v) * dt
+        x = x + v * dt
+    return np.array(times), np.array(errors), ctl
+
+
+def drag_offset(params: SMCParams, speed: float) -> float:
+    """e1 where the xy reaching law balances the drag at `speed`: k1 s + k2 s^xi1 + k3 s^xi2 = DRAG speed,
+    s = c1 e1 (bisection)."""
+    g = params.xy
+    lo, hi = 0.0, 10.0
+    for _ in range(60):
+        s = 0.5 * (lo + hi)
+        lo, hi = (s, hi) if g.k1 * s + g.k2 * s**g.xi1 + g.k3 * s**g.xi2 < DRAG * speed else (lo, s)
+    return lo / g.c1
+
+
+def test_disturbance_estimate_removes_the_steady_drag_offset():
+    """A 10 m/s ramp against linear drag (2.8 m/s^2): Eq 49 alone settles 1.93 m behind, where the reaching
+    law balances the drag; with d_hat_dot = k_d s the error goes to zero and d_hat to the drag."""
+    offset = drag_offset(SMCParams(), 10.0)
+    assert offset == pytest.approx(1.93, abs=0.01)
+    times, e, ctl = fly_ramp(SMCParams(), Limits())
+    late = times >= 40.0
+    np.testing.assert_allclose(e[late, 0], offset, atol=2e-3)
+    for gain in (0.2, 0.5, 1.0):
+        times, e, ctl = fly_ramp(with_estimate(gain), Limits())
+        assert np.abs(e[late]).max() < 0.03 and np.abs(e[-1]).max() < 0.01  # 0.2 1/s: slowest
+        assert ctl.d_hat[0, 0] == pytest.approx(DRAG * 10.0, abs=0.05)
+        assert np.abs(ctl.d_hat[0, 1:]).max() < 1e-6
+
+
+def test_disturbance_estimate_clamp_holds():
+    """A drag the clamp cannot cover (4 m/s^2 cap, 5.6 m/s^2 needed at 20 m/s): |d_hat| sits at the cap and
+    the remaining offset is that of 1.6 m/s^2 unmodelled; the horizontal norm is clamped, not each axis."""
+    params = with_estimate(1.0, d_max=4.0)
+    ctl = SMCController(params, G)
+    ctl.reset(2)
+    zero = np.zeros((2, 3))
+    far = np.array([[1e3, 1e3, 1e3], [-1e3, 0.0, -1e3]])
+    for _ in range(500):
+        ctl(far, zero, zero, zero, zero, 0.02)
+        assert np.hypot(ctl.d_hat[:, 0], ctl.d_hat[:, 1]).max() <= 4.0 + 1e-12
+        assert np.abs(ctl.d_hat[:, 2]).max() <= 4.0
+    np.testing.assert_allclose(ctl.d_hat[0], [4.0 / math.sqrt(2), 4.0 / math.sqrt(2), 4.0])
+    np.testing.assert_allclose(ctl.d_hat[1], [-4.0, 0.0, -4.0])
+
+
+def test_disturbance_estimate_holds_while_the_inversion_saturates():
+    """With the spec 5 limits known, a reference far ahead (U beyond the tilt cone and the thrust cap) does
+    not wind the estimate up in its direction; a step against a saturated U (unwinding) is still taken."""
+    ctl = SMCController(with_estimate(1.0), G, Limits())
+    ctl.reset(1)
+    zero = np.zeros((1, 3))
+    for _ in range(500):
+        ctl(np.array([[1e3, 0.0, 1e3]]), zero, zero, zero, zero, 0.02)
+    assert not ctl.d_hat.any()
+    # U_z floored (reference far below) and U_x = 3 m/s^2 of estimate beyond the 10 deg cone, s_x < 0.
+    ctl = SMCController(with_estimate(1.0), G, Limits(tilt_max_deg=10.0))
+    ctl.reset(1)
+    ctl.d_hat[:] = [[3.0, 0.0, -1.0]]
+    for _ in range(10):
+        ctl(np.array([[-0.1, 0.0, -1e3]]), zero, zero, zero, zero, 0.02)
+    assert 2.9 < ctl.d_hat[0, 0] < 3.0  # against the saturated U_x: unwinds
+    assert ctl.d_hat[0, 2] == -1.0  # s_z < 0 would push U_z further below the floor: held
+
+
+def test_reset_rows_clears_the_estimate_and_inactive_rows_hold():
+    """reset_rows zeroes the chosen vehicles only; rows with a non-finite state (inactive) keep theirs."""
+    ctl = SMCController(with_estimate(0.5), G, Limits())
+    ctl.reset(3)
+    zero = np.zeros((3, 3))
+    x_d = np.array([[1.0, -1.0, 0.5], [0.5, 0.5, -0.5], [2.0, 0.3, 0.2]])
+    for _ in range(20):
+        ctl(x_d, zero, zero, zero, zero, 0.02)
+    before = ctl.d_hat.copy()
+    assert np.all(before != 0.0)
+    ctl.reset_rows(np.array([False, True, False]))
+    np.testing.assert_array_equal(ctl.d_hat[[0, 2]], before[[0, 2]])
+    assert not ctl.d_hat[1].any()
+    held = ctl.d_hat[2].copy()
+    x = np.zeros((3, 3))
+    x[2] = np.nan
+    u = ctl(x_d, zero, zero, x, zero, 0.02)
+    assert np.isnan(u[2]).all() and np.isfinite(u[:2]).all()
+    np.testing.assert_array_equal(ctl.d_hat[2], held)
+    ctl.reset(3)
+    assert not ctl.d_hat.any()
+    with pytest.raises(ValueError, match="reset for 3 vehicles, got 2"):
+        ctl(x_d[:2], zero[:2], zero[:2], zero[:2], zero[:2], 0.02)
+    fresh = SMCController(with_estimate(0.5))  # never reset: the estimate starts at zero
+    np.testing.assert_array_equal(
+        fresh(x_d, zero, zero, zero, zero, 0.02), smc_control(x_d, zero, zero, zero, zero, SMCParams())[0]
+    )
+
+
+def test_disturbance_settings_are_mission_keys_with_one_sentence_errors():
+    base = "vehicles:\n  - {name: lead, role: leader, start: {position: [0, 0, 0]}}\ngoal: [100, 50, 10]\n"
+    text = base + "control: {smc: {xy: {disturbance_gain: 0.5, disturbance_max: 3}}}\n"
+    mission = parse_mission(text, "m.yaml")
+    assert mission.smc.xy == dataclasses.replace(SMCParams().xy, disturbance_gain=0.5, disturbance_max=3.0)
+    assert mission.smc.z == SMCParams().z
+    for bad, fragment in (
+        ("{xy: {disturbance_gain: -0.5}}", "disturbance_gain must be >= 0 (0 turns"),
+        ("{z: {disturbance_max: 0}}", "disturbance_max must be > 0"),
+        ("{xy: {disturbance_gain: fast}}", "expected a number, got the text 'fast'"),
+    ):
+        with pytest.raises(MissionError) as info:
+            parse_mission(base + f"control: {{smc: {bad}}}\n", "m.yaml")
+        message = str(info.value)
+        assert message.startswith("m.yaml:4: control.smc.") and fragment in message, message
+        assert "\n" not in message and message.count(". ") == 0, message
 
 
 def test_pid_tracks_and_limits_its_integral():

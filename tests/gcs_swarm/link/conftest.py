@@ -7,7 +7,7 @@ from collections.abc import Callable, Iterator
 import pytest
 from fake_vehicle import ORIGIN, FakeVehicle
 
-from gcs_swarm.link.fleet import Fleet, VehicleConfig
+from gcs_swarm.link.fleet import Fleet, VehicleConfig, VehicleLink
 
 
 @pytest.fixture
@@ -46,3 +46,20 @@ def fleet_of() -> Iterator[Callable[..., Fleet]]:
     yield make
     for fleet in fleets:
         fleet.close()
+
+
+@pytest.fixture
+def lead(
+    fake: Callable[..., FakeVehicle], fleet_of: Callable[..., Fleet]
+) -> Callable[..., tuple[Fleet, VehicleLink, FakeVehicle]]:
+    """Factory: lead(**fake options) -> (fleet, link, fake) with one connected lockstep vehicle named lead."""
+
+    def make(**options: object) -> tuple[Fleet, VehicleLink, FakeVehicle]:
+        vehicle = fake(1, lockstep=True, **options)
+        fleet = fleet_of(vehicle, names=["lead"])
+        fleet.connect(timeout_s=3.0)
+        link = fleet.vehicle("lead")
+        link.param_get("SYSID_THISMAV")  # a round trip: the vehicle has now handled connect's requests
+        return fleet, link, vehicle
+
+    return make

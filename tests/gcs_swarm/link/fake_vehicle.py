@@ -3,7 +3,10 @@
 Server mode (default) binds a free port and serves whoever sends to it, like the simulator behind a
 `udpout:` connection. Client mode (`gcs_address`) sends from its own free port to a ground station's
 `udpin:` port. It answers HEARTBEAT/COMMAND_LONG/PARAM_* and SET_MESSAGE_INTERVAL as ArduCopter does
-(ACK first, the refusal's "PreArm: ..." STATUSTEXT after it; a new mode shows in the next HEARTBEAT).
+(ACK first, the refusal's "PreArm: ..." STATUSTEXT after it; a new mode shows in the next HEARTBEAT), with
+ArduCopter's answers to repeats: arming an armed vehicle ACCEPTED, a NAV_TAKEOFF off the ground FAILED.
+Lost packets: `ignore_commands` (the command never arrives), `drop_acks` / `drop_param_values` (it acts, but
+its answer is lost).
 
 Time advances in frames of 1/frame_hz. Streams are due at multiples of their interval from boot;
 GLOBAL_POSITION_INT goes last in a frame. With `lockstep=True` it follows the team brief's rule: after
@@ -93,6 +96,8 @@ class FakeVehicle:
         self.readonly_params = set(readonly_params)
         self.drop_param_indices = set(drop_param_indices)
         self.ignore_commands = 0  # swallow this many COMMAND_LONGs (tests retries)
+        self.drop_acks = 0  # act on commands but lose this many of their COMMAND_ACKs
+        self.drop_param_values = 0  # lose this many PARAM_VALUE answers
         self.ignore_mode_changes = False  # ACK DO_SET_MODE but keep the old mode
         self.silent = False  # send nothing at all (tests loss detection)
         self.t_ms = 0
@@ -105,6 +110,8 @@ class FakeVehicle:
             self.intervals_ms[getattr(mavlink2, f"MAVLINK_MSG_ID_{name}")] = self._interval(1e6 / hz)
         # records for the tests
         self.commands: list[tuple[int, int, int]] = []  # (command, confirmation, target_system)
+        self.command_ms: list[int] = []  # vehicle time at which each of `commands` arrived
+        self.results: list[tuple[int, int]] = []  # (command, MAV_RESULT) of each answer, lost or not
         self.received: Counter[str] = Counter()
         self.answers: Counter[int] = Counter()  # time_boot_ms -> lockstep answers carrying it
         self.frames_sent: list[int] = []  # frame times whose telemetry carried time_boot_ms
@@ -290,10 +297,20 @@ class FakeVehicle:
         )
 
     def _ack(self, command: int, result: int, source: tuple[int, int]) -> None:
+        self.results.append((command, result))
+        if self.drop_acks > 0:
+            self.drop_acks -= 1
+            return
         self._send(self._mav.command_ack_encode(command, result, 0, 0, source[0], source[1]))
 
     def _statustext(self, text: str, severity: int = mavlink2.MAV_SEVERITY_CRITICAL) -> None:
         self._send(self._mav.statustext_encode(severity, text.encode()))
+
+    def _send_param_value(self, name: str) -> None:
+        if self.drop_param_values > 0:
+            self.drop_param_values -= 1
+            return
+        self._send(self._param_value(name))
 
     def _param_value(self, name: str) -> Any:
         names = list(self.params)
@@ -332,12 +349,12 @@ class FakeVehicle:
             names = list(self.params)
             name = names[msg.param_index] if 0 <= msg.param_index < len(names) else msg.param_id
             if name in self.params:
-                self._send(self._param_value(name))
+                self._send_param_value(name)
         elif mtype == "PARAM_SET":
             if msg.param_id in self.params:
                 if msg.param_id not in self.readonly_params:
                     self.params[msg.param_id] = msg.param_value
-                self._send(self._param_value(msg.param_id))
+                self._send_param_value(msg.param_id)
         elif mtype == "PARAM_REQUEST_LIST":
             for index, name in enumerate(self.params):
                 if index not in self.drop_param_indices:
@@ -347,6 +364,7 @@ class FakeVehicle:
     def _command(self, msg: Any) -> None:
         command = msg.command
         self.commands.append((command, msg.confirmation, msg.target_system))
+        self.command_ms.append(self.t_ms)
         if self.ignore_commands > 0:
             self.ignore_commands -= 1
             return
@@ -363,9 +381,10 @@ class FakeVehicle:
                 result = mavlink2.MAV_RESULT_FAILED
             elif not self.ignore_mode_changes:
                 self.mode = int(msg.param2)
-        elif command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-            if self.armed and self.mode == 4:
+        elif command == mavlink2.MAV_CMD_NAV_TAKEOFF:  # ArduCopter: armed, GUIDED and still on the ground
+            if self.armed and self.mode == 4 and self.landed_state == mavlink2.MAV_LANDED_STATE_ON_GROUND:
                 self.takeoff_alt = msg.param7
+                self.landed_state = mavlink2.MAV_LANDED_STATE_TAKEOFF
             else:
                 result = mavlink2.MAV_RESULT_FAILED
         elif command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL:

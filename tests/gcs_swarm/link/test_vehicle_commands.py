@@ -8,21 +8,6 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from gcs_swarm.link.fleet import LinkError
 
 
-@pytest.fixture
-def lead(fake, fleet_of):
-    """(fleet, link, fake) with one connected lockstep vehicle named lead."""
-
-    def make(**options):
-        vehicle = fake(1, lockstep=True, **options)
-        fleet = fleet_of(vehicle, names=["lead"])
-        fleet.connect(timeout_s=3.0)
-        link = fleet.vehicle("lead")
-        link.param_get("SYSID_THISMAV")  # a round trip: the vehicle has now handled connect's requests
-        return fleet, link, vehicle
-
-    return make
-
-
 def test_refused_arm_names_result_and_prearm_reason_then_force_arms(lead) -> None:
     fleet, link, vehicle = lead(arm_refusal="PreArm: Need 3D Fix")
     with pytest.raises(
