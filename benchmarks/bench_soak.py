@@ -7,6 +7,7 @@ the time the ground station took to declare the dead vehicle lost. The leg is th
 a goal `--leg` metres north of the leader.
 
 Usage: python benchmarks/bench_soak.py [--quick] [--leg M] [--loss P] [--jitter-ms MS] [--from-s S]
+                                      [--keep DIR]
 """
 
 from __future__ import annotations
@@ -39,9 +40,12 @@ def main() -> int:
     parser.add_argument("--loss", type=float, default=0.1, help="packet loss on every link (0..1)")
     parser.add_argument("--jitter-ms", type=float, default=100.0, help="delay jitter on every link, ms")
     parser.add_argument("--from-s", type=float, default=0.0, help="faults act from this simulated s on")
+    parser.add_argument("--keep", help="keep the mission and run folder in this directory")
     args = parser.parse_args()
     leg = args.leg or (600.0 if args.quick else 2000.0)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as scratch:
+        tmp = args.keep or scratch
+        Path(tmp).mkdir(parents=True, exist_ok=True)
         data = _numbers(yaml.safe_load((ROOT / "missions" / "paper_nine_9.yaml").read_text()))
         start = data["vehicles"][0]["start"]["position"]
         data["mission"]["name"] = "soak9"

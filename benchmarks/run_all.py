@@ -28,7 +28,7 @@ BENCHMARKS: list[tuple[str, str, list[str], list[str]]] = [
     ("end_to_end", "bench_end_to_end.py", [], ["--quick"]),
     ("fleet_capacity", "bench_fleet_capacity.py", [], ["--quick"]),
     ("montecarlo", "bench_montecarlo.py", [], ["--quick"]),
-    ("soak", "bench_soak.py", [], ["--quick"]),
+    ("soak", "bench_soak.py", ["--leg", "6000"], ["--quick"]),
 ]
 
 

@@ -3,8 +3,10 @@
 It loops: run the requests the UI queued, then one tick (`runner.step()` while the mission flies: climb,
 formation, hold, landing; `runner.idle()` before `start` and after landing, so a lockstep simulator keeps
 running), then publish a `Snapshot` and the new events. The UI thread only calls `submit`, `snapshot` and
-`events_after`, which are thread-safe. Blocking fleet operations (arm, mode, takeoff, param) run here; their
-outcome comes back as events that name the vehicle and, on refusal, its reason.
+`events_after`, which are thread-safe. Blocking fleet operations (preflight, arm, mode, takeoff, param) run
+here; their outcome comes back as events that name the vehicle and, on refusal, its reason. While one runs,
+the fleet's pump hook (`Fleet.on_pump`, called from inside every blocking wait, still on this thread) keeps
+publishing snapshots, so the table stays live.
 
 Everything that flies is the runner's; the session only dispatches operator commands and reports.
 """
@@ -87,6 +89,7 @@ class FlightSession:
         self.realtime = realtime
         self.connect_timeout_s = connect_timeout_s
         runner.progress = self._on_progress
+        self.fleet.on_pump = self._refresh
         n = len(self.mission.vehicles)
         self._requests: queue.Queue[Ticket] = queue.Queue()
         self._stop = threading.Event()
@@ -98,6 +101,7 @@ class FlightSession:
         self._state = "connecting"
         self._error = ""
         self._busy = ""
+        self._busy_since = 0.0  # time.monotonic() when the running request began
         self._started = False
         self._phases = ["connect"]
         self._min_separation = math.inf
@@ -157,6 +161,7 @@ class FlightSession:
         except Exception as exc:  # noqa: BLE001 - the UI must learn why the flight thread ended
             self._fail(f"internal error in the flight thread: {type(exc).__name__}: {exc}")
         finally:
+            self.fleet.on_pump = None
             if self._state != "failed":
                 self._state = "stopped"
             self._cancel_pending()
@@ -217,6 +222,16 @@ class FlightSession:
             nearest = nearest_neighbour(pos[known])
             self._min_separation = min(self._min_separation, float(np.nanmin(nearest)))
         self._loss.update(self.fleet.state.position_ms, self.fleet.state.position_count)
+
+    def _refresh(self) -> None:
+        """Fleet pump hook: observe and publish from inside blocking waits (a command's round trips,
+        preflight, a landing command), at most once per publish period of wall time; inside a command, keep
+        real-time pacing too. Never pumps."""
+        if self._state == "ready" and time.monotonic() - self._last_publish >= _PUBLISH_PERIOD_S:
+            self._observe()
+            self._publish()
+        if self._busy:
+            self._pace()
 
     def _forward_vehicle_events(self) -> None:
         while self.fleet.events:
@@ -318,6 +333,7 @@ class FlightSession:
             formation_rms=runner.formation_rms,
             min_separation=self._min_separation,
             busy=self._busy,
+            busy_s=now - self._busy_since if self._busy else 0.0,
         )
         params = sorted({name for link in fleet.links for name in link.params})
         return Snapshot(self._state, tuple(rows), line, tuple(self._phases), tuple(params), self._error)
@@ -332,7 +348,7 @@ class FlightSession:
                 return
             request = ticket.request
             handler = _HANDLERS.get(request.verb)
-            self._busy = request.line or request.verb
+            self._busy, self._busy_since = request.line or request.verb, time.monotonic()
             self._publish(force=True)
             try:
                 ok = (
@@ -344,8 +360,8 @@ class FlightSession:
                 ok = self._refuse(str(exc))
             finally:
                 self._busy = ""
+            self._publish(force=True)  # before the ticket: whoever waits on it then sees the outcome
             ticket.finish(ok)
-            self._publish(force=True)
 
     def _reply(self, text: str, source: str = "console") -> bool:
         self._forward_vehicle_events()  # the vehicles' own messages about a command come before its outcome

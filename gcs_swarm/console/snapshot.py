@@ -58,6 +58,7 @@ class MissionLine:
     formation_rms: float  # m, followers' RMS distance to their slots (NaN before formation flight)
     min_separation: float  # m, smallest distance between two vehicles since connecting
     busy: str  # the blocking command the flight thread is running, or ""
+    busy_s: float = 0.0  # wall s that command has been running
 
 
 @dataclass(frozen=True)

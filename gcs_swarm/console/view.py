@@ -88,7 +88,8 @@ def _num(value: float | None, digits: int) -> str:
 
 
 def mission_line(snapshot: Snapshot) -> Line:
-    """phase, vehicle time, leader's distance to goal, formation RMS, minimum separation so far."""
+    """phase, the command in progress (with its wall seconds), vehicle time, leader's distance to goal,
+    formation RMS, minimum separation so far."""
     m: MissionLine = snapshot.mission
     if snapshot.state == "connecting":
         return [("class:warning", "connecting to the vehicles ...")]
@@ -96,13 +97,13 @@ def mission_line(snapshot: Snapshot) -> Line:
         return [("class:error", f"session failed: {snapshot.error}")]
     phase = m.phase if m.started or m.phase != "connect" else "ready"
     goal = ", ".join(f"{c:g}" for c in m.goal)
-    line: Line = [
-        ("class:phase", f"phase {phase}"),
+    line: Line = [("class:phase", f"phase {phase}")]
+    if m.busy:  # early in the line, so a narrow terminal does not cut it off
+        line.append(("class:warning", f"  [busy {m.busy_s:.1f} s: {m.busy}]"))
+    line += [
         ("", f"  t {m.vehicle_time:.1f} s  leader to goal {_num(m.leader_goal_distance, 1)} m ({goal})"),
         ("", f"  formation rms {_num(m.formation_rms, 2)} m  min separation {_num(m.min_separation, 2)} m"),
     ]
-    if m.busy:
-        line.append(("class:warning", f"  [busy: {m.busy}]"))
     if snapshot.state == "stopped":
         line.append(("class:error", "  [flight session stopped]"))
     return line

@@ -112,6 +112,7 @@ class Fleet:
         self._selector = selectors.DefaultSelector()
         self._tlog: TlogWriter | None = None
         self.unrouted = 0  # packets on a shared udpin endpoint from no configured vehicle
+        self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
 
     # ------------------------------------------------------------------ state arrays (copies)
 
@@ -296,7 +297,8 @@ class Fleet:
     def pump(self, timeout_s: float = 0.0) -> None:
         """Wait up to `timeout_s` for packets, decode all that are readable, send due heartbeats, detect loss.
 
-        Never answers lockstep frames (see the module doc).
+        Never answers lockstep frames (see the module doc). Then calls `on_pump`, if set: every blocking wait
+        pumps, so the fleet's owner can, e.g., publish its state from inside one (it must not pump itself).
         """
         if not self._routes:
             raise RuntimeError("the fleet is not connected")
@@ -318,6 +320,8 @@ class Fleet:
             if link.endpoint is not None:
                 link.heartbeat_if_due(now)
                 link.check_loss(now, self.loss_timeout_s, self.loss_wall_timeout_s)
+        if self.on_pump is not None:
+            self.on_pump()
 
     def _deliver(self, endpoint: Endpoint, msg: MAVLinkMessage, peer: Any, now: float) -> None:
         bad = msg.get_type() == "BAD_DATA"

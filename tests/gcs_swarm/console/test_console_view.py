@@ -128,6 +128,9 @@ def test_mission_line_and_states() -> None:
         mission=replace(snapshot(()).mission, phase="connect", started=False),
     )
     assert plain(mission_line(idle)).startswith("phase ready")
+    assert "busy" not in text
+    arming = replace(snapshot(()), mission=replace(snapshot(()).mission, busy="arm lead", busy_s=2.34))
+    assert plain(mission_line(arming)).startswith("phase formation  [busy 2.3 s: arm lead]  t 23.4 s")
 
 
 def test_event_and_status_lines() -> None:
