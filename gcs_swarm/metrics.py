@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_swarm.guidance.formation import slot_positions
+from gcs_swarm.guidance.formation import rotate_z
 
 
 def reach_time(t: np.ndarray, distance: np.ndarray, r_goal: float, hold_s: float = 2.0) -> float | None:
@@ -121,21 +121,25 @@ class FormationError:
 def formation_error(
     t: np.ndarray,
     p: np.ndarray,
-    leader: int,
+    leader: int | np.ndarray,
     psi_leader: np.ndarray,
     offsets: np.ndarray,
     settle_threshold: float = 1.0,
 ) -> FormationError:
     """e_F,i(t) = |p_i(t) - s_i(t)| with slots from the leader's actual position and psi_L (spec 10).
 
-    p (T, N, 3); psi_leader (T,) rad; offsets (N, 3) leader frame. Settled when max_i e_F,i <= threshold for
-    the rest of the run.
+    p (T, N, 3); psi_leader (T,) rad; leader: index, or (T,) indices when the lead passed on; offsets (N, 3)
+    leader frame, or (T, N, 3) when the formation changed (NaN rows: a vehicle out of the formation, e.g.
+    lost; its error is NaN and left out). Settled when max_i e_F,i <= threshold for the rest of the run.
     """
     p = np.asarray(p, dtype=float)
-    slots = slot_positions(p[:, leader, :], psi_leader, offsets)
+    lead = np.broadcast_to(np.asarray(leader, dtype=int), (len(p),))
+    p_leader = p[np.arange(len(p)), lead]
+    slots = p_leader[:, None, :] + rotate_z(np.asarray(offsets, dtype=float), np.asarray(psi_leader)[:, None])
     err = np.linalg.norm(p - slots, axis=-1)
-    worst = err.max(axis=1)
-    above = np.flatnonzero(worst > settle_threshold)
+    with np.errstate(invalid="ignore"):
+        worst = np.fmax.reduce(err, axis=1)  # NaN only where no vehicle is in the formation
+    above = np.flatnonzero(~(worst <= settle_threshold))
     if len(above) == 0:
         first = 0
     elif above[-1] + 1 < len(t):
@@ -146,8 +150,8 @@ def formation_error(
     return FormationError(
         error=err,
         t_settle=None if first < 0 else float(t[first]),
-        max=float(window.max()),
-        rms=float(np.sqrt(np.mean(window * window))),
+        max=float(np.nanmax(window)),
+        rms=float(np.sqrt(np.nanmean(window * window))),
     )
 
 

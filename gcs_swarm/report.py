@@ -147,6 +147,25 @@ def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[
     )
 
 
+def formation_schedule(
+    flight: dict[str, Any], t: np.ndarray, leader: int, offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Leader (T,) and slot offsets (T, N, 3) in force at each time t (T,) s, from flight.json's
+    formation_timeline (re-forms after a loss, a new leader, live reshapes, degraded widening; NaN rows for
+    vehicles out of the formation); the final `leader`/`offsets` throughout for a flight.json without it."""
+    timeline = flight.get("formation_timeline") or []
+    if not timeline:
+        return np.full(len(t), leader), np.broadcast_to(offsets, (len(t),) + offsets.shape)
+    starts = np.array([entry["t"] for entry in timeline], dtype=float)
+    leaders = np.array([entry["leader"] for entry in timeline], dtype=int)
+    table = np.array(
+        [[[np.nan] * 3 if row is None else row for row in entry["offsets"]] for entry in timeline],
+        dtype=float,
+    )
+    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(timeline) - 1)
+    return leaders[k], table[k]
+
+
 def report_from(
     traj: Trajectories, commands: CommandLog | None, mission: Any, flight: dict[str, Any]
 ) -> dict[str, Any]:
@@ -179,7 +198,8 @@ def report_from(
     cruise = None
     angles = np.full((len(tw), len(names)), np.nan)
     if psi is not None and len(tw) > 1:
-        fe = metrics.formation_error(tw, pw, leader, psi, offsets)
+        leaders, flown = formation_schedule(flight, tw, leader, offsets)
+        fe = metrics.formation_error(tw, pw, leaders, psi, flown)
         formation_rms, formation_max = fe.rms, fe.max
         settling = None if fe.t_settle is None else fe.t_settle - tw[0]
         d_g = mission.field.d_g if mission.field.d_g is not None else mission.limits.v_xy_leader

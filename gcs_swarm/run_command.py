@@ -79,6 +79,14 @@ def write_flight(
         "degraded_s": round(result.degraded_s, 3),
         "holds": result.holds,
         "max_telemetry_age_s": round(result.max_telemetry_age_s, 3),
+        "formation_timeline": [
+            {
+                "t": t,
+                "leader": leader,
+                "offsets": [None if np.isnan(o).any() else o.tolist() for o in offsets],
+            }
+            for t, leader, offsets in result.formation_timeline
+        ],
         "wall_duration_s": wall_s,
     }
     (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")

@@ -22,6 +22,7 @@ import numpy as np
 from gcs_swarm.guidance.degradation import StaleTelemetryMonitor, TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.formation import formation_offsets
+from gcs_swarm.guidance.lost_vehicles import LostTrack, avoidance_radius, predicted_position
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
 from gcs_swarm.mission import Mission
@@ -31,6 +32,7 @@ FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5}  # ArduCopter FS_GCS_ENABLE valu
 GUID_OPTIONS_THRUST = 8  # bit 3: SET_ATTITUDE_TARGET thrust is normalised collective thrust (not climb rate)
 HOLD_LATCH_SPEED = 0.5  # m/s: in hold, a vehicle's position is latched once it has braked below this
 PHASES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")
+FAILSAFE_PARAMS = ("FS_GCS_TIMEOUT", "WPNAV_SPEED", "RTL_ALT")  # s, cm/s, cm: how a lost vehicle flies home
 
 
 class PreflightError(Exception):
@@ -56,6 +58,8 @@ class FlightResult:
     degraded_s: float = 0.0  # vehicle s flown in degraded mode (stale telemetry: slower, wider)
     holds: int = 0  # times a vehicle was held for stale telemetry
     max_telemetry_age_s: float = 0.0  # oldest position telemetry of a live vehicle at any formation tick
+    # (vehicle time s, leader, (N, 3) slot offsets flown, NaN rows for lost vehicles) at each change
+    formation_timeline: list[tuple[float, int, np.ndarray]] = field(default_factory=list)
 
 
 def mission_offsets(mission: Mission, shape: str | None = None, spacing: float | None = None) -> np.ndarray:
@@ -173,6 +177,9 @@ class MissionRunner:
         self._held = np.zeros(len(mission.vehicles), dtype=bool)
         self._degraded = False
         self._last_tick_t: float | None = None
+        self.failsafe_params = np.tile([5.0, 1000.0, 1500.0], (len(mission.vehicles), 1))  # (N, 3) as read
+        self._home = np.full((len(mission.vehicles), 3), np.nan)  # (N, 3) ENU m where each took off
+        self._lost_tracks: dict[int, LostTrack] = {}
         self.tick_latency_s: list[float] = []  # wall s from a complete telemetry tick to its last command out
 
     # ----- the whole mission -----
@@ -202,6 +209,7 @@ class MissionRunner:
             fleet.param_set_all("GUID_OPTIONS", GUID_OPTIONS_THRUST)
             fleet.param_set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[self.mission.safety.gcs_failsafe])
             self.hover = fleet.param_get_all("MOT_THST_HOVER")
+            self.failsafe_params = np.column_stack([fleet.param_get_all(name) for name in FAILSAFE_PARAMS])
             fleet.request_streams_all(run.control_rate_hz)
         except LinkError as exc:
             raise PreflightError(f"preflight failed: {exc}") from exc
@@ -224,6 +232,11 @@ class MissionRunner:
         """Phase 'launch': GUIDED, arm and take off (each acknowledged); the climb itself is not awaited."""
         self._set_phase("launch")
         fleet, mission = self.fleet, self.mission
+        self._home = (
+            fleet.pos
+        )  # on the ground: the failsafe's home (an airborne start's home is the ground below)
+        if mission.run.airborne_start:
+            self._home[:, 2] = 0.0
         try:
             fleet.set_mode_all("GUIDED")
             if mission.run.airborne_start:
@@ -414,8 +427,10 @@ class MissionRunner:
         # one brakes on its own autopilot
         finite = np.isfinite(np.hstack((pos, vel, att))).all(axis=1)
         active = fleet.alive & finite & ~verdict.held
+        ghosts, ghost_radii = self._place_lost(t)
         centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)
-        cmd = ctl.tick(t, verdict.pos, vel, att, centres, self._obstacle_radii, active)
+        centres, radii = np.vstack([centres, ghosts]), np.concatenate([self._obstacle_radii, ghost_radii])
+        cmd = ctl.tick(t, verdict.pos, vel, att, centres, radii, active)
         thrust = thrust_from_acc(np.nan_to_num(cmd.thrust_acc), self.hover)
         roll, pitch, yaw, thrust, limited = guard_attitude_commands(
             cmd.roll_d,
@@ -442,6 +457,7 @@ class MissionRunner:
         targets[ctl.leader] = ctl.waypoints[-1]
         self.result.final_targets = targets
         self.result.leader, self.result.offsets = ctl.leader, ctl.offsets
+        self._note_formation(t, fleet.alive)
         errors = np.linalg.norm(pos - targets, axis=1)
         followers = active.copy()
         followers[ctl.leader] = False
@@ -460,6 +476,53 @@ class MissionRunner:
         if t - (self.result.t_formation_start or t) > run.time_limit_s:
             self.result.events.append(f"time limit {run.time_limit_s:g} s reached before arrival")
             self._set_phase("land")
+
+    def _place_lost(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Where lost vehicles have probably flown on their failsafe: (K, 3) ENU m and (K,) m, spheres the
+        others avoid as moving obstacles (each also repels them from its centre). A vehicle heard again is
+        flown from its measured state."""
+        for i in [i for i in self._lost_tracks if self.fleet.alive[i]]:
+            del self._lost_tracks[i]
+        p = self.mission.safety.telemetry
+        centres, radii = np.zeros((0, 3)), np.zeros(0)
+        for i, track in self._lost_tracks.items():
+            here = predicted_position(track, t)
+            moving = (here - predicted_position(track, t - 0.1)) / 0.1
+            self.controller.place_uncommanded(i, here, moving)
+            radius = avoidance_radius(track, t, p.lost_radius, p.lost_radius_growth, p.lost_radius_max)
+            centres, radii = np.vstack([centres, here]), np.append(radii, radius)
+        return centres, radii
+
+    def _track_lost(self, i: int) -> None:
+        """Start predicting lost vehicle i from its last report (gcs_swarm.guidance.lost_vehicles)."""
+        st = self.fleet.state
+        pos, vel = self.fleet.pos[i], self.fleet.vel[i]
+        if st.position_ms[i] < 0 or not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            return  # never reported a position: nothing to predict from
+        timeout_s, speed_cm_s, rtl_alt_cm = self.failsafe_params[i]
+        home = self._home[i] if np.isfinite(self._home[i]).all() else pos
+        self._lost_tracks[i] = LostTrack(
+            t_last=float(st.position_ms[i]) / 1000.0,
+            pos=pos,
+            vel=vel,
+            home=home,
+            action=self.mission.safety.gcs_failsafe,
+            failsafe_s=float(timeout_s),
+            speed=max(float(speed_cm_s) / 100.0, 0.1),
+            rtl_alt=max(float(rtl_alt_cm) / 100.0, 0.0),
+        )
+
+    def _note_formation(self, t: float, alive: np.ndarray) -> None:
+        """Append the formation flown (leader, offsets with degraded widening) to the timeline on a change."""
+        ctl, timeline = self.controller, self.result.formation_timeline
+        offsets = np.where(alive[:, None], ctl.offsets * ctl.spacing_scale, np.nan)
+        if (
+            timeline
+            and timeline[-1][1] == ctl.leader
+            and np.array_equal(timeline[-1][2], offsets, equal_nan=True)
+        ):
+            return
+        timeline.append((t, ctl.leader, offsets))
 
     def telemetry_age(self) -> np.ndarray:
         """(N,) s: each vehicle's newest time_boot_ms minus that of its latest position (inf before one)."""
@@ -494,8 +557,10 @@ class MissionRunner:
                 old = not verdict.age[i] <= self.mission.safety.telemetry.hold_s
                 why = f"telemetry {verdict.age[i]:.2f} s old" if old else "the leader's telemetry is stale"
                 text = f"{names[i]} held: {why}"
-            else:
+            elif alive[i]:
                 text = f"{names[i]} rejoins: telemetry fresh again"
+            else:
+                continue  # lost: the re-form event tells
             self.result.events.append(f"t={t:.2f} s {text}")
             self.progress(f"! {text}")
         self._degraded, self._held = verdict.degraded, verdict.held.copy()
@@ -518,6 +583,8 @@ class MissionRunner:
                 self.result.events.append(f"{name} lost")
                 self.progress(f"! {name} lost: the rest keep flying")
                 newly_lost = True
+                if self.phase in ("formation", "hold"):
+                    self._track_lost(i)
         if newly_lost and self.phase in ("formation", "hold") and self.fleet.alive.any():
             self._reform()
 

@@ -177,6 +177,12 @@ class FleetController:
             raise ValueError("need 0 < speed_scale <= 1 and spacing_scale >= 1")
         self.speed_scale, self.spacing_scale = float(speed_scale), float(spacing_scale)
 
+    def place_uncommanded(self, row: int, pos: np.ndarray, vel: np.ndarray) -> None:
+        """Where vehicle `row`, not commanded this tick (lost), is believed to be: the others repel from
+        pos (3,) ENU m moving at vel (3,) m/s, not from its last report (gcs_swarm.guidance.lost_vehicles)."""
+        self.last_pos[row] = _as_array("pos", pos, (3,))
+        self.last_vel[row] = _as_array("vel", vel, (3,))
+
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
         arr = _as_array("follower_targets", targets, (self.n, 3))
         if not np.isfinite(arr).all():

@@ -182,6 +182,9 @@ class TelemetryParams:
     degraded_speed: float = 0.5  # speed caps x this while any live vehicle is older than predict_s
     degraded_spacing: float = 1.5  # formation spacing and separation ranges x this, likewise
     recover_s: float = 2.0  # s every live vehicle must stay within predict_s before degraded mode ends
+    lost_radius: float = 3.0  # m, a lost vehicle's predicted position is avoided as a sphere of this radius,
+    lost_radius_growth: float = 0.5  # m/s growing this fast after its last report (the prediction's error)
+    lost_radius_max: float = 15.0  # m, up to this
 
     def __post_init__(self) -> None:
         if not 0 <= self.predict_s < self.hold_s < self.lost_s:
@@ -192,3 +195,5 @@ class TelemetryParams:
             raise ValueError("degraded_spacing must lie in [1, 5]")
         if not self.recover_s >= 0:
             raise ValueError("recover_s must be >= 0")
+        if not (0 < self.lost_radius <= self.lost_radius_max and self.lost_radius_growth >= 0):
+            raise ValueError("need 0 < lost_radius <= lost_radius_max and lost_radius_growth >= 0")

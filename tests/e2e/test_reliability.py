@@ -47,6 +47,9 @@ def test_leader_lost_mid_flight_hands_the_lead_on(quickstart: Path, tmp_path: Pa
     flight = json.loads((run.run_dir / "flight.json").read_text())
     assert flight["arrived"] and flight["leader"] == 1, flight["events"]
     assert any("right takes the lead" in e for e in flight["events"])
+    # the formation error follows the new leader and leaves the lost vehicle out (formation_timeline)
+    assert [entry["leader"] for entry in flight["formation_timeline"]][-1] == 1
+    assert run.report["formation_max_m"] < 2.0
     truth = _truth(run.run_dir)
     end = truth[np.isclose(truth["t"], round(flight["t_formation_end"] / 0.02) * 0.02)]
     new_leader = end[end["vehicle"] == 1][0]

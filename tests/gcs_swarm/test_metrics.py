@@ -86,6 +86,26 @@ def test_formation_error_settles_and_reports_after_settling():
     assert metrics.formation_error(t, p, 0, psi, offsets).t_settle is None
 
 
+def test_formation_error_follows_a_new_leader_and_leaves_lost_vehicles_out():
+    """The lead passes from vehicle 0 (lost at sample 5) to vehicle 1, which vehicle 2 then follows."""
+    t = np.arange(10) * 0.1
+    psi = np.zeros(10)
+    before = np.array([[0.0, 0, 0], [-5, 5, 0], [-5, -5, 0]])
+    after = np.array([[np.nan] * 3, [0.0, 0, 0], [0, -10, 0]])
+    offsets = np.stack([before] * 5 + [after] * 5)
+    leaders = np.array([0] * 5 + [1] * 5)
+    p = np.zeros((10, 3, 3))
+    p[:, 0] = [0, 0, 10]
+    p[:, 1] = [-5, 5, 10]
+    p[:, 2] = [-5, -5, 10]
+    p[5:, 0] = [50, 50, 0]  # the lost vehicle is far away: it must not count
+    p[5:, 2, 1] += 0.5  # 0.5 m off the new slot (-5, -5) relative to the new leader at (-5, 5)
+    fe = metrics.formation_error(t, p, leaders, psi, offsets)
+    assert np.isnan(fe.error[5:, 0]).all() and (fe.error[:5] == 0).all()
+    np.testing.assert_allclose(fe.error[5:, 2], 0.5)
+    assert fe.max == pytest.approx(0.5) and fe.t_settle == pytest.approx(0.0)
+
+
 def test_settling_time_of_a_first_order_step():
     t = np.arange(0, 30, 0.01)
     y = 10.0 * (1 - np.exp(-t))  # 2 % of 10 m: |y - 10| <= 0.2 from t = ln 50 = 3.91 s
