@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from fake_vehicle import DEFAULT_PARAMS
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.fleet import LinkError
@@ -91,9 +92,7 @@ def test_param_set_is_verified_by_its_echo(lead) -> None:
 def test_params_all_fills_gaps_by_index(lead) -> None:
     _, link, _ = lead(drop_param_indices=(1, 2))
     params = link.params_all(timeout_s=5.0)
-    assert params == pytest.approx(
-        {"GUID_OPTIONS": 0.0, "FS_GCS_ENABLE": 0.0, "MOT_THST_HOVER": 0.35, "SYSID_THISMAV": 1.0}
-    )
+    assert params == pytest.approx(DEFAULT_PARAMS)
 
 
 def test_message_interval_is_acked_and_the_stream_flows(lead) -> None:
