@@ -9,6 +9,8 @@ active, psi_l. Flushed every second of vehicle time so a killed ground station l
 from __future__ import annotations
 
 import csv
+import functools
+import io
 from pathlib import Path
 
 import numpy as np
@@ -20,14 +22,19 @@ COLUMNS = (
 
 
 class RunRecord:
-    """Appends tick rows to `path` (CSV with a header)."""
+    """Appends tick rows to `path`: CSV with a header, CRLF line ends (as Python's csv module writes them).
+
+    Rows are formatted a tick at a time with printf-style formats ("%.6g" per number) and written in one
+    call: the same text as csv.writer with f"{v:.6g}" fields, at a fraction of the per-value cost.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = path
         self._file = path.open("w", newline="")
-        self._writer = csv.writer(self._file)
-        self._writer.writerow(COLUMNS)
+        csv.writer(self._file).writerow(COLUMNS)
         self._last_flush_t = 0.0
+        numbers = ",".join(["%.6g"] * _NUMERIC_COLUMNS)
+        self._row = f"%.3f,%d,%s,{numbers},%d,%d,%.6g\r\n"  # t, vehicle, phase, numbers, flags, psi_l
 
     def write_tick(
         self,
@@ -42,7 +49,6 @@ class RunRecord:
     ) -> None:
         """One row per vehicle. `command` is a guidance Command (arrays of shape (N,...) as attributes)."""
         c = command
-        n = pos.shape[0]
         block = np.column_stack(
             [
                 pos,
@@ -59,23 +65,32 @@ class RunRecord:
                 thrust,
             ]
         )
-        emergency = np.asarray(c.emergency, dtype=int)  # type: ignore[attr-defined]
+        if block.shape[1] != _NUMERIC_COLUMNS:
+            raise ValueError(f"a record row needs {_NUMERIC_COLUMNS} numbers, got {block.shape[1]}")
+        emergency = np.asarray(c.emergency, dtype=int).tolist()  # type: ignore[attr-defined]
+        flags = np.asarray(active, dtype=int).tolist()
         psi_l = float(c.psi_leader)  # type: ignore[attr-defined]
-        for i in range(n):
-            self._writer.writerow(
-                [
-                    f"{t:.3f}",
-                    i,
-                    phase,
-                    *(f"{v:.6g}" for v in block[i]),
-                    int(emergency[i]),
-                    int(active[i]),
-                    f"{psi_l:.6g}",
-                ]
+        row, field = self._row, _csv_field(phase)
+        self._file.write(
+            "".join(
+                row % (t, i, field, *values, emergency[i], flags[i], psi_l)
+                for i, values in enumerate(block.tolist())
             )
+        )
         if t - self._last_flush_t >= 1.0:
             self._file.flush()
             self._last_flush_t = t
 
     def close(self) -> None:
         self._file.close()
+
+
+_NUMERIC_COLUMNS = len(COLUMNS) - 6  # all but t, vehicle, phase, emergency, active, psi_l
+
+
+@functools.lru_cache(maxsize=32)
+def _csv_field(text: str) -> str:
+    """`text` as csv.writer writes a field (quoted when it holds a comma, quote or line break)."""
+    out = io.StringIO()
+    csv.writer(out).writerow([text, ""])  # the record's own dialect; then drop ",\r\n"
+    return out.getvalue()[:-3]

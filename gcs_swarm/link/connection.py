@@ -89,13 +89,46 @@ def new_parser() -> mavlink2.MAVLink:
     return parser
 
 
+def _v2_packet_end(data: bytes, start: int) -> int | None:
+    """End offset of the MAVLink 2 packet at data[start:] when it is whole (length from its own header) and
+    has no incompatibility flag but signing, i.e. a packet pymavlink's parse_buffer would cut out unchanged
+    and hand to its `decode`; None for anything else (garbage, MAVLink 1, a truncated packet)."""
+    if len(data) - start < 3 or data[start] != mavlink2.PROTOCOL_MARKER_V2:
+        return None
+    flags = data[start + 2]
+    if flags & ~mavlink2.MAVLINK_IFLAG_SIGNED:
+        return None
+    signature = mavlink2.MAVLINK_SIGNATURE_BLOCK_LEN if flags else 0
+    end = start + mavlink2.HEADER_LEN_V2 + data[start + 1] + 2 + signature
+    return end if end <= len(data) else None
+
+
 class _DatagramParser:
-    """Parses whole UDP datagrams: a truncated packet ending a datagram is garbage, not joined to the next."""
+    """Parses whole UDP datagrams: a truncated packet ending a datagram is garbage, not joined to the next.
+
+    The whole MAVLink 2 packets a datagram starts with (usually all of it) go straight to pymavlink's
+    `decode`, which checks each (CRC, signature, payload) exactly as `parse_buffer` would, without its
+    byte-buffer bookkeeping; from the first thing that is not such a packet on, `parse_buffer` takes the rest.
+    """
 
     def __init__(self) -> None:
         self._parser = new_parser()
 
     def parse(self, data: bytes) -> list[MAVLinkMessage]:
+        msgs: list[MAVLinkMessage] = []
+        start = 0
+        while (end := _v2_packet_end(data, start)) is not None:
+            packet = bytearray(data[start:end])
+            try:
+                msgs.append(self._parser.decode(packet))
+            except mavlink2.MAVError as err:
+                msgs.append(mavlink2.MAVLink_bad_data(packet, err.message))
+            start = end
+        if start < len(data):
+            msgs += self._parse_buffer(data[start:])
+        return msgs
+
+    def _parse_buffer(self, data: bytes) -> list[MAVLinkMessage]:
         msgs = self._parser.parse_buffer(data) or []
         if self._parser.buf_len() > 0:
             tail = bytearray(data[-self._parser.buf_len() :])

@@ -483,11 +483,11 @@ class Fleet:
         if bad.any():
             names = ", ".join(self.links[i].name for i in np.flatnonzero(bad))
             raise ValueError(f"non-finite attitude target for {names}; nothing sent")
-        q = frames.attitude_target_quaternion(euler)
+        q, thrust_list = frames.attitude_target_quaternion(euler).tolist(), thr.tolist()
         for link in self.links:
             i = link.index
             if selected[i] and link.sysid is not None:
-                link.send_attitude_quaternion(q[i], float(thr[i]))
+                link.send_attitude_quaternion(q[i], thrust_list[i])
 
     def _mask(self, mask: ArrayLike | None) -> NDArray[np.bool_]:
         n = len(self.links)

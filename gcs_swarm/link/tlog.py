@@ -29,8 +29,7 @@ class TlogWriter:
     def write(self, packet: bytes | bytearray, unix_time_s: float | None = None) -> None:
         """Record one packet; `unix_time_s` defaults to now."""
         t = time.time() if unix_time_s is None else unix_time_s
-        self._file.write(_TIMESTAMP.pack(int(t * 1e6)))
-        self._file.write(packet)
+        self._file.write(_TIMESTAMP.pack(int(t * 1e6)) + packet)
         self.records += 1
         if time.monotonic() - self._flushed_at >= FLUSH_PERIOD_S:  # a killed process loses at most this much
             self.flush()

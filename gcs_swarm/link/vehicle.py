@@ -54,6 +54,8 @@ COMMAND_RETRIES = 10  # [add] resends after a silent timeout: at 10 % loss each 
 CONFIRM_TIMEOUT_S = 5.0  # [add] vehicle s for a 1 Hz HEARTBEAT to show a new mode / arming state
 GCS_HEARTBEAT_MS = 500  # [add] vehicle ms between GCS HEARTBEATs: under 10 % loss a 5 s FS_GCS_TIMEOUT
 # then needs ~10 lost in a row, not 5
+HEARTBEAT_STAGGER_MS = 7  # [add] offset between consecutive vehicles' heartbeat periods, so that a fleet's
+# vehicle-time heartbeats (clocks in step) spread over the frames of a period instead of all leaving in one
 TAKEOFF_EVIDENCE_S = 3.0  # [add] vehicle s to wait for signs of a climb after a repeated takeoff is refused
 TAKEOFF_CLIMB_M = 0.5  # [add] climb since the first NAV_TAKEOFF that shows the vehicle is taking off
 
@@ -318,7 +320,8 @@ class VehicleLink:
         self._heard_clock_ms = 0  # fleet clock at the last packet from this vehicle
         self._hb_wall = -math.inf
         self._timesync_ns = -1  # ts1 of our latest TIMESYNC request (monotonic ns)
-        self._hb_time_ms = -1
+        self._hb_time_ms = -1  # time_boot_ms of the latest GCS HEARTBEAT
+        self._hb_phase_ms = index * HEARTBEAT_STAGGER_MS % GCS_HEARTBEAT_MS
         self._acks: dict[int, MAVLinkMessage] = {}
         self._pending_commands: set[int] = set()
         self._param_updates: dict[str, int] = {}
@@ -398,7 +401,7 @@ class VehicleLink:
                 st.position_ms[i] = -1
                 self._latest_ms.clear()
             st.time_ms[i] = t_ms
-            if t_ms - self._hb_time_ms >= GCS_HEARTBEAT_MS or t_ms < self._hb_time_ms:
+            if self._heartbeat_due(t_ms):
                 self.send_heartbeat()  # brief: the simulator times its GCS failsafe in vehicle time
         if kind is None:
             return True
@@ -407,6 +410,16 @@ class VehicleLink:
             return False
         self._latest_ms[kind] = t_ms
         return True
+
+    def _heartbeat_due(self, t_ms: int) -> bool:
+        """A GCS HEARTBEAT is due at time_boot_ms `t_ms`: the first one, then one per GCS_HEARTBEAT_MS period
+        of vehicle time (vehicle i's periods start HEARTBEAT_STAGGER_MS * i ms later, modulo the period), and
+        one after a reboot."""
+        last = self._hb_time_ms
+        if last < 0 or t_ms < last:
+            return True
+        shift = GCS_HEARTBEAT_MS - self._hb_phase_ms
+        return (t_ms + shift) // GCS_HEARTBEAT_MS > (last + shift) // GCS_HEARTBEAT_MS
 
     def _on_clock_tick(self, m: MAVLinkMessage) -> None:
         """SYSTEM_TIME(time_unix_usec=0): a lockstep simulator with link faults marks each frame end with it
@@ -437,7 +450,7 @@ class VehicleLink:
         st.position_ms[i] = m.time_boot_ms
 
     def _on_attitude(self, m: MAVLinkMessage) -> None:
-        if not all(math.isfinite(v) for v in (m.roll, m.pitch, m.yaw)):
+        if not (math.isfinite(m.roll) and math.isfinite(m.pitch) and math.isfinite(m.yaw)):
             return self._invalid()
         if not self._on_time(m.time_boot_ms, "attitude"):
             return
@@ -611,7 +624,7 @@ class VehicleLink:
 
     def send_attitude_quaternion(self, q_ned_frd: ArrayLike, thrust: float) -> None:
         """SET_ATTITUDE_TARGET with a LOCAL_NED->BODY_FRD quaternion (w,x,y,z), thrust clipped to [0,1]."""
-        q = [float(c) for c in np.asarray(q_ned_frd, dtype=float)]
+        q = np.asarray(q_ned_frd, dtype=float).tolist()
         thrust = min(max(float(thrust), 0.0), 1.0)
         self.send(
             self._mav.set_attitude_target_encode(
