@@ -108,6 +108,18 @@ def vehicle_configs(mission: Mission, base_port: int | None) -> list[VehicleConf
     ]
 
 
+def mission_fleet(mission: Mission, base_port: int | None, run_dir: Path, key: bytes | None) -> Fleet:
+    """The (unconnected) Fleet that flies `mission`: its vehicles (see vehicle_configs), the run folder's
+    telemetry.tlog, the signing key, and safety.telemetry.lost_s as the loss timeout."""
+    return Fleet(
+        vehicle_configs(mission, base_port),
+        mission.origin,
+        tlog_path=run_dir / "telemetry.tlog",
+        signing_key=key,
+        loss_timeout_s=mission.safety.telemetry.lost_s,
+    )
+
+
 def signing_key(mission: Mission) -> tuple[Path | None, bytes | None]:
     """The mission's MAVLink 2 signing key file and key (run.signing_key_file or SWARM_GCS_SIGNING_KEY_FILE);
     (None, None) without one. SigningKeyError (one sentence) for an unreadable or malformed file."""
@@ -180,13 +192,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
                 tuple(options.sim_args),
             )
             say(f"embedded simulator up: {len(mission.vehicles)} vehicles on 127.0.0.1:{base_port}..")
-        with Fleet(
-            vehicle_configs(mission, base_port),
-            mission.origin,
-            tlog_path=run_dir / "telemetry.tlog",
-            signing_key=key,
-            loss_timeout_s=mission.safety.telemetry.lost_s,
-        ) as fleet:
+        with mission_fleet(mission, base_port, run_dir, key) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             try:
                 runner = MissionRunner(mission, fleet, record, progress=say)

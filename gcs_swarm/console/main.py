@@ -16,15 +16,14 @@ from pathlib import Path
 from gcs_swarm.console.script import PlainConsole
 from gcs_swarm.console.session import FlightSession
 from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
-from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.signing import SigningKeyError
 from gcs_swarm.mission import MissionError, load_mission
 from gcs_swarm.report import RECORD_FILE, write_report
 from gcs_swarm.run_command import (
     default_run_dir,
+    mission_fleet,
     signing_key,
     start_embedded_simulator,
-    vehicle_configs,
     write_flight,
 )
 from gcs_swarm.run_record import RunRecord
@@ -85,13 +84,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         where = (
             f"embedded simulator on 127.0.0.1:{base_port}.." if embedded else "vehicles of the mission file"
         )
-        with Fleet(
-            vehicle_configs(mission, base_port),
-            mission.origin,
-            tlog_path=run_dir / "telemetry.tlog",
-            signing_key=key,
-            loss_timeout_s=mission.safety.telemetry.lost_s,
-        ) as fleet:
+        with mission_fleet(mission, base_port, run_dir, key) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             runner = MissionRunner(
                 mission, fleet, record, progress_period_s=2.0 if script is not None else 1e9

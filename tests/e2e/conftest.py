@@ -79,6 +79,22 @@ def derived_mission(tmp_path: Path, source: str, name: str, **changes: Any) -> P
     return path
 
 
+def static6_short(tmp_path: Path, name: str, link: dict[str, Any] | None = None) -> Path:
+    """Section 5.2.1 (paper_static_6) with the goal moved to (600, 600, 200), so the flight past obstacles
+    (250, 160, 200) and (520, 350, 200) stays short; followers keep their Table 3 slots (the Table 3 targets
+    lie 6 km away, so without them each follower's destination is its final slot). `link`: world.link."""
+    mission = derived_mission(
+        tmp_path, "paper_static_6.yaml", name, goal=[600.0, 600.0, 200.0], run={"time_limit_s": 240}
+    )
+    data = yaml.safe_load(mission.read_text())
+    for v in data["vehicles"]:
+        v.pop("target", None)
+    if link is not None:
+        data["world"]["link"] = link
+    mission.write_text(yaml.safe_dump(data, sort_keys=False))
+    return mission
+
+
 @pytest.fixture
 def quickstart() -> Path:
     return MISSIONS / "quickstart.yaml"

@@ -5,11 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import yaml
 from pymavlink import mavutil
 
 from gcs_swarm.cli import main
-from tests.e2e.conftest import derived_mission, fly
+from tests.e2e.conftest import fly, static6_short
 
 REPORT_KEYS = {
     "reached",
@@ -68,20 +67,8 @@ def test_quickstart_reaches_goal_and_repeats_exactly(quickstart: Path, tmp_path:
 
 
 def test_six_uav_static_paper_scenario_shortened(tmp_path: Path) -> None:
-    """Section 5.2.1 with the goal moved to (600, 600, 200) so the flight past obstacle (250, 160, 200) and
-    (520, 350, 200) stays short; followers keep their Table 3 slots."""
-    mission = derived_mission(
-        tmp_path,
-        "paper_static_6.yaml",
-        "static6_short",
-        goal=[600.0, 600.0, 200.0],
-        run={"time_limit_s": 240},
-    )
-    # Table 3 targets lie 6 km away; without them each follower's destination is its final slot.
-    data = yaml.safe_load(mission.read_text())
-    for v in data["vehicles"]:
-        v.pop("target", None)
-    mission.write_text(yaml.safe_dump(data, sort_keys=False))
+    """Section 5.2.1, shortened (conftest.static6_short)."""
+    mission = static6_short(tmp_path, "static6_short")
     outcome = fly(mission, tmp_path / "run", timeout_s=500)
     assert outcome.status == 0, outcome.output[-3000:]
     report = outcome.report

@@ -7,9 +7,8 @@ import re
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from tests.e2e.conftest import derived_mission, fly
+from tests.e2e.conftest import fly, static6_short
 
 RTL, LAND = 6, 9  # ArduCopter custom_mode
 
@@ -62,18 +61,7 @@ def test_leader_lost_mid_flight_hands_the_lead_on(quickstart: Path, tmp_path: Pa
 
 def test_six_uav_paper_mission_under_ten_percent_loss_and_100ms_jitter(tmp_path: Path) -> None:
     """Section 5.2.1 (shortened as in test_gcs_run) with the faults in the mission file's world.link."""
-    mission = derived_mission(
-        tmp_path,
-        "paper_static_6.yaml",
-        "static6_faulty",
-        goal=[600.0, 600.0, 200.0],
-        run={"time_limit_s": 240},
-    )
-    data = yaml.safe_load(mission.read_text())
-    for v in data["vehicles"]:
-        v.pop("target", None)
-    data["world"]["link"] = {"loss": 0.1, "jitter_ms": 100}  # from power-on
-    mission.write_text(yaml.safe_dump(data, sort_keys=False))
+    mission = static6_short(tmp_path, "static6_faulty", link={"loss": 0.1, "jitter_ms": 100})  # power-on
     run = fly(mission, tmp_path / "run", timeout_s=500)
     assert run.status == 0, run.output[-3000:]
     assert run.report["reached"] and run.report["collisions"] == 0
