@@ -205,12 +205,12 @@ class MissionRunner:
         self._set_phase("preflight")
         fleet, run = self.fleet, self.mission.run
         try:
+            fleet.request_streams_all(run.control_rate_hz)  # ArduCopter streams nothing until asked
             fleet.wait_ready(timeout_s=run.preflight_timeout_s)
             fleet.param_set_all("GUID_OPTIONS", GUID_OPTIONS_THRUST)
             fleet.param_set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[self.mission.safety.gcs_failsafe])
             self.hover = fleet.param_get_all("MOT_THST_HOVER")
             self.failsafe_params = np.column_stack([fleet.param_get_all(name) for name in FAILSAFE_PARAMS])
-            fleet.request_streams_all(run.control_rate_hz)
         except LinkError as exc:
             raise PreflightError(f"preflight failed: {exc}") from exc
         bad = [name for name, h in zip(fleet.names, self.hover, strict=True) if not 0.05 < h < 0.95]
