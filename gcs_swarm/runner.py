@@ -21,7 +21,7 @@ import numpy as np
 
 from gcs_swarm.guidance.degradation import StaleTelemetryMonitor, TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
-from gcs_swarm.guidance.formation import formation_offsets
+from gcs_swarm.guidance.formation import assign_slots, formation_offsets
 from gcs_swarm.guidance.lost_vehicles import LostTrack, avoidance_radius, predicted_position
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
@@ -266,7 +266,8 @@ class MissionRunner:
 
     def _enter_formation(self) -> None:
         fleet = self.fleet
-        self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
+        self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
+        self._assign_slots()
         self.telemetry.reset()
         self._held[:], self._degraded, self._last_tick_t = False, False, None
         self.result.t_formation_start = self.vehicle_time()
@@ -339,7 +340,7 @@ class MissionRunner:
         """Back to formation flight from the current state."""
         if self.phase == "hold":
             fleet = self.fleet
-            self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
+            self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
             self._hold_since = None
             self._set_phase("formation")
 
@@ -360,6 +361,8 @@ class MissionRunner:
         self.shape = (shape, spacing)
         alive = self.fleet.alive
         self.controller.set_offsets(live_offsets(self.mission, alive, self.controller.leader, shape, spacing))
+        if self.phase in ("formation", "hold"):
+            self._assign_slots()
         self._hold_since = None
         self.result.events.append(f"formation changed to {shape} {spacing or ''}".strip())
 
@@ -476,6 +479,25 @@ class MissionRunner:
         if t - (self.result.t_formation_start or t) > run.time_limit_s:
             self.result.events.append(f"time limit {run.time_limit_s:g} s reached before arrival")
             self._set_phase("land")
+
+    def slots_assignable(self) -> bool:
+        """Whether followers may swap slots: `formation.assign_slots` and no vehicle pins a slot or target."""
+        m = self.mission
+        return m.formation.assign_slots and all(v.slot is None and v.target is None for v in m.vehicles)
+
+    def _assign_slots(self) -> None:
+        """Give the current slots to the live followers by least total travel (formation.assign_slots) from
+        where they are now, the leader's slot frame as it is now."""
+        if not self.slots_assignable():
+            return
+        ctl, fleet = self.controller, self.fleet
+        movable = fleet.alive & np.isfinite(fleet.pos).all(axis=1)
+        movable[ctl.leader] = False
+        assert ctl.heading is not None
+        offsets = assign_slots(fleet.pos, fleet.pos[ctl.leader], ctl.heading.psi, ctl.offsets, movable)
+        if not np.array_equal(offsets, ctl.offsets):
+            ctl.set_offsets(offsets)
+            self.result.events.append("slots assigned by least travel")
 
     def _place_lost(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Where lost vehicles have probably flown on their failsafe: (K, 3) ENU m and (K,) m, spheres the
@@ -598,12 +620,14 @@ class MissionRunner:
         offsets = live_offsets(self.mission, alive, leader, shape, spacing)
         if leader == ctl.leader:
             ctl.set_offsets(offsets)
+            self._assign_slots()
             self.result.events.append("formation re-formed without the lost vehicles")
             return
         remaining = ctl.waypoints[ctl.waypoint_index :]
         self.controller = build_controller(self.mission, leader=leader, offsets=offsets)
         self.controller.set_goal_waypoints(remaining)
-        self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2])
+        self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
+        self._assign_slots()
         self._hold_since = None
         text = f"leader lost: {fleet.names[leader]} takes the lead"
         self.result.events.append(text)

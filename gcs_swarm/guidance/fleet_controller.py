@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gcs_swarm.guidance import field as fieldmod
+from gcs_swarm.guidance.attitude_slew import TiltSlew
 from gcs_swarm.guidance.formation import (
     LeaderHeading,
     check_offsets,
@@ -20,7 +21,7 @@ from gcs_swarm.guidance.formation import (
     turn_velocity,
 )
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
-from gcs_swarm.guidance.obstacles import clearance
+from gcs_swarm.guidance.obstacles import clearance, push_out_horizontally
 from gcs_swarm.guidance.params import (
     FieldParams,
     G,
@@ -144,6 +145,7 @@ class FleetController:
             if controller == "smc"
             else PIDController(pid or PIDParams(), g)
         )
+        self.slew = TiltSlew(np.deg2rad(self.limits.tilt_rate_max_deg))
         self.heading: LeaderHeading | None = None
         self.relay: LeaderRelay | None = None
         self.speed_scale = 1.0
@@ -191,11 +193,14 @@ class FleetController:
 
     # ----- control -----
 
-    def reset(self, pos: np.ndarray, vel: np.ndarray, yaw: np.ndarray) -> None:
-        """Start from the measured state: references at (pos, vel) (N, 3), psi_L = the leader's yaw (rad)."""
+    def reset(self, pos: np.ndarray, vel: np.ndarray, yaw: np.ndarray, att: np.ndarray | None = None) -> None:
+        """Start from the measured state: references at (pos, vel) (N, 3), psi_L = the leader's yaw (rad),
+        tilt commands at the measured roll and pitch (`att` (N, 3) roll, pitch, yaw; None: level)."""
         pos = _as_array("pos", pos, (self.n, 3))
         vel = _as_array("vel", vel, (self.n, 3))
         yaw = _as_array("yaw", yaw, (self.n,))
+        att = np.zeros((self.n, 3)) if att is None else _as_array("att", att, (self.n, 3))
+        self.slew.reset(att[:, 0], att[:, 1])
         known = np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
         if not known[self.leader] or not np.isfinite(yaw[self.leader]):
             raise ValueError(f"reset needs a finite state of the leader (vehicle {self.leader})")
@@ -206,13 +211,23 @@ class FleetController:
         self.generator.reset(self.last_pos, self.last_vel)
         self.controller.reset(self.n)
         rate = np.deg2rad(self.reference.heading_rate_max_deg)
-        self.heading = LeaderHeading(yaw[self.leader], self.reference.heading_min_speed, rate, self.d_g)
+        ref = self.reference
+        self.heading = LeaderHeading(
+            yaw[self.leader],
+            ref.heading_min_speed,
+            rate,
+            self.d_g,
+            accel_max=np.deg2rad(ref.heading_accel_max_deg),
+            filter_s=ref.heading_filter_s,
+            gain=ref.heading_gain,
+        )
         self.relay = LeaderRelay(self.delays, self._leader_state())
 
     def _leader_state(self) -> np.ndarray:
         assert self.heading is not None
         p, v = self.last_pos[self.leader], self.last_vel[self.leader]
-        return np.concatenate([p, v, [self.heading.psi, self.heading.rate]])
+        a = self.generator.a[self.leader]
+        return np.concatenate([p, v, [self.heading.psi, self.heading.rate], a])
 
     def _tick_dt(self, t: float) -> float:
         """Time since the previous tick; the nominal period on the first tick or after a gap or jump."""
@@ -275,6 +290,7 @@ class FleetController:
         if returning.any():
             self.generator.reset_rows(returning, pos, vel)
             self.controller.reset_rows(returning)
+            self.slew.reset_rows(returning, att[:, 0], att[:, 1])
 
         # Leader goal and heading (spec 6 [add]); the heading follows the leader's reference velocity.
         lead = self.leader
@@ -289,12 +305,21 @@ class FleetController:
         # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
         self.relay.push(self._leader_state())
         heard = self.relay.read()
-        p_l, v_l, psi_l, rate_l = heard[:, 0:3], heard[:, 3:6], heard[:, 6], heard[:, 7]
+        p_l, v_l, psi_l, rate_l, a_l = heard[:, 0:3], heard[:, 3:6], heard[:, 6], heard[:, 7], heard[:, 8:11]
         world_off = rotate_z(self.offsets * self.spacing_scale, psi_l)
         targets = p_l + world_off
         v_ff = v_l + turn_velocity(world_off, rate_l)
+        # [add] slot acceleration: the leader's reference acceleration plus the centripetal term of the
+        # turning frame, fed forward to the shaped reference (spec 8 step 4): followers accelerate with the
+        # leader
+        a_ff = a_l - (rate_l * rate_l)[:, None] * np.column_stack([world_off[:, :2], np.zeros(self.n)])
+        if self.reference.slot_margin > 0.0 and len(obs_r):
+            # [add] a slot inside an obstacle's shell is moved out of it, so the follower is not torn between
+            # its slot's attraction and the obstacle's repulsion
+            targets = push_out_horizontally(targets, obs_c, obs_r, self.reference.slot_margin)
         targets[lead] = goal
         v_ff[lead] = 0.0
+        a_ff[lead] = 0.0
         dest = goal + world_off if self.follower_targets is None else self.follower_targets.copy()
         dest[lead] = goal
 
@@ -307,7 +332,9 @@ class FleetController:
         self.generator.leash(pos, active)
         p_r = self.generator.p
         known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
-        f_obs, _ = fieldmod.obstacle_repulsion(p_r, dest, obs_c, obs_r, self.field)
+        f_obs, _ = fieldmod.obstacle_repulsion(
+            p_r, dest, obs_c, obs_r, self.field, ahead=self.generator.lookahead_points()
+        )
         wide = self.spacing_scale
         separation = (
             self.separation
@@ -317,12 +344,22 @@ class FleetController:
         f_uav, emergency = uav_repulsion(
             p_r, self.last_pos, self.last_vel, self.field.k_uav, self.field.n_uav, self.d_max * wide,
             separation, self.field.l_min, src_valid=known,
+            at_vel=self.generator.v, brake_accel=self.reference.brake_accel,
         )  # fmt: skip
         f_att = fieldmod.attraction(p_r, targets, self.field, self.d_g)
         force = f_att + f_obs + f_uav
 
         # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
-        x_d, xd_dot, xd_ddot = self.generator.step(force, v_ff, self.v_xy_cap * self.speed_scale, dt, active)
+        x_d, xd_dot, xd_ddot = self.generator.step(
+            force,
+            v_ff,
+            self.v_xy_cap * self.speed_scale,
+            dt,
+            active,
+            a_ff=a_ff,
+            targets=targets,
+            evasive=emergency,
+        )
         if self.reference.paper_literal:
             lit = paper_literal_reference(targets, v_ff, f_obs + f_uav, self.field.k_att, self.field.l0)
             for arr, lit_arr in zip((x_d, xd_dot, xd_ddot), lit, strict=True):
@@ -333,6 +370,7 @@ class FleetController:
         else:
             cmd = invert(u, att[:, 2], self.limits, self.g)
 
+        roll_cmd, pitch_cmd = self.slew(cmd.roll, cmd.pitch, dt, active)
         off = ~active
         gap = clearance(pos, obs_c, obs_r)
 
@@ -343,8 +381,8 @@ class FleetController:
 
         return Command(
             active=active,
-            roll_d=masked(cmd.roll),
-            pitch_d=masked(cmd.pitch),
+            roll_d=masked(roll_cmd),
+            pitch_d=masked(pitch_cmd),
             yaw_d=masked(psi_l),
             thrust_acc=masked(cmd.thrust_acc),
             ref_pos=x_d,

@@ -10,6 +10,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from gcs_swarm.guidance.shaping import sqrt_controller
 
 SHAPES = ("line", "v", "column", "grid")
 
@@ -113,31 +116,83 @@ def leader_frame_offsets(p: np.ndarray, p_leader: np.ndarray, psi_leader: np.nda
     return out
 
 
+def assign_slots(
+    pos: np.ndarray, p_leader: np.ndarray, psi_leader: float, offsets: np.ndarray, movable: np.ndarray
+) -> np.ndarray:
+    """Offsets (N, 3) with the slots of the `movable` (N,) bool vehicles permuted among them so that the
+    sum of straight-line distances from each vehicle's position (N, 3) to its slot (at the leader's
+    position (3,) and heading psi rad) is least [add]. Straight paths of a least-total-distance assignment
+    do not cross in the plane (two crossing paths could swap ends and both get shorter, by the triangle
+    inequality), so followers do not cut across each other while assembling. Solved exactly by
+    scipy.optimize.linear_sum_assignment; rows with a non-finite position keep their slot."""
+    out = np.array(offsets, dtype=float)
+    rows = np.flatnonzero(np.asarray(movable, dtype=bool) & np.isfinite(pos).all(axis=1))
+    if len(rows) < 2:
+        return out
+    slots = slot_positions(p_leader, psi_leader, out[rows])
+    cost = np.linalg.norm(pos[rows][:, None, :] - slots[None, :, :], axis=-1)
+    vehicle, slot = linear_sum_assignment(cost)
+    out[rows[vehicle]] = offsets[rows[slot]]
+    return out
+
+
 def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
     """Angle(s) wrapped to [-pi, pi)."""
     return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class LeaderHeading:
-    """psi_L: course of the leader's reference velocity, held when slow or near the goal, rate limited
-    (spec 6 [add]). The formation rotates with it and every vehicle's yaw is commanded to it."""
+    """psi_L: course of the leader's reference velocity, held when slow or near the goal (spec 6 [add]). The
+    formation rotates with it and every vehicle's yaw is commanded to it.
 
-    def __init__(self, psi: float, min_speed: float, rate_max: float, hold_distance: float) -> None:
-        """`min_speed` m/s, `rate_max` rad/s, `hold_distance` m (d_g)."""
+    [add] Smoothing, so that the slot frame swings neither with every swerve of the leader nor in steps:
+    the course is taken from the reference velocity low-passed with time constant `filter_s`, and psi_L
+    follows it with ArduPilot's angle shaping (sqrt controller, gcs_swarm.guidance.shaping): turn rate at
+    most `rate_max`, changing at most `accel_max` rad/s^2. `accel_max` = 0 and `filter_s` = 0 give the
+    spec's plain rate limit (the rate steps between -rate_max and +rate_max)."""
+
+    def __init__(
+        self,
+        psi: float,
+        min_speed: float,
+        rate_max: float,
+        hold_distance: float,
+        accel_max: float = 0.0,
+        filter_s: float = 0.0,
+        gain: float = 1.0,
+    ) -> None:
+        """`min_speed` m/s, `rate_max` rad/s, `hold_distance` m (d_g), `accel_max` rad/s^2, `filter_s` s,
+        `gain` 1/s: turn rate per rad of course error in the linear region of the shaping."""
         self.psi = float(wrap_angle(psi))
         self.rate = 0.0
         self.min_speed = min_speed
         self.rate_max = rate_max
         self.hold_distance = hold_distance
+        self.accel_max = accel_max
+        self.filter_s = filter_s
+        self.gain = gain
+        self.v_filtered: np.ndarray | None = None
 
     def update(self, v_ref_xy: np.ndarray, distance_to_goal: float, dt: float) -> float:
         """Advance psi_L by one step of dt s from the leader's reference velocity (2,) and goal distance m."""
-        speed = math.hypot(float(v_ref_xy[0]), float(v_ref_xy[1]))
-        if speed > self.min_speed and distance_to_goal > self.hold_distance:
-            course = math.atan2(float(v_ref_xy[1]), float(v_ref_xy[0]))
-            step = float(np.clip(wrap_angle(course - self.psi), -self.rate_max * dt, self.rate_max * dt))
+        v = np.asarray(v_ref_xy, dtype=float)[:2]
+        if self.v_filtered is None or self.filter_s <= 0.0:
+            self.v_filtered = v.copy()
         else:
-            step = 0.0
-        self.psi = float(wrap_angle(self.psi + step))
-        self.rate = step / dt
+            self.v_filtered = self.v_filtered + (v - self.v_filtered) * (dt / (self.filter_s + dt))
+        vx, vy = float(self.v_filtered[0]), float(self.v_filtered[1])
+        steering = math.hypot(vx, vy) > self.min_speed and distance_to_goal > self.hold_distance
+        error = float(wrap_angle(math.atan2(vy, vx) - self.psi)) if steering else 0.0
+        if self.accel_max <= 0.0:
+            rate = error / dt
+        else:
+            rate = float(sqrt_controller(np.array([error]), self.gain, self.accel_max, dt)[0])
+        rate = min(max(rate, -self.rate_max), self.rate_max)
+        if self.accel_max > 0.0:
+            step = self.accel_max * dt
+            rate = min(max(rate, self.rate - step), self.rate + step)
+        if not steering and self.accel_max <= 0.0:
+            rate = 0.0
+        self.psi = float(wrap_angle(self.psi + rate * dt))
+        self.rate = rate
         return self.psi

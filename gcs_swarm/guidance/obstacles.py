@@ -58,3 +58,26 @@ def clearance(q: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarr
     if len(radii) == 0:
         return np.full(len(q), np.inf)
     return (np.sqrt(squared_distances(q, centres)) - radii[None, :]).min(axis=1)
+
+
+def push_out_horizontally(
+    points: np.ndarray, centres: np.ndarray, radii: np.ndarray, margin: float
+) -> np.ndarray:
+    """Points (N, 3) moved horizontally out of every obstacle's sphere grown by `margin` m: a point closer
+    than r + margin to a centre (in x, y, at any height the grown sphere covers) goes radially out to that
+    circle at its own height (one pass over the obstacles in order). Continuous in the point; (N, 3)."""
+    out = np.array(points, dtype=float)
+    for c, r in zip(centres, radii, strict=True):
+        dz = out[:, 2] - c[2]
+        grown = r + margin
+        reach_sq = grown * grown - dz * dz
+        horiz = out[:, :2] - c[:2]
+        dist = np.hypot(horiz[:, 0], horiz[:, 1])
+        inside = (reach_sq > 0.0) & (dist * dist < reach_sq)
+        if not inside.any():
+            continue
+        ring = np.sqrt(np.maximum(reach_sq, 0.0))
+        direction = np.divide(horiz, dist[:, None], out=np.zeros_like(horiz), where=dist[:, None] > 0.0)
+        direction[inside & (dist == 0.0), 0] = 1.0
+        out[inside, :2] = c[:2] + direction[inside] * ring[inside, None]
+    return out

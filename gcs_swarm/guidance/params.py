@@ -27,6 +27,8 @@ class FieldParams:
     n_uav: float = 0.8  # adaptive exponent of the inter-UAV potential (spec 4)
     l_min: float = 0.05  # m, distance floor inside/at an obstacle (spec 2.1)
     rho_eps: float = 1e-3  # m, F*_rep2 is zero closer than this to the goal (spec 3.2)
+    obstacle_vertical: float = 0.25  # weight of the vertical obstacle repulsion [add]; 1 = the paper's
+    circulation: float = 0.6  # tangential share of an obstacle-ahead repulsion [add]; 0 = the paper's
 
     def __post_init__(self) -> None:
         if self.method not in ("apf", "iaapf"):
@@ -34,7 +36,7 @@ class FieldParams:
         for name in ("k_att", "l0", "n", "l_min", "rho_eps"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"field parameter {name} must be > 0")
-        for name in ("k_rep", "k_uav"):
+        for name in ("k_rep", "k_uav", "circulation", "obstacle_vertical"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"field parameter {name} must be >= 0")
         if not 0 < self.n_uav < 2:
@@ -133,6 +135,7 @@ class Limits:
     a_xy: float = 20.0  # m/s^2
     a_z: float = 15.0  # m/s^2
     tilt_max_deg: float = 35.0  # deg, spec 5 limit 2
+    tilt_rate_max_deg: float = 115.0  # deg/s (2 rad/s), slew limit of the commanded tilt [add]; 0 = none
     thrust_max_g: float = 2.0  # U1_max / (m g), spec 5 limit 3
     uz_min_g: float = 0.3  # U_z >= uz_min_g * g, spec 5 limit 1
 
@@ -140,6 +143,8 @@ class Limits:
         for name in ("v_xy_leader", "v_xy", "v_z", "a_xy", "a_z", "thrust_max_g", "uz_min_g"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"limit {name} must be > 0")
+        if not self.tilt_rate_max_deg >= 0:
+            raise ValueError("tilt_rate_max_deg must be >= 0 (0: no slew limit)")
         if not 0 < self.tilt_max_deg < 80:
             raise ValueError("tilt_max_deg must lie in (0, 80)")
         if not self.uz_min_g < 1 < self.thrust_max_g:
@@ -160,15 +165,43 @@ class ReferenceParams:
     leash: float = 5.0  # m, max distance of the reference point from the vehicle
     heading_min_speed: float = 3.0  # m/s, psi_L updates only above this reference speed (spec 6)
     heading_rate_max_deg: float = 30.0  # deg/s, rate limit of psi_L (spec 6)
+    heading_accel_max_deg: float = (
+        20.0  # deg/s^2, how fast the turn rate of psi_L may change [add]; 0 = steps
+    )
+    heading_filter_s: float = (
+        1.0  # s, time constant of the leader velocity low-pass psi_L follows [add]; 0 = off
+    )
+    heading_gain: float = 1.0  # 1/s, turn rate of psi_L per rad of course error, small errors [add]
     paper_literal: bool = False  # spec 8 option: x_d = slot + K_f * sum F_rep
     waypoint_radius: float = 5.0  # m, the leader moves on to its next goal waypoint within this distance
+    jerk_max: float = (
+        5.0  # m/s^3, horizontal jerk of the reference (ArduPilot shaping) [add]; 0 = spec step 4
+    )
+    jerk_max_z: float = 10.0  # m/s^3, vertical jerk of the reference [add]
+    stop_accel: float = (
+        3.0  # m/s^2, approach speed to the attraction target capped at sqrt(2 a d) [add]; 0 = off
+    )
+    slot_margin: float = 0.0  # m, slots closer than this to an obstacle surface are moved out [add]; 0 = off
+    evasive_jerk_max: float = 40.0  # m/s^3, jerk of a reference in an emergency separation (full tilt) [add]
+    accel_xy_max: float = 4.0  # m/s^2, horizontal acceleration of the shaped reference (jerk_max > 0) [add]
+    brake_accel: float = (
+        1.5  # m/s^2, obstacle field felt at the braking point v|v|/(2 a) ahead [add]; 0 = off
+    )
 
     def __post_init__(self) -> None:
-        for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius"):
+        for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius", "accel_xy_max"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"reference parameter {name} must be > 0")
         if self.heading_min_speed < 0:
             raise ValueError("heading_min_speed must be >= 0")
+        if not (self.heading_accel_max_deg >= 0 and self.heading_filter_s >= 0 and self.heading_gain > 0):
+            raise ValueError("need heading_accel_max_deg >= 0, heading_filter_s >= 0 and heading_gain > 0")
+        if not self.slot_margin >= 0:
+            raise ValueError("slot_margin must be >= 0 (0 turns it off)")
+        if not self.stop_accel >= 0:
+            raise ValueError("stop_accel must be >= 0 (0 turns the stopping curve off)")
+        if not (self.jerk_max >= 0 and self.jerk_max_z > 0):
+            raise ValueError("jerk_max must be >= 0 (0: unshaped, spec 8 step 4) and jerk_max_z > 0")
 
 
 @dataclass(frozen=True)
@@ -197,3 +230,29 @@ class TelemetryParams:
             raise ValueError("recover_s must be >= 0")
         if not (0 < self.lost_radius <= self.lost_radius_max and self.lost_radius_growth >= 0):
             raise ValueError("need 0 < lost_radius <= lost_radius_max and lost_radius_growth >= 0")
+
+
+# [add] values that turn every smoothing and safety addition off, leaving the method as the spec states it
+# (sections 3-8): the `paper` variant of `gcs-swarm compare` flies these, and tests of the plain equations use
+# them. Keys are mission-file paths.
+PAPER_PLAIN: dict[str, dict[str, float]] = {
+    "guidance": {"circulation": 0.0, "obstacle_vertical": 1.0},
+    "guidance.reference": {
+        "jerk_max": 0.0,
+        "brake_accel": 0.0,
+        "stop_accel": 0.0,
+        "heading_accel_max_deg": 0.0,
+        "heading_filter_s": 0.0,
+    },
+    "limits": {"tilt_rate_max_deg": 0.0},
+}
+
+
+def paper_plain_field(**changes: float | str) -> FieldParams:
+    """FieldParams with the [add] terms off (PAPER_PLAIN), plus `changes`."""
+    return FieldParams(**{**PAPER_PLAIN["guidance"], **changes})  # type: ignore[arg-type]
+
+
+def paper_plain_reference(**changes: float | bool) -> ReferenceParams:
+    """ReferenceParams with the [add] shaping off (PAPER_PLAIN), plus `changes`."""
+    return ReferenceParams(**{**PAPER_PLAIN["guidance.reference"], **changes})  # type: ignore[arg-type]

@@ -106,6 +106,8 @@ def uav_repulsion(
     sep: SeparationParams,
     l_min: float,
     src_valid: np.ndarray | None = None,
+    at_vel: np.ndarray | None = None,
+    brake_accel: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Total inter-UAV force F_uav,i = sum_j F_uav,ij (N, D) and the emergency flag (N,) (spec 4, Eq 19).
 
@@ -113,6 +115,12 @@ def uav_repulsion(
     D_max). Inside D_Emg the pair adds |F_ij| sgn(i - j) z_hat (Eq 18: larger index pushed up). Two vehicles
     at one point (l < l_min) use l_min and direction sgn(i - j) along the last axis. Sources with
     `src_valid` False are ignored.
+
+    [add] With `at_vel` (N, D), the velocities of the evaluation points, and `brake_accel` a_b > 0, a closing
+    pair is felt at its closest approach along the relative braking path: the separation
+    d = p_at[i] - p_src[j] moving at w = at_vel[i] - vel[j] for |w|^2 / (4 a_b) (both braking at a_b), so two
+    vehicles heading for each other start to give way while they can still stop, and sideways (at the
+    separation they would pass at) rather than head-on. Pairs moving apart are felt where they are.
     """
     n_veh, dim = p_at.shape
     force = np.zeros((n_veh, dim))
@@ -121,14 +129,33 @@ def uav_repulsion(
         src_index = np.arange(n_veh)
     else:
         src_index = np.flatnonzero(src_valid)
-    i, jj = neighbour_pairs(p_at, p_src[src_index], d_max)
+    sweep = at_vel is not None and brake_accel > 0.0
+    if sweep:
+        assert at_vel is not None
+        rel_speed_max = np.nanmax(np.linalg.norm(at_vel, axis=1)) + np.nanmax(np.linalg.norm(vel, axis=1))
+        reach = d_max + rel_speed_max * rel_speed_max / (4.0 * brake_accel)
+    else:
+        reach = d_max
+    i, jj = neighbour_pairs(p_at, p_src[src_index], reach)
     j = src_index[jj]
     keep = i != j
     i, j = i[keep], j[keep]
     if len(i) == 0:
         return force, emergency
     diff = p_at[i] - p_src[j]
+    if sweep:
+        assert at_vel is not None
+        w = at_vel[i] - vel[j]
+        w_sq = np.einsum("pd,pd->p", w, w)
+        length = np.sqrt(w_sq) / (4.0 * brake_accel)  # s of relative motion until both have stopped
+        closing = -np.einsum("pd,pd->p", diff, w)
+        t_cpa = np.clip(np.divide(closing, w_sq, out=np.zeros_like(closing), where=w_sq > 0.0), 0.0, length)
+        diff = diff + w * t_cpa[:, None]
     l = np.sqrt(np.einsum("pd,pd->p", diff, diff))
+    near = l < d_max
+    i, j, diff, l = i[near], j[near], diff[near], l[near]
+    if len(i) == 0:
+        return force, emergency
     sign = np.sign(i - j).astype(float)
     coincident = l < l_min
     e_ji = diff / np.where(coincident, 1.0, l)[:, None]

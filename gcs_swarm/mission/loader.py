@@ -74,7 +74,7 @@ TOP_KEYS = (
 MOVED_KEYS = {"obstacles": "world", "wind": "world", "separation": "safety", "simulator": "run"}
 VEHICLE_KEYS = ("name", "connection", "role", "sysid", "slot", "start", "target")
 START_KEYS = ("position", "velocity", "yaw_deg")
-FORMATION_KEYS = ("shape", "spacing", "angle_deg", "altitude", "topology", "adjacency")
+FORMATION_KEYS = ("shape", "spacing", "angle_deg", "altitude", "topology", "adjacency", "assign_slots")
 SHAPES = ("v", "line", "column", "grid", "offsets")
 RUN_KEYS = (
     "control_rate_hz",
@@ -394,6 +394,7 @@ def _formation(formation: Section, vehicles: list[ParsedVehicle]) -> FormationSp
         altitude=formation.number("altitude", 10.0, above=0, unit="m"),
         topology=topology,
         adjacency=adjacency,
+        assign_slots=formation.flag("assign_slots", True),
     )
 
 

@@ -142,6 +142,9 @@ class FormationSpec(_ValueEquality):
     altitude: float  # m above the origin: take-off and formation altitude
     topology: str  # "broadcast" | "relay"
     adjacency: np.ndarray | None  # (N, N) 0/1 ints in vehicle order; A[i, j] = 1: vehicle i hears vehicle j
+    # [add] slots the mission does not pin (no vehicle sets `slot` or `target`) go to followers by least total
+    # travel at every (re-)formation; False: in vehicle order
+    assign_slots: bool = True
 
 
 @dataclasses.dataclass(frozen=True)

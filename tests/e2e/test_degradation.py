@@ -11,7 +11,7 @@ import numpy as np
 
 from tests.e2e.conftest import fly
 
-OUTAGE_S = (15.0, 2.0)  # start, duration in simulated s
+OUTAGE_S = (20.0, 2.0)  # start, duration in simulated s: the quickstart cruises past its obstacles by then
 
 
 def _window(events: list[str], start: str, end: str) -> tuple[float, float]:
@@ -48,9 +48,11 @@ def test_a_follower_quiet_for_two_seconds_is_held_and_the_fleet_slows_then_recov
     lead = truth[truth["vehicle"] == 0]
     speed = np.hypot(lead["vx"], lead["vy"])
     before = speed[(lead["t"] > degraded - 1.0) & (lead["t"] < degraded)]
-    slowed = speed[(lead["t"] > degraded + 1.5) & (lead["t"] < normal)]
+    # from 10 to 5 m/s at 4 m/s^2 and 5 m/s^3 (guidance.reference accel_xy_max, jerk_max) takes
+    # dv / A + A / J = 1.25 + 0.8 = 2.05 s at best, so look from 2.5 s on
+    slowed = speed[(lead["t"] > degraded + 2.5) & (lead["t"] < normal)]
     assert before.min() > 9.0  # cruising at about 10 m/s before the outage
-    assert slowed.max() < 6.0  # about degraded_speed x v_xy_leader = 5 m/s, after 1.5 s to slow down
+    assert slowed.size and slowed.max() < 6.0  # about degraded_speed x v_xy_leader = 5 m/s
 
 
 def test_a_quiet_leader_holds_the_whole_fleet_until_it_is_heard_again(

@@ -8,7 +8,7 @@ import pytest
 
 from gcs_swarm.guidance import apf, iaapf
 from gcs_swarm.guidance import field as fieldmod
-from gcs_swarm.guidance.params import FieldParams, SeparationParams
+from gcs_swarm.guidance.params import SeparationParams, paper_plain_field
 from gcs_swarm.guidance.separation import (
     d_emg_formula,
     d_max_formula,
@@ -156,7 +156,7 @@ def test_sparse_field_equals_dense_sums():
         q = np.vstack([points_in_shells(rng, dim, centres, radii, 20.0, 40), rng.uniform(-80, 80, (40, dim))])
         dest = rng.uniform(-40, 40, (len(q), dim))
         for method in ("apf", "iaapf"):
-            fp = FieldParams(method=method, k_rep=1e3, l0=20.0)
+            fp = paper_plain_field(method=method, k_rep=1e3, l0=20.0)
             force, inside = fieldmod.obstacle_repulsion(q, dest, centres, radii, fp)
             if method == "apf":
                 dense = apf.repulsion_force(q, centres, radii, fp.k_rep, fp.l0, fp.l_min)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm.guidance.params import FieldParams, G, Limits, ReferenceParams
+from gcs_swarm.guidance.params import FieldParams, G, Limits, ReferenceParams, paper_plain_reference
 from gcs_swarm.guidance.reference import (
     ReferenceGenerator,
     default_d_g,
@@ -29,8 +29,9 @@ def test_saturation_keeps_the_horizontal_direction_and_clips_vertical():
 
 
 def test_velocity_and_acceleration_limits_and_leash():
+    """The spec's plain generator (no shaping): the acceleration steps to its limit at once."""
     lim = Limits()
-    gen = ReferenceGenerator(ReferenceParams(), lim, k_att=100.0)
+    gen = ReferenceGenerator(paper_plain_reference(), lim, k_att=100.0)
     pos = np.zeros((2, 3))
     gen.reset(pos, np.zeros((2, 3)))
     huge = np.array([[1e6, 0.0, 1e6], [0.0, 1e6, 0.0]])
@@ -52,7 +53,7 @@ def test_velocity_and_acceleration_limits_and_leash():
 
 def test_near_the_target_the_reference_closes_at_k_v():
     """v_cmd = v_ff + K_v (T - p_r) for rho < d_g: the reference converges on a fixed target."""
-    gen = ReferenceGenerator(ReferenceParams(), Limits(), k_att=100.0)
+    gen = ReferenceGenerator(paper_plain_reference(), Limits(), k_att=100.0)
     gen.reset(np.zeros((1, 3)), np.zeros((1, 3)))
     target = np.array([[3.0, -2.0, 1.0]])
     for _ in range(1000):

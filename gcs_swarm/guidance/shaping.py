@@ -1,0 +1,114 @@
+"""Jerk-limited shaping of a velocity demand into a smooth acceleration, vectorised over vehicles.
+
+A port of ArduPilot's command shaping (libraries/AP_Math/control.cpp: `sqrt_controller`,
+`shape_accel`, `shape_accel_xy`, `shape_vel_accel`, `shape_vel_accel_xy`), the field's proven way to turn a
+jumping velocity demand into an acceleration that changes at most `jerk_max` m/s^3 and never overshoots:
+the correction acceleration is linear in the velocity error near the target and follows the square-root
+braking curve sqrt(2 J |error|) farther out, so it can always be ramped back to zero in time.
+
+Shapes: horizontal vectors (N, 2), vertical scalars (N,); SI units (m/s, m/s^2, m/s^3, s).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CORNER_ACCELERATION_RATIO = 1.0 / math.sqrt(2.0)  # control.cpp: lateral share kept for cross-track correction
+
+
+def sqrt_controller(
+    error: np.ndarray, p: np.ndarray | float, second_order_limit: np.ndarray | float, dt: float
+) -> np.ndarray:
+    """Correction rate (N,) for errors (N,): `p * error` near zero, `sqrt(2 L (|e| - L / (2 p^2)))` beyond
+    `L / p^2` (L = second_order_limit), never more than |error| / dt (control.cpp `sqrt_controller`).
+    `p` and `L` are scalars or (N,) arrays; L <= 0 means no second-order limit (linear)."""
+    error = np.asarray(error, dtype=float)
+    p = np.broadcast_to(np.asarray(p, dtype=float), error.shape)
+    limit = np.broadcast_to(np.asarray(second_order_limit, dtype=float), error.shape)
+    size = np.abs(error)
+    root_only = np.sign(error) * np.sqrt(2.0 * np.maximum(limit, 0.0) * size)
+    p_sq = p * p
+    linear_dist = np.divide(limit, p_sq, out=np.full_like(size, np.inf), where=p_sq > 0.0)
+    beyond = np.maximum(size - 0.5 * linear_dist, 0.0)
+    hybrid_root = np.sign(error) * np.sqrt(2.0 * np.maximum(limit, 0.0) * beyond)
+    rate = np.where(size > linear_dist, hybrid_root, error * p)
+    rate = np.where(p == 0.0, root_only, rate)
+    rate = np.where(limit <= 0.0, error * p, rate)
+    if dt > 0.0:
+        bound = np.abs(error) / dt
+        rate = np.clip(rate, -bound, bound)
+    return rate
+
+
+def sqrt_controller_xy(
+    error: np.ndarray, p: np.ndarray | float, second_order_limit: np.ndarray | float, dt: float
+) -> np.ndarray:
+    """Vector form (N, 2): `sqrt_controller` of |error| along the error's direction (control.cpp)."""
+    length = np.hypot(error[:, 0], error[:, 1])
+    rate = sqrt_controller(length, p, second_order_limit, dt)
+    scale = np.divide(rate, length, out=np.zeros_like(length), where=length > 0.0)
+    return error * scale[:, None]
+
+
+def limit_length(vec: np.ndarray, limit: np.ndarray | float) -> np.ndarray:
+    """Vectors (N, 2) shortened to at most `limit` (N,) or scalar, keeping their direction."""
+    length = np.hypot(vec[:, 0], vec[:, 1])
+    cap = np.broadcast_to(np.asarray(limit, dtype=float), length.shape)
+    scale = np.divide(cap, length, out=np.ones_like(length), where=length > cap)
+    return vec * scale[:, None]
+
+
+def shape_vel_accel_xy(
+    vel_input: np.ndarray,
+    accel_input: np.ndarray,
+    vel: np.ndarray,
+    accel: np.ndarray,
+    accel_max: np.ndarray | float,
+    jerk_max: np.ndarray | float,
+    dt: float,
+) -> np.ndarray:
+    """Next horizontal acceleration (N, 2) that drives `vel` (N, 2) toward `vel_input` (N, 2) with the
+    feed-forward `accel_input` (N, 2), the correction within `accel_max` and the change from `accel` within
+    `jerk_max * dt` (control.cpp `shape_vel_accel_xy` with limit_total_accel, then `shape_accel_xy`).
+
+    When the demand has a direction, up to 1/sqrt(2) of `accel_max` is reserved for the cross-track part,
+    so that a turn is not starved by the along-track acceleration (ArduPilot's corner rule). Limits are
+    scalars or (N,) arrays (per vehicle)."""
+    accel_max = np.broadcast_to(np.asarray(accel_max, dtype=float), vel.shape[:1])
+    jerk_max = np.broadcast_to(np.asarray(jerk_max, dtype=float), vel.shape[:1])
+    kpa = jerk_max / accel_max
+    target = sqrt_controller_xy(vel_input - vel, kpa, jerk_max, dt)
+    speed_in = np.hypot(vel_input[:, 0], vel_input[:, 1])
+    unit = np.divide(vel_input, speed_in[:, None], out=np.zeros_like(vel_input), where=speed_in[:, None] > 0)
+    along = np.einsum("nd,nd->n", unit, target)
+    cross = target - unit * along[:, None]
+    cross_sq = np.einsum("nd,nd->n", cross, cross)
+    simple = (speed_in == 0.0) | (along * along <= cross_sq)
+    cross = limit_length(cross, CORNER_ACCELERATION_RATIO * accel_max)
+    along_max = np.sqrt(np.maximum(accel_max * accel_max - np.einsum("nd,nd->n", cross, cross), 0.0))
+    cornered = cross + unit * np.clip(along, -along_max, along_max)[:, None]
+    target = np.where(simple[:, None], limit_length(target, accel_max), cornered)
+    target = limit_length(target + accel_input, accel_max)
+    return accel + limit_length(target - accel, jerk_max * dt)
+
+
+def shape_vel_accel(
+    vel_input: np.ndarray,
+    accel_input: np.ndarray,
+    vel: np.ndarray,
+    accel: np.ndarray,
+    accel_max: np.ndarray | float,
+    jerk_max: np.ndarray | float,
+    dt: float,
+) -> np.ndarray:
+    """One axis (N,): next acceleration toward `vel_input`, total within +-accel_max and changing at most
+    `jerk_max * dt` per step (control.cpp `shape_vel_accel` with symmetric limits and limit_total_accel).
+    Limits are scalars or (N,) arrays."""
+    accel_max = np.broadcast_to(np.asarray(accel_max, dtype=float), vel.shape)
+    jerk_max = np.broadcast_to(np.asarray(jerk_max, dtype=float), vel.shape)
+    kpa = jerk_max / accel_max
+    target = np.clip(sqrt_controller(vel_input - vel, kpa, jerk_max, dt), -accel_max, accel_max)
+    target = np.clip(target + accel_input, -accel_max, accel_max)
+    return accel + np.clip(target - accel, -jerk_max * dt, jerk_max * dt)
