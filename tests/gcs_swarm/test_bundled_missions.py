@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from gcs_swarm.guidance.params import (
     FieldParams,
@@ -100,6 +102,18 @@ def test_world_matches_the_mission(path: Path) -> None:
 
 
 def test_quickstart_spells_out_the_defaults() -> None:
+    """The commented example names every parameter of the guidance, reference and limits sections (so a
+    new parameter cannot go undocumented there) and each has its default value."""
+    data = yaml.safe_load((MISSIONS / "quickstart.yaml").read_text())
+    sections = {
+        "guidance": (data["guidance"], FieldParams()),
+        "guidance.reference": (data["guidance"]["reference"], ReferenceParams()),
+        "limits": (data["limits"], Limits()),
+    }
+    for where, (section, params) in sections.items():
+        missing = [f.name for f in dataclasses.fields(params) if f.name not in section]
+        assert not missing, f"quickstart.yaml {where} does not show {missing}"
+    assert "assign_slots" in data["formation"]
     mission = load("quickstart")
     assert mission.field == FieldParams()
     assert mission.reference == ReferenceParams()
