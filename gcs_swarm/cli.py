@@ -21,6 +21,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         seed=args.seed,
         quiet=args.quiet,
         sim_args=tuple(args.sim_arg),
+        keep_params=args.keep_params,
     )
     return run_command(args.mission, options)
 
@@ -34,6 +35,7 @@ def _cmd_console(args: argparse.Namespace) -> int:
         base_port=args.base_port,
         script=Path(args.script) if args.script else None,
         yes=args.yes,
+        keep_params=args.keep_params,
     )
     return console_command(args.mission, options)
 
@@ -162,6 +164,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="ARG",
         help="pass ARG verbatim to the embedded simulator, e.g. --sim-arg=--link-loss=0.1 (repeatable)",
     )
+    run.add_argument(
+        "--keep-params",
+        action="store_true",
+        help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
+        "restoring them on the ground (also run.keep_params)",
+    )
     run.set_defaults(func=_cmd_run)
 
     console = sub.add_parser("console", help="operator console: watch and command the swarm live")
@@ -179,6 +187,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--base-port", type=int, help="embedded simulator: first UDP port (vehicle i on port+i)"
     )
     console.add_argument("--out", help="run folder (default runs/<time>-<mission>/)")
+    console.add_argument(
+        "--keep-params",
+        action="store_true",
+        help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
+        "restoring them on the ground (also run.keep_params)",
+    )
     console.set_defaults(func=_cmd_console)
 
     check = sub.add_parser("check", help="validate a mission file without flying")

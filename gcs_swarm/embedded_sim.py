@@ -1,7 +1,9 @@
 """Start and stop `sitl-sim` as a separate process for a mission (the embedded simulator).
 
 The ground station never imports the simulator: it launches `python -m sitl_sim` with the mission's world,
-matching ports and time mode, waits for its READY line and terminates it afterwards.
+matching ports and time mode, waits for its READY line and terminates it afterwards. The simulator's stdin is
+a pipe from this process: if the ground station dies in any way, the pipe closes and the simulator flies its
+vehicles on their own failsafes until all are down, then exits (`sitl-sim --exit-with-parent`).
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ class EmbeddedSimulator:
             str(seed),
             "--rate-hz",
             f"{mission.run.simulator.rate_hz:g}",
+            "--exit-with-parent",  # stdin is our pipe: if we die, the simulator lands its vehicles and exits
         ]
         if time_mode == "lockstep":
             self.args += ["--lockstep", "--lockstep-hz", f"{mission.run.control_rate_hz:g}"]
@@ -71,6 +74,7 @@ class EmbeddedSimulator:
         """Launch and wait for the simulator's READY line; SimulatorError if it dies or times out."""
         self.proc = subprocess.Popen(
             self.args,
+            stdin=subprocess.PIPE,  # never written; closed by the kernel whenever this process ends
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
@@ -110,6 +114,8 @@ class EmbeddedSimulator:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(timeout_s)
+        if self.proc.stdin is not None:
+            self.proc.stdin.close()
         if self._reader is not None:
             self._reader.join(timeout=2.0)
         return self.proc.returncode

@@ -5,6 +5,7 @@ status: 0 flown and every vehicle reached its goal with no collision; 1 flown bu
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ class RunOptions:
     seed: int | None = None
     quiet: bool = False
     sim_args: tuple[str, ...] = ()  # passed verbatim to the embedded simulator (e.g. --link-loss=0.1)
+    keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
 
 
 def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
@@ -79,6 +81,7 @@ def write_flight(
         "degraded_s": round(result.degraded_s, 3),
         "holds": result.holds,
         "max_telemetry_age_s": round(result.max_telemetry_age_s, 3),
+        "params_changed": result.params_changed,
         "formation_timeline": [
             {
                 "t": t,
@@ -161,6 +164,8 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     except MissionError as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
+    if options.keep_params:
+        mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
     try:
         key_file, key = signing_key(mission)
     except signing.SigningKeyError as exc:
@@ -200,6 +205,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
             finally:
                 record.close()
                 if runner is not None:
+                    runner.restore_params()
                     result = runner.result
     except (MissionError, SimulatorError, PreflightError) as exc:
         print(f"error: {exc}")

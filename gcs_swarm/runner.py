@@ -25,10 +25,12 @@ from gcs_swarm.guidance.formation import assign_slots, formation_offsets
 from gcs_swarm.guidance.lost_vehicles import LostTrack, avoidance_radius, predicted_position
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
+from gcs_swarm.link.flight_params import FlightParams
 from gcs_swarm.mission import Mission
 from gcs_swarm.run_record import RunRecord
 
-FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5}  # ArduCopter FS_GCS_ENABLE values
+# ArduCopter FS_GCS_ENABLE values (events.cpp failsafe_gcs_on_event): 1 RTL, 5 Land, 7 Brake or Land
+FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5, "brake": 7}
 GUID_OPTIONS_THRUST = 8  # bit 3: SET_ATTITUDE_TARGET thrust is normalised collective thrust (not climb rate)
 HOLD_LATCH_SPEED = 0.5  # m/s: in hold, a vehicle's position is latched once it has braked below this
 PHASES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")
@@ -58,6 +60,7 @@ class FlightResult:
     degraded_s: float = 0.0  # vehicle s flown in degraded mode (stale telemetry: slower, wider)
     holds: int = 0  # times a vehicle was held for stale telemetry
     max_telemetry_age_s: float = 0.0  # oldest position telemetry of a live vehicle at any formation tick
+    params_changed: list[dict[str, object]] = field(default_factory=list)  # flight_params.ParamChange rows
     # (vehicle time s, leader, (N, 3) slot offsets flown, NaN rows for lost vehicles) at each change
     formation_timeline: list[tuple[float, int, np.ndarray]] = field(default_factory=list)
 
@@ -130,6 +133,7 @@ def build_controller(
         topology=mission.formation.topology,
         control_dt=1.0 / mission.run.control_rate_hz,
         z_min=mission.safety.min_altitude,
+        dead_gcs=mission.safety.dead_gcs,
     )
 
 
@@ -181,6 +185,7 @@ class MissionRunner:
         self._home = np.full((len(mission.vehicles), 3), np.nan)  # (N, 3) ENU m where each took off
         self._lost_tracks: dict[int, LostTrack] = {}
         self.tick_latency_s: list[float] = []  # wall s from a complete telemetry tick to its last command out
+        self.flight_params = FlightParams(fleet)  # what the run sets on the vehicles, restored at the end
 
     # ----- the whole mission -----
 
@@ -207,8 +212,12 @@ class MissionRunner:
         try:
             fleet.request_streams_all(run.control_rate_hz)  # ArduCopter streams nothing until asked
             fleet.wait_ready(timeout_s=run.preflight_timeout_s)
-            fleet.param_set_all("GUID_OPTIONS", GUID_OPTIONS_THRUST)
-            fleet.param_set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[self.mission.safety.gcs_failsafe])
+            safety = self.mission.safety
+            flight = self.flight_params
+            flight.set_all("GUID_OPTIONS", GUID_OPTIONS_THRUST)
+            flight.set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[safety.gcs_failsafe])
+            flight.set_all("FS_GCS_TIMEOUT", float(safety.dead_gcs.failsafe_timeout_s or 0.0))
+            flight.set_all("GUID_TIMEOUT", safety.dead_gcs.guided_timeout_s)
             self.hover = fleet.param_get_all("MOT_THST_HOVER")
             self.failsafe_params = np.column_stack([fleet.param_get_all(name) for name in FAILSAFE_PARAMS])
         except LinkError as exc:
@@ -327,6 +336,22 @@ class MissionRunner:
         except LinkError as exc:
             self.result.events.append(str(exc))
         self._set_phase("done")
+
+    def restore_params(self) -> None:
+        """Put back the parameters the run changed, on every vehicle now disarmed
+        (gcs_swarm.link.flight_params); the list, with what was restored, goes to the result (flight.json
+        `params_changed`). Skipped when the mission says run.keep_params."""
+        if not self.mission.run.keep_params:
+            try:
+                self.flight_params.restore()
+            except LinkError as exc:
+                self.result.events.append(f"restoring parameters: {exc}")
+        changes = self.flight_params.changes
+        self.result.params_changed = [c.as_json() for c in changes]
+        kept = [f"{c.vehicle} {c.name}" for c in changes if not c.restored]
+        if kept:
+            why = "run.keep_params" if self.mission.run.keep_params else "still armed or not answering"
+            self.result.events.append(f"parameters left as flown ({why}): {', '.join(kept)}")
 
     # ----- operator commands (console) -----
 

@@ -15,6 +15,7 @@ Bad arguments: one line "sitl-sim: error: ..." and exit status 2; a port that ca
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ipaddress
 import math
 import signal
@@ -27,6 +28,7 @@ import numpy as np
 
 from sitl_sim.clock import plan_timing
 from sitl_sim.link_faults import LinkFaults, Outage, parse_outage
+from sitl_sim.orphan import ParentWatch, detach_output
 from sitl_sim.signing import read_key
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
@@ -36,6 +38,9 @@ if TYPE_CHECKING:
 
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's default location (CMAC)
 LINE_SPACING_M = 5.0  # default start line along East
+
+
+ORPHAN_LOG = "simulator-orphan.log"  # beside the truth log: what the simulator says after its parent died
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -92,6 +97,28 @@ def build_parser() -> OneLineParser:
         default=5.0,
         metavar="S",
         help="simulated s to a position fix (default 5)",
+    )
+    add(
+        "--exit-with-parent",
+        action="store_true",
+        help="the parent (gcs-swarm) holds a pipe on stdin: when it closes, fly on until every vehicle is "
+        "landed and disarmed, then exit (docs/sitl.md)",
+    )
+    add(
+        "--orphan-speedup",
+        type=float,
+        default=math.inf,
+        metavar="X",
+        help="with --lockstep and --exit-with-parent: run X times real time once the parent is gone "
+        "(default inf: as fast as possible); real-time and --speedup runs keep their pace",
+    )
+    add(
+        "--orphan-grace",
+        type=float,
+        default=300.0,
+        metavar="S",
+        help="with --exit-with-parent: exit at most S simulated s after the parent is gone (default 300: "
+        "a hovering vehicle's battery reserve; BRAKE holds for ever)",
     )
     add(
         "--signing-key",
@@ -266,6 +293,8 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
     )
     _check(parser, _finite_positive(args.lockstep_hz), "--lockstep-hz must be > 0")
     _check(parser, _finite_positive(args.lockstep_timeout), "--lockstep-timeout must be > 0 s")
+    _check(parser, args.orphan_speedup > 0, "--orphan-speedup must be > 0 (inf: as fast as possible)")
+    _check(parser, _finite_positive(args.orphan_grace), "--orphan-grace must be > 0 s")
     _check(
         parser,
         _finite_positive(args.rate_hz) and args.rate_hz == round(args.rate_hz) and args.rate_hz <= 100000,
@@ -307,6 +336,8 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         ready_delay=args.ready_delay,
         link=link_faults(parser, args, n, link),
         signing_key=signing_key(parser, args.signing_key),
+        orphan_speedup=args.orphan_speedup,
+        orphan_grace_s=args.orphan_grace,
     )
 
 
@@ -323,7 +354,8 @@ def signing_key(parser: OneLineParser, path: Path | None) -> bytes | None:
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; returns the exit status (0 after SIGINT/SIGTERM)."""
     parser = build_parser()
-    config = build_config(parser, parser.parse_args(argv))
+    args = parser.parse_args(argv)
+    config = build_config(parser, args)
     try:
         sim = Simulator(config)
     except OSError as exc:
@@ -348,6 +380,16 @@ def main(argv: list[str] | None = None) -> int:
             port = config.base_port + endpoint.index
             print(f"vehicle {endpoint.index} sysid {endpoint.sysid} udp {config.bind}:{port}")
         print("READY", flush=True)
+        if args.exit_with_parent:
+            log = None if config.truth_log is None else str(config.truth_log.parent / ORPHAN_LOG)
+
+            def parent_gone() -> None:
+                detach_output(log)
+                sim.mark_parent_gone()
+                with contextlib.suppress(OSError):
+                    wake_write.send(b"\0")
+
+            ParentWatch(sys.stdin.buffer, parent_gone).start()
         sim.run(lambda: stop_requested, wake_read)
         for line in sim.counters_report():
             print(f"sitl-sim: {line}", file=sys.stderr)

@@ -67,6 +67,8 @@ class SimConfig:
     ready_delay: float
     link: LinkFaults = LinkFaults()  # link faults of every vehicle (SIM_LINK_* param defaults, outages)
     signing_key: bytes | None = field(default=None, repr=False)  # MAVLink 2 signing key (sitl_sim.signing)
+    orphan_speedup: float = math.inf  # x real time once the parent is gone (sitl_sim.orphan); inf = at once
+    orphan_grace_s: float = 300.0  # simulated s an orphan flies at most before it exits
 
     @property
     def vehicles(self) -> int:
@@ -112,6 +114,10 @@ class Simulator:
         self.lockstep = LockstepClients(n, config.lockstep_timeout) if config.lockstep else None
         self.lockstep_started = False
         self.pacer = RealTimePacer(config.speedup)
+        self.orphan_speedup = config.orphan_speedup if config.lockstep else config.speedup
+        self.orphan_grace_s = config.orphan_grace_s
+        self.orphaned_at: float | None = None  # simulated s at which the ground station was found gone
+        self._parent_gone = False
         # GPS clock at boot, for SYSTEM_TIME only: the wall clock never enters the simulated world
         self.unix_epoch_us = int(time.time()) * 1_000_000
         self.step = 0
@@ -147,16 +153,62 @@ class Simulator:
     # --- main loop ------------------------------------------------------------------------------------------
 
     def run(self, stop: Callable[[], bool], wakeup: socket.socket | None = None) -> None:
-        """Simulate until stop() returns True; wakeup (a socket readable on signals) interrupts waits."""
+        """Simulate until stop() returns True, or, once orphaned (`orphan`), until every vehicle is down or
+        the grace time has passed; wakeup (a socket readable on signals) interrupts waits."""
         if wakeup is not None:
             self.selector.register(wakeup, selectors.EVENT_READ)
         self._write_truth()
-        while not stop():
+        while not (stop() or self._orphan_done()):
+            if self.orphaned_at is None and self.parent_gone():
+                self._become_orphan()
             self._tick()
             if self.lockstep is None:
                 self._pace(stop)
             elif self.ticks % self.timing.ticks_per_frame == 0:
                 self._end_frame(stop)
+
+    def parent_gone(self) -> bool:
+        """Whether the ground station that started the simulator has died (set by sitl_sim.orphan)."""
+        return self._parent_gone
+
+    def mark_parent_gone(self) -> None:
+        """Called from the parent-watch thread: the main loop turns orphan at its next tick."""
+        self._parent_gone = True
+
+    def _become_orphan(self) -> None:
+        """Stop waiting for lockstep answers and run free so that the vehicles' own failsafes play out."""
+        self.orphaned_at = self.t
+        self.lockstep = None
+        self.pacer = RealTimePacer(self.orphan_speedup)
+        print(
+            f"sitl-sim: the ground station is gone at t={self.t:.2f} s: flying the vehicles on their own "
+            f"autopilots until all are down (at most {self.orphan_grace_s:g} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    def _orphan_done(self) -> bool:
+        """Orphaned and every vehicle landed and disarmed or crashed, or the grace time is over."""
+        if self.orphaned_at is None:
+            return False
+        down = (~self.autopilot.armed & self.dyn.state.landed) | self.dyn.state.crashed
+        if bool(down.all()) or self.t - self.orphaned_at >= self.orphan_grace_s:
+            self._write_truth()  # the final state, whatever the sample rate
+        if bool(down.all()):
+            print(
+                f"sitl-sim: every vehicle is down at t={self.t:.2f} s: exiting", file=sys.stderr, flush=True
+            )
+            return True
+        if self.t - self.orphaned_at >= self.orphan_grace_s:
+            up = ", ".join(str(i) for i in np.flatnonzero(~down))
+            print(
+                f"sitl-sim: grace time {self.orphan_grace_s:g} s over at t={self.t:.2f} s, vehicle(s) {up} "
+                "still flying: exit",
+                file=sys.stderr,
+                flush=True,
+            )
+            return True
+        return False
 
     def _tick(self) -> None:
         """One autopilot tick and the physics it covers."""
@@ -216,7 +268,7 @@ class Simulator:
         clients = self.lockstep
         frame_ms = self.time_us // 1000
         frame_wall = keepalive = time.monotonic()
-        while not stop():
+        while not (stop() or self.parent_gone()):
             now = time.monotonic()
             if not self.lockstep_started:
                 ready = clients.every_vehicle_has_client() and not clients.pending(frame_ms)

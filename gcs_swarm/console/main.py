@@ -8,6 +8,7 @@ simulator, vehicles not reachable).
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from dataclasses import dataclass
@@ -42,6 +43,7 @@ class ConsoleOptions:
     base_port: int | None = None
     script: Path | None = None
     yes: bool = False
+    keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
 
 
 def console_command(mission_path: str, options: ConsoleOptions) -> int:
@@ -51,6 +53,8 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     except MissionError as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
+    if options.keep_params:
+        mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
     script = None
     if options.script is not None:
         try:

@@ -161,6 +161,8 @@ class FlightSession:
         except Exception as exc:  # noqa: BLE001 - the UI must learn why the flight thread ended
             self._fail(f"internal error in the flight thread: {type(exc).__name__}: {exc}")
         finally:
+            if self._state != "failed":
+                self._restore_params()
             self.fleet.on_pump = None
             if self._state != "failed":
                 self._state = "stopped"
@@ -182,6 +184,17 @@ class FlightSession:
         self._state = "ready"
         names = ", ".join(f"{link.name} (sysid {link.sysid})" for link in self.fleet.links)
         self._event("mission", f"connected to {names}", time_s=self._vt())
+
+    def _restore_params(self) -> None:
+        """Leaving: put back what the run changed on grounded vehicles (MissionRunner.restore_params)."""
+        try:
+            self.runner.restore_params()
+        except Exception as exc:  # noqa: BLE001 - best effort on the way out; say why
+            self._event("console", f"parameters not restored: {exc}", "warning")
+            return
+        for change in self.runner.result.params_changed:
+            if change["restored"]:
+                self._event(str(change["vehicle"]), f"{change['name']} restored to {change['original']:g}")
 
     def _fail(self, message: str) -> None:
         self._state, self._error = "failed", message

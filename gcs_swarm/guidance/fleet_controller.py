@@ -14,6 +14,7 @@ import numpy as np
 
 from gcs_swarm.guidance import field as fieldmod
 from gcs_swarm.guidance.attitude_slew import TiltSlew
+from gcs_swarm.guidance.failsafe_speed import failsafe_speed_caps
 from gcs_swarm.guidance.formation import (
     LeaderHeading,
     check_offsets,
@@ -23,6 +24,7 @@ from gcs_swarm.guidance.formation import (
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.obstacles import clearance, push_out_horizontally
 from gcs_swarm.guidance.params import (
+    DeadGcsParams,
     FieldParams,
     G,
     Limits,
@@ -101,13 +103,15 @@ class FleetController:
         thrust_mode: str = "measured",
         g: float = G,
         z_min: float | None = None,
+        dead_gcs: DeadGcsParams | None = None,
     ) -> None:
         """`n` vehicles, `leader` its index; `offsets` (N, 3) leader-frame slots (leader row zero),
         `goal_waypoints` (W, 3) the leader's goals in order, `follower_targets` (N, 3) final destinations g_i
         for the adaptive factor (default g_L + R(psi_L) delta_i, spec 8 step 1), `topology` "broadcast"
         (every follower hears the leader at once) or "relay" (one tick of delay per hop along `adjacency`,
         default the star graph), `thrust_mode` "measured" (Eq 36) or "norm" (m|U|), `control_dt` s the
-        nominal tick."""
+        nominal tick, `dead_gcs` the failsafe speed scheduling (None: off, gcs_swarm.guidance.failsafe_speed).
+        """
         if n < 1 or not 0 <= leader < n:
             raise ValueError(f"leader index {leader} is not a vehicle of a fleet of {n}")
         if controller not in CONTROLLERS:
@@ -150,6 +154,9 @@ class FleetController:
         self.relay: LeaderRelay | None = None
         self.speed_scale = 1.0
         self.spacing_scale = 1.0
+        if dead_gcs is not None and dead_gcs.failsafe_timeout_s is None:
+            raise ValueError("dead_gcs.failsafe_timeout_s must be set (the mission loader sets it)")
+        self.dead_gcs = dead_gcs
 
     # ----- live changes (operator console) -----
 
@@ -350,10 +357,17 @@ class FleetController:
         force = f_att + f_obs + f_uav
 
         # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
+        speed_cap = self.v_xy_cap * self.speed_scale
+        if self.dead_gcs is not None and self.dead_gcs.speed_scheduling:
+            fs = self.dead_gcs
+            caps = failsafe_speed_caps(
+                pos, vel, obs_c, obs_r, float(fs.failsafe_timeout_s or 0.0), fs.brake_accel, fs.clearance
+            )
+            speed_cap = np.minimum(speed_cap, caps)
         x_d, xd_dot, xd_ddot = self.generator.step(
             force,
             v_ff,
-            self.v_xy_cap * self.speed_scale,
+            speed_cap,
             dt,
             active,
             a_ff=a_ff,

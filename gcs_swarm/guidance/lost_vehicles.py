@@ -3,7 +3,8 @@
 
 A vehicle that stops hearing its ground station flies on its last target until its GCS failsafe fires
 FS_GCS_TIMEOUT seconds later; then ArduCopter's RTL climbs to RTL_ALT above home (if lower) and flies straight
-home at WPNAV_SPEED, and LAND descends where it is. The prediction: constant velocity from the last report
+home at WPNAV_SPEED, LAND descends where it is and BRAKE stops and holds (its few metres of braking are
+inside the avoidance radius). The prediction: constant velocity from the last report
 until the failsafe, then that manoeuvre. The others avoid the predicted point as a moving spherical obstacle
 whose radius grows with the time since the last report (TelemetryParams.lost_radius*: the prediction's error
 grows), so a lost vehicle returning home through the formation is avoided rather than met.
@@ -15,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-FAILSAFE_ACTIONS = ("rtl", "land", "off")
+FAILSAFE_ACTIONS = ("brake", "land", "rtl", "off")
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,7 @@ def predicted_position(track: LostTrack, t: float) -> np.ndarray:
     start = np.asarray(track.pos, dtype=float) + np.asarray(track.vel, dtype=float) * coast
     returning = elapsed - track.failsafe_s
     if track.action != "rtl" or returning <= 0:
-        return start  # LAND descends below where it stopped: that column stays repelled
+        return start  # LAND descends below where it stopped, BRAKE holds there: that point stays repelled
     home = np.asarray(track.home, dtype=float)
     flat = home[:2] - start[:2]
     dist = float(np.hypot(*flat))

@@ -232,6 +232,31 @@ class TelemetryParams:
             raise ValueError("need 0 < lost_radius <= lost_radius_max and lost_radius_growth >= 0")
 
 
+@dataclass(frozen=True)
+class DeadGcsParams:
+    """What the vehicles do if the ground station dies, and the speed scheduling that keeps it safe [add]
+    (docs/reliability.md "When the ground station dies"; the action itself is safety.gcs_failsafe)."""
+
+    guided_timeout_s: float = 0.5  # s, GUID_TIMEOUT set for the flight: the last attitude target is flown
+    # this long, then the vehicle levels and holds its altitude (ArduCopter mode_guided.cpp angle_control_run)
+    # s, FS_GCS_TIMEOUT set for the flight (2..120), >= telemetry.lost_s so that an outage the fleet rides out
+    # fires no failsafe; None: telemetry.lost_s (the mission loader fills it in)
+    failsafe_timeout_s: float | None = None
+    brake_accel: float = 5.0  # m/s^2, deceleration assumed of the failsafe's braking (BRAKE: up to 7.5)
+    clearance: float = 3.0  # m, kept between the point a vehicle would stop at and an obstacle's surface
+    speed_scheduling: bool = True  # cap each vehicle's speed so that it stops short of what its course meets
+
+    def __post_init__(self) -> None:
+        if not 0.1 <= self.guided_timeout_s <= 5.0:
+            raise ValueError("guided_timeout_s must lie in 0.1..5 s (ArduCopter's GUID_TIMEOUT range)")
+        if self.failsafe_timeout_s is not None and not 2.0 <= self.failsafe_timeout_s <= 120.0:
+            raise ValueError("failsafe_timeout_s must lie in 2..120 s (ArduCopter's FS_GCS_TIMEOUT range)")
+        if not self.brake_accel > 0:
+            raise ValueError("brake_accel must be > 0")
+        if not self.clearance >= 0:
+            raise ValueError("clearance must be >= 0")
+
+
 # [add] values that turn every smoothing and safety addition off, leaving the method as the spec states it
 # (sections 3-8): the `paper` variant of `gcs-swarm compare` flies these, and tests of the plain equations use
 # them. Keys are mission-file paths.

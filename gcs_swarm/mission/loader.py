@@ -5,6 +5,7 @@ Every mistake a user can make ends in one `MissionError` naming file, line and f
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import re
@@ -13,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_swarm.guidance.params import (
+    DeadGcsParams,
     FieldParams,
     Limits,
     PIDParams,
@@ -87,9 +89,18 @@ RUN_KEYS = (
     "land_timeout_s",
     "simulator",
     "signing_key_file",
+    "keep_params",
 )
 SIMULATOR_KEYS = ("embedded", "time_mode", "speedup", "seed", "rate_hz", "base_port")
-SAFETY_KEYS = ("separation", "min_altitude", "geofence", "collision_radius", "gcs_failsafe", "telemetry")
+SAFETY_KEYS = (
+    "separation",
+    "min_altitude",
+    "geofence",
+    "collision_radius",
+    "gcs_failsafe",
+    "telemetry",
+    "dead_gcs",
+)
 WORLD_KEYS = ("obstacles", "wind", "link")
 LINK_PROBABILITIES = ("loss", "dup", "corrupt", "reorder")
 LINK_DELAYS = ("delay_ms", "jitter_ms")
@@ -237,6 +248,7 @@ def _run(run: Section) -> RunSpec:
         land_timeout_s=run.number("land_timeout_s", 300.0, above=0, unit="s"),
         simulator=simulator,
         signing_key_file=_signing_key_file(run),
+        keep_params=run.flag("keep_params", False),
     )
 
 
@@ -261,6 +273,19 @@ def _safety(safety: Section) -> SafetySpec:
         raise node.error(
             f"d_emg ({separation.d_emg:g} m) must not exceed d_max ({separation.d_max:g} m) (spec 4)"
         )
+    telemetry = params(
+        Section.within(safety, "telemetry", param_fields(TelemetryParams())), TelemetryParams()
+    )
+    dead_gcs_yaml = Section.within(safety, "dead_gcs", param_fields(DeadGcsParams()))
+    dead_gcs = params(dead_gcs_yaml, DeadGcsParams())
+    if dead_gcs.failsafe_timeout_s is None:
+        dead_gcs = dataclasses.replace(dead_gcs, failsafe_timeout_s=max(telemetry.lost_s, 2.0))
+    assert dead_gcs.failsafe_timeout_s is not None
+    if dead_gcs.failsafe_timeout_s < telemetry.lost_s:
+        raise dead_gcs_yaml.line_of("failsafe_timeout_s").error(
+            f"failsafe_timeout_s ({dead_gcs.failsafe_timeout_s:g} s) must be at least telemetry.lost_s "
+            f"({telemetry.lost_s:g} s): a vehicle would brake on a link outage the fleet still rides out"
+        )
     fence = Section.within(safety, "geofence", ("radius", "max_alt"))
     min_altitude = safety.number("min_altitude", 2.0, at_least=0, unit="m")
     return SafetySpec(
@@ -271,10 +296,9 @@ def _safety(safety: Section) -> SafetySpec:
             "max_alt", 300.0, above=min_altitude, unit="m (above safety.min_altitude)"
         ),
         collision_radius=safety.number("collision_radius", 0.175, above=0, unit="m"),
-        gcs_failsafe=safety.choice("gcs_failsafe", "rtl", ("rtl", "land", "off")),
-        telemetry=params(
-            Section.within(safety, "telemetry", param_fields(TelemetryParams())), TelemetryParams()
-        ),
+        gcs_failsafe=safety.choice("gcs_failsafe", "brake", ("brake", "land", "rtl", "off")),
+        telemetry=telemetry,
+        dead_gcs=dead_gcs,
     )
 
 

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm.guidance.params import (
+    DeadGcsParams,
     FieldParams,
     Limits,
     PIDParams,
@@ -173,6 +174,7 @@ class RunSpec:
     land_timeout_s: float  # s to wait, after LAND, until every vehicle has disarmed
     simulator: SimulatorSpec
     signing_key_file: Path | None = None  # MAVLink 2 signing key (64 hex chars); relative to the mission file
+    keep_params: bool = False  # leave the parameters the run set (GUID_OPTIONS, FS_GCS_*, ...) as flown
 
 
 @dataclasses.dataclass(frozen=True)
@@ -185,8 +187,9 @@ class SafetySpec:
     geofence_radius: float  # m, horizontal, around the origin
     geofence_max_alt: float  # m above the origin
     collision_radius: float  # m, vehicle radius for collision checks (Table 2 arm length)
-    gcs_failsafe: str  # "rtl" | "land" | "off"
+    gcs_failsafe: str  # "brake" | "land" | "rtl" | "off"
     telemetry: TelemetryParams = TelemetryParams()
+    dead_gcs: DeadGcsParams = DeadGcsParams()
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -19,6 +19,14 @@ ROOT = Path(__file__).resolve().parents[2]
 MISSIONS = ROOT / "missions"
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Every test under tests/e2e starts real processes: mark it `e2e` (`pytest -m "not e2e"` skips them)."""
+    here = Path(__file__).parent
+    for item in items:
+        if here in Path(str(item.fspath)).parents:
+            item.add_marker(pytest.mark.e2e)
+
+
 @dataclass
 class RunOutcome:
     """A finished `gcs-swarm run`: exit status, output, and its run folder."""

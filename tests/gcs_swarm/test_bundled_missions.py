@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from gcs_swarm.guidance.params import (
+    DeadGcsParams,
     FieldParams,
     Limits,
     PIDParams,
@@ -109,6 +110,7 @@ def test_quickstart_spells_out_the_defaults() -> None:
         "guidance": (data["guidance"], FieldParams()),
         "guidance.reference": (data["guidance"]["reference"], ReferenceParams()),
         "limits": (data["limits"], Limits()),
+        "safety.dead_gcs": (data["safety"]["dead_gcs"], DeadGcsParams()),
     }
     for where, (section, params) in sections.items():
         missing = [f.name for f in dataclasses.fields(params) if f.name not in section]
@@ -122,6 +124,10 @@ def test_quickstart_spells_out_the_defaults() -> None:
     assert mission.limits == Limits()
     assert mission.safety.separation == SeparationParams()
     assert mission.safety.telemetry == TelemetryParams() and mission.link == LinkSpec()
+    assert (
+        mission.safety.dead_gcs == DeadGcsParams(failsafe_timeout_s=3.0)
+        and mission.safety.gcs_failsafe == "brake"
+    )
     assert not mission.run.airborne_start
     assert mission.formation.altitude == 10.0 and mission.formation.spacing == 10.0
 

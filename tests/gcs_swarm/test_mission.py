@@ -12,6 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gcs_swarm.guidance.params import (
+    DeadGcsParams,
     FieldParams,
     Limits,
     PIDParams,
@@ -66,8 +67,9 @@ def test_minimal_mission_takes_the_spec_defaults() -> None:
     assert (mission.safety.min_altitude, mission.safety.collision_radius, mission.safety.gcs_failsafe) == (
         2.0,
         0.175,
-        "rtl",
+        "brake",
     )
+    assert mission.safety.dead_gcs == DeadGcsParams(failsafe_timeout_s=3.0) and not mission.run.keep_params
     assert (mission.formation.shape, mission.formation.spacing, mission.formation.angle_deg) == (
         "v",
         10.0,
