@@ -10,6 +10,9 @@ from pathlib import Path
 EXIT_USER_ERROR = 2
 
 
+VARIANTS_HELP = "guidance methods and forms, e.g. apf,iaapf or paper,smooth (the plain method, the smoothing)"
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from gcs_swarm.run_command import RunOptions, run_command
 
@@ -214,7 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
     compare = sub.add_parser("compare", help="fly a mission under several variants and compare them")
     compare.add_argument("mission")
     compare.add_argument(
-        "--variants", type=lambda s: _csv_list(str, s), help="guidance methods, e.g. apf,iaapf"
+        "--variants",
+        type=lambda s: _csv_list(str, s),
+        help=VARIANTS_HELP,
     )
     compare.add_argument("--controllers", type=lambda s: _csv_list(str, s), help="e.g. smc,pid")
     compare.add_argument("--wind", type=lambda s: _csv_list(float, s), help="wind speeds m/s, e.g. 0,5,10")
@@ -225,7 +230,11 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("mission")
     mc.add_argument("--runs", type=int, required=True, help="number of random worlds (seeds)")
     mc.add_argument("--seed", type=int, default=0, help="first seed; run k uses seed+k (default 0)")
-    mc.add_argument("--variants", type=lambda s: _csv_list(str, s), help="guidance methods, e.g. apf,iaapf")
+    mc.add_argument(
+        "--variants",
+        type=lambda s: _csv_list(str, s),
+        help=VARIANTS_HELP,
+    )
     mc.add_argument("--jobs", type=int, default=2, help="local worker processes (default 2)")
     mc.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask distributed scheduler")
     mc.add_argument("--ranges", metavar="FILE", help="YAML of randomisation ranges (docs/paper-results.md)")

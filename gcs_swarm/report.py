@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm import metrics
-from gcs_swarm.evaluation import figures, signals
+from gcs_swarm.evaluation import figures, flight_quality, signals
 from gcs_swarm.guidance.formation import slot_positions
 
 TRUTH_FILE = "truth.csv"
@@ -140,30 +140,22 @@ def _deg(x: float) -> float | None:
     return _finite(math.degrees(x)) if math.isfinite(x) else None
 
 
+def emergency_distance(mission: Any) -> float:
+    """D_Emg in m for the safety check: the constant, or in formula mode its floor s_s (Eq 20 at v_re = 0)."""
+    sep = mission.safety.separation
+    return float(sep.d_emg if sep.mode == "constant" else sep.s_s)
+
+
+def _commands_between(commands: CommandLog, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+    keep = (commands.t >= t0) & (commands.t <= t1)
+    return commands.t[keep], commands.attitude_d[keep]
+
+
 def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[str, Any]:
     """All figures of report.json from the files in run_dir and the flight summary (flight.json)."""
     return report_from(
         load_trajectories(run_dir, mission), load_commands(run_dir / RECORD_FILE), mission, flight
     )
-
-
-def formation_schedule(
-    flight: dict[str, Any], t: np.ndarray, leader: int, offsets: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Leader (T,) and slot offsets (T, N, 3) in force at each time t (T,) s, from flight.json's
-    formation_timeline (re-forms after a loss, a new leader, live reshapes, degraded widening; NaN rows for
-    vehicles out of the formation); the final `leader`/`offsets` throughout for a flight.json without it."""
-    timeline = flight.get("formation_timeline") or []
-    if not timeline:
-        return np.full(len(t), leader), np.broadcast_to(offsets, (len(t),) + offsets.shape)
-    starts = np.array([entry["t"] for entry in timeline], dtype=float)
-    leaders = np.array([entry["leader"] for entry in timeline], dtype=int)
-    table = np.array(
-        [[[np.nan] * 3 if row is None else row for row in entry["offsets"]] for entry in timeline],
-        dtype=float,
-    )
-    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(timeline) - 1)
-    return leaders[k], table[k]
 
 
 def report_from(
@@ -196,10 +188,13 @@ def report_from(
     min_sep = metrics.min_separation(traj.pos)
     clearance, _ = metrics.min_obstacle_clearance(traj.pos, traj.obstacle_centres, traj.obstacle_radii)
     cruise = None
+    slot_error = None
     angles = np.full((len(tw), len(names)), np.nan)
     if psi is not None and len(tw) > 1:
-        leaders, flown = formation_schedule(flight, tw, leader, offsets)
+        leaders, flown = flight_quality.formation_schedule(flight, tw, leader, offsets)
         fe = metrics.formation_error(tw, pw, leaders, psi, flown)
+        slot_error = fe.error.copy()
+        slot_error[np.arange(len(tw)), leaders] = np.nan  # the leader's own slot is where it is
         formation_rms, formation_max = fe.rms, fe.max
         settling = None if fe.t_settle is None else fe.t_settle - tw[0]
         d_g = mission.field.d_g if mission.field.d_g is not None else mission.limits.v_xy_leader
@@ -236,6 +231,35 @@ def report_from(
             }
         )
     times = [r for r in reach if r is not None]
+    t_arrival = max(times) if reached and times else float(tw[-1])
+    route = np.vstack([pw[0, leader][None, :], np.asarray(mission.waypoints, dtype=float).reshape(-1, 3)])
+    whole = flight_quality.whole_flight_figures(
+        tw,
+        pw,
+        vw,
+        slot_error,
+        np.ones(len(names), dtype=bool),
+        route,
+        leader,
+        (float(tw[0]), t_arrival),
+        mission.formation.altitude + offsets[:, 2],
+        emergency_distance(mission),
+        None if commands is None else _commands_between(commands, float(tw[0]), t_arrival),
+        names,
+    )
+    below_s, closest = flight_quality.time_below(traj.t, traj.pos, emergency_distance(mission))
+    whole["min_separation_whole_flight_m"] = _finite(closest)
+    whole["time_below_d_emg_s"] = _finite(below_s)
+    safety_events = []
+    if crashed_any.any():
+        safety_events.append(
+            f"collision: {', '.join(n for n, c in zip(names, crashed_any, strict=True) if c)}"
+        )
+    if below_s > 0.0:
+        safety_events.append(
+            f"separation below D_Emg ({emergency_distance(mission):g} m) for {below_s:.2f} s, "
+            f"down to {closest:.2f} m"
+        )
     rates = None
     if commands is not None and len(commands.t) > 2:
         t_end_rates = None if cruise is None else cruise["window_s"][1]
@@ -261,7 +285,9 @@ def report_from(
         "command_chatter_last_20s_rad_s": None if rates is None else rates["chatter_last_20s_rad_s"],
         "command_rates": rates,
         "cruise": cruise,
-        "sim_duration_s": _finite(float(traj.t[-1])),
+        "whole_flight": whole,
+        "safety_events": safety_events,
+        "sim_duration_s": _finite(float(traj.t[-1] - traj.t[0])),  # on the run's own clock (docs/metrics.md)
         "wall_duration_s": _finite(flight.get("wall_duration_s")),
         "commands_limited": flight.get("commands_limited"),  # None: a flight.json from before it was kept
         "vehicles": per_vehicle,
@@ -293,8 +319,36 @@ SUMMARY_KEYS = (
 )
 
 
+# Figures measured only once the formation has settled (spec 10): labelled so in report.md.
+SETTLED_LABELS = {
+    "formation_rms_m": "formation_rms_m (settled only)",
+    "formation_max_m": "formation_max_m (settled only)",
+}
+WHOLE_FLIGHT_KEYS = (
+    "slot_error_rms_m",
+    "slot_error_p95_m",
+    "slot_error_max_m",
+    "cusps",
+    "max_tilt_command_rate_rad_s",
+    "max_yaw_command_rate_rad_s",
+    "max_yaw_rate_step_rad_s",
+    "pitch_command_chatter_max_rad",
+    "pitch_rate_chatter_whole_flight_rad_s",
+    "jerk_p99_max_m_s3",
+    "leader_path_ratio",
+    "min_separation_whole_flight_m",
+    "time_below_d_emg_s",
+    "min_altitude_in_formation_m",
+    "max_drop_below_formation_altitude_m",
+)
+
+
 def _fmt(v: Any) -> str:
     return "-" if v is None else (f"{v:.2f}" if isinstance(v, float) else str(v))
+
+
+def _list(v: Any) -> str:
+    return ", ".join(_fmt(x) for x in v) if isinstance(v, list) else _fmt(v)
 
 
 def render_markdown(report: dict[str, Any]) -> str:
@@ -307,7 +361,16 @@ def render_markdown(report: dict[str, Any]) -> str:
         "| figure | value |",
         "|---|---|",
     ]
-    lines += [f"| {key} | {_fmt(report.get(key))} |" for key in SUMMARY_KEYS]
+    events = report.get("safety_events") or []
+    if events:
+        lines[3:3] = ["**SAFETY EVENTS**: " + "; ".join(events), ""]
+    lines += [f"| {SETTLED_LABELS.get(key, key)} | {_fmt(report.get(key))} |" for key in SUMMARY_KEYS]
+    whole = report.get("whole_flight")
+    if whole:
+        w0, w1 = whole["window_s"]
+        lines += ["", f"Whole flight, from the formation start ({_fmt(w0)} s) to arrival ({_fmt(w1)} s):", ""]
+        lines += ["| figure | value |", "|---|---|"]
+        lines += [f"| {key} | {_list(whole.get(key))} |" for key in WHOLE_FLIGHT_KEYS if key in whole]
     lines += [
         "",
         "| vehicle | reached | time to goal s | final error m | min sep m | min clearance m | "

@@ -236,6 +236,15 @@ def run_command(mission_path: str, options: RunOptions) -> int:
         f"min_separation={report['min_separation_m']} m min_clearance={report['min_obstacle_clearance_m']} m "
         f"formation_rms={report['formation_rms_m']} m (from {report['source']})"
     )
+    whole = report.get("whole_flight") or {}
+    say(
+        f"whole flight: slot error rms {whole.get('slot_error_rms_m')} m, "
+        f"max {whole.get('slot_error_max_m')} m, "
+        f"cusps {whole.get('cusps_total')}, max tilt-command rate {whole.get('max_tilt_command_rate_rad_s')} "
+        f"rad/s, min altitude {whole.get('min_altitude_in_formation_m')} m"
+    )
+    for event in report.get("safety_events", []):
+        say(f"SAFETY EVENT: {event}")
     say(f"report: {run_dir / 'report.md'}")
-    ok = report["reached"] and report["collisions"] == 0 and not result.lost
+    ok = report["reached"] and report["collisions"] == 0 and not result.lost and not report["safety_events"]
     return status if status != EXIT_OK else (EXIT_OK if ok else EXIT_FAILED)

@@ -20,7 +20,7 @@ from gcs_swarm.mission import MissionError, load_mission
 from gcs_swarm.report import FLIGHT_FILE, RECORD_FILE, load_commands, load_trajectories
 
 EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR = 0, 1, 2
-COMPARE_KEYS = ("status", "success", "collision", *flights.RESULT_KEYS)
+COMPARE_KEYS = ("status", "success", "collision", *flights.RESULT_KEYS, *flights.WHOLE_FLIGHT_RESULT_KEYS)
 
 
 @dataclass(frozen=True)

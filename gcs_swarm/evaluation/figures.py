@@ -1,7 +1,8 @@
 """Figures in the paper's style, drawn with matplotlib (the optional extra `plot`); every function returns
 what it wrote, nothing (an empty list or False) when matplotlib is not installed.
 
-Run figures (one run folder, `write_run_figures`): report.png (overview: top view, inter-vehicle distances),
+Run figures (one run folder, `write_run_figures`): report.png (overview: top view, inter-vehicle distances,
+each follower's distance from its slot over the whole formation flight, commanded roll and pitch),
 fig_trajectories.png (3-D paths with obstacle spheres and the 2-D top view, paper Figs 13, 18, 20, 22, 25),
 fig_velocity_acceleration.png (per-axis velocity and acceleration, Figs 14-16), fig_distances.png
 (inter-vehicle distances with the safe-distance line, Fig 17), fig_relative_angle.png (angle of each follower
@@ -18,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gcs_swarm.evaluation import signals
+from gcs_swarm.evaluation import flight_quality, signals
 from gcs_swarm.guidance.formation import slot_positions
 
 if TYPE_CHECKING:
@@ -90,6 +91,52 @@ def _draw_distances(ax: Any, traj: Trajectories, names: list[str], mission: Any,
     ax.set_title("Inter-vehicle distances")
     if len(pairs) <= 15:
         ax.legend(fontsize=6, loc="best")
+
+
+def _draw_slot_errors(
+    ax: Any,
+    traj: Trajectories,
+    commands: CommandLog | None,
+    flight: dict[str, Any],
+    mission: Any,
+    names: list[str],
+    t0: float,
+) -> None:
+    """Each follower's distance from its slot over the whole formation flight (docs/metrics.md)."""
+    ax.set_title("Follower-to-slot error, whole formation flight")
+    ax.set_xlabel("time since formation start (s)")
+    ax.set_ylabel("distance from slot (m)")
+    if commands is None or len(commands.t) < 2 or len(names) < 2:
+        ax.text(0.5, 0.5, "no record of the formation", ha="center", transform=ax.transAxes)
+        return
+    sel = (traj.t >= t0) & (traj.t <= commands.t[-1])
+    t = traj.t[sel]
+    psi = signals.held_at(commands.t, commands.psi_l, t)
+    leader = int(flight.get("leader", mission.leader_index))
+    err = flight_quality.slot_errors(t, traj.pos[sel], psi, flight, leader, np.array(flight["offsets"]))
+    s = _every(len(t))
+    for i, name in enumerate(names):
+        if np.isfinite(err[:, i]).any():
+            ax.plot(t[s] - t0, err[s, i], lw=0.9, label=name, color=f"C{i % 10}")  # as in the top view
+    if len(names) <= MAX_LEGEND:
+        ax.legend(fontsize=7, loc="best")
+
+
+def _draw_tilt_commands(ax: Any, commands: CommandLog | None, names: list[str], t0: float) -> None:
+    """Commanded roll and pitch of every vehicle over the formation flight: steps and chatter show here."""
+    ax.set_title("Commanded roll (dashed) and pitch")
+    ax.set_xlabel("time since formation start (s)")
+    ax.set_ylabel("angle (deg)")
+    if commands is None or len(commands.t) < 2:
+        ax.text(0.5, 0.5, "no record of the commands", ha="center", transform=ax.transAxes)
+        return
+    s = _every(len(commands.t))
+    for i, name in enumerate(names):
+        color = f"C{i % 10}"
+        ax.plot(commands.t[s] - t0, np.degrees(commands.attitude_d[s, i, 1]), lw=0.9, label=name, color=color)
+        ax.plot(commands.t[s] - t0, np.degrees(commands.attitude_d[s, i, 0]), lw=0.7, ls="--", color=color)
+    if len(names) <= MAX_LEGEND:
+        ax.legend(fontsize=7, loc="best")
 
 
 def _save(plt: ModuleType, fig: Any, path: Path) -> Path:
@@ -206,9 +253,11 @@ def write_run_figures(
     offsets = np.array(flight["offsets"], dtype=float)
     t0 = float(flight.get("t_formation_start") or traj.t[0])
     written = []
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))
-    _draw_top_view(ax1, plt, traj, names, goal)
-    _draw_distances(ax2, traj, names, mission, t0)
+    fig, axes = plt.subplots(2, 2, figsize=(14, 10.5))
+    _draw_top_view(axes[0, 0], plt, traj, names, goal)
+    _draw_distances(axes[0, 1], traj, names, mission, t0)
+    _draw_slot_errors(axes[1, 0], traj, commands, flight, mission, names, t0)
+    _draw_tilt_commands(axes[1, 1], commands, names, t0)
     written.append(_save(plt, fig, run_dir / "report.png"))
     written.append(_trajectories_figure(plt, traj, names, goal, run_dir / "fig_trajectories.png"))
     written.append(_velocity_figure(plt, traj, names, t0, run_dir / "fig_velocity_acceleration.png"))

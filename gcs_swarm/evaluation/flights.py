@@ -17,6 +17,15 @@ PORT_RANGE = (20000, 60000)
 PORT_TRIES = 200
 FLIGHT_TRIES = 3  # a port taken between the probe and the simulator's bind: try again on other ports
 RESULT_KEYS = SUMMARY_KEYS  # the report figures each campaign result line carries
+WHOLE_FLIGHT_RESULT_KEYS = (  # ... and these of report.json's whole_flight (docs/metrics.md)
+    "slot_error_rms_m",
+    "slot_error_max_m",
+    "cusps_total",
+    "max_tilt_command_rate_rad_s",
+    "pitch_command_chatter_max_rad",
+    "min_separation_whole_flight_m",
+    "min_altitude_in_formation_m",
+)
 
 
 def free_udp_base(count: int) -> int:
@@ -72,6 +81,9 @@ def flight_figures(run_dir: Path, status: int, collision_radius: float) -> dict[
     )
     result: dict[str, Any] = {"status": status, "success": status == 0, "collision": collision}
     result |= {key: report.get(key) for key in RESULT_KEYS}
+    whole = report.get("whole_flight") or {}
+    result |= {key: whole.get(key) for key in WHOLE_FLIGHT_RESULT_KEYS}
+    result["safety_events"] = list(report.get("safety_events", []))
     result["reached"] = bool(report.get("reached", False))
     result["events"] = list(flight.get("events", []))[:10]
     return result

@@ -42,10 +42,12 @@ import numpy as np
 import yaml
 
 from gcs_swarm.guidance.formation import rotate_to_world
+from gcs_swarm.guidance.params import PAPER_PLAIN
 from gcs_swarm.mission import Mission, MissionError, load_mission
 from gcs_swarm.runner import mission_offsets
 
 METHODS = ("apf", "iaapf")
+FORMS = ("paper", "smooth")  # the spec's plain method (PAPER_PLAIN) or the mission's smoothing as written
 CONTROLLERS = ("smc", "pid")
 MIN_START_GAP_M = 2.0  # m between jittered start positions
 PLACEMENT_TRIES = 2000
@@ -90,11 +92,14 @@ class Variant:
     method: str | None = None  # guidance.method: "apf" | "iaapf"
     controller: str | None = None  # control.controller: "smc" | "pid"
     wind_speed: float | None = None  # world.wind.speed, m/s
+    form: str | None = (
+        None  # "paper": every [add] smoothing off (guidance.params.PAPER_PLAIN); "smooth": as is
+    )
 
     @property
     def label(self) -> str:
-        """Short name, e.g. "iaapf", "apf-pid-wind5", "mission" when nothing differs."""
-        parts = [p for p in (self.method, self.controller) if p is not None]
+        """Short name, e.g. "iaapf", "apf-pid-wind5", "iaapf-paper", "mission" when nothing differs."""
+        parts = [p for p in (self.method, self.form, self.controller) if p is not None]
         if self.wind_speed is not None:
             parts.append(f"wind{self.wind_speed:g}")
         return "-".join(parts) or "mission"
@@ -104,18 +109,24 @@ def variant_grid(
     methods: list[str] | None, controllers: list[str] | None, winds: list[float] | None
 ) -> list[Variant]:
     """Every combination of the given methods, controllers and wind speeds (an absent list keeps the
-    mission's value); VariantError on an unknown method or controller or a bad wind speed."""
+    mission's value); `methods` may also name guidance forms (FORMS: `paper` flies the spec's plain
+    method, `smooth` the mission as written), crossed with the methods given. VariantError on an unknown
+    name or a bad wind speed."""
+    forms = [v for v in methods or [] if v in FORMS]
+    methods = [v for v in methods or [] if v not in FORMS] or None
     for value in methods or []:
         if value not in METHODS:
-            raise VariantError(f"unknown variant {value!r}: methods are {', '.join(METHODS)}")
+            raise VariantError(
+                f"unknown variant {value!r}: methods are {', '.join(METHODS)}, forms {', '.join(FORMS)}"
+            )
     for value in controllers or []:
         if value not in CONTROLLERS:
             raise VariantError(f"unknown controller {value!r}: controllers are {', '.join(CONTROLLERS)}")
     for value in winds or []:
         if not (math.isfinite(value) and 0.0 <= value <= 100.0):
             raise VariantError(f"wind speed {value:g} m/s is outside 0..100")
-    combos = itertools.product(methods or [None], controllers or [None], winds or [None])
-    grid = [Variant(m, c, w) for m, c, w in combos]
+    combos = itertools.product(methods or [None], controllers or [None], winds or [None], forms or [None])
+    grid = [Variant(m, c, w, f) for m, c, w, f in combos]
     if len({v.label for v in grid}) != len(grid):
         raise VariantError("the same variant is listed twice")
     return grid
@@ -134,6 +145,13 @@ def apply_variant(data: dict[str, Any], variant: Variant, name: str) -> dict[str
         world = dict(out.get("world") or {})
         world["wind"] = {**(world.get("wind") or {}), "speed": float(variant.wind_speed)}
         out["world"] = world
+    if variant.form == "paper":
+        for path, values in PAPER_PLAIN.items():
+            section = out
+            for key in path.split("."):
+                section[key] = dict(section.get(key) or {})
+                section = section[key]
+            section.update(values)
     return out
 
 

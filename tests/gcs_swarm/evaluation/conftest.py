@@ -26,9 +26,13 @@ SPEED = 5.0  # m/s
 DURATION = 30.0  # s
 
 
-def write_run_folder(run_dir: Path, mission: Mission) -> Path:
+def write_run_folder(
+    run_dir: Path, mission: Mission, clock0: float = 0.0, squeeze: tuple[float, float] | None = None
+) -> Path:
     """Truth at 50 Hz and a record at 50 Hz of the three vehicles holding their slots on a straight leg that
-    ends at the goal; commanded pitch ramps 0 -> 0.2 rad over the first 2 s, then holds."""
+    ends at the goal; commanded pitch ramps 0 -> 0.2 rad over the first 2 s, then holds. Every time is
+    shifted by clock0 s (vehicles that booted long before the run); `squeeze` = (t0, t1) s puts vehicle 2
+    2 m beside the leader in that interval (inside D_Emg = 3 m)."""
     run_dir.mkdir(parents=True, exist_ok=True)
     offsets = mission_offsets(mission)
     t = np.arange(0.0, DURATION + 1e-9, 0.02)
@@ -37,6 +41,10 @@ def write_run_folder(run_dir: Path, mission: Mission) -> Path:
     leader = goal - direction * SPEED * (DURATION - t[:, None])
     leader = np.minimum.reduce([leader, np.broadcast_to(goal, leader.shape)], axis=0)
     pos = slot_positions(leader, np.full(len(t), HEADING), offsets)  # (T, N, 3)
+    if squeeze is not None:
+        inside = (t >= squeeze[0]) & (t < squeeze[1])
+        pos[inside, 2] = pos[inside, 0] + np.array([0.0, 0.0, 2.0])
+    t = t + clock0
     vel = np.broadcast_to(direction * SPEED, pos.shape)
     n = pos.shape[1]
     rows = []
@@ -62,8 +70,8 @@ def write_run_folder(run_dir: Path, mission: Mission) -> Path:
         "mission": mission.name,
         "mission_path": str(mission.path),
         "arrived": True,
-        "t_formation_start": 0.0,
-        "t_formation_end": DURATION,
+        "t_formation_start": clock0,
+        "t_formation_end": clock0 + DURATION,
         "final_targets": pos[-1].tolist(),
         "offsets": offsets.tolist(),
         "lost": [],

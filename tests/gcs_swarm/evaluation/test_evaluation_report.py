@@ -13,6 +13,7 @@ import pytest
 from gcs_swarm.cli import main
 from gcs_swarm.mission import Mission
 from gcs_swarm.report import NO_PLOT_NOTE, write_report
+from tests.gcs_swarm.evaluation.conftest import write_run_folder
 
 PAPER_FIGURES = [
     "report.png",
@@ -94,3 +95,34 @@ def test_a_record_cut_mid_line_is_read_up_to_its_last_full_row(
     record.write_text(text[: len(text) - 40])  # a killed writer leaves half a line
     report = write_report(run_folder, quickstart_mission)
     assert report["command_rates"] is not None
+
+
+def test_durations_count_on_the_run_clock_whatever_the_boot_time(
+    tmp_path: Path, quickstart_mission: Mission, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Vehicles that booted 300 s before the run (real ArduCopters): the same 30 s flight gives the same
+    durations as one whose clock starts at 0."""
+    _hide_matplotlib(monkeypatch)
+    early = write_report(write_run_folder(tmp_path / "at0", quickstart_mission), quickstart_mission)
+    late = write_report(write_run_folder(tmp_path / "at300", quickstart_mission, 300.0), quickstart_mission)
+    assert early["sim_duration_s"] == pytest.approx(30.0, abs=0.03)
+    assert late["sim_duration_s"] == pytest.approx(early["sim_duration_s"])
+    assert late["time_to_goal_s"] == pytest.approx(early["time_to_goal_s"])
+    assert late["settling_time_s"] == pytest.approx(early["settling_time_s"])
+    assert late["whole_flight"]["window_s"][0] == pytest.approx(300.0)
+
+
+def test_a_pass_inside_d_emg_is_a_safety_event(
+    tmp_path: Path, quickstart_mission: Mission, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Vehicle 2 spends 1.5 s 2 m from the leader (D_Emg = 3 m): flagged at the top of report.md, in
+    safety_events, and timed; the clean flight has none."""
+    _hide_matplotlib(monkeypatch)
+    clean = write_report(write_run_folder(tmp_path / "clean", quickstart_mission), quickstart_mission)
+    assert clean["safety_events"] == [] and clean["whole_flight"]["time_below_d_emg_s"] == 0.0
+    run = write_run_folder(tmp_path / "close", quickstart_mission, squeeze=(10.0, 11.5))
+    report = write_report(run, quickstart_mission)
+    assert report["whole_flight"]["time_below_d_emg_s"] == pytest.approx(1.5, abs=0.03)
+    assert report["whole_flight"]["min_separation_whole_flight_m"] == pytest.approx(2.0)
+    assert len(report["safety_events"]) == 1 and "D_Emg" in report["safety_events"][0]
+    assert "SAFETY EVENTS" in (run / "report.md").read_text().splitlines()[3]

@@ -12,6 +12,7 @@ import yaml
 from gcs_swarm.evaluation import variants
 from gcs_swarm.evaluation.variants import Ranges, Variant, VariantError
 from gcs_swarm.guidance.formation import rotate_to_world
+from gcs_swarm.guidance.params import PAPER_PLAIN
 from gcs_swarm.mission import load_mission
 from gcs_swarm.runner import mission_offsets
 
@@ -167,3 +168,21 @@ def test_written_variant_is_plain_yaml(tmp_path: Path) -> None:
     data = yaml.safe_load((tmp_path / "v.yaml").read_text())
     assert data["guidance"]["method"] == "apf"
     assert isinstance(data["guidance"]["k_rep"], float)
+
+
+def test_the_paper_form_turns_every_addition_off(tmp_path):
+    """`--variants paper,smooth`: the paper variant's mission carries PAPER_PLAIN's values (read back through
+    the mission loader), the smooth one the mission's own; crossed with methods when both are given."""
+    grid = variants.variant_grid(["paper", "smooth"], None, None)
+    assert [v.label for v in grid] == ["paper", "smooth"]
+    base = Path(__file__).resolve().parents[3] / "missions" / "quickstart.yaml"
+    plain = variants.derive_variant(base, grid[0], tmp_path / "paper.yaml")
+    smooth = variants.derive_variant(base, grid[1], tmp_path / "smooth.yaml")
+    for key, value in PAPER_PLAIN["guidance.reference"].items():
+        assert getattr(plain.reference, key) == value
+    for key, value in PAPER_PLAIN["guidance"].items():
+        assert getattr(plain.field, key) == value
+    assert plain.limits.tilt_rate_max_deg == 0.0 and smooth.limits.tilt_rate_max_deg > 0.0
+    assert smooth.reference.jerk_max > 0.0 and smooth.field.circulation > 0.0
+    crossed = variants.variant_grid(["apf", "iaapf", "paper"], None, None)
+    assert [v.label for v in crossed] == ["apf-paper", "iaapf-paper"]

@@ -1,0 +1,215 @@
+"""Whole-flight quality figures: what a pilot sees in a flight, measured over all of it, not only after the
+formation has settled (docs/metrics.md defines each one).
+
+Motion figures take the simulator's ground truth (or the ground station's record when there is none);
+command figures take the commands of record.csv. Shapes: t (T,) s; positions/velocities (T, N, 3) ENU m,
+m/s; commanded attitude (T, N, 3) roll, pitch, yaw rad.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from gcs_swarm import metrics
+
+CUSP_TURN_DEG = 90.0  # a cusp: the horizontal course turns by more than this ...
+CUSP_WINDOW_S = 1.0  # ... within this long ...
+CUSP_MIN_SPEED = 2.0  # m/s ... while the speed is above this at both ends
+JERK_WINDOW_S = 0.25  # s, Savitzky-Golay window of the jerk estimate (cubic fit of the true velocity)
+
+
+def cusp_times(t: np.ndarray, vel_xy: np.ndarray) -> list[float]:
+    """Times (s) of the cusps of one vehicle: a sample t_j starts a cusp when the course
+    atan2(v_y, v_x) at t_j and at the first sample at least CUSP_WINDOW_S later differ by more than
+    CUSP_TURN_DEG (the wrapped difference, so at most 180 deg) and the horizontal speed is above
+    CUSP_MIN_SPEED at both. Counted once per second: after a cusp at t_j the next can start no earlier than
+    t_j + CUSP_WINDOW_S. vel_xy (T, 2)."""
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(vel_xy, dtype=float)
+    if len(t) < 2:
+        return []
+    later = np.searchsorted(t, t + CUSP_WINDOW_S - 1e-9)
+    valid = later < len(t)
+    j = np.flatnonzero(valid)
+    k = later[valid]
+    speed = np.hypot(v[:, 0], v[:, 1])
+    course = np.arctan2(v[:, 1], v[:, 0])
+    turn = np.abs((course[k] - course[j] + math.pi) % (2.0 * math.pi) - math.pi)
+    starts = j[
+        (turn > math.radians(CUSP_TURN_DEG)) & (speed[j] > CUSP_MIN_SPEED) & (speed[k] > CUSP_MIN_SPEED)
+    ]
+    out: list[float] = []
+    for s in starts:
+        if not out or t[s] >= out[-1] + CUSP_WINDOW_S:
+            out.append(float(t[s]))
+    return out
+
+
+def command_rates(t: np.ndarray, attitude_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rates between consecutive command ticks: t_mid (T-1,) s and (T-1, N, 3) rad/s of roll, pitch and the
+    unwrapped yaw; a pair with a non-finite command (vehicle not commanded) gives NaN."""
+    t = np.asarray(t, dtype=float)
+    att = np.asarray(attitude_d, dtype=float)
+    if len(t) < 2:
+        return np.zeros(0), np.zeros((0,) + att.shape[1:])
+    unwrapped = att.copy()
+    for i in range(att.shape[1]):
+        yaw = att[:, i, 2]
+        ok = np.isfinite(yaw)
+        if ok.any():
+            unwrapped[ok, i, 2] = np.unwrap(yaw[ok])
+    dt = np.diff(t)
+    rates = np.diff(unwrapped, axis=0) / np.where(dt > 0, dt, np.nan)[:, None, None]
+    return 0.5 * (t[1:] + t[:-1]), rates
+
+
+def true_jerk(t: np.ndarray, vel: np.ndarray) -> np.ndarray:
+    """|jerk| (T, N) m/s^3 of the true motion: the second derivative of the true velocity (T, N, 3) by a
+    Savitzky-Golay cubic fit over JERK_WINDOW_S (scipy.signal.savgol_filter), which differentiates a smooth
+    signal exactly up to its cubic terms and does not amplify the sample-to-sample rounding of the log.
+    Uniform sampling is assumed (the truth log is)."""
+    t = np.asarray(t, dtype=float)
+    vel = np.asarray(vel, dtype=float)
+    if len(t) < 7:
+        return np.zeros(vel.shape[:2])
+    dt = float(np.median(np.diff(t)))
+    window = max(5, int(round(JERK_WINDOW_S / dt)) | 1)
+    window = min(window, len(t) - (1 - len(t) % 2))
+    jerk = savgol_filter(vel, window, 3, deriv=2, delta=dt, axis=0, mode="interp")
+    return np.linalg.norm(jerk, axis=-1)
+
+
+def path_ratio(pos: np.ndarray, route: np.ndarray) -> float:
+    """Length of the path pos (T, 3) over the length of the straight route through its points (W, 3)
+    (start, waypoints, goal); nan for a route of zero length."""
+    straight = metrics.path_length(np.asarray(route, dtype=float))
+    return metrics.path_length(np.asarray(pos, dtype=float)) / straight if straight > 0 else math.nan
+
+
+def time_below(t: np.ndarray, pos: np.ndarray, distance: float) -> tuple[float, float]:
+    """(s spent with any pair of vehicles closer than `distance` m, the smallest pair distance m), over
+    pos (T, N, 3); each sample counts for the interval to the next."""
+    t = np.asarray(t, dtype=float)
+    p = np.asarray(pos, dtype=float)
+    n = p.shape[1]
+    if n < 2 or len(t) == 0:
+        return 0.0, math.inf
+    i, j = np.triu_indices(n, 1)
+    gaps = np.linalg.norm(p[:, i] - p[:, j], axis=-1)
+    closest = np.fmin.reduce(gaps, axis=1)
+    dt = np.diff(t, append=t[-1])
+    return float(dt[closest < distance].sum()), float(np.nanmin(closest))
+
+
+def formation_schedule(
+    flight: dict[str, Any], t: np.ndarray, leader: int, offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Leader (T,) and slot offsets (T, N, 3) in force at each time t (T,) s, from flight.json's
+    formation_timeline (re-forms after a loss, a new leader, live reshapes, degraded widening; NaN rows for
+    vehicles out of the formation); the final `leader`/`offsets` throughout for a flight.json without it."""
+    timeline = flight.get("formation_timeline") or []
+    if not timeline:
+        return np.full(len(t), leader), np.broadcast_to(offsets, (len(t),) + offsets.shape)
+    starts = np.array([entry["t"] for entry in timeline], dtype=float)
+    leaders = np.array([entry["leader"] for entry in timeline], dtype=int)
+    table = np.array(
+        [[[np.nan] * 3 if row is None else row for row in entry["offsets"]] for entry in timeline],
+        dtype=float,
+    )
+    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(timeline) - 1)
+    return leaders[k], table[k]
+
+
+def slot_errors(
+    t: np.ndarray, pos: np.ndarray, psi: np.ndarray, flight: dict[str, Any], leader: int, offsets: np.ndarray
+) -> np.ndarray:
+    """Follower-to-slot error (T, N) m over t (T,), pos (T, N, 3), with psi_L (T,) rad as flown and the
+    formation in force at each time (flight.json's formation_timeline); NaN for the leader of the moment
+    and for vehicles out of the formation (spec 10 e_F,i, before any settling window)."""
+    leaders, flown = formation_schedule(flight, t, leader, offsets)
+    err = metrics.formation_error(t, pos, leaders, psi, flown).error.copy()
+    err[np.arange(len(t)), leaders] = np.nan
+    return err
+
+
+def _r(x: float | None, digits: int = 4) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(float(x), digits)
+
+
+def whole_flight_figures(
+    t: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    slot_error: np.ndarray | None,
+    followers: np.ndarray,
+    leader_route: np.ndarray,
+    leader: int,
+    window: tuple[float, float],
+    formation_altitude: np.ndarray,
+    d_emg: float,
+    commands: tuple[np.ndarray, np.ndarray] | None,
+    names: list[str],
+) -> dict[str, Any]:
+    """The whole-flight figures of report.json (docs/metrics.md). Motion over t (T,), pos, vel (T, N, 3),
+    the follower-to-slot error slot_error (T, N) m (None without a record) for the vehicles `followers`
+    (N,) bool, inside window = (formation start, arrival or end of formation flight) s; the leader's route
+    (W, 3) from its start; formation_altitude (N,) m (slot height); commands = (t (C,), attitude_d
+    (C, N, 3)) of the formation phase, or None."""
+    t = np.asarray(t, dtype=float)
+    sel = (t >= window[0]) & (t <= window[1])
+    ts, ps, vs = t[sel], pos[sel], vel[sel]
+    out: dict[str, Any] = {"window_s": [_r(window[0], 2), _r(window[1], 2)]}
+    if slot_error is not None and followers.any() and sel.any():
+        err = slot_error[sel][:, followers]
+        err = err[np.isfinite(err)]
+        if err.size:
+            out["slot_error_rms_m"] = _r(float(np.sqrt(np.mean(err * err))))
+            out["slot_error_p95_m"] = _r(float(np.percentile(err, 95)))
+            out["slot_error_max_m"] = _r(float(err.max()))
+    cusps = [cusp_times(ts, vs[:, i, :2]) for i in range(pos.shape[1])]
+    out["cusps"] = [len(c) for c in cusps]
+    out["cusps_total"] = int(sum(out["cusps"]))
+    jerk = true_jerk(ts, vs)
+    if jerk.size:
+        per = [float(np.percentile(jerk[:, i], 99)) for i in range(jerk.shape[1])]
+        out["jerk_p99_m_s3"] = [_r(x, 3) for x in per]
+        out["jerk_p99_max_m_s3"] = _r(max(per), 3)
+    out["leader_path_ratio"] = _r(path_ratio(ps[:, leader], leader_route))
+    below_s, closest = time_below(t, pos, d_emg)
+    out["min_separation_whole_flight_m"] = _r(closest)
+    out["time_below_d_emg_s"] = _r(below_s, 3)
+    if sel.any():
+        z = ps[:, :, 2]
+        out["min_altitude_in_formation_m"] = _r(float(np.nanmin(z)))
+        out["max_drop_below_formation_altitude_m"] = _r(float(np.nanmax(formation_altitude[None, :] - z)))
+    if commands is not None and len(commands[0]) > 2:
+        ct, att = commands
+        mid, rates = command_rates(ct, att)
+        with np.errstate(invalid="ignore"):
+            tilt = np.fmax(np.abs(rates[..., 0]), np.abs(rates[..., 1]))
+            yaw_rate = rates[..., 2]
+            yaw_step = np.abs(np.diff(yaw_rate, axis=0))
+        out["max_tilt_command_rate_rad_s"] = _r(float(np.nanmax(tilt)), 3)
+        out["max_yaw_command_rate_rad_s"] = _r(float(np.nanmax(np.abs(yaw_rate))), 3)
+        out["max_yaw_rate_step_rad_s"] = _r(float(np.nanmax(yaw_step)) if yaw_step.size else 0.0, 3)
+        chatter, rate_chatter = [], []
+        for i in range(att.shape[1]):
+            pitch = att[:, i, 1]
+            ok = np.isfinite(pitch)
+            if np.count_nonzero(ok) > 3:
+                chatter.append(metrics.chattering_amplitude(ct[ok], pitch[ok], (ct[ok][0], ct[ok][-1])))
+            q = rates[:, i, 1]
+            okq = np.isfinite(q)
+            if np.count_nonzero(okq) > 3:
+                rate_chatter.append(
+                    metrics.chattering_amplitude(mid[okq], q[okq], (mid[okq][0], mid[okq][-1]))
+                )
+        out["pitch_command_chatter_rad"] = [_r(c, 4) for c in chatter]
+        out["pitch_command_chatter_max_rad"] = _r(max(chatter), 4) if chatter else None
+        out["pitch_rate_chatter_whole_flight_rad_s"] = _r(max(rate_chatter), 4) if rate_chatter else None
+    out["vehicles"] = names
+    return out
