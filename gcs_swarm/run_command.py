@@ -120,6 +120,7 @@ def mission_fleet(mission: Mission, base_port: int | None, run_dir: Path, key: b
         tlog_path=run_dir / "telemetry.tlog",
         signing_key=key,
         loss_timeout_s=mission.safety.telemetry.lost_s,
+        stream_rate_hz=mission.run.control_rate_hz,
     )
 
 

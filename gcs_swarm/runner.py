@@ -23,6 +23,7 @@ from gcs_swarm.guidance.degradation import StaleTelemetryMonitor, TelemetryAsses
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.formation import assign_slots, formation_offsets
 from gcs_swarm.guidance.lost_vehicles import LostTrack, avoidance_radius, predicted_position
+from gcs_swarm.link import ardupilot
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
 from gcs_swarm.link.flight_params import FlightParams
@@ -156,6 +157,9 @@ class MissionRunner:
         self.result = FlightResult()
         self.phase = "connect"
         self.hover = np.full(len(mission.vehicles), 0.5)
+        self.angle_boost = np.zeros(
+            len(mission.vehicles), dtype=bool
+        )  # ATC_ANGLE_BOOST on, read in preflight
         self.controller = build_controller(mission)
         self.shape: tuple[str | None, float | None] = (
             None,
@@ -210,8 +214,7 @@ class MissionRunner:
         self._set_phase("preflight")
         fleet, run = self.fleet, self.mission.run
         try:
-            fleet.request_streams_all(run.control_rate_hz)  # ArduCopter streams nothing until asked
-            fleet.wait_ready(timeout_s=run.preflight_timeout_s)
+            fleet.wait_ready(timeout_s=run.preflight_timeout_s, progress=self.progress)
             safety = self.mission.safety
             flight = self.flight_params
             flight.set_all("GUID_OPTIONS", GUID_OPTIONS_THRUST)
@@ -219,6 +222,9 @@ class MissionRunner:
             flight.set_all("FS_GCS_TIMEOUT", float(safety.dead_gcs.failsafe_timeout_s or 0.0))
             flight.set_all("GUID_TIMEOUT", safety.dead_gcs.guided_timeout_s)
             self.hover = fleet.param_get_all("MOT_THST_HOVER")
+            self.angle_boost = np.array(
+                [ardupilot.is_boost_on(v) for v in fleet.param_get_all("ATC_ANGLE_BOOST")]
+            )
             self.failsafe_params = np.column_stack([fleet.param_get_all(name) for name in FAILSAFE_PARAMS])
         except LinkError as exc:
             raise PreflightError(f"preflight failed: {exc}") from exc
@@ -459,7 +465,9 @@ class MissionRunner:
         centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)
         centres, radii = np.vstack([centres, ghosts]), np.concatenate([self._obstacle_radii, ghost_radii])
         cmd = ctl.tick(t, verdict.pos, vel, att, centres, radii, active)
-        thrust = thrust_from_acc(np.nan_to_num(cmd.thrust_acc), self.hover)
+        # ArduCopter adds its own 1/cos(tilt) to guided thrust when ATC_ANGLE_BOOST is on: not twice
+        acc = ardupilot.unboosted_thrust(cmd.thrust_acc, att[:, 0], att[:, 1], self.angle_boost)
+        thrust = thrust_from_acc(np.nan_to_num(acc), self.hover)
         roll, pitch, yaw, thrust, limited = guard_attitude_commands(
             cmd.roll_d,
             cmd.pitch_d,

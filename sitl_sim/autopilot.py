@@ -128,7 +128,10 @@ class Autopilot:
         self.t = 0.0
         self.ready_at = np.where(airborne, 0.0, ready_delay)
         self.boot_end = np.where(airborne, 0.0, min(1.0, 0.5 * ready_delay))
+        # the GPS has its 3D fix well before the EKF uses it (real ArduCopter SITL: a few seconds vs 20-40 s)
+        self.gps_fix_at = np.where(airborne, 0.0, min(GPS_FIX_S, 0.5 * ready_delay))
         self.ready = self.ready_at <= 0.0
+        self.prearm_said = np.full(n, -np.inf)  # simulated s of the last periodic "PreArm:" report
         self.mode = np.where(airborne, GUIDED, STABILIZE)
         self.armed = np.array(airborne, dtype=bool)
         self.land_complete = ~self.armed
@@ -167,7 +170,7 @@ class Autopilot:
         self._rate_mask = np.zeros(n, dtype=bool)
         self._rate_control = False  # some vehicle was under rate-only control at the last tick
         self._events = np.zeros(n, dtype=np.int64)
-        self._columns = np.array([params.index[name] for name in LOOP_PARAMS], dtype=np.int64)
+        self._columns = np.array([params.column_index(name) for name in LOOP_PARAMS], dtype=np.int64)
         s = self.state
         self._loop_arrays = (
             s.pos, s.vel, s.quat, s.landed, s.crashed, self.home,
@@ -183,6 +186,10 @@ class Autopilot:
             self._enter_mode(int(i), STABILIZE)
 
     # --- status as MAVLink reports it -----------------------------------------------------------------------
+
+    def gps_fix(self, i: int) -> bool:
+        """The GPS reports a 3D fix (GPS_RAW_INT), which comes before the EKF's position."""
+        return bool(self.t >= self.gps_fix_at[i])
 
     def position_ok(self, i: int) -> bool:
         """The EKF has a position (origin, home and GPS fix are set)."""
@@ -383,8 +390,8 @@ class Autopilot:
         self._enter_mode(i, int(self.mode[i]))
 
     def gcs_heartbeat(self, i: int, sysid: int) -> None:
-        """A HEARTBEAT from `sysid` reached vehicle i: refreshes the GCS failsafe if it is SYSID_MYGCS."""
-        if sysid != int(self.params.value(i, "SYSID_MYGCS")):
+        """A HEARTBEAT from `sysid` reached vehicle i: refreshes the GCS failsafe if it is MAV_GCS_SYSID."""
+        if sysid != int(self.params.value(i, "MAV_GCS_SYSID")):
             return
         self.last_gcs_heartbeat[i] = self.t
         if self.failsafe_gcs[i]:
@@ -406,6 +413,16 @@ class Autopilot:
         """One outer tick at simulated time t (s) covering dt (s): modes, control, targets to the physics."""
         self.t = t
         self.ready = t >= self.ready_at
+        # AP_Arming::update: a vehicle that cannot arm says why every PREARM_DISPLAY_PERIOD (30 s) by itself
+        due = (
+            ~self.ready
+            & ~self.armed
+            & (t - self.prearm_said >= PREARM_DISPLAY_PERIOD_S)
+            & (t >= self.boot_end)
+        )
+        for i in np.flatnonzero(due):
+            self.say(int(i), M.MAV_SEVERITY_CRITICAL, "PreArm: Need Position Estimate")
+            self.prearm_said[i] = t
         _outer_loop(t, dt, self.dyn.params.g, self.params.values, self._columns, *self._loop_arrays)
         self.dyn.set_targets(
             self._quat_sp,
@@ -491,14 +508,17 @@ class Autopilot:
 # --- the fused outer loop (numba when available) ----------------------------------------------------------
 
 EVENT_DISARM, EVENT_GCS_FAILSAFE = 1, 2
+PREARM_DISPLAY_PERIOD_S = 30.0  # AP_Arming.cpp PREARM_DISPLAY_PERIOD: unprompted pre-arm failure reports
+GPS_FIX_S = 10.0  # simulated s from boot to the GPS 3D fix (real SITL: 10 s), at most half the ready delay
 LOOP_PARAMS = (
     "MOT_THST_HOVER", "ANGLE_MAX", "GUID_TIMEOUT", "PSC_POSXY_P", "PSC_POSZ_P", "PSC_VELXY_P", "PSC_VELXY_I",
     "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
-    "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT",
+    "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "ATC_ANGLE_BOOST",
 )  # fmt: skip
 (
     P_HOVER, P_ANGLE_MAX, P_GUID_TIMEOUT, P_POSXY_P, P_POSZ_P, P_VELXY_P, P_VELXY_I, P_VELZ_P, P_VELZ_I,
     P_SPEED, P_SPEED_UP, P_SPEED_DN, P_ACCEL, P_LAND_SPEED, P_DISARM_DELAY, P_FS_ENABLE, P_FS_TIMEOUT,
+    P_ANGLE_BOOST,
 ) = range(len(LOOP_PARAMS))  # fmt: skip
 
 
@@ -614,7 +634,17 @@ def _outer_loop(
         if angle:
             quat_sp[i] = angle_quat[i]
             up = max(1.0 - 2.0 * (x * x + y * y), math.cos(tilt))  # cos(tilt) of the actual attitude
-            fraction = collective[i] if direct else hover * max(g + az, MIN_UP_ACCEL * g) / g / up
+            if direct:
+                # guided thrust goes through set_throttle_out(thrust, apply_angle_boost=true)
+                # (mode_guided.cpp angle_control_run); AC_AttitudeControl_Multi::get_throttle_boosted: with
+                # ATC_ANGLE_BOOST, x inverted_factor / clamp(cos(current lean), 0.1, 1)
+                fraction = collective[i]
+                if p[columns[P_ANGLE_BOOST]] != 0.0:
+                    cos_lean = 1.0 - 2.0 * (x * x + y * y)
+                    inverted = min(max(10.0 * cos_lean, 0.0), 1.0)
+                    fraction = fraction * inverted / min(max(cos_lean, 0.1), 1.0)
+            else:
+                fraction = hover * max(g + az, MIN_UP_ACCEL * g) / g / up
         else:
             qw, qx, qy, qz, thrust_g = attitude_from_accel(ax, ay, az, nav_yaw[i], tilt, g)
             quat_sp[i, 0], quat_sp[i, 1], quat_sp[i, 2], quat_sp[i, 3] = qw, qx, qy, qz
@@ -624,7 +654,9 @@ def _outer_loop(
             fraction = SPIN_ARMED
         motors_on[i] = armed[i] and not crashed[i]
         thrust_demand[i] = min(max(fraction, 0.0), 1.0) if motors_on[i] else 0.0
-        tilt_max[i] = tilt
+        # ANGLE_MAX limits the lean the autopilot's own controllers ask for; a guided attitude target is flown
+        # as given (AC_AttitudeControl::input_quaternion has no lean limit)
+        tilt_max[i] = math.pi if angle_guided and not (armed[i] and land_complete[i]) else tilt
         use_ff = angle_guided and angle_rate_ff[i] and not rates_only[i]
         for k in range(3):
             rate_ff[i, k] = angle_rates[i, k] if use_ff else 0.0

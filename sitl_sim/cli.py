@@ -29,6 +29,7 @@ import numpy as np
 from sitl_sim.clock import plan_timing
 from sitl_sim.link_faults import LinkFaults, Outage, parse_outage
 from sitl_sim.orphan import ParentWatch, detach_output
+from sitl_sim.params import PARAM_NAME_RELEASES
 from sitl_sim.signing import read_key
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
@@ -94,9 +95,17 @@ def build_parser() -> OneLineParser:
     add(
         "--ready-delay",
         type=float,
-        default=5.0,
+        default=40.0,
         metavar="S",
-        help="simulated s to a position fix (default 5)",
+        help="simulated s from boot until the EKF has a position and pre-arm checks pass (default 40, as a "
+        "real ArduCopter 4.7 SITL: GPS 3D fix at 10 s, EKF using GPS at 42 s)",
+    )
+    add(
+        "--param-names",
+        choices=PARAM_NAME_RELEASES,
+        default="4.7",
+        help="the ArduCopter release whose parameter names the vehicles show: 4.7 (MAV_SYSID, MAV_GCS_SYSID; "
+        "default) or 4.6 (SYSID_THISMAV, SYSID_MYGCS)",
     )
     add(
         "--exit-with-parent",
@@ -336,6 +345,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         ready_delay=args.ready_delay,
         link=link_faults(parser, args, n, link),
         signing_key=signing_key(parser, args.signing_key),
+        param_names=args.param_names,
         orphan_speedup=args.orphan_speedup,
         orphan_grace_s=args.orphan_grace,
     )

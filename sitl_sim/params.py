@@ -7,6 +7,7 @@ describe the one shared world: setting them on any vehicle sets them on all.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -38,10 +39,23 @@ class ParamSpec:
     world: bool = False  # shared by all vehicles (simulator world settings)
 
 
-def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
-    """The parameter table, alphabetical; MOT_THST_HOVER defaults to the airframe's true hover fraction."""
+# Parameters ArduCopter 4.7 renamed (ArduCopter/Parameters.cpp conversion table, libraries/GCS_MAVLink/GCS.cpp
+# "_SYSID", "_GCS_SYSID"): the simulator answers to the 4.7 names by default, to the 4.6 ones with
+# `sitl-sim --param-names 4.6`, never to both (as a real vehicle). The simulator's own code uses 4.7 names.
+RENAMED_IN_4_7 = {"MAV_SYSID": "SYSID_THISMAV", "MAV_GCS_SYSID": "SYSID_MYGCS"}
+PARAM_NAME_RELEASES = ("4.7", "4.6")
+
+
+def param_specs(hover_fraction: float, names: str = "4.7") -> tuple[ParamSpec, ...]:
+    """The parameter table, alphabetical; MOT_THST_HOVER defaults to the airframe's true hover fraction;
+    `names` the ArduCopter release whose parameter names to use (PARAM_NAME_RELEASES)."""
+    if names not in PARAM_NAME_RELEASES:
+        raise ValueError(f"parameter names of ArduCopter {' or '.join(PARAM_NAME_RELEASES)}, not {names!r}")
     specs = (
-        ParamSpec("ANGLE_MAX", INT16, 3000, 1000, 8000, "cdeg", "maximum lean angle in all modes"),
+        ParamSpec(
+            "ANGLE_MAX", INT16, 3000, 1000, 8000, "cdeg", "maximum lean angle (not of guided attitude)"
+        ),
+        ParamSpec("ATC_ANGLE_BOOST", INT8, 1, 0, 1, "", "guided/alt-hold thrust x 1/cos(lean) (1 = on)"),
         ParamSpec("DISARM_DELAY", INT8, 10, 0, 127, "s", "auto-disarm after this long landed (0 = never)"),
         ParamSpec("FS_GCS_ENABLE", INT8, 0, 0, 7, "", "GCS failsafe: 0 off, 1/2/3/6 RTL, 4/5 LAND, 7 BRAKE"),
         ParamSpec("FS_GCS_TIMEOUT", REAL32, 5.0, 2.0, 120.0, "s", "GCS heartbeat loss before the failsafe"),
@@ -65,13 +79,18 @@ def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
         ParamSpec("SIM_WIND_DIR", REAL32, 0.0, 0.0, 360.0, "deg", "wind comes from (0 = north)", True),
         ParamSpec("SIM_WIND_SPD", REAL32, 0.0, 0.0, 100.0, "m/s", "steady wind speed", True),
         ParamSpec("SIM_WIND_TURB", REAL32, 0.0, 0.0, 20.0, "m/s", "turbulence standard deviation", True),
-        ParamSpec("SYSID_MYGCS", INT16, 255, 1, 255, "", "ground station sysid whose heartbeat counts"),
-        ParamSpec("SYSID_THISMAV", INT16, 1, 1, 255, "", "this vehicle's sysid (takes effect on restart)"),
+        ParamSpec("MAV_GCS_SYSID", INT16, 255, 1, 255, "", "ground station sysid whose heartbeat counts"),
+        ParamSpec("MAV_SYSID", INT16, 1, 1, 255, "", "this vehicle's sysid (takes effect on restart)"),
         ParamSpec("WPNAV_ACCEL", REAL32, 250.0, 50.0, 500.0, "cm/s^2", "horizontal acceleration limit"),
         ParamSpec("WPNAV_SPEED", REAL32, 1000.0, 10.0, 2000.0, "cm/s", "horizontal speed to a target"),
         ParamSpec("WPNAV_SPEED_DN", REAL32, 150.0, 10.0, 500.0, "cm/s", "descent speed"),
         ParamSpec("WPNAV_SPEED_UP", REAL32, 250.0, 10.0, 1000.0, "cm/s", "climb speed"),
     )
+    if names == "4.6":
+        specs = tuple(
+            dataclasses.replace(spec, name=RENAMED_IN_4_7[spec.name]) if spec.name in RENAMED_IN_4_7 else spec
+            for spec in specs
+        )
     return tuple(sorted(specs, key=lambda s: s.name))
 
 
@@ -82,21 +101,30 @@ class ParamTable:
         self, n: int, specs: tuple[ParamSpec, ...], overrides: dict[str, np.ndarray | float]
     ) -> None:
         self.specs = specs
-        self.index = {spec.name: j for j, spec in enumerate(specs)}
+        self.index = {spec.name: j for j, spec in enumerate(specs)}  # the names the vehicle shows
+        # the simulator's own code reads renamed parameters by their 4.7 names, whatever the vehicle shows
+        self._internal = dict(self.index)
+        for new_name, old_name in RENAMED_IN_4_7.items():
+            if old_name in self.index:
+                self._internal.setdefault(new_name, self.index[old_name])
         self.values = np.array([[spec.default for spec in specs]] * n, dtype=float)
         for name, value in overrides.items():
-            self.values[:, self.index[name]] = value
+            self.values[:, self._internal[name]] = value
 
     def __len__(self) -> int:
         return len(self.specs)
 
     def column(self, name: str) -> np.ndarray:
-        """(N,) current values of parameter `name` (a view)."""
-        return self.values[:, self.index[name]]
+        """(N,) current values of parameter `name` (a view; renamed ones also by their 4.7 name)."""
+        return self.values[:, self._internal[name]]
 
     def value(self, i: int, name: str) -> float:
-        """Value of `name` on vehicle i."""
-        return float(self.values[i, self.index[name]])
+        """Value of `name` on vehicle i (renamed ones also by their 4.7 name)."""
+        return float(self.values[i, self._internal[name]])
+
+    def column_index(self, name: str) -> int:
+        """Column j of `name` (renamed ones also by their 4.7 name)."""
+        return self._internal[name]
 
     def check(self, name: str, value: float) -> str | None:
         """Why `value` cannot be stored in `name` (a short sentence), or None when it can."""

@@ -67,6 +67,7 @@ class SimConfig:
     ready_delay: float
     link: LinkFaults = LinkFaults()  # link faults of every vehicle (SIM_LINK_* param defaults, outages)
     signing_key: bytes | None = field(default=None, repr=False)  # MAVLink 2 signing key (sitl_sim.signing)
+    param_names: str = "4.7"  # the ArduCopter release whose parameter names the vehicles show (params.py)
     orphan_speedup: float = math.inf  # x real time once the parent is gone (sitl_sim.orphan); inf = at once
     orphan_grace_s: float = 300.0  # simulated s an orphan flies at most before it exits
 
@@ -90,9 +91,9 @@ class Simulator:
         direction = wind_from_degrees(direction)
         self.params = ParamTable(
             n,
-            param_specs(quad.hover_fraction),
+            param_specs(quad.hover_fraction, config.param_names),
             {
-                "SYSID_THISMAV": self.sysids,
+                "MAV_SYSID": self.sysids,
                 "SIM_WIND_SPD": speed,
                 "SIM_WIND_DIR": direction,
                 "SIM_WIND_TURB": turbulence,

@@ -23,29 +23,30 @@ if TYPE_CHECKING:
     from sitl_sim.autopilot import Autopilot
 
 M = mavlink
-# Default rates (Hz) like ArduCopter's SRx defaults; 0 = only on request / on change.
+# Default rates (Hz). A fresh ArduCopter streams nothing on a link until a ground station asks: its per-link
+# rates MAVn_* (SRn_* before 4.7) default to 0 in SITL (seen on a V4.7.0-dev SITL build: HEARTBEAT and a
+# TIMESYNC only, until REQUEST_DATA_STREAM or SET_MESSAGE_INTERVAL). HEARTBEAT goes out at 1 Hz regardless.
+# 0 = only on request (SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM, REQUEST_MESSAGE) or on change.
 DEFAULT_RATES_HZ: dict[int, float] = {
     M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
-    M.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
-    M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 2.0,
-    M.MAVLINK_MSG_ID_ATTITUDE: 10.0,
+    M.MAVLINK_MSG_ID_SYS_STATUS: 0.0,
+    M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 0.0,
+    M.MAVLINK_MSG_ID_ATTITUDE: 0.0,
     M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 0.0,
-    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 4.0,
-    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 4.0,
-    M.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
-    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
-    M.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
+    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 0.0,
+    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.0,
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: 0.0,
+    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 0.0,
+    M.MAVLINK_MSG_ID_SYSTEM_TIME: 0.0,
     M.MAVLINK_MSG_ID_HOME_POSITION: 0.0,
     M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 0.0,
 }
 STREAM_IDS = tuple(DEFAULT_RATES_HZ)
-# Legacy REQUEST_DATA_STREAM groups (MAVProxy uses them) -> the messages of ours they contain.
+# Legacy REQUEST_DATA_STREAM groups (MAVProxy uses them) -> the messages of ours they contain, as ArduPilot
+# groups them (libraries/GCS_MAVLink/GCS_MAVLink_Parameters.cpp STREAM_*_msgs); EXTENDED_SYS_STATE is in
+# none (only SET_MESSAGE_INTERVAL starts it).
 DATA_STREAM_GROUPS: dict[int, tuple[int, ...]] = {
-    M.MAV_DATA_STREAM_EXTENDED_STATUS: (
-        M.MAVLINK_MSG_ID_SYS_STATUS,
-        M.MAVLINK_MSG_ID_GPS_RAW_INT,
-        M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
-    ),
+    M.MAV_DATA_STREAM_EXTENDED_STATUS: (M.MAVLINK_MSG_ID_SYS_STATUS, M.MAVLINK_MSG_ID_GPS_RAW_INT),
     M.MAV_DATA_STREAM_POSITION: (M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED),
     M.MAV_DATA_STREAM_EXTRA1: (M.MAVLINK_MSG_ID_ATTITUDE,),
     M.MAV_DATA_STREAM_EXTRA3: (M.MAVLINK_MSG_ID_EKF_STATUS_REPORT, M.MAVLINK_MSG_ID_SYSTEM_TIME),
@@ -320,7 +321,7 @@ def _global_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
 
 
 def _gps_raw(v: TelemetryView, f: Framer, i: int) -> bytes:
-    if not v.ap.position_ok(i):
+    if not v.ap.gps_fix(i):
         return f.pack(
             f.mav.gps_raw_int_encode(v.time_us, M.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 9999, 9999, 0, 0, 0)
         )

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm import frames
+from gcs_swarm.link import ardupilot
 from gcs_swarm.link.connection import (
     ConnectionSpec,
     Endpoint,
@@ -94,8 +95,12 @@ class Fleet:
         loss_timeout_s: float = 3.0,
         loss_wall_timeout_s: float | None = None,
         signing_key: bytes | None = None,
+        stream_rate_hz: float = 50.0,
     ) -> None:
+        """`stream_rate_hz`: the rate of the state telemetry asked for as soon as a vehicle is heard
+        (`telemetry_rates`; the control loop's rate)."""
         _validate(vehicles, gcs_sysid, gcs_compid)
+        self.stream_rate_hz = stream_rate_hz
         self.configs = list(vehicles)
         self.lockstep_answers = lockstep_answers
         self.loss_timeout_s = loss_timeout_s
@@ -215,9 +220,21 @@ class Fleet:
             for link in self.links:
                 if link.state.time_ms[link.index] < 0:
                     link.request_message("SYSTEM_TIME")  # learn the frame time to answer in lockstep
+            self._request_streams()
         except BaseException:
             self.close()
             raise
+
+    def _request_streams(self) -> None:
+        """Ask every vehicle for the telemetry the ground station needs, as soon as it is heard: ArduCopter
+        streams nothing on a link until a ground station asks (its MAVn_* / SRn_* rates are 0 by default),
+        and MAVProxy and QGroundControl ask at the first HEARTBEAT too. A vehicle that refuses is reported
+        (an event) and asked again by the stream watchdog; nothing here stops the connection."""
+        rates: dict[str | int, float] = dict(telemetry_rates(self.stream_rate_hz))
+        results = self.run((link.op_request_streams(rates) for link in self.links), strict=False)
+        for link, result in zip(self.links, results, strict=True):
+            if isinstance(result, LinkError):
+                link.add_event(f"telemetry not set up: {result}")
 
     def _open_endpoints(self, connect_timeout_s: float) -> None:
         groups: dict[tuple[str, str, int], tuple[ConnectionSpec, list[VehicleLink]]] = {}
@@ -253,7 +270,7 @@ class Fleet:
                 if other is not link:
                     raise LinkError(
                         f"{other.name} ({other.config.connection}) and {link.name} ({conn}) both report "
-                        f"sysid {link.sysid}; give each vehicle its own SYSID_THISMAV"
+                        f"sysid {link.sysid}; give each vehicle its own {ardupilot.sysid_param_hint()}"
                     )
             elif link.config.sysid is not None:
                 wrong = [s for s, n in link.foreign_heartbeats.items() if n >= wrong_sysid_heartbeats]
@@ -320,6 +337,7 @@ class Fleet:
             if link.endpoint is not None:
                 link.heartbeat_if_due(now)
                 link.check_loss(now, self.loss_timeout_s, self.loss_wall_timeout_s)
+                link.check_streams()
         if self.on_pump is not None:
             self.on_pump()
 
@@ -506,20 +524,32 @@ class Fleet:
             return [link for link in self.links if self.state.alive[link.index]]
         return [self.vehicle(v) for v in vehicles]
 
-    def wait_ready(self, timeout_s: float, vehicles: Iterable[int | str] | None = None) -> None:
+    def wait_ready(
+        self,
+        timeout_s: float,
+        vehicles: Iterable[int | str] | None = None,
+        progress: Callable[[str], None] | None = None,
+        progress_period_s: float = 10.0,
+    ) -> None:
         """Wait until each vehicle (default: all) is ready to arm; after `timeout_s` of fleet vehicle time
-        (vehicle.Timeout), LinkError naming the others and why."""
+        (vehicle.Timeout), LinkError naming the others and why, in the vehicles' own words where they give
+        them (EKF flags, GPS fix, the latest PreArm text). `progress` hears the same every
+        `progress_period_s` s of vehicle time while it waits (a real ArduCopter takes about a minute)."""
         links = self.links if vehicles is None else self.select(vehicles)
         timeout = Timeout(timeout_s, self.state.vehicle_clock)
+        report = Timeout(progress_period_s, self.state.vehicle_clock)
         self._next_frame(time.monotonic() + _FRAME_GRACE_S)
         while True:
             reasons = [(link, link.not_ready_reason()) for link in links]
             late = [(link, why) for link, why in reasons if why is not None]
             if not late:
                 return
+            detail = "; ".join(f"{link.name}: {why}" for link, why in late)
             if timeout.expired():
-                detail = "; ".join(f"{link.name}: {why}" for link, why in late)
                 raise LinkError(f"not ready to fly after {timeout_s:g} s: {detail}")
+            if progress is not None and report.expired():
+                progress(f"waiting for {detail}")
+                report.restart()
             self._pump_answering(_FRAME_GRACE_S)
 
     def request_streams_all(

@@ -33,7 +33,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm import frames
 from gcs_swarm.guidance.params import G
-from gcs_swarm.link import signing
+from gcs_swarm.link import ardupilot, signing
 from gcs_swarm.link.connection import Endpoint, LinkError, MAVLinkMessage
 from gcs_swarm.link.tlog import TlogWriter
 
@@ -51,6 +51,9 @@ REBOOT_BACKSTEP_MS = 5000  # a time_boot_ms this much older than the latest mean
 STATUSTEXT_GRACE_S = 0.3  # vehicle s: ArduPilot queues the "PreArm: ..." text, so it may follow the ACK
 CLOCK_STALL_S = 2.0  # [add] wall s a vehicle clock must stand still before timeouts also end on wall time
 COMMAND_RETRIES = 10  # [add] resends after a silent timeout: at 10 % loss each way 11 attempts fail ~1e-8
+STREAM_QUIET_S = (
+    2.0  # [add] vehicle s without a position from a heard vehicle before its streams are asked again
+)
 CONFIRM_TIMEOUT_S = 5.0  # [add] vehicle s for a 1 Hz HEARTBEAT to show a new mode / arming state
 GCS_HEARTBEAT_MS = 500  # [add] vehicle ms between GCS HEARTBEATs: under 10 % loss a 5 s FS_GCS_TIMEOUT
 # then needs ~10 lost in a row, not 5
@@ -145,6 +148,7 @@ class LinkCounters:
     unsent: int = 0
     late: int = 0  # stamped telemetry older than what was already received (delayed or reordered): ignored
     invalid: int = 0  # well-formed packets with non-finite or impossible values (hostile or broken): ignored
+    stream_requests: int = 0  # times the stream watchdog asked a quiet vehicle for its telemetry again
 
 
 def mode_number(mode: str | int) -> int:
@@ -199,6 +203,7 @@ def telemetry_rates(
         "SYS_STATUS": status_hz,
         "EKF_STATUS_REPORT": status_hz,
         "EXTENDED_SYS_STATE": status_hz,
+        "GPS_RAW_INT": status_hz,
     }
     if local_position:
         rates["LOCAL_POSITION_NED"] = control_hz
@@ -234,6 +239,7 @@ class FleetState:
         self.landed_state = np.zeros(n, dtype=np.int64)  # MAV_LANDED_STATE (0 = undefined)
         self.ekf_flags = np.full(n, -1, dtype=np.int64)  # EKF_STATUS_REPORT.flags (-1 = none yet)
         self.prearm = np.full(n, -1, dtype=np.int8)  # SYS_STATUS pre-arm check: -1 unknown, 0 failing, 1 ok
+        self.gps_fix = np.full(n, -1, dtype=np.int64)  # GPS_RAW_INT.fix_type (-1 = none received)
         self.rtt_ms = np.full(n, np.nan)  # round trip of the latest TIMESYNC exchange, wall ms
         self.position_count = np.zeros(n, dtype=np.int64)  # GLOBAL_POSITION_INT messages received
         self.position_ms = np.full(n, -1, dtype=np.int64)  # time_boot_ms of the latest GLOBAL_POSITION_INT
@@ -306,6 +312,7 @@ class VehicleLink:
         self.param_types: dict[str, int] = {}
         self.param_count: int | None = None
         self.last_statustext = ""
+        self.last_prearm = ""  # the latest "PreArm: ..." / "Arm: ..." STATUSTEXT (ArduPilot's own reason)
         self.answered_ms = -1  # time_boot_ms of the last lockstep answer sent
         self.last_rx_wall = -math.inf  # time.monotonic() of the last packet from the autopilot
         self._run = run
@@ -328,6 +335,8 @@ class VehicleLink:
         self._param_listing: dict[int, str] = {}
         self._param_values = 0  # PARAM_VALUE messages received
         self._latest_ms: dict[str, int] = {}  # time_boot_ms of the newest packet of each kind (see _on_time)
+        self.stream_rates: dict[str | int, float] = {}  # the telemetry asked for (op_request_streams), Hz
+        self._streams_asked_ms = -1  # time_boot_ms of the watchdog's last request (check_streams)
 
     # ------------------------------------------------------------------ receiving
 
@@ -395,11 +404,12 @@ class VehicleLink:
                 self._progress_wall = time.monotonic()
                 if self._progress_ms > st.clock_ms:
                     st.clock_ms, st.clock_wall = self._progress_ms, self._progress_wall
-            elif t_ms < prev:  # rebooted: frames start again from zero
+            elif t_ms < prev:  # rebooted: frames start again from zero, and its stream rates are gone
                 st.tick_ms[i] = -1
                 st.frame_ms[i] = -1
                 st.position_ms[i] = -1
                 self._latest_ms.clear()
+                self._streams_asked_ms = -1
             st.time_ms[i] = t_ms
             if self._heartbeat_due(t_ms):
                 self.send_heartbeat()  # brief: the simulator times its GCS failsafe in vehicle time
@@ -474,6 +484,9 @@ class VehicleLink:
         checked = bool(m.onboard_control_sensors_enabled & _PREARM)
         self.state.prearm[self.index] = 1 if not checked or m.onboard_control_sensors_health & _PREARM else 0
 
+    def _on_gps_raw_int(self, m: MAVLinkMessage) -> None:
+        self.state.gps_fix[self.index] = m.fix_type
+
     def _on_ekf_status_report(self, m: MAVLinkMessage) -> None:
         self.state.ekf_flags[self.index] = m.flags
 
@@ -499,6 +512,8 @@ class VehicleLink:
     def _on_statustext(self, m: MAVLinkMessage) -> None:
         text = m.text.decode(errors="replace") if isinstance(m.text, bytes | bytearray) else str(m.text)
         self.last_statustext = text
+        if text.startswith("PreArm:") or text.startswith("Arm:"):
+            self.last_prearm = text
         self._statustexts += 1
         self.add_event(text, m.severity)
 
@@ -539,17 +554,21 @@ class VehicleLink:
         st, i = self.state, self.index
         if not st.alive[i]:
             return "its link is down"
+        gps = "" if st.gps_fix[i] < 0 else f"; GPS: {ardupilot.gps_fix_name(int(st.gps_fix[i]))}"
+        said = f'; it says "{self.last_prearm}"' if self.last_prearm else ""
         if st.position_count[i] == 0:
-            return "no GLOBAL_POSITION_INT received"
+            asked = "asked for" if self.stream_rates else "not yet asked for"
+            return f"no GLOBAL_POSITION_INT received (telemetry {asked}){gps}{said}"
         if st.ekf_flags[i] < 0:
-            return "no EKF_STATUS_REPORT received"
+            return f"no EKF_STATUS_REPORT received{gps}{said}"
         if not st.ekf_ok[i]:
-            return f"no usable position estimate (EKF flags 0x{int(st.ekf_flags[i]):04x})"
+            flags = int(st.ekf_flags[i])
+            why = ardupilot.ekf_missing(flags, _EKF_REQUIRED, _EKF_HORIZONTAL, _EKF_FORBIDDEN)
+            return f"no usable position estimate (EKF: {why}; flags 0x{flags:04x}){gps}{said}"
         if st.prearm[i] < 0:
-            return "no SYS_STATUS received"
+            return f"no SYS_STATUS received{said}"
         if st.prearm[i] == 0:
-            detail = f" (last message: {self.last_statustext})" if self.last_statustext else ""
-            return f"pre-arm checks failing{detail}"
+            return f"pre-arm checks failing{gps}{said or ' (no PreArm message yet)'}"
         return None
 
     # ------------------------------------------------------------------ sending
@@ -918,15 +937,82 @@ class VehicleLink:
         return self.op_command(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, float(msg_id), interval_us)
 
     def op_request_streams(self, rates: Mapping[str | int, float]) -> Operation[None]:
-        """Set each message's rate (Hz), one acknowledged command after the other."""
+        """Ask for each message at its rate (Hz): SET_MESSAGE_INTERVAL, acknowledged, one after the other; a
+        message the vehicle refuses (COMMAND_ACK other than ACCEPTED) is asked for by REQUEST_DATA_STREAM of
+        its ArduPilot stream group instead (no ACK exists for that; the stream watchdog, `check_streams`,
+        asks again if the telemetry does not come). The rates are remembered for `check_streams`."""
+        self.stream_rates = {message: float(hz) for message, hz in rates.items()}
         for message, hz in rates.items():
-            yield from self.op_set_message_interval(message, hz)
+            try:
+                yield from self.op_set_message_interval(message, hz)
+            except LinkError as err:
+                if "refused" not in str(err):
+                    raise
+                self.request_data_stream(message, hz)
+
+    def request_data_stream(self, message: str | int, hz: float) -> None:
+        """REQUEST_DATA_STREAM of the ArduPilot stream group that carries `message` (if any), at `hz`."""
+        name = message if isinstance(message, str) else mavlink2.mavlink_map[int(message)].msgname
+        group = ardupilot.STREAM_GROUP.get(str(name))
+        if group is None:
+            return
+        rate = max(1, min(int(round(hz)), 0xFFFF)) if hz > 0 else 0
+        self.send(
+            self._mav.request_data_stream_encode(self.sysid or 0, self.compid, group, rate, 1 if rate else 0)
+        )
+
+    def check_streams(self) -> None:
+        """Stream watchdog: a vehicle that is heard (HEARTBEATs) but whose positions stopped for
+        STREAM_QUIET_S of its own time (after a reboot ArduPilot forgets every rate; a message interval can
+        also be lost) is asked again for every stream, by both SET_MESSAGE_INTERVAL and REQUEST_DATA_STREAM
+        without waiting for ACKs, at most once per STREAM_QUIET_S. Called by the fleet on every pump."""
+        if not self.stream_rates or self.sysid is None or not self.state.alive[self.index]:
+            return
+        now_ms = int(self.state.time_ms[self.index])
+        last_position = int(self.state.position_ms[self.index])
+        quiet = now_ms - max(last_position, self._streams_asked_ms) > STREAM_QUIET_S * 1000
+        if now_ms < 0 or not quiet:
+            return
+        self._streams_asked_ms = now_ms
+        self.counters.stream_requests += 1
+        for message, hz in self.stream_rates.items():
+            try:
+                msg_id = message_id(message)
+            except ValueError:
+                continue
+            self._send_command(
+                mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, 0, [float(msg_id), 1e6 / hz, 0, 0, 0, 0, 0]
+            )
+            self.request_data_stream(message, hz)
+
+    def param_name(self, name: str) -> str:
+        """The spelling of parameter `name` this vehicle answers to (ArduCopter 4.7 renamed some,
+        gcs_swarm.link.ardupilot.other_param_name), as learned from its PARAM_VALUEs; `name` until known."""
+        other = ardupilot.other_param_name(name)
+        if name not in self.params and other is not None and other in self.params:
+            return other
+        return name
 
     def op_param_get(
         self, name: str, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
     ) -> Operation[float]:
         """PARAM_REQUEST_READ by name until its PARAM_VALUE arrives, resent after each silent `timeout_s` of
-        vehicle time; returns the value."""
+        vehicle time; returns the value. A renamed parameter (SYSID_THISMAV / MAV_SYSID, ...) is read under
+        whichever name the vehicle has: one quick try of the given name, then the other spelling."""
+        other = ardupilot.other_param_name(name)
+        name = self.param_name(name)
+        if other is None or name in self.params or other in self.params:
+            return (yield from self._op_param_get(name, retries, timeout_s))
+        try:
+            return (yield from self._op_param_get(name, 0, timeout_s))
+        except LinkError:
+            pass
+        try:
+            return (yield from self._op_param_get(other, retries, timeout_s))
+        except LinkError:
+            return (yield from self._op_param_get(name, retries, timeout_s))
+
+    def _op_param_get(self, name: str, retries: int, timeout_s: float) -> Operation[float]:
         param_id = self._param_id(name)
         self._require_alive()
         timeout = Timeout(timeout_s, self.vehicle_clock)
@@ -946,7 +1032,11 @@ class VehicleLink:
         self, name: str, value: float, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
     ) -> Operation[float]:
         """PARAM_SET, verified by the PARAM_VALUE echo (float32 equality); resent up to `retries` times, after
-        each silent `timeout_s` of vehicle time (a repeat is harmless: the same value is set again)."""
+        each silent `timeout_s` of vehicle time (a repeat is harmless: the same value is set again). A
+        renamed parameter is read first, so that it is set under the vehicle's own spelling."""
+        if ardupilot.other_param_name(name) is not None and self.param_name(name) not in self.params:
+            yield from self.op_param_get(name, retries, timeout_s)
+        name = self.param_name(name)
         param_id = self._param_id(name)
         if not math.isfinite(value):
             raise LinkError(f"{self.name}: parameter {name} needs a finite value, not {value}")
@@ -1082,6 +1172,7 @@ _HANDLERS: dict[str, Callable[[VehicleLink, MAVLinkMessage], None]] = {
     "SYSTEM_TIME": VehicleLink._on_timed,
     "SYS_STATUS": VehicleLink._on_sys_status,
     "EKF_STATUS_REPORT": VehicleLink._on_ekf_status_report,
+    "GPS_RAW_INT": VehicleLink._on_gps_raw_int,
     "EXTENDED_SYS_STATE": VehicleLink._on_extended_sys_state,
     "COMMAND_ACK": VehicleLink._on_command_ack,
     "PARAM_VALUE": VehicleLink._on_param_value,

@@ -17,6 +17,9 @@ from gcs_swarm.evaluation.flights import free_udp_base
 
 ROOT = Path(__file__).resolve().parents[2]
 MISSIONS = ROOT / "missions"
+# Tests that schedule link faults at fixed simulated times shorten the simulated EKF/GPS start-up (default
+# 40 s, as a real ArduCopter SITL) to 5 s, so that formation flight has started by their fault times.
+SHORT_BOOT = "--sim-arg=--ready-delay=5"
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.e2e.conftest import fly
+from tests.e2e.conftest import SHORT_BOOT, fly
 
 OUTAGE_S = (20.0, 2.0)  # start, duration in simulated s: the quickstart cruises past its obstacles by then
 
@@ -30,7 +30,7 @@ def test_a_follower_quiet_for_two_seconds_is_held_and_the_fleet_slows_then_recov
     quickstart: Path, tmp_path: Path
 ) -> None:
     outage = f"--sim-arg=--link-outage=1@{OUTAGE_S[0]:g}:{OUTAGE_S[1]:g}"
-    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=[outage])
+    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=[outage, SHORT_BOOT])
     assert run.status == 0, run.output[-2000:]  # nobody lost: 2 s < lost_s
     assert run.report["collisions"] == 0 and run.report["reached"]
     flight = json.loads((run.run_dir / "flight.json").read_text())
@@ -59,7 +59,7 @@ def test_a_quiet_leader_holds_the_whole_fleet_until_it_is_heard_again(
     quickstart: Path, tmp_path: Path
 ) -> None:
     outage = f"--sim-arg=--link-outage=0@{OUTAGE_S[0]:g}:{OUTAGE_S[1]:g}"
-    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=[outage])
+    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=[outage, SHORT_BOOT])
     assert run.status == 0, run.output[-2000:]
     assert run.report["collisions"] == 0 and run.report["reached"]
     flight = json.loads((run.run_dir / "flight.json").read_text())

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.e2e.conftest import fly, static6_short
+from tests.e2e.conftest import SHORT_BOOT, fly, static6_short
 
 BRAKE = 17  # ArduCopter custom_mode: the GCS failsafe the missions ask for (safety.gcs_failsafe: brake)
 
@@ -28,7 +28,9 @@ def _truth(run_dir: Path) -> np.ndarray:
 def test_follower_killed_mid_flight_leaves_the_rest_flying_and_reported(
     quickstart: Path, tmp_path: Path
 ) -> None:
-    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=["--sim-arg=--link-outage=2@15:inf"])
+    run = fly(
+        quickstart, tmp_path / "run", timeout_s=300, extra=["--sim-arg=--link-outage=2@15:inf", SHORT_BOOT]
+    )
     assert run.status == 1, run.output[-2000:]  # a vehicle was lost
     assert run.report["lost"] == ["left"]
     assert run.report["collisions"] == 0
@@ -46,7 +48,9 @@ def test_follower_killed_mid_flight_leaves_the_rest_flying_and_reported(
 def test_leader_lost_mid_flight_hands_the_lead_on(quickstart: Path, tmp_path: Path) -> None:
     """The leader's link dies at 15 s: the lowest-index live vehicle ("right") takes the lead to the same goal
     and the other follower re-forms on it; the old leader does its own GCS failsafe (BRAKE, and holds)."""
-    run = fly(quickstart, tmp_path / "run", timeout_s=300, extra=["--sim-arg=--link-outage=0@15:inf"])
+    run = fly(
+        quickstart, tmp_path / "run", timeout_s=300, extra=["--sim-arg=--link-outage=0@15:inf", SHORT_BOOT]
+    )
     assert run.status == 1, run.output[-2000:]  # a vehicle was lost
     assert run.report["lost"] == ["lead"] and run.report["collisions"] == 0
     flight = json.loads((run.run_dir / "flight.json").read_text())

@@ -32,7 +32,9 @@ DOCUMENTED = {
     "paper_dynamic_6": (6, 0, "offsets"),
     "paper_nine_9": (9, 0, "v"),
     "paper_table1_2d": (1, 0, "v"),
+    "ardupilot_sitl_3": (3, 0, "v"),
 }
+REAL_VEHICLES = {"ardupilot_sitl_3"}  # flown against running vehicles (udpin), not the embedded simulator
 BUNDLED = sorted(MISSIONS.glob("*.yaml"))
 
 TABLE2_XY = [(0, 40), (0, 20), (20, 40), (0, 0), (20, 20), (20, 0)]
@@ -84,9 +86,15 @@ def test_bundled_mission_loads_with_its_documented_fleet(path: Path) -> None:
     assert mission.formation.shape == shape
     base = mission.run.simulator.base_port
     for index, vehicle in enumerate(mission.vehicles):
-        assert vehicle.connection == f"udpout:127.0.0.1:{base + index}"
+        if path.stem in REAL_VEHICLES:
+            assert vehicle.connection == f"udpin:127.0.0.1:{14550 + index}"  # docs/ardupilot-sitl.md
+        else:
+            assert vehicle.connection == f"udpout:127.0.0.1:{base + index}"
         assert vehicle.sysid == index + 1
-    assert mission.run.simulator.embedded and mission.run.simulator.time_mode == "lockstep"
+    if path.stem in REAL_VEHICLES:
+        assert not mission.run.simulator.embedded and mission.run.preflight_timeout_s >= 120
+    else:
+        assert mission.run.simulator.embedded and mission.run.simulator.time_mode == "lockstep"
 
 
 @pytest.mark.parametrize("path", BUNDLED, ids=[p.stem for p in BUNDLED])

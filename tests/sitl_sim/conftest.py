@@ -201,6 +201,12 @@ class Vehicle:
         """Vehicle time (s) of the latest timestamped telemetry."""
         return self.time_boot_ms / 1000.0
 
+    def request_streams(self, hz: int = 10) -> None:
+        """What a ground station does first (MAVProxy, QGroundControl): ask for the telemetry, which a
+        vehicle (like ArduCopter) does not stream until asked; EXTENDED_SYS_STATE is in no stream group."""
+        self.mav.request_data_stream_send(self.sysid, 1, M.MAV_DATA_STREAM_ALL, hz, 1)
+        self.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, 1e6 / hz)
+
     def heartbeat(self) -> None:
         """GCS HEARTBEAT."""
         self.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, M.MAV_STATE_ACTIVE)
@@ -272,6 +278,7 @@ class Pilot:
         self.holding = False  # spin returned at a frame it has not answered yet
         for vehicle in self.vehicles:
             vehicle.heartbeat()
+            vehicle.request_streams()
             vehicle.last_heartbeat_ms = 0
 
     def __getitem__(self, i: int) -> Vehicle:

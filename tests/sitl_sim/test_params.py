@@ -20,7 +20,7 @@ def test_param_list_read_and_set_round_trip(sitl, pilot_for):
     pilot.spin(lambda: len(v.params) == count, 5.0)
     assert {p.param_count for p in v.params.values()} == {count}
     assert sorted(p.param_index for p in v.params.values()) == list(range(count))
-    assert v.params["SYSID_THISMAV"].param_value == 1
+    assert v.params["MAV_SYSID"].param_value == 1
     assert v.params["MOT_THST_HOVER"].param_value == pytest.approx(0.4, abs=1e-6)
     assert v.params["ANGLE_MAX"].param_type == M.MAV_PARAM_TYPE_INT16
     assert v.params["GUID_TIMEOUT"].param_type == M.MAV_PARAM_TYPE_REAL32
@@ -60,7 +60,7 @@ def test_param_set_refusals_say_why_and_echo_the_value(sitl, pilot_for, name, va
 
 
 def test_table_checks_and_world_params_apply_to_every_vehicle():
-    table = ParamTable(3, param_specs(0.4), {"SYSID_THISMAV": np.array([1, 2, 3])})
+    table = ParamTable(3, param_specs(0.4), {"MAV_SYSID": np.array([1, 2, 3])})
     assert table.check("ANGLE_MAX", 4500) is None
     assert "out of range" in table.check("ANGLE_MAX", 100)
     assert "integer" in table.check("RTL_ALT", 1500.5)
@@ -69,6 +69,6 @@ def test_table_checks_and_world_params_apply_to_every_vehicle():
     assert list(table.column("ANGLE_MAX")) == [3000, 4500, 3000]
     assert table.set(2, "SIM_WIND_SPD", 7) == [0, 1, 2]
     assert list(table.column("SIM_WIND_SPD")) == [7, 7, 7]
-    assert list(table.column("SYSID_THISMAV")) == [1, 2, 3]
+    assert list(table.column("MAV_SYSID")) == [1, 2, 3]
     assert all(len(spec.name) <= 16 for spec in table.specs)
     assert [spec.name for spec in table.specs] == sorted(spec.name for spec in table.specs)

@@ -61,11 +61,12 @@ def test_garbage_is_counted_and_traffic_continues(sitl, pilot_for):
 
 
 def test_two_clients_at_once_both_get_telemetry(sitl):
-    sim = sitl("--speedup", "5")
+    sim = sitl("--speedup", "5", "--ready-delay", "1")  # positions come with the EKF's, after the delay
     clients = [Vehicle(sim.port(0), 1), Vehicle(sim.port(0), 1, source_system=254)]
     try:
         for client in clients:
             client.heartbeat()
+            client.request_streams()
         wanted = {"HEARTBEAT", "ATTITUDE", "GLOBAL_POSITION_INT"}
         for _ in range(200):  # at most ~10 s
             for client in clients:

@@ -1,0 +1,123 @@
+"""What the ground station must know about ArduCopter on the wire, in one place (issue 18 will add PX4 beside
+it): telemetry stream groups, parameter names that changed between releases, how to read its health, and
+what its guided-attitude thrust means. Each fact cites the ArduPilot source it comes from.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+# REQUEST_DATA_STREAM groups of the messages the ground station uses (libraries/GCS_MAVLink/
+# GCS_MAVLink_Parameters.cpp STREAM_*_msgs): the fallback for firmware that refuses SET_MESSAGE_INTERVAL.
+# EXTENDED_SYS_STATE is in no group: without SET_MESSAGE_INTERVAL it is not streamed.
+STREAM_GROUP = {
+    "GLOBAL_POSITION_INT": mavlink2.MAV_DATA_STREAM_POSITION,  # STREAM_POSITION: MSG_LOCATION
+    "LOCAL_POSITION_NED": mavlink2.MAV_DATA_STREAM_POSITION,
+    "ATTITUDE": mavlink2.MAV_DATA_STREAM_EXTRA1,  # STREAM_EXTRA1: MSG_ATTITUDE
+    "SYS_STATUS": mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS,  # STREAM_EXTENDED_STATUS
+    "GPS_RAW_INT": mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS,
+    "EKF_STATUS_REPORT": mavlink2.MAV_DATA_STREAM_EXTRA3,  # STREAM_EXTRA3
+    "SYSTEM_TIME": mavlink2.MAV_DATA_STREAM_EXTRA3,
+}
+
+# Parameters renamed in ArduCopter 4.7 (ArduCopter/Parameters.cpp conversion table; libraries/GCS_MAVLink/
+# GCS.cpp "_SYSID", "_GCS_SYSID", and the per-link stream rates SRn_* that became MAV(n+1)_*). A vehicle
+# answers to one spelling only: read whichever it has.
+_RENAMED = {"SYSID_THISMAV": "MAV_SYSID", "SYSID_MYGCS": "MAV_GCS_SYSID"}
+_STREAM_RATE_OLD = re.compile(r"^SR(\d)_(\w+)$")
+_STREAM_RATE_NEW = re.compile(r"^MAV(\d)_(\w+)$")
+
+
+def other_param_name(name: str) -> str | None:
+    """The other release's spelling of a renamed parameter (e.g. SYSID_THISMAV <-> MAV_SYSID, SR0_EXTRA1 <->
+    MAV1_EXTRA1), or None."""
+    for old, new in _RENAMED.items():
+        if name == old:
+            return new
+        if name == new:
+            return old
+    if m := _STREAM_RATE_OLD.match(name):
+        return f"MAV{int(m.group(1)) + 1}_{m.group(2)}"
+    if (m := _STREAM_RATE_NEW.match(name)) and int(m.group(1)) >= 1:
+        return f"SR{int(m.group(1)) - 1}_{m.group(2)}"
+    return None
+
+
+def sysid_param_hint() -> str:
+    """How to name the sysid parameter to a user who may fly either release."""
+    return "MAV_SYSID (SYSID_THISMAV before ArduCopter 4.7)"
+
+
+# EKF_STATUS_REPORT.flags bit names, for a preflight that says what the estimator still lacks.
+_EKF_FLAG_NAMES = {
+    mavlink2.EKF_ATTITUDE: "attitude",
+    mavlink2.EKF_VELOCITY_HORIZ: "horizontal velocity",
+    mavlink2.EKF_VELOCITY_VERT: "vertical velocity",
+    mavlink2.EKF_POS_HORIZ_REL: "relative horizontal position",
+    mavlink2.EKF_POS_HORIZ_ABS: "absolute horizontal position",
+    mavlink2.EKF_POS_VERT_ABS: "absolute vertical position",
+    mavlink2.EKF_POS_VERT_AGL: "height above ground",
+    mavlink2.EKF_CONST_POS_MODE: "constant-position mode (no GPS)",
+    mavlink2.EKF_PRED_POS_HORIZ_REL: "predicted relative horizontal position",
+    mavlink2.EKF_PRED_POS_HORIZ_ABS: "predicted absolute horizontal position",
+    mavlink2.EKF_UNINITIALIZED: "uninitialised",
+}
+
+
+def ekf_flag_names(flags: int) -> list[str]:
+    """Names of the EKF_STATUS_REPORT flags set in `flags`, in bit order."""
+    return [name for bit, name in sorted(_EKF_FLAG_NAMES.items()) if flags & bit]
+
+
+def ekf_missing(flags: int, required: int, horizontal: int, forbidden: int) -> str:
+    """A clause saying why `flags` is not a usable position estimate: what is missing and what is wrong."""
+    missing = ekf_flag_names(required & ~flags)
+    if not flags & horizontal:
+        missing.append("absolute horizontal position")
+    wrong = ekf_flag_names(flags & forbidden)
+    parts = []
+    if missing:
+        parts.append("no " + ", ".join(missing))
+    if wrong:
+        parts.append(", ".join(wrong))
+    return "; ".join(parts) or "estimate not usable"
+
+
+def gps_fix_name(fix_type: int) -> str:
+    """GPS_RAW_INT.fix_type as words, e.g. "no fix", "3D fix"."""
+    names = {
+        0: "no GPS",
+        1: "no fix",
+        2: "2D fix",
+        3: "3D fix",
+        4: "DGPS fix",
+        5: "RTK float",
+        6: "RTK fixed",
+    }
+    return names.get(fix_type, f"fix type {fix_type}")
+
+
+def unboosted_thrust(
+    thrust_acc: np.ndarray, roll: np.ndarray, pitch: np.ndarray, boost: np.ndarray
+) -> np.ndarray:
+    """The collective to send (m/s^2, like thrust_acc (N,)) so that ArduCopter flies thrust_acc.
+
+    The guidance's thrust already counts the tilt (spec 5, Eq 36: U_z / (cos phi cos theta) at the measured
+    attitude). ArduCopter's guided-attitude thrust goes through set_throttle_out(thrust, apply_angle_boost =
+    true) (ArduCopter/mode_guided.cpp angle_control_run), and with ATC_ANGLE_BOOST = 1 (`boost` (N,) bool)
+    AC_AttitudeControl_Multi::get_throttle_boosted multiplies it by 1 / cos(its own current lean angle)
+    (floored at 0.1; an inverted factor only above 84 deg). So for those vehicles the tilt is taken out
+    again here, at the measured roll, pitch (N,) rad, and ArduCopter puts it back with its own, fresher
+    attitude; the thrust is not counted twice. Vehicles without the boost get thrust_acc unchanged."""
+    cos_tilt = np.clip(np.cos(roll) * np.cos(pitch), 0.1, 1.0)
+    cos_tilt = np.where(np.isfinite(cos_tilt), cos_tilt, 1.0)
+    return np.where(boost, np.asarray(thrust_acc, dtype=float) * cos_tilt, thrust_acc)
+
+
+def is_boost_on(value: float) -> bool:
+    """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
+    return not (math.isfinite(value) and value == 0.0)
