@@ -25,6 +25,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         quiet=args.quiet,
         sim_args=tuple(args.sim_arg),
         keep_params=args.keep_params,
+        crash_at=args.crash_at,
     )
     return run_command(args.mission, options)
 
@@ -172,6 +173,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
         "restoring them on the ground (also run.keep_params)",
+    )
+    run.add_argument(
+        "--crash-at",
+        type=float,
+        metavar="T",
+        help="rehearse a ground-station crash: SIGKILL this process at vehicle time T s (time since the "
+        "vehicles booted), as an out-of-memory kill would; the vehicles' failsafes take over",
     )
     run.set_defaults(func=_cmd_run)
 

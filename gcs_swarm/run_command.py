@@ -37,6 +37,7 @@ class RunOptions:
     quiet: bool = False
     sim_args: tuple[str, ...] = ()  # passed verbatim to the embedded simulator (e.g. --link-loss=0.1)
     keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
+    crash_at: float | None = None  # vehicle s at which the ground station SIGKILLs itself (a rehearsal)
 
 
 def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
@@ -202,6 +203,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
             record = RunRecord(run_dir / RECORD_FILE)
             try:
                 runner = MissionRunner(mission, fleet, record, progress=say)
+                runner.crash_at_s = options.crash_at
                 result = runner.run()
             finally:
                 record.close()

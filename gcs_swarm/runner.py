@@ -13,6 +13,8 @@ hardware and in lockstep against the simulator.
 from __future__ import annotations
 
 import math
+import os
+import signal
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -190,6 +192,9 @@ class MissionRunner:
         self._lost_tracks: dict[int, LostTrack] = {}
         self.tick_latency_s: list[float] = []  # wall s from a complete telemetry tick to its last command out
         self.flight_params = FlightParams(fleet)  # what the run sets on the vehicles, restored at the end
+        # vehicle time (s) at which this process kills itself with SIGKILL: rehearses a ground-station crash
+        # at an exact moment (`gcs-swarm run --crash-at`, docs/reliability.md); None: never
+        self.crash_at_s: float | None = None
 
     # ----- the whole mission -----
 
@@ -307,6 +312,8 @@ class MissionRunner:
                 self._set_phase("land")
             return False
         tick_in = time.perf_counter()
+        if self.crash_at_s is not None and self.vehicle_time() >= self.crash_at_s:
+            os.kill(os.getpid(), signal.SIGKILL)  # rehearsal of a ground-station crash (--crash-at)
         self._note_lost()
         if self.phase == "launch":
             self._launch_tick()

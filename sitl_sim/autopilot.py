@@ -131,7 +131,7 @@ class Autopilot:
         # the GPS has its 3D fix well before the EKF uses it (real ArduCopter SITL: a few seconds vs 20-40 s)
         self.gps_fix_at = np.where(airborne, 0.0, min(GPS_FIX_S, 0.5 * ready_delay))
         self.ready = self.ready_at <= 0.0
-        self.prearm_said = np.full(n, -np.inf)  # simulated s of the last periodic "PreArm:" report
+        self.prearm_said = np.zeros(n)  # simulated s of the last periodic "PreArm:" report (first at 30 s)
         self.mode = np.where(airborne, GUIDED, STABILIZE)
         self.armed = np.array(airborne, dtype=bool)
         self.land_complete = ~self.armed

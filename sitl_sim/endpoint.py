@@ -35,7 +35,7 @@ MAX_POSITION_M = 1e6  # target position offsets beyond this (m) are absurd
 MAX_SPEED = 100.0  # m/s, velocity targets beyond are absurd
 MAX_ACCEL = 100.0  # m/s^2
 MAX_RATE = 50.0  # rad/s, body/yaw rates beyond are absurd
-FLIGHT_SW_VERSION = (4 << 24) | (6 << 16) | (0 << 8) | M.FIRMWARE_VERSION_TYPE_OFFICIAL  # "4.6.0"
+FLIGHT_SW_VERSION = (4 << 24) | (7 << 16) | (0 << 8) | M.FIRMWARE_VERSION_TYPE_DEV  # "4.7.0-dev", as master
 CAPABILITIES = (
     M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     | M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT

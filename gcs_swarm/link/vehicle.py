@@ -336,7 +336,7 @@ class VehicleLink:
         self._param_values = 0  # PARAM_VALUE messages received
         self._latest_ms: dict[str, int] = {}  # time_boot_ms of the newest packet of each kind (see _on_time)
         self.stream_rates: dict[str | int, float] = {}  # the telemetry asked for (op_request_streams), Hz
-        self._streams_asked_ms = -1  # time_boot_ms of the watchdog's last request (check_streams)
+        self.streams_asked_ms = -1  # time_boot_ms of the watchdog's latest request (check_streams), -1: none
 
     # ------------------------------------------------------------------ receiving
 
@@ -409,7 +409,7 @@ class VehicleLink:
                 st.frame_ms[i] = -1
                 st.position_ms[i] = -1
                 self._latest_ms.clear()
-                self._streams_asked_ms = -1
+                self.streams_asked_ms = -1
             st.time_ms[i] = t_ms
             if self._heartbeat_due(t_ms):
                 self.send_heartbeat()  # brief: the simulator times its GCS failsafe in vehicle time
@@ -970,10 +970,10 @@ class VehicleLink:
             return
         now_ms = int(self.state.time_ms[self.index])
         last_position = int(self.state.position_ms[self.index])
-        quiet = now_ms - max(last_position, self._streams_asked_ms) > STREAM_QUIET_S * 1000
+        quiet = now_ms - max(last_position, self.streams_asked_ms) > STREAM_QUIET_S * 1000
         if now_ms < 0 or not quiet:
             return
-        self._streams_asked_ms = now_ms
+        self.streams_asked_ms = now_ms
         self.counters.stream_requests += 1
         for message, hz in self.stream_rates.items():
             try:

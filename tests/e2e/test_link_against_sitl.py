@@ -9,12 +9,16 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.link import vehicle as vehicle_module
 from gcs_swarm.link.fleet import Fleet, VehicleConfig, thrust_from_acc
 
 pytestmark = pytest.mark.skipif(
@@ -48,13 +52,15 @@ def free_port_block(n: int) -> int:
 
 
 @pytest.fixture
-def simulator(tmp_path: Path) -> Iterator[tuple[int, Path]]:
-    """A lockstep sitl_sim with N vehicles: (base port, truth log path); terminated afterwards."""
+def simulator(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[tuple[int, Path]]:
+    """A lockstep sitl_sim with N vehicles: (base port, truth log path); terminated afterwards. Extra
+    command-line arguments through indirect parametrisation (request.param, a list)."""
     base = free_port_block(N)
     truth = tmp_path / "truth.csv"
     home = ",".join(f"{v:.7f}" for v in ORIGIN)
     args = [sys.executable, "-m", "sitl_sim", "--vehicles", str(N), "--base-port", str(base), "--lockstep"]
     args += ["--home", home, "--ready-delay", "1", "--truth-log", str(truth), "--lockstep-timeout", "3"]
+    args += list(getattr(request, "param", []))
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: queue.Queue[str] = queue.Queue()
     reader = threading.Thread(target=lambda: [lines.put(line.strip()) for line in proc.stdout], daemon=True)  # type: ignore[union-attr]
@@ -113,3 +119,50 @@ def test_fly_and_land_two_vehicles_in_lockstep(simulator: tuple[int, Path], tmp_
             row = rows[(int(time_ms[i]), i)]
             np.testing.assert_allclose(pos[i], [row["x"], row["y"], row["z"]], atol=0.02)
             np.testing.assert_allclose(att[i], [row["roll"], row["pitch"], row["yaw"]], atol=1e-4)
+
+
+def test_streams_are_asked_for_at_connect_and_again_when_they_stop(simulator: tuple[int, Path]) -> None:
+    """The simulator, like ArduCopter, streams nothing until asked: a client that never asks hears no
+    telemetry; the Fleet asks at connect. When the position stream stops (here the test switches it off),
+    the link's watchdog asks again once the vehicle has been quiet for STREAM_QUIET_S of its own time, and
+    positions resume."""
+    base, _ = simulator
+    silent = mavutil.mavlink_connection(f"udpout:127.0.0.1:{base + 1}", source_system=200)
+    silent.mav.heartbeat_send(mavlink2.MAV_TYPE_GCS, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    kinds: set[str] = set()
+    deadline = time.monotonic() + 3.0
+    while time.monotonic() < deadline:
+        msg = silent.recv_match(blocking=True, timeout=0.2)
+        if msg is not None:
+            kinds.add(msg.get_type())
+    silent.close()
+    assert "HEARTBEAT" in kinds and not kinds & {"GLOBAL_POSITION_INT", "ATTITUDE", "SYS_STATUS"}
+
+    configs = [VehicleConfig(f"v{i}", f"udpout:127.0.0.1:{base + i}", i + 1) for i in range(N)]
+    with Fleet(configs, ORIGIN, stream_rate_hz=25.0) as fleet:
+        fleet.connect(timeout_s=10.0)  # asks for the telemetry: no request_streams_all here
+        fleet.wait_ready(timeout_s=20.0)
+        link = fleet.vehicle("v0")
+        assert link.counters.stream_requests == 0
+        link.set_message_interval("GLOBAL_POSITION_INT", 0.0)  # the stream stops
+        fleet.wait_until(lambda: link.counters.stream_requests >= 1, 10.0, "the watchdog asks again")
+        quiet_ms = link.streams_asked_ms - int(fleet.state.position_ms[0])
+        assert quiet_ms >= vehicle_module.STREAM_QUIET_S * 1000
+        seen = int(fleet.state.position_count[0])
+        fleet.wait_until(lambda: fleet.state.position_count[0] > seen + 10, 5.0, "positions again")
+
+
+@pytest.mark.parametrize("simulator", [["--param-names", "4.6"]], indirect=True)
+def test_parameters_read_under_the_name_the_vehicle_has(simulator: tuple[int, Path]) -> None:
+    """An ArduCopter before 4.7 calls the sysid SYSID_THISMAV: asked for MAV_SYSID, the link tries it, finds
+    nothing, and reads SYSID_THISMAV; later reads and writes go straight to that spelling."""
+    base, _ = simulator
+    configs = [VehicleConfig(f"v{i}", f"udpout:127.0.0.1:{base + i}", i + 1) for i in range(N)]
+    with Fleet(configs, ORIGIN) as fleet:
+        fleet.connect(timeout_s=10.0)
+        link = fleet.vehicle("v1")
+        assert link.param_get("MAV_SYSID") == 2.0
+        assert link.param_name("MAV_SYSID") == "SYSID_THISMAV"
+        assert link.param_get("SYSID_MYGCS") == 255.0
+        assert link.param_set("MAV_GCS_SYSID", 254) == 254.0  # written under the vehicle's own name
+        assert link.params["SYSID_MYGCS"] == 254.0 and "MAV_GCS_SYSID" not in link.params

@@ -342,6 +342,14 @@ class Pilot:
         self.spin(lambda: name in vehicle.params, 5.0)
         return vehicle.params[name].param_value
 
+    def param(self, i: int, name: str) -> float:
+        """PARAM_REQUEST_READ; returns the value the vehicle reports."""
+        vehicle = self.vehicles[i]
+        vehicle.params.pop(name, None)
+        vehicle.mav.param_request_read_send(vehicle.sysid, 1, name.encode(), -1)
+        self.spin(lambda: name in vehicle.params, 5.0)
+        return vehicle.params[name].param_value
+
     def take_off(self, i: int, altitude: float) -> None:
         """Wait for ready, GUIDED, arm, NAV_TAKEOFF and climb to within 0.5 m of altitude."""
         vehicle = self.vehicles[i]

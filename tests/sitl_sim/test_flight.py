@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from conftest import M, read_truth
 
@@ -204,3 +205,44 @@ def test_position_and_velocity_targets_then_rtl_home(sitl, pilot_for):
     pilot.spin(lambda: v.altitude > 14.5, 10.0)  # climbs to RTL_ALT (15 m) first
     pilot.spin(lambda: not v.armed, 60.0)  # returns, lands, disarms
     assert math.hypot(local().x, local().y) < 1.0 and abs(v.altitude) < 0.05
+
+
+def test_angle_boost_divides_guided_thrust_by_the_cosine_of_the_lean(sitl, pilot_for, tmp_path):
+    """AC_AttitudeControl_Multi::get_throttle_boosted: with ATC_ANGLE_BOOST = 1 (the default) a guided
+    collective is multiplied by 1 / cos(current lean). Held at 30 deg with the same collective, the motors'
+    total thrust (truth log f1..f4) is therefore 1 / cos 30 = 1.155 times larger with the boost than
+    without it."""
+    log = tmp_path / "truth.csv"
+    sim = sitl(*FAST, "--truth-log", str(log))
+    pilot = pilot_for(sim)
+    v = pilot[0]
+    pilot.take_off(0, 40.0)
+    assert pilot.set_param(0, "GUID_OPTIONS", 8) == 8
+    assert pilot.param(0, "ATC_ANGLE_BOOST") == 1
+    hold_attitude(pilot, 0.0, -30.0, 0.4, 1.5)
+    boosted = (v.t - 0.5, v.t)
+    assert pilot.set_param(0, "ATC_ANGLE_BOOST", 0) == 0
+    hold_attitude(pilot, 0.0, -30.0, 0.4, 1.5)
+    plain = (v.t - 0.5, v.t)
+    sim.stop()
+    truth = read_truth(log)
+
+    def thrust(window: tuple[float, float]) -> float:
+        rows = truth[(truth["t"] >= window[0]) & (truth["t"] <= window[1])]
+        assert len(rows) > 10
+        return float(np.mean(rows["f1"] + rows["f2"] + rows["f3"] + rows["f4"]))
+
+    assert thrust(boosted) / thrust(plain) == pytest.approx(1.0 / math.cos(math.radians(30.0)), rel=0.02)
+
+
+def test_guided_attitude_targets_are_not_capped_at_angle_max(sitl, pilot_for):
+    """ArduCopter flies a guided attitude target as given (AC_AttitudeControl::input_quaternion has no lean
+    limit): 35 deg with ANGLE_MAX at 30 deg is flown at 35 deg, as seen on real vehicles."""
+    sim = sitl(*FAST)
+    pilot = pilot_for(sim)
+    v = pilot[0]
+    pilot.take_off(0, 20.0)
+    assert pilot.param(0, "ANGLE_MAX") == 3000
+    assert pilot.set_param(0, "GUID_OPTIONS", 8) == 8
+    hold_attitude(pilot, 0.0, -35.0, 0.4, 1.5)
+    assert math.degrees(v.latest["ATTITUDE"].pitch) == pytest.approx(-35.0, abs=1.0)

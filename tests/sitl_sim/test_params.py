@@ -72,3 +72,21 @@ def test_table_checks_and_world_params_apply_to_every_vehicle():
     assert list(table.column("MAV_SYSID")) == [1, 2, 3]
     assert all(len(spec.name) <= 16 for spec in table.specs)
     assert [spec.name for spec in table.specs] == sorted(spec.name for spec in table.specs)
+
+
+def test_parameter_names_of_either_release_but_never_both(sitl, pilot_for):
+    """4.7 names by default, 4.6 names with --param-names 4.6: a vehicle answers to one spelling only, as a
+    real one does (ArduCopter/Parameters.cpp converts the old names on upgrade)."""
+    for release, shown, absent in (
+        ("4.7", "MAV_SYSID", "SYSID_THISMAV"),
+        ("4.6", "SYSID_THISMAV", "MAV_SYSID"),
+    ):
+        sim = sitl("--lockstep", "--ready-delay", "1", "--param-names", release)
+        pilot = pilot_for(sim)
+        assert pilot.param(0, shown) == 1
+        v = pilot[0]
+        v.params.clear()
+        v.mav.param_request_read_send(v.sysid, 1, absent.encode(), -1)
+        pilot.spin(lambda v=v: v.t > 1.0, 5.0)
+        assert absent not in v.params
+        sim.stop()

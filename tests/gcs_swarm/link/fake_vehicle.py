@@ -107,6 +107,7 @@ class FakeVehicle:
         self.drop_acks = 0  # act on commands but lose this many of their COMMAND_ACKs
         self.drop_param_values = 0  # lose this many PARAM_VALUE answers
         self.ignore_mode_changes = False  # ACK DO_SET_MODE but keep the old mode
+        self.refuse_message_interval = False  # answer SET_MESSAGE_INTERVAL with DENIED (older firmware)
         self.silent = False  # send nothing at all (tests loss detection)
         self.t_ms = 0
         self.armed = False
@@ -395,6 +396,8 @@ class FakeVehicle:
                 self.landed_state = mavlink2.MAV_LANDED_STATE_TAKEOFF
             else:
                 result = mavlink2.MAV_RESULT_FAILED
+        elif command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL and self.refuse_message_interval:
+            result = mavlink2.MAV_RESULT_DENIED
         elif command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL:
             if msg.param2 < 0:
                 self.intervals_ms.pop(int(msg.param1), None)

@@ -119,3 +119,16 @@ def test_fleet_wide_operations_report_only_the_failing_vehicle(fake, fleet_of) -
     fleet.param_set_all("GUID_OPTIONS", 8)
     assert fleet.param_get_all("GUID_OPTIONS").tolist() == [8.0, 8.0]
     assert good.lockstep_drops == 0 and bad.lockstep_drops == 0
+
+
+def test_a_vehicle_that_refuses_message_intervals_is_asked_by_stream_group(lead) -> None:
+    """SET_MESSAGE_INTERVAL answered DENIED (firmware without it): each refused message is asked for by
+    REQUEST_DATA_STREAM of its ArduPilot group instead, and the request as a whole does not fail."""
+    fleet, link, vehicle = lead()
+    vehicle.refuse_message_interval = True
+    before = vehicle.received["REQUEST_DATA_STREAM"]
+    fleet.run(
+        [link.op_request_streams({"GLOBAL_POSITION_INT": 10.0, "ATTITUDE": 10.0, "EXTENDED_SYS_STATE": 2.0})]
+    )
+    # two of the three have a stream group (POSITION, EXTRA1); EXTENDED_SYS_STATE is in none (ardupilot.py)
+    assert vehicle.received["REQUEST_DATA_STREAM"] - before == 2

@@ -1,0 +1,55 @@
+"""ArduCopter facts the ground station relies on (gcs_swarm/link/ardupilot.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_swarm.link import ardupilot
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [("SYSID_THISMAV", "MAV_SYSID"), ("SYSID_MYGCS", "MAV_GCS_SYSID"), ("SR0_EXTRA1", "MAV1_EXTRA1"),
+     ("SR2_POSITION", "MAV3_POSITION")],
+)  # fmt: skip
+def test_renamed_parameters_map_both_ways(old: str, new: str) -> None:
+    assert ardupilot.other_param_name(old) == new
+    assert ardupilot.other_param_name(new) == old
+
+
+def test_parameters_that_kept_their_name_have_no_other_spelling() -> None:
+    for name in ("GUID_OPTIONS", "MAV_OPTIONS", "MAV0_EXTRA1", "FS_GCS_ENABLE"):
+        assert ardupilot.other_param_name(name) is None
+
+
+def test_the_boost_is_taken_out_for_boosting_vehicles_only() -> None:
+    """ArduCopter multiplies by 1/cos(lean) (floored at cos 0.1); sending thrust * cos(lean) makes the two
+    cancel: at 30 deg roll and 20 deg pitch cos(lean) = cos 30 cos 20 = 0.8138."""
+    thrust = np.array([12.0, 12.0])
+    sent = ardupilot.unboosted_thrust(
+        thrust, np.radians([30.0, 30.0]), np.radians([20.0, 20.0]), np.array([True, False])
+    )
+    cos_lean = math.cos(math.radians(30)) * math.cos(math.radians(20))
+    assert sent[0] == pytest.approx(12.0 * cos_lean)
+    assert sent[1] == 12.0
+    boosted_again = sent[0] / min(max(cos_lean, 0.1), 1.0)  # AC_AttitudeControl_Multi::get_throttle_boosted
+    assert boosted_again == pytest.approx(12.0)
+
+
+def test_a_missing_boost_value_counts_as_on() -> None:
+    assert ardupilot.is_boost_on(1.0) and ardupilot.is_boost_on(math.nan) and not ardupilot.is_boost_on(0.0)
+
+
+def test_ekf_reasons_name_what_is_missing() -> None:
+    required = mavlink2.EKF_ATTITUDE | mavlink2.EKF_VELOCITY_HORIZ
+    horizontal = mavlink2.EKF_POS_HORIZ_ABS
+    forbidden = mavlink2.EKF_CONST_POS_MODE
+    why = ardupilot.ekf_missing(
+        mavlink2.EKF_ATTITUDE | mavlink2.EKF_CONST_POS_MODE, required, horizontal, forbidden
+    )
+    assert why == "no horizontal velocity, absolute horizontal position; constant-position mode (no GPS)"
+    assert ardupilot.gps_fix_name(3) == "3D fix" and ardupilot.gps_fix_name(9) == "fix type 9"
