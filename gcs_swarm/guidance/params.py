@@ -101,10 +101,17 @@ class SMCParams:
     xy: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(0.8, 1.5, 0.3, 0.05))
     z: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(1.0, 2.0, 0.5, 0.1))
     boundary_layer: float = 0.0  # m/s, Phi of sat(s/Phi); 0 = off (sgn, as in the paper)
+    # [add] horizontal drag adaptation (gcs_swarm.guidance.smc): U += c_hat v_xy, c_hat_dot = gamma s . v_xy,
+    # gamma in 1/m^2; 0 = off (the paper's Eq 49). Removes most of the trail behind a moving slot without an
+    # integrator that must unwind at the stop
+    drag_adaptation: float = 0.01
+    drag_max: float = 1.5  # 1/s, c_hat kept within [0, drag_max]
 
     def __post_init__(self) -> None:
         if self.boundary_layer < 0:
             raise ValueError("boundary_layer must be >= 0 (0 turns it off)")
+        if not (self.drag_adaptation >= 0 and self.drag_max > 0):
+            raise ValueError("need drag_adaptation >= 0 (0: off) and drag_max > 0")
 
 
 @dataclass(frozen=True)
@@ -270,6 +277,7 @@ PAPER_PLAIN: dict[str, dict[str, float]] = {
         "heading_filter_s": 0.0,
     },
     "limits": {"tilt_rate_max_deg": 0.0},
+    "control.smc": {"drag_adaptation": 0.0},
 }
 
 

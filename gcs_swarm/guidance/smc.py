@@ -13,6 +13,14 @@ so d_hat = -d and e1 -> 0 along e1_dot = -c1 e1. Near s = 0 and for constant d t
 s_ddot + k1 s_dot + k_d s = 0: stable for any k_d > 0, critically damped at k_d = k1^2 / 4 (0.56 1/s for xy).
 Anti-windup: |d_hat| <= disturbance_max (xy: the horizontal norm), and while the spec 5 limits cut U a channel
 does not integrate in the direction that pushes U further into the limit (conditional integration).
+
+[add] Drag adaptation, horizontal, off by default (`drag_adaptation` gamma = 0 leaves Eq 49 as it is): the
+disturbance a formation meets at cruise is mostly drag, d = -c v with an unknown c per vehicle, so instead of
+integrating d itself (which then has to unwind at every stop and overshoots the goal) the controller adds
+c_hat v_xy to U and adapts c_hat_dot = gamma (s_x v_x + s_y v_y). With V = s^2 / 2 + (c_hat - c)^2 / (2 gamma)
+the sliding dynamics s_dot = reaching_law(s) - (c_hat - c) v give V_dot = s reaching_law(s) <= 0 (the
+standard adaptive-control argument), so s -> 0 and the trail behind a moving slot vanishes; at rest v = 0 and
+the term does nothing. c_hat is kept in [0, drag_max] and does not adapt while the spec 5 limits cut U.
 """
 
 from __future__ import annotations
@@ -105,11 +113,14 @@ class SMCController:
         self.k_d = _per_axis(params, "disturbance_gain")
         self.s = np.zeros((0, 3))  # last sliding variable (N, 3), m/s, for diagnostics
         self.d_hat = np.zeros((0, 3))  # disturbance estimate (N, 3), m/s^2, added to U
+        self.c_hat = np.zeros(0)  # horizontal drag estimate (N,), 1/s
 
     def reset(self, n: int) -> None:
-        """Forget the state of all n vehicles."""
+        """Forget the state of all n vehicles; the drag estimate stays (a property of the airframe)."""
         self.s = np.zeros((n, 3))
         self.d_hat = np.zeros((n, 3))
+        if self.c_hat.shape != (n,):
+            self.c_hat = np.zeros(n)
 
     def reset_rows(self, rows: np.ndarray) -> None:
         """Forget the disturbance estimate of the vehicles selected by the (N,) bool mask."""
@@ -127,6 +138,8 @@ class SMCController:
         """Thrust acceleration U (N, 3), m/s^2; dt (s) since the previous call integrates d_hat (unused at
         k_d = 0, where the law is static Eq 49). Without a reset the estimate starts at zero."""
         u, self.s = smc_control(x_d, xd_dot, xd_ddot, x, v, self.params, self.g)
+        if self.params.drag_adaptation > 0.0:
+            u = self._drag_compensated(u, v, dt)
         if not self.k_d.any():
             return u
         if self.d_hat.shape != u.shape:
@@ -140,3 +153,20 @@ class SMCController:
             step[winding(u, step, self.limits, self.g)] = 0.0
         self.d_hat = clamp_estimate(self.d_hat + step, self.params)
         return u
+
+    def _drag_compensated(self, u: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
+        """U (N, 3) plus c_hat v_xy; one Euler step of c_hat_dot = gamma s_xy . v_xy (module docstring)."""
+        if self.c_hat.shape != (len(u),):
+            self.c_hat = np.zeros(len(u))
+        v_xy = np.where(np.isfinite(v[:, :2]), v[:, :2], 0.0)
+        out = u.copy()
+        out[:, :2] += self.c_hat[:, None] * v_xy
+        s_xy = np.where(np.isfinite(self.s[:, :2]), self.s[:, :2], 0.0)
+        step = self.params.drag_adaptation * np.einsum("nd,nd->n", s_xy, v_xy) * dt
+        if self.limits is not None:  # no adaptation while the tilt or thrust limits cut U (anti-windup)
+            tilted = np.hypot(out[:, 0], out[:, 1]) > np.maximum(out[:, 2], 0.0) * np.tan(
+                self.limits.tilt_max
+            )
+            step = np.where(tilted & (step > 0.0), 0.0, step)
+        self.c_hat = np.clip(self.c_hat + step, 0.0, self.params.drag_max)
+        return out

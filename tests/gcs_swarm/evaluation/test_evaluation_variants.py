@@ -183,6 +183,7 @@ def test_the_paper_form_turns_every_addition_off(tmp_path):
     for key, value in PAPER_PLAIN["guidance"].items():
         assert getattr(plain.field, key) == value
     assert plain.limits.tilt_rate_max_deg == 0.0 and smooth.limits.tilt_rate_max_deg > 0.0
+    assert plain.smc.drag_adaptation == 0.0 and smooth.smc.drag_adaptation > 0.0
     assert smooth.reference.jerk_max > 0.0 and smooth.field.circulation > 0.0
     crossed = variants.variant_grid(["apf", "iaapf", "paper"], None, None)
     assert [v.label for v in crossed] == ["apf-paper", "iaapf-paper"]
