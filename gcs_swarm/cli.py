@@ -26,6 +26,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         sim_args=tuple(args.sim_arg),
         keep_params=args.keep_params,
         crash_at=args.crash_at,
+        airborne=args.airborne,
     )
     return run_command(args.mission, options)
 
@@ -173,6 +174,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
         "restoring them on the ground (also run.keep_params)",
+    )
+    run.add_argument(
+        "--airborne",
+        choices=("finish", "land"),
+        help="with --connect-only, vehicles found already flying (a crashed ground station left them holding "
+        "in BRAKE): finish the mission from where they are, or land them where they are; without it such a "
+        "run stops and says what it found",
     )
     run.add_argument(
         "--crash-at",

@@ -1,6 +1,7 @@
 """`gcs-swarm run MISSION.yaml`: fly a mission (against the embedded simulator or running vehicles), write
 the run folder (telemetry.tlog, truth.csv, record.csv, flight.json, report.json/md/png) and return the exit
-status: 0 flown and every vehicle reached its goal with no collision; 1 flown but failed; 2 user error.
+status: 0 flown and every vehicle reached its goal with no collision (with `--airborne land`: every vehicle
+landed and disarmed); 1 flown but failed; 2 user error.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ class RunOptions:
     sim_args: tuple[str, ...] = ()  # passed verbatim to the embedded simulator (e.g. --link-loss=0.1)
     keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
     crash_at: float | None = None  # vehicle s at which the ground station SIGKILLs itself (a rehearsal)
+    airborne: str | None = None  # vehicles found flying: "finish" the mission or "land" them (None: refuse)
 
 
 def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
@@ -83,6 +85,7 @@ def write_flight(
         "holds": result.holds,
         "max_telemetry_age_s": round(result.max_telemetry_age_s, 3),
         "params_changed": result.params_changed,
+        "reattached": result.reattached,
         "formation_timeline": [
             {
                 "t": t,
@@ -204,6 +207,7 @@ def run_command(mission_path: str, options: RunOptions) -> int:
             try:
                 runner = MissionRunner(mission, fleet, record, progress=say)
                 runner.crash_at_s = options.crash_at
+                runner.airborne = options.airborne
                 result = runner.run()
             finally:
                 record.close()
@@ -230,6 +234,9 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     latencies = runner.tick_latency_s if runner is not None else []
     limited = runner.commands_limited if runner is not None else 0
     write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies, limited)
+    if status == EXIT_OK and result.reattached == "land":
+        say("every vehicle landed and disarmed" if result.landed_all else "not every vehicle disarmed")
+        return EXIT_OK if result.landed_all and not result.lost else EXIT_FAILED
     if status == EXIT_USER_ERROR or result.t_formation_start is None:
         return status if status != EXIT_OK else EXIT_FAILED
     report = write_report(run_dir, mission)

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.guidance.degradation import StaleTelemetryMonitor, TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
@@ -29,6 +30,7 @@ from gcs_swarm.link import ardupilot
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
 from gcs_swarm.link.flight_params import FlightParams
+from gcs_swarm.link.vehicle import mode_name, mode_number
 from gcs_swarm.mission import Mission
 from gcs_swarm.run_record import RunRecord
 
@@ -66,6 +68,10 @@ class FlightResult:
     params_changed: list[dict[str, object]] = field(default_factory=list)  # flight_params.ParamChange rows
     # (vehicle time s, leader, (N, 3) slot offsets flown, NaN rows for lost vehicles) at each change
     formation_timeline: list[tuple[float, int, np.ndarray]] = field(default_factory=list)
+    # vehicles found flying at the start (`--airborne`): None (none were), "finish" or "land"; and for
+    # "land", whether every vehicle was disarmed on the ground at the end
+    reattached: str | None = None
+    landed_all: bool = False
 
 
 def mission_offsets(mission: Mission, shape: str | None = None, spacing: float | None = None) -> np.ndarray:
@@ -195,14 +201,27 @@ class MissionRunner:
         # vehicle time (s) at which this process kills itself with SIGKILL: rehearses a ground-station crash
         # at an exact moment (`gcs-swarm run --crash-at`, docs/reliability.md); None: never
         self.crash_at_s: float | None = None
+        # what to do with vehicles found flying at the start (`gcs-swarm run --airborne`): "finish" the
+        # mission from where they are, "land" them, or None: refuse and say so
+        self.airborne: str | None = None
 
     # ----- the whole mission -----
 
     def run(self) -> FlightResult:
-        """All phases; PreflightError / LinkError before launch, FlightResult after."""
+        """All phases; PreflightError / LinkError before launch, FlightResult after. Vehicles found already
+        flying (a ground station that crashed left them holding) are handled as `self.airborne` says."""
         self.connect()
+        expect_flying = self.mission.run.airborne_start  # the simulator starts them in the air on purpose
+        if not expect_flying:
+            self.stop_unflown()
         self.preflight()
-        self.launch()
+        flying = self.flying()
+        if flying.any() and not expect_flying:
+            self._reattach(flying)
+            if self.phase == "done":
+                return self.result
+        else:
+            self.launch()
         self.start_formation()
         while self.phase in ("formation", "hold"):
             self.step()
@@ -265,6 +284,81 @@ class MissionRunner:
             fleet.takeoff_all(self.takeoff_altitudes())
         except LinkError as exc:
             raise PreflightError(f"launch refused: {exc}") from exc
+
+    def stop_unflown(self) -> None:
+        """Vehicles found armed in GUIDED and not known to be on the ground fly targets nobody sends any more
+        (a ground station died and its GCS failsafe has not fired yet, and our heartbeats now keep it from
+        firing): ArduCopter levels them and lets them drift on. Put them in BRAKE at once, before the
+        minutes of preflight, and say so; what happens next is `self.airborne`'s choice."""
+        fleet = self.fleet
+        guided = fleet.mode == mode_number("GUIDED")
+        on_ground = fleet.landed_state == mavlink2.MAV_LANDED_STATE_ON_GROUND
+        drifting = fleet.armed & fleet.alive & guided & ~on_ground
+        if not drifting.any():
+            return
+        names = [fleet.names[i] for i in np.flatnonzero(drifting)]
+        self.progress(f"{', '.join(names)} armed in GUIDED with nobody flying them: BRAKE")
+        self.result.events.append(f"found armed in GUIDED, stopped in BRAKE: {', '.join(names)}")
+        try:
+            fleet.set_mode_all("BRAKE", names)
+        except LinkError as exc:
+            raise PreflightError(f"cannot stop the drifting vehicles: {exc}") from exc
+
+    def flying(self) -> np.ndarray:
+        """(N,) bool: vehicles that are armed and not on the ground (EXTENDED_SYS_STATE), e.g. holding where a
+        crashed ground station left them."""
+        fleet = self.fleet
+        on_ground = np.isin(fleet.landed_state, (mavlink2.MAV_LANDED_STATE_ON_GROUND,))
+        return fleet.armed & fleet.alive & ~on_ground
+
+    def describe_flying(self, flying: np.ndarray) -> str:
+        """One clause per flying vehicle: its name, mode, height and speed."""
+        fleet = self.fleet
+        parts = []
+        for i in np.flatnonzero(flying):
+            mode = mode_name(int(fleet.mode[i]))
+            height = (
+                float(fleet.pos[i, 2]) - float(self._home[i, 2])
+                if np.isfinite(self._home[i, 2])
+                else float(fleet.pos[i, 2])
+            )
+            parts.append(
+                f"{fleet.names[i]} {mode} at {height:.1f} m, {float(np.linalg.norm(fleet.vel[i])):.1f} m/s"
+            )
+        return "; ".join(parts)
+
+    def _reattach(self, flying: np.ndarray) -> None:
+        """Vehicles are already in the air: `airborne` "finish" takes them back into GUIDED and flies the
+        mission on from where they are; "land" lands them where they are and ends the run; None refuses
+        with what was found (PreflightError)."""
+        found = self.describe_flying(flying)
+        self.result.events.append(f"vehicles already flying: {found}")
+        if not flying.all() and self.airborne == "finish":
+            on_ground = ", ".join(n for n, f in zip(self.fleet.names, flying, strict=True) if not f)
+            raise PreflightError(
+                f"some vehicles fly and some are on the ground ({on_ground}): land them first"
+            )
+        if self.airborne == "land":
+            self.progress(f"vehicles already flying: {found}: landing them")
+            self.result.reattached = "land"
+            self._home = self.fleet.pos
+            self.land()
+            self.result.landed_all = not bool((self.fleet.armed & self.fleet.alive).any())
+            return
+        if self.airborne != "finish":
+            raise PreflightError(
+                f"vehicles already flying: {found}. Say --airborne finish to fly the mission on from where "
+                "they are, or --airborne land to land them where they are"
+            )
+        self.progress(f"vehicles already flying: {found}: finishing the mission from here")
+        self.result.reattached = "finish"
+        self._set_phase("launch")
+        self._home = self.fleet.pos
+        self._home[:, 2] = 0.0
+        try:
+            self.fleet.set_mode_all("GUIDED")
+        except LinkError as exc:
+            raise PreflightError(f"cannot take the vehicles back: {exc}") from exc
 
     def takeoff_altitudes(self) -> np.ndarray:
         """(N,) m: the formation altitude plus each vehicle's slot dz."""
