@@ -28,6 +28,7 @@ from gcs_swarm.guidance.formation import assign_slots, formation_offsets
 from gcs_swarm.guidance.lost_vehicles import LostTrack, avoidance_radius, predicted_position
 from gcs_swarm.link import ardupilot
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
+from gcs_swarm.link.fence import install_fence
 from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
 from gcs_swarm.link.flight_params import FlightParams
 from gcs_swarm.link.vehicle import mode_name, mode_number
@@ -245,6 +246,8 @@ class MissionRunner:
             flight.set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[safety.gcs_failsafe])
             flight.set_all("FS_GCS_TIMEOUT", float(safety.dead_gcs.failsafe_timeout_s or 0.0))
             flight.set_all("GUID_TIMEOUT", safety.dead_gcs.guided_timeout_s)
+            # the autopilots' own geofence around the obstacles (gcs_swarm.link.fence, docs/reliability.md)
+            install_fence(fleet, flight, self.mission, self.result.events, self.progress)
             self.hover = fleet.param_get_all("MOT_THST_HOVER")
             self.angle_boost = np.array(
                 [ardupilot.is_boost_on(v) for v in fleet.param_get_all("ATC_ANGLE_BOOST")]

@@ -17,6 +17,7 @@ import math
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sitl_sim import fence as fences
 from sitl_sim.attitude_control import level_quat, yaw_from_quat
 from sitl_sim.dynamics import FleetDynamics
 from sitl_sim.params import ParamTable
@@ -25,6 +26,7 @@ from sitl_sim.position_control import (
     I_MAX_Z,
     MIN_UP_ACCEL,
     attitude_from_accel,
+    brake_shaping_step,
     njit,
     velocity_demand,
     velocity_pi,
@@ -52,6 +54,8 @@ GUID_OPTION_THRUST = 8  # GUID_OPTIONS bit 3: SET_ATTITUDE_TARGET thrust is coll
 
 CTRL_POS, CTRL_ANGLE = 0, 1
 KIND_POS, KIND_VEL, KIND_POSVEL, KIND_ACCEL = 0, 1, 2, 3  # guided position-target kinds
+KIND_BRAKE = 4  # BRAKE's shaped stop (position_control.brake_shaping_step)
+BRAKE_DECEL = 7.5  # m/s^2, ArduCopter config.h BRAKE_MODE_DECEL_RATE (750 cm/s^2)
 RTL_CLIMB, RTL_RETURN, RTL_DESCEND = 0, 1, 2
 
 LAND_DETECT_S = 1.0  # ArduCopter LAND_DETECTOR_TRIGGER_SEC
@@ -162,6 +166,8 @@ class Autopilot:
         self.angle_timed_out = np.ones(n, dtype=bool)
         self.integrator = np.zeros((n, 3))
         self.texts: list[list[tuple[int, str]]] = [[] for _ in range(n)]
+        self.fence = fences.Fences(n)  # geofences and their breach state (sitl_sim.fence)
+        self.fence_log: list[str] = []  # breaches and their actions, for the simulator's log (stderr)
         # outputs of the outer loop
         self._quat_sp = np.zeros((n, 4))
         self._rate_ff = np.zeros((n, 3))
@@ -216,8 +222,25 @@ class Autopilot:
         return M.MAV_STATE_ACTIVE if self.armed[i] else M.MAV_STATE_STANDBY
 
     def prearm_ok(self, i: int) -> bool:
-        """The pre-arm checks pass (position estimate, not crashed)."""
-        return bool(self.ready[i] and not self.state.crashed[i])
+        """The pre-arm checks pass (position estimate, not crashed, the fence's checks)."""
+        return bool(self.ready[i] and not self.state.crashed[i] and self.fence_prearm(i) is None)
+
+    def fence_prearm(self, i: int) -> str | None:
+        """Why the fence forbids arming vehicle i (AC_Fence::pre_arm_check, which AP_Arming::fence_checks
+        reports as "PreArm: ..."), or None."""
+        p = self.params
+        enable = p.value(i, "FENCE_ENABLE")
+        if not enable and not self.fence.enabled_mask[i]:
+            return None
+        return self.fence.pre_arm_failure(
+            i,
+            enable,
+            int(p.value(i, "FENCE_TYPE")),
+            bool(self.ready[i]),
+            p.value(i, "FENCE_MARGIN"),
+            p.value(i, "FENCE_ALT_MAX"),
+            p.value(i, "FENCE_RADIUS"),
+        )
 
     def sensor_bits(self, i: int) -> tuple[int, int, int]:
         """SYS_STATUS (present, enabled, health) bit masks."""
@@ -238,7 +261,16 @@ class Autopilot:
             health |= M.MAV_SYS_STATUS_SENSOR_GPS
         if self.prearm_ok(i):
             health |= M.MAV_SYS_STATUS_PREARM_CHECK
-        return SENSORS_PRESENT, enabled, health
+        present = SENSORS_PRESENT
+        # AC_Fence::sys_status_present/_enabled/_failed: the geofence bit
+        configured = int(self.params.value(i, "FENCE_TYPE"))
+        if self.fence.present_one(i, configured):
+            present |= M.MAV_SYS_STATUS_GEOFENCE
+            if self.fence.enabled_mask[i] and self.params.value(i, "FENCE_ACTION") != fences.REPORT_ONLY:
+                enabled |= M.MAV_SYS_STATUS_GEOFENCE
+            if not self.fence.breaches[i]:
+                health |= M.MAV_SYS_STATUS_GEOFENCE
+        return present, enabled, health
 
     def ekf_flags(self, i: int) -> int:
         """EKF_STATUS_REPORT flags: uninitialised, then attitude/height only, then full position."""
@@ -272,9 +304,18 @@ class Autopilot:
         if not force:
             if not self.ready[i]:
                 self.say(i, M.MAV_SEVERITY_CRITICAL, "PreArm: Need Position Estimate")
+                # AP_Arming_Copter::gps_checks: a circle or polygon fence needs a position in any mode
+                configured = int(self.params.value(i, "FENCE_TYPE"))
+                enabled = self.fence.enabled_mask[i] & self.fence.present_one(i, configured)
+                if enabled & (fences.CIRCLE | fences.POLYGON):
+                    self.say(i, M.MAV_SEVERITY_CRITICAL, "PreArm: Fence enabled, need position estimate")
                 return M.MAV_RESULT_FAILED
             if self.mode[i] in NOT_ARMABLE:
                 self.say(i, M.MAV_SEVERITY_CRITICAL, "Arm: Mode not armable")
+                return M.MAV_RESULT_FAILED
+            fence_problem = self.fence_prearm(i)
+            if fence_problem is not None:
+                self.say(i, M.MAV_SEVERITY_CRITICAL, f"PreArm: {fence_problem}")
                 return M.MAV_RESULT_FAILED
         self.armed[i] = True
         self.disarm_timer[i] = 0.0
@@ -305,7 +346,16 @@ class Autopilot:
             )
             return M.MAV_RESULT_FAILED
         self._enter_mode(i, mode)
+        self._mode_changed(i)
         return M.MAV_RESULT_ACCEPTED
+
+    def _mode_changed(self, i: int) -> None:
+        """ArduCopter mode.cpp set_mode: any mode change while breached (the fence's own action too) starts
+        the fence's manual recovery, 10 s in which new breaches are not acted on."""
+        if self.params.value(i, "FENCE_ACTION") != fences.REPORT_ONLY and self.fence.manual_recovery_start(
+            i, self.t
+        ):
+            self.say(i, M.MAV_SEVERITY_INFO, "Manual recovery started")
 
     def takeoff(self, i: int, altitude: float) -> int:
         """MAV_CMD_NAV_TAKEOFF in GUIDED to altitude m above home; returns the MAV_RESULT."""
@@ -336,6 +386,15 @@ class Autopilot:
         """
         if self.mode[i] != GUIDED:
             return False
+        if pos is not None and not self.fence.destination_ok(
+            i,
+            pos[:2],
+            self.home[i, :2],
+            float(pos[2] - self.home[i, 2]),
+            self.params.value(i, "FENCE_ALT_MAX"),
+            self.params.value(i, "FENCE_RADIUS"),
+        ):
+            return False  # ModeGuided::set_destination: a destination outside the fence is refused
         if pos is not None and vel is not None:
             kind = KIND_POSVEL
         elif vel is not None:
@@ -436,6 +495,58 @@ class Autopilot:
             self._rate_control = bool(self._rate_mask.any())
         for i in np.flatnonzero(self._events):
             self._handle_event(int(i), int(self._events[i]))
+        if t - self.fence.last_check >= fences.CHECK_PERIOD_S - 1e-9:
+            self._fence_check(t)
+
+    def _fence_check(self, t: float) -> None:
+        """ArduCopter/fence.cpp at 25 Hz: AC_Fence::check for every vehicle (sitl_sim.fence), then each armed
+        vehicle with a new breach says "<fences> breached" and acts as FENCE_ACTION says: 0 report only,
+        1 RTL (else LAND), 2 LAND, 3 SmartRTL (not simulated: RTL) else LAND, 4 BRAKE else LAND, 5 SmartRTL
+        (RTL here) else LAND; landed it disarms, more than 100 m outside it lands."""
+        p, fence, s = self.params, self.fence, self.state
+        for i in fence.legacy_clears(p.column("FENCE_TOTAL")):
+            fence.store(i, [], np.zeros((0, 2)))
+        if not fence.active(p.column("FENCE_ENABLE")):  # AC_Fence::check returns at once when disabled
+            fence.last_check = t
+            return
+        before = fence.breaches.copy()
+        fence.update_enable(p.column("FENCE_ENABLE"), p.column("FENCE_TYPE"))
+        new = fence.check(
+            t,
+            s.pos,
+            self.home,
+            self.ready,
+            p.column("FENCE_TYPE"),
+            p.column("FENCE_ALT_MAX"),
+            p.column("FENCE_RADIUS"),
+        )
+        cleared = (new == 0) & (before != 0) & (fence.breaches == 0) & ~self.land_complete
+        for i in np.flatnonzero(cleared):
+            self.say(int(i), M.MAV_SEVERITY_NOTICE, "Fence breach cleared")
+            self.fence_log.append(f"vehicle {i}: fence breach cleared at t={t:.2f} s")
+        for i in np.flatnonzero((new != 0) & self.armed):
+            self._fence_action(int(i), int(new[i]), t)
+
+    def _fence_action(self, i: int, new: int, t: float) -> None:
+        names = fences.fence_names(new)
+        if not self.land_complete[i]:
+            self.say(i, M.MAV_SEVERITY_NOTICE, f"{names} breached")
+        action = int(self.params.value(i, "FENCE_ACTION"))
+        if action != fences.REPORT_ONLY:
+            if self.land_complete[i]:
+                self._disarm(i)
+            elif self.fence.breach_distance(i, new) > fences.GIVE_UP_DISTANCE_M:
+                self.set_mode(i, LAND)
+            else:
+                first = {fences.ALWAYS_LAND: LAND, fences.BRAKE_OR_LAND: BRAKE}.get(action, RTL)
+                if self.set_mode(i, first) != M.MAV_RESULT_ACCEPTED:
+                    self.set_mode(i, LAND)
+        x, y, z = self.state.pos[i]
+        self.fence_log.append(
+            f"vehicle {i}: {names} breached at t={t:.2f} s at ({x:.1f}, {y:.1f}, {z:.1f}) m: "
+            f"FENCE_ACTION {action}, mode {MODE_NAMES.get(int(self.mode[i]), self.mode[i])}"
+            + (", disarmed" if not self.armed[i] else "")
+        )
 
     def _handle_event(self, i: int, event: int) -> None:
         if event == EVENT_DISARM:
@@ -449,7 +560,10 @@ class Autopilot:
         self.say(i, M.MAV_SEVERITY_CRITICAL, "GCS Failsafe")
         action = GCS_FAILSAFE_ACTIONS[int(self.params.value(i, "FS_GCS_ENABLE"))]
         if self.mode[i] not in (LAND, RTL) or action == LAND:
+            changed = action != self.mode[i]
             self._enter_mode(i, action)
+            if changed:
+                self._mode_changed(i)
 
     # --- internals ------------------------------------------------------------------------------------------
 
@@ -494,8 +608,10 @@ class Autopilot:
         self.rtl_stage[i] = RTL_CLIMB
         if mode in (GUIDED, LOITER):
             self.nav_pos[i] = (stop[0], stop[1], pos[2])
-        elif mode == BRAKE:
-            self.nav_pos[i] = (np.nan, np.nan, pos[2])
+        elif mode == BRAKE:  # ModeBrake::init: the shaped stop starts from the vehicle's own velocity
+            self.nav_pos[i] = pos
+            self.nav_vel[i] = (vel[0], vel[1], 0.0)
+            self.nav_kind[i] = KIND_BRAKE
         elif mode == RTL:
             rtl_alt = self.home[i, 2] + self.params.value(i, "RTL_ALT") / 100.0
             self.nav_pos[i] = (pos[0], pos[1], max(pos[2], rtl_alt))
@@ -513,12 +629,12 @@ GPS_FIX_S = 10.0  # simulated s from boot to the GPS 3D fix (real SITL: 10 s), a
 LOOP_PARAMS = (
     "MOT_THST_HOVER", "ANGLE_MAX", "GUID_TIMEOUT", "PSC_POSXY_P", "PSC_POSZ_P", "PSC_VELXY_P", "PSC_VELXY_I",
     "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
-    "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "ATC_ANGLE_BOOST",
+    "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "ATC_ANGLE_BOOST", "PSC_JERK_XY",
 )  # fmt: skip
 (
     P_HOVER, P_ANGLE_MAX, P_GUID_TIMEOUT, P_POSXY_P, P_POSZ_P, P_VELXY_P, P_VELXY_I, P_VELZ_P, P_VELZ_I,
     P_SPEED, P_SPEED_UP, P_SPEED_DN, P_ACCEL, P_LAND_SPEED, P_DISARM_DELAY, P_FS_ENABLE, P_FS_TIMEOUT,
-    P_ANGLE_BOOST,
+    P_ANGLE_BOOST, P_JERK_XY,
 ) = range(len(LOOP_PARAMS))  # fmt: skip
 
 
@@ -584,8 +700,8 @@ def _outer_loop(
         if landing:
             low = pos[i, 2] - home[i, 2] <= LAND_ALT_LOW
             nav_vel[i, 2] = -(p[columns[P_LAND_SPEED]] if low else p[columns[P_SPEED_DN]]) / 100.0
-        if m == BRAKE and math.isnan(nav_pos[i, 0]) and math.hypot(vel[i, 0], vel[i, 1]) < 0.2:
-            nav_pos[i, 0], nav_pos[i, 1] = pos[i, 0], pos[i, 1]
+        if m == BRAKE and nav_kind[i] == KIND_BRAKE:
+            brake_shaping_step(nav_pos[i], nav_vel[i], nav_acc[i], BRAKE_DECEL, p[columns[P_JERK_XY]], dt)
         if guided and control[i] == CTRL_POS:
             nav_yaw[i] += nav_yaw_rate[i] * dt
 

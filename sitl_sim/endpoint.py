@@ -23,6 +23,7 @@ from sitl_sim import autopilot as ap
 from sitl_sim import signing
 from sitl_sim.attitude_control import yaw_from_quat
 from sitl_sim.link_faults import DOWN, UP, FaultChannel
+from sitl_sim.mission_protocol import FenceProtocol
 from sitl_sim.streams import DATA_STREAM_GROUPS, STREAM_IDS, Framer, swap_quat_enu_ned
 
 if TYPE_CHECKING:
@@ -136,6 +137,9 @@ class VehicleEndpoint:
             M.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT: self._on_position_target_global,
             M.MAVLINK_MSG_ID_SET_ATTITUDE_TARGET: self._on_attitude_target,
         }
+        self.missions = FenceProtocol(self)  # MISSION_* of the fence (sitl_sim.mission_protocol)
+        for msg_id in self.missions.handlers:
+            self._handlers[msg_id] = lambda msg, addr: self.missions.handle(msg)
 
     def fileno(self) -> int:
         """The socket's file descriptor (for selectors)."""
@@ -403,7 +407,29 @@ class VehicleEndpoint:
             return self._request_message(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         if command == M.MAV_CMD_GET_HOME_POSITION:
             return self._request_message(M.MAVLINK_MSG_ID_HOME_POSITION)
+        if command == M.MAV_CMD_DO_FENCE_ENABLE:
+            return self._fence_enable(p)
         return M.MAV_RESULT_UNSUPPORTED
+
+    def _fence_enable(self, p: tuple[float, ...]) -> int:
+        """MAV_CMD_DO_FENCE_ENABLE (GCS_Fence.cpp handle_command_do_fence_enable): param1 0 off, 1 on (FAILED
+        if none of the fences is present), 2 floor off; param2 the fence types (0: all). Not saved."""
+        if not _finite(p[0], p[1]):
+            return self._invalid(M.MAV_RESULT_DENIED)
+        autopilot, i = self.sim.autopilot, self.index
+        configured = int(self.sim.params.value(i, "FENCE_TYPE"))
+        fences = int(p[1]) & 0xFF or 0xF
+        if int(p[0]) == 0:
+            autopilot.fence.enable(i, False, fences, configured)
+        elif int(p[0]) == 1:
+            if not autopilot.fence.present_one(i, configured) & fences:
+                return self._refused_if_not_accepted(M.MAV_RESULT_FAILED)
+            autopilot.fence.enable(i, True, fences, configured)
+        elif int(p[0]) == 2:
+            autopilot.fence.enable(i, False, 8, configured)
+        else:
+            return self._refused_if_not_accepted(M.MAV_RESULT_FAILED)
+        return M.MAV_RESULT_ACCEPTED
 
     def _invalid(self, result: int) -> int:
         self.counters.invalid += 1

@@ -25,6 +25,7 @@ from sitl_sim.autopilot import Autopilot
 from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
 from sitl_sim.dynamics import FleetDynamics, FleetState, QuadParams
 from sitl_sim.endpoint import VehicleEndpoint
+from sitl_sim.fence import FenceItem
 from sitl_sim.link_faults import UP, LinkFaults
 from sitl_sim.params import ParamTable, param_specs
 from sitl_sim.streams import Geodesy, StreamSchedule, TelemetryView, ned_telemetry
@@ -225,6 +226,7 @@ class Simulator:
         self.ticks += 1
         for crashed, what in find_collisions(before, state.pos, self.obstacles, t0, self.t, state.crashed):
             self.autopilot.crash(crashed, what)
+        self._fence_tick()
         if self.step % timing.steps_per_truth == 0:
             self._write_truth()
         for ready in np.flatnonzero(self.autopilot.ready & ~was_ready):  # EKF origin and home just got set
@@ -233,6 +235,29 @@ class Simulator:
             )
         if self.lockstep is None or self.ticks % timing.ticks_per_frame == 0:  # lockstep: frame ends only
             self._emit_telemetry()
+
+    def _fence_tick(self) -> None:
+        """Fence uploads' timers; a new breach sends FENCE_STATUS at once and goes to the log (stderr)."""
+        for endpoint in self.endpoints:
+            if endpoint.missions.receiving:
+                endpoint.missions.update()
+        fence = self.autopilot.fence
+        if fence.status_now:
+            for i in fence.status_now:
+                self._send_now(i, (mavlink.MAVLINK_MSG_ID_FENCE_STATUS,))
+            fence.status_now = []
+        for line in self.autopilot.fence_log:
+            print(f"sitl-sim: {line}", file=sys.stderr, flush=True)
+        self.autopilot.fence_log.clear()
+
+    def store_fence(self, i: int, items: list[FenceItem]) -> None:
+        """Store vehicle i's uploaded fence items, their lat/lon placed in the local ENU frame."""
+        xy = np.zeros((len(items), 2))
+        for k, item in enumerate(items):
+            xy[k] = self.geodesy.to_enu(item.lat_e7 * 1e-7, item.lon_e7 * 1e-7, self.geodesy.alt0)[:2]
+        self.autopilot.fence.store(i, items, xy)
+        total = self.autopilot.fence.legacy_total(items)
+        self.params.set(i, "FENCE_TOTAL", total)  # AC_PolyFence_loader::write_fence: _total.set_and_save
 
     def _emit_telemetry(self) -> None:
         stamped = np.zeros(len(self.endpoints), dtype=bool)

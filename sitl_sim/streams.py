@@ -40,13 +40,18 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     M.MAVLINK_MSG_ID_SYSTEM_TIME: 0.0,
     M.MAVLINK_MSG_ID_HOME_POSITION: 0.0,
     M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 0.0,
+    M.MAVLINK_MSG_ID_FENCE_STATUS: 0.0,
 }
 STREAM_IDS = tuple(DEFAULT_RATES_HZ)
 # Legacy REQUEST_DATA_STREAM groups (MAVProxy uses them) -> the messages of ours they contain, as ArduPilot
 # groups them (libraries/GCS_MAVLink/GCS_MAVLink_Parameters.cpp STREAM_*_msgs); EXTENDED_SYS_STATE is in
 # none (only SET_MESSAGE_INTERVAL starts it).
 DATA_STREAM_GROUPS: dict[int, tuple[int, ...]] = {
-    M.MAV_DATA_STREAM_EXTENDED_STATUS: (M.MAVLINK_MSG_ID_SYS_STATUS, M.MAVLINK_MSG_ID_GPS_RAW_INT),
+    M.MAV_DATA_STREAM_EXTENDED_STATUS: (
+        M.MAVLINK_MSG_ID_SYS_STATUS,
+        M.MAVLINK_MSG_ID_GPS_RAW_INT,
+        M.MAVLINK_MSG_ID_FENCE_STATUS,
+    ),
     M.MAV_DATA_STREAM_POSITION: (M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED),
     M.MAV_DATA_STREAM_EXTRA1: (M.MAVLINK_MSG_ID_ATTITUDE,),
     M.MAV_DATA_STREAM_EXTRA3: (M.MAVLINK_MSG_ID_EKF_STATUS_REPORT, M.MAVLINK_MSG_ID_SYSTEM_TIME),
@@ -365,6 +370,18 @@ def _gps_global_origin(v: TelemetryView, f: Framer, i: int) -> bytes | None:
     )
 
 
+def _fence_status(v: TelemetryView, f: Framer, i: int) -> bytes | None:
+    """GCS_MAVLINK::send_fence_status (GCS_Fence.cpp): only while a fence is enabled; mitigation NONE (Copter
+    has AC_Avoid, whose velocity limits are not simulated)."""
+    fence = v.ap.fence
+    if not fence.enabled_mask[i]:
+        return None
+    return f.pack(f.mav.fence_status_encode(
+        int(fence.breaches[i] != 0), int(fence.breach_count[i]) & 0xFFFF, fence.mavlink_breach_type(i),
+        int(fence.breach_time_ms[i]) & 0xFFFFFFFF, M.FENCE_MITIGATE_NONE,
+    ))  # fmt: skip
+
+
 _ENCODERS = {
     M.MAVLINK_MSG_ID_HEARTBEAT: _heartbeat,
     M.MAVLINK_MSG_ID_SYS_STATUS: _sys_status,
@@ -378,4 +395,5 @@ _ENCODERS = {
     M.MAVLINK_MSG_ID_SYSTEM_TIME: _system_time,
     M.MAVLINK_MSG_ID_HOME_POSITION: _home_position,
     M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: _gps_global_origin,
+    M.MAVLINK_MSG_ID_FENCE_STATUS: _fence_status,
 }

@@ -3,19 +3,30 @@ ground station dies").
 
 If the ground station stops, a vehicle flies on: up to GUID_TIMEOUT on its last attitude target, then level
 at constant altitude without braking, until its GCS failsafe (FS_GCS_TIMEOUT after the last ground-station
-heartbeat) brakes it. Bounded from above, it covers `v T + v^2 / (2 a)` along its current course
-(T = FS_GCS_TIMEOUT, a the failsafe's braking deceleration). So the horizontal speed of each vehicle is capped
-at the largest v for which that distance, plus a clearance, fits before the first obstacle its course meets:
+heartbeat) puts it in BRAKE. Bounded from above (drag ignored), it covers `v T + D(v)` along its current
+course: T = FS_GCS_TIMEOUT and D(v) the distance ArduCopter's BRAKE needs to stop from v
+(`brake_distance`). So the horizontal speed of each vehicle is capped at the largest v for which that
+distance, plus a clearance, fits before the first obstacle its course meets (inf if it meets none).
 
-    v_cap = a (sqrt(T^2 + 2 d / a) - T),   d = (distance along the course to the obstacle's sphere grown by
-                                                 the clearance), v_cap = inf if the course meets none.
+BRAKE does not stop at a constant deceleration: AC_PosControl shapes the stop (AP_Math control.cpp
+shape_vel_accel, BRAKE_MODE_DECEL_RATE a = 7.5 m/s^2, PSC_JERK_XY j = 5 m/s^3): the deceleration ramps up
+at j and then, below a^2 / j = 11.25 m/s, follows k v with k = j / a, an exponential decay of time constant
+1.5 s. From 10 m/s that is about 20 m, not the 6.7 m of v^2 / 2a (a real ArduCopter SITL quad stopped from
+10.1 m/s in 20.4 m; the sitl-sim vehicle follows the same shaping: sitl_sim.position_control
+.brake_shaping_step).
 
 Shapes: pos, vel (N, 3) ENU m, m/s; centres (K, 3), radii (K,) m.
 """
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
+
+from gcs_swarm.guidance.shaping import shape_vel_accel
+
+SPEED_TABLE_MAX = 60.0  # m/s, the largest speed of the stopping-distance table (beyond: extrapolated)
 
 
 def distance_along_course(
@@ -46,6 +57,38 @@ def distance_along_course(
     return out
 
 
+def brake_distance(speed: np.ndarray | float, accel: float, jerk: float) -> np.ndarray:
+    """m: horizontal distance ArduCopter's BRAKE needs to stop from `speed` m/s (module docstring), for the
+    shaping's acceleration limit `accel` m/s^2 and jerk limit `jerk` m/s^3; the vehicle's own tracking lag is
+    not included (about 0.2 s of travel at the start speed on the real SITL quad)."""
+    speeds, distances = _brake_table(float(accel), float(jerk))
+    v = np.asarray(speed, dtype=float)
+    slope = (distances[-1] - distances[-2]) / (speeds[-1] - speeds[-2])
+    return np.where(
+        v <= speeds[-1], np.interp(v, speeds, distances), distances[-1] + slope * (v - speeds[-1])
+    )
+
+
+@lru_cache(maxsize=8)
+def _brake_table(accel: float, jerk: float) -> tuple[np.ndarray, np.ndarray]:
+    """(speeds, stopping distances) of the BRAKE shaping integrated at 2 ms for start speeds 0 to
+    SPEED_TABLE_MAX: the ground station's own ArduPilot shaping (`shaping.shape_vel_accel`, AP_Math
+    shape_vel_accel) driving each speed to zero, never through it (update_vel_accel's limit)."""
+    if not (accel > 0 and jerk > 0):
+        raise ValueError("accel and jerk must be > 0")
+    speeds = np.linspace(0.0, SPEED_TABLE_MAX, 601)
+    v, a, x = speeds.copy(), np.zeros_like(speeds), np.zeros_like(speeds)
+    zero = np.zeros_like(speeds)
+    dt = 0.002
+    for _ in range(int((SPEED_TABLE_MAX / accel + 27.0 * accel / jerk) / dt)):
+        if not (v > 0.0).any():
+            break
+        a = np.where(v > 0.0, shape_vel_accel(zero, zero, v, a, accel, jerk, dt), 0.0)
+        v = np.maximum(v + a * dt, 0.0)
+        x += v * dt
+    return speeds, x
+
+
 def failsafe_speed_caps(
     pos: np.ndarray,
     vel: np.ndarray,
@@ -54,11 +97,12 @@ def failsafe_speed_caps(
     reaction_s: float,
     brake_accel: float,
     clearance: float,
+    brake_jerk: float = 5.0,
 ) -> np.ndarray:
-    """(N,) m/s horizontal speed caps (module docstring); inf where the course is clear. `reaction_s` T s,
-    `brake_accel` a m/s^2, `clearance` m."""
+    """(N,) m/s horizontal speed caps (module docstring); inf where the course is clear. `reaction_s` T s
+    (FS_GCS_TIMEOUT), `brake_accel` m/s^2 and `brake_jerk` m/s^3 the BRAKE shaping's limits, `clearance` m."""
     d = distance_along_course(pos, vel, centres, radii, clearance)
-    a, t = brake_accel, reaction_s
-    with np.errstate(invalid="ignore"):
-        cap = a * (np.sqrt(t * t + 2.0 * d / a) - t)
+    speeds, distances = _brake_table(float(brake_accel), float(brake_jerk))
+    total = speeds * reaction_s + distances  # increasing in the speed: invert it by interpolation
+    cap = np.interp(np.where(np.isfinite(d), d, 0.0), total, speeds)
     return np.where(np.isfinite(d), cap, np.inf)

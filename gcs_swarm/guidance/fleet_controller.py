@@ -361,7 +361,14 @@ class FleetController:
         if self.dead_gcs is not None and self.dead_gcs.speed_scheduling:
             fs = self.dead_gcs
             caps = failsafe_speed_caps(
-                pos, vel, obs_c, obs_r, float(fs.failsafe_timeout_s or 0.0), fs.brake_accel, fs.clearance
+                pos,
+                vel,
+                obs_c,
+                obs_r,
+                float(fs.failsafe_timeout_s or 0.0),
+                fs.brake_accel,
+                fs.clearance,
+                fs.brake_jerk,
             )
             speed_cap = np.minimum(speed_cap, caps)
         x_d, xd_dot, xd_ddot = self.generator.step(

@@ -239,6 +239,31 @@ class TelemetryParams:
             raise ValueError("need 0 < lost_radius <= lost_radius_max and lost_radius_growth >= 0")
 
 
+FENCE_ACTIONS = ("brake", "land", "rtl", "report")  # safety.dead_gcs.fence.action -> FENCE_ACTION 4, 2, 1, 0
+
+
+@dataclass(frozen=True)
+class FenceParams:
+    """The autopilots' own geofence around the mission's static obstacles [add] (docs/reliability.md "The
+    ground station dies"; gcs_swarm.link.fence): each obstacle the formation can meet is uploaded as an
+    exclusion circle of radius obstacle (its cross-section at the formation's altitudes) + collision radius +
+    `margin_m`, so that a vehicle heading into it stops by itself even with no ground station."""
+
+    # off by default: normal flight passes obstacles closer than a braking margin in some missions (4 m in
+    # the nine-UAV paper mission), where the fence would stop vehicles mid-mission (docs/reliability.md)
+    enabled: bool = False  # upload the circles, set FENCE_TYPE 4, FENCE_ACTION, FENCE_ENABLE 1 in preflight
+    # m added beyond the vehicle's collision radius: ArduCopter's BRAKE stops in about 1.5 s x speed + 1.3 m
+    # (sitl-sim; ArduCopter SITL 20.4 m from 10.1 m/s), so 10 m stops a vehicle that enters at 5.5 m/s
+    margin_m: float = 10.0
+    action: str = "brake"  # FENCE_ACTION: brake (4, Brake or Land) | land (2) | rtl (1) | report (0)
+
+    def __post_init__(self) -> None:
+        if not self.margin_m >= 0:
+            raise ValueError("margin_m must be >= 0")
+        if self.action not in FENCE_ACTIONS:
+            raise ValueError(f"action must be one of {', '.join(FENCE_ACTIONS)}, not {self.action!r}")
+
+
 @dataclass(frozen=True)
 class DeadGcsParams:
     """What the vehicles do if the ground station dies, and the speed scheduling that keeps it safe [add]
@@ -249,9 +274,11 @@ class DeadGcsParams:
     # s, FS_GCS_TIMEOUT set for the flight (2..120), >= telemetry.lost_s so that an outage the fleet rides out
     # fires no failsafe; None: telemetry.lost_s (the mission loader fills it in)
     failsafe_timeout_s: float | None = None
-    brake_accel: float = 5.0  # m/s^2, deceleration assumed of the failsafe's braking (BRAKE: up to 7.5)
+    brake_accel: float = 7.5  # m/s^2, BRAKE's shaping acceleration limit (ArduCopter BRAKE_MODE_DECEL_RATE)
+    brake_jerk: float = 5.0  # m/s^3, BRAKE's shaping jerk limit: the vehicles' PSC_JERK_XY (default 5)
     clearance: float = 3.0  # m, kept between the point a vehicle would stop at and an obstacle's surface
     speed_scheduling: bool = True  # cap each vehicle's speed so that it stops short of what its course meets
+    fence: FenceParams = FenceParams()  # the autopilots' geofence around the obstacles (FenceParams)
 
     def __post_init__(self) -> None:
         if not 0.1 <= self.guided_timeout_s <= 5.0:
@@ -260,6 +287,8 @@ class DeadGcsParams:
             raise ValueError("failsafe_timeout_s must lie in 2..120 s (ArduCopter's FS_GCS_TIMEOUT range)")
         if not self.brake_accel > 0:
             raise ValueError("brake_accel must be > 0")
+        if not 1.0 <= self.brake_jerk <= 20.0:
+            raise ValueError("brake_jerk must lie in 1..20 m/s^3 (ArduCopter's PSC_JERK_XY range)")
         if not self.clearance >= 0:
             raise ValueError("clearance must be >= 0")
 

@@ -8,12 +8,15 @@ changed, and whether it was put back, goes to flight.json (`params_changed`) and
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.vehicle import Operation, VehicleLink
 
 
 @dataclass
@@ -36,6 +39,9 @@ class FlightParams:
     def __init__(self, fleet: Fleet) -> None:
         self.fleet = fleet
         self.changes: list[ParamChange] = []
+        # changes that are not parameters (the fence items, gcs_swarm.link.fence): name -> the operation that
+        # puts the original back on a vehicle
+        self.restorers: dict[str, Callable[[VehicleLink, ParamChange], Operation[Any]]] = {}
 
     def set_all(self, name: str, value: float) -> None:
         """Read `name` on every live vehicle, then set it to `value` (read back); LinkError as the fleet's."""
@@ -58,8 +64,12 @@ class FlightParams:
             i = link.index
             if not fleet.alive[i] or fleet.armed[i]:
                 continue
+            restorer = self.restorers.get(change.name)
             try:
-                fleet.run([link.op_param_set(change.name, change.original)])
+                if restorer is not None:
+                    fleet.run([restorer(link, change)])
+                else:
+                    fleet.run([link.op_param_set(change.name, change.original)])
                 change.restored = True
             except LinkError:
                 continue

@@ -337,6 +337,9 @@ class VehicleLink:
         self._latest_ms: dict[str, int] = {}  # time_boot_ms of the newest packet of each kind (see _on_time)
         self.stream_rates: dict[str | int, float] = {}  # the telemetry asked for (op_request_streams), Hz
         self.streams_asked_ms = -1  # time_boot_ms of the watchdog's latest request (check_streams), -1: none
+        # MISSION_* messages from the vehicle, read by the mission-protocol operations (gcs_swarm.link.fence)
+        self.mission_messages: deque[MAVLinkMessage] = deque(maxlen=512)
+        self.statustext_hooks: list[Callable[[VehicleLink, str], None]] = []  # called with every STATUSTEXT
 
     # ------------------------------------------------------------------ receiving
 
@@ -516,6 +519,22 @@ class VehicleLink:
             self.last_prearm = text
         self._statustexts += 1
         self.add_event(text, m.severity)
+        for hook in self.statustext_hooks:
+            hook(self, text)
+
+    def _on_mission(self, m: MAVLinkMessage) -> None:
+        if m.target_system in (0, self._gcs_sysid):
+            self.mission_messages.append(m)
+
+    @property
+    def mav(self) -> mavlink2.MAVLink:
+        """This link's encoder (GCS sysid/compid, signing): messages built with it go out with `send`."""
+        return self._mav
+
+    @property
+    def statustexts(self) -> int:
+        """STATUSTEXT messages received so far."""
+        return self._statustexts
 
     def vehicle_clock(self) -> tuple[int, float]:
         """This vehicle's clock for a `Timeout`: (ms of its time_boot_ms progress since connect, wall time it
@@ -1177,4 +1196,9 @@ _HANDLERS: dict[str, Callable[[VehicleLink, MAVLinkMessage], None]] = {
     "COMMAND_ACK": VehicleLink._on_command_ack,
     "PARAM_VALUE": VehicleLink._on_param_value,
     "TIMESYNC": VehicleLink._on_timesync,
+    "MISSION_COUNT": VehicleLink._on_mission,
+    "MISSION_REQUEST": VehicleLink._on_mission,
+    "MISSION_REQUEST_INT": VehicleLink._on_mission,
+    "MISSION_ITEM_INT": VehicleLink._on_mission,
+    "MISSION_ACK": VehicleLink._on_mission,
 }

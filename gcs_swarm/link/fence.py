@@ -1,0 +1,447 @@
+"""The autopilots' own geofence around the mission's obstacles: what to fence, and the MAVLink mission
+protocol (mission_type FENCE) that uploads, downloads and clears it (docs/reliability.md, "The ground
+station dies").
+
+Why: when the ground station dies, ArduCopter flies the last attitude target for GUID_TIMEOUT, then levels and
+drifts until FS_GCS_TIMEOUT brakes it; a vehicle heading at an obstacle can reach it in that gap. Its own
+geofence closes the gap: every static obstacle the formation can meet becomes an exclusion circle
+(MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION), FENCE_TYPE 4 (inclusion/exclusion circles and polygons), FENCE_ACTION 4
+(Brake or Land, ArduCopter 4.1 and later), FENCE_ENABLE 1: entering a circle puts the vehicle in BRAKE
+(ArduCopter/fence.cpp), with or without a ground station.
+
+What is fenced (`exclusion_circles`): a static sphere whose horizontal cross-section at the altitudes the
+formation flies (formation.altitude plus each slot's dz, and the waypoints' heights, widened by
+BAND_TOLERANCE_M) is not empty; the circle's radius is that cross-section's largest radius + the vehicle's
+collision radius + `safety.dead_gcs.fence.margin_m`. ArduCopter's zones are vertical cylinders, so a sphere
+above or below the formation's band would only fence off air the formation never uses (and could trap a
+vehicle parked under it), hence the band. A circle is shrunk so that it keeps KEEP_OUT_M clear of every start
+position, waypoint and follower target, and of the disc around the goal that holds every final slot (a vehicle
+inside a circle could not arm, "PreArm: Vehicle breaching Polygon fence", or would brake at its goal); an
+obstacle that cannot be fenced so is skipped and said. Moving obstacles cannot be fenced (a fence is static).
+
+The protocol (libraries/GCS_MAVLink/MissionItemProtocol.cpp, MissionItemProtocol_Fence.cpp), each step resent
+on loss and timed in vehicle time like every other exchange (gcs_swarm.link.vehicle):
+- upload: MISSION_COUNT(n, FENCE); the vehicle asks for each item with MISSION_REQUEST (ArduPilot; the
+  MAVLink spec's MISSION_REQUEST_INT is answered too) and re-asks by itself after 1 s; each is answered with
+  MISSION_ITEM_INT (frame GLOBAL, x/y lat/lon degE7, param1 the radius in m); done on MISSION_ACK ACCEPTED
+  after the last item. INVALID_SEQUENCE (a duplicate item) is ignored, as the vehicle carries on; a
+  cancelled upload (8 s without items, OPERATION_CANCELLED) or one denied while another runs is started
+  over; any other refusal is an error naming it (with the vehicle's STATUSTEXT, e.g. "Fence validation
+  failed").
+- download: MISSION_REQUEST_LIST(FENCE) -> MISSION_COUNT, then MISSION_REQUEST_INT(seq) -> MISSION_ITEM_INT
+  for each seq, then our MISSION_ACK ACCEPTED.
+- clear: MISSION_CLEAR_ALL(FENCE) -> MISSION_ACK ACCEPTED.
+
+`install_fence` (called from MissionRunner.preflight) reads each vehicle's fence, uploads the circles, reads
+them back and compares (verify by download), then sets FENCE_TYPE = 4 (exactly: the max-altitude and
+home-circle fences, FENCE_TYPE's default 7, would stop the paper missions flying at 200 m, 6 km out),
+FENCE_ACTION and FENCE_ENABLE = 1 through FlightParams. At the end of the run (FlightParams.restore, on
+disarmed vehicles only, like the parameters) the parameters go back and the vehicle's own fence is put back:
+cleared when it had none, its old items uploaded again otherwise (a `params_changed` row named "fence items",
+original and flown = the item counts). FENCE_MARGIN is left alone: ArduCopter uses it for AC_Avoid's stand-off
+and the pre-arm check of inclusion circles, not to decide a breach; this margin is in the circles' radius.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_swarm import frames
+from gcs_swarm.link.connection import LinkError, MAVLinkMessage
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.flight_params import FlightParams, ParamChange
+from gcs_swarm.link.vehicle import COMMAND_RETRIES, Operation, Timeout, VehicleLink
+from gcs_swarm.mission import Mission
+
+FENCE = mavlink2.MAV_MISSION_TYPE_FENCE
+CIRCLE_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
+CIRCLE_INCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
+FENCE_TYPE_POLYGON = 4  # FENCE_TYPE bit 2: inclusion/exclusion circles and polygons (AC_Fence.h)
+FENCE_ACTION = {"report": 0, "rtl": 1, "land": 2, "brake": 4}  # Copter FENCE_ACTION values (AC_Fence.cpp)
+FENCE_ITEMS = "fence items"  # the FlightParams change row of a vehicle's fence
+BAND_TOLERANCE_M = 3.0  # m above and below the formation's altitudes that count as "met" (altitude error,
+# vertical separation manoeuvres)
+KEEP_OUT_M = 1.0  # m a circle keeps clear of start positions, waypoints and final slots (beyond the body)
+FIRST_ANSWER_S = 1.0  # vehicle s to wait for the vehicle's first answer before sending again
+SETTLE_S = 0.3  # vehicle s for ArduPilot's fence loader (10 Hz) to act on a stored fence before reading it
+STALL_S = 2.5  # vehicle s without a request during an upload before it is started over (the vehicle re-asks
+# after 1 s itself, MissionItemProtocol::update)
+_REFUSALS_TO_RETRY = (mavlink2.MAV_MISSION_OPERATION_CANCELLED, mavlink2.MAV_MISSION_DENIED)
+
+
+@dataclass(frozen=True)
+class FenceItem:
+    """One fence item as a vehicle stores it: MAV_CMD_NAV_FENCE_* command, lat/lon degE7, param1 (a circle's
+    radius in m, float32 on the vehicle; a polygon vertex's vertex count)."""
+
+    command: int
+    lat_e7: int
+    lon_e7: int
+    param1: float = 0.0
+
+    def same_as(self, other: FenceItem) -> bool:
+        """Equal as stored (the radius as a float32)."""
+        return (
+            self.command == other.command
+            and self.lat_e7 == other.lat_e7
+            and self.lon_e7 == other.lon_e7
+            and np.float32(self.param1) == np.float32(other.param1)
+        )
+
+
+@dataclass(frozen=True)
+class FenceCircle:
+    """An exclusion circle around obstacle `obstacle` (index in the mission): centre (2,) ENU m, radius m."""
+
+    obstacle: int
+    centre: tuple[float, float]
+    radius: float
+
+
+def _offsets(mission: Mission) -> np.ndarray:
+    """(N, 3) slot offsets of the mission (gcs_swarm.runner.mission_offsets; imported late: the runner
+    imports this module)."""
+    from gcs_swarm.runner import mission_offsets
+
+    return mission_offsets(mission)
+
+
+def exclusion_circles(mission: Mission, margin_m: float) -> tuple[list[FenceCircle], list[str]]:
+    """The circles to fence (see the module docstring) and one note per obstacle left out or shrunk."""
+    body = float(mission.safety.collision_radius)
+    offsets = _offsets(mission)
+    heights = np.concatenate(
+        [mission.formation.altitude + offsets[:, 2], [float(w[2]) for w in mission.waypoints]]
+    )
+    low, high = float(heights.min()) - BAND_TOLERANCE_M, float(heights.max()) + BAND_TOLERANCE_M
+    # points a circle keeps clear of; the goal's disc holds every final slot, whatever the final heading
+    points = [np.asarray(v.start.position[:2], dtype=float) for v in mission.vehicles]
+    points += [np.asarray(w[:2], dtype=float) for w in mission.waypoints]
+    points += [np.asarray(v.target[:2], dtype=float) for v in mission.vehicles if v.target is not None]
+    slots = float(np.linalg.norm(offsets[:, :2], axis=1).max())
+    goal = np.asarray(mission.goal[:2], dtype=float)
+    circles, notes = [], []
+    for k, obstacle in enumerate(mission.obstacles):
+        centre = np.asarray(obstacle.center, dtype=float)
+        if np.any(np.asarray(obstacle.velocity) != 0.0):
+            notes.append(f"obstacle {k} moves: a fence is static, it is not fenced")
+            continue
+        dz = abs(float(centre[2]) - min(max(float(centre[2]), low), high))
+        if dz >= obstacle.radius + body:
+            notes.append(f"obstacle {k} does not reach the formation's altitudes ({low:g}..{high:g} m)")
+            continue
+        section = math.sqrt(max(obstacle.radius**2 - dz**2, 0.0))
+        wanted = section + body + margin_m
+        limits = [float(np.hypot(*(p - centre[:2]))) - body - KEEP_OUT_M for p in points]
+        limits.append(float(np.hypot(*(goal - centre[:2]))) - slots - body - KEEP_OUT_M)
+        limit = min(limits)
+        if limit <= section + body:
+            notes.append(f"obstacle {k} stands too close to a start, waypoint or goal slot to be fenced")
+            continue
+        radius = min(wanted, limit)
+        if radius < wanted:
+            notes.append(
+                f"obstacle {k}: fence radius {radius:.1f} m instead of {wanted:.1f} m (a start, waypoint or "
+                "goal slot is near)"
+            )
+        circles.append(FenceCircle(k, (float(centre[0]), float(centre[1])), round(radius, 2)))
+    return circles, notes
+
+
+def circle_items(circles: Iterable[FenceCircle], origin: frames.Origin) -> list[FenceItem]:
+    """MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION items of the circles (centres geodetic, around the origin)."""
+    items = []
+    for circle in circles:
+        lat, lon, _ = frames.enu_to_geodetic([circle.centre[0], circle.centre[1], 0.0], origin)
+        items.append(
+            FenceItem(CIRCLE_EXCLUSION, round(float(lat) * 1e7), round(float(lon) * 1e7), circle.radius)
+        )
+    return items
+
+
+# --------------------------------------------------------------------------------------------------- protocol
+
+
+def _ack_name(result: int) -> str:
+    entry = mavlink2.enums["MAV_MISSION_RESULT"].get(result)
+    return entry.name.removeprefix("MAV_MISSION_") if entry is not None else str(result)
+
+
+def _fence_messages(link: VehicleLink) -> list[MAVLinkMessage]:
+    """The MISSION_* messages about the fence received since the last call."""
+    out = []
+    while link.mission_messages:
+        msg = link.mission_messages.popleft()
+        if getattr(msg, "mission_type", 0) == FENCE:
+            out.append(msg)
+    return out
+
+
+def _require_alive(link: VehicleLink) -> None:
+    if link.sysid is None or not link.state.alive[link.index]:
+        raise LinkError(f"{link.name} is not responding (its link is down)")
+
+
+def _send_item(link: VehicleLink, seq: int, item: FenceItem) -> None:
+    link.send(
+        link.mav.mission_item_int_encode(
+            link.sysid or 0,
+            link.compid,
+            seq,
+            mavlink2.MAV_FRAME_GLOBAL,
+            item.command,
+            0,
+            0,
+            float(item.param1),
+            0.0,
+            0.0,
+            0.0,
+            item.lat_e7,
+            item.lon_e7,
+            0.0,
+            FENCE,
+        )
+    )
+
+
+def op_upload_fence(
+    link: VehicleLink, items: list[FenceItem], retries: int = COMMAND_RETRIES
+) -> Operation[None]:
+    """Upload `items` as the vehicle's whole fence (MISSION_COUNT, then the items it asks for, until
+    MISSION_ACK ACCEPTED); started over (up to `retries` times) when it stalls, is cancelled or denied."""
+    _require_alive(link)
+    count = len(items)
+    texts = link.statustexts
+    last_refusal = "no answer"
+    _fence_messages(link)
+    timeout = Timeout(FIRST_ANSWER_S, link.vehicle_clock)
+    for _ in range(retries + 1):
+        link.send(link.mav.mission_count_encode(link.sysid or 0, link.compid, count, FENCE))
+        timeout.seconds = FIRST_ANSWER_S
+        timeout.restart()
+        sent_last = count == 0
+        restart = False
+        while not restart and not timeout.expired():
+            yield
+            for msg in _fence_messages(link):
+                kind = msg.get_type()
+                if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
+                    if 0 <= msg.seq < count:
+                        _send_item(link, msg.seq, items[msg.seq])
+                        sent_last |= msg.seq == count - 1
+                        timeout.seconds = STALL_S
+                        timeout.restart()
+                    continue
+                if kind != "MISSION_ACK":
+                    continue
+                result = msg.type
+                if result == mavlink2.MAV_MISSION_ACCEPTED and sent_last:
+                    return
+                if result in (mavlink2.MAV_MISSION_ACCEPTED, mavlink2.MAV_MISSION_INVALID_SEQUENCE):
+                    continue  # an earlier transfer's, or a duplicate item's: the upload goes on
+                last_refusal = f"MISSION_ACK {_ack_name(result)}"
+                if result in _REFUSALS_TO_RETRY or (result == mavlink2.MAV_MISSION_ERROR and not sent_last):
+                    restart = True
+                    break
+                said = f' ("{link.last_statustext}")' if link.statustexts > texts else ""
+                raise LinkError(f"{link.name} refused the fence: {last_refusal}{said}")
+    raise LinkError(f"{link.name} did not take the fence ({retries + 1} attempts; last: {last_refusal})")
+
+
+def op_download_fence(link: VehicleLink, retries: int = COMMAND_RETRIES) -> Operation[list[FenceItem]]:
+    """The vehicle's fence items (MISSION_REQUEST_LIST, then MISSION_REQUEST_INT per item), each request
+    resent after a silent second of vehicle time (up to `retries` times)."""
+    _require_alive(link)
+    _fence_messages(link)
+    timeout = Timeout(FIRST_ANSWER_S, link.vehicle_clock)
+    count: int | None = None
+    for _ in range(retries + 1):
+        link.send(link.mav.mission_request_list_encode(link.sysid or 0, link.compid, FENCE))
+        timeout.restart()
+        while count is None and not timeout.expired():
+            yield
+            for msg in _fence_messages(link):
+                if msg.get_type() == "MISSION_COUNT":
+                    count = int(msg.count)
+                elif msg.get_type() == "MISSION_ACK" and msg.type not in _REFUSALS_TO_RETRY:
+                    raise LinkError(
+                        f"{link.name} refused to list its fence: MISSION_ACK {_ack_name(msg.type)}"
+                    )
+        if count is not None:
+            break
+    if count is None:
+        raise LinkError(f"{link.name} did not say how many fence items it has ({retries + 1} requests)")
+    items: list[FenceItem | None] = [None] * count
+    for seq in range(count):
+        for _ in range(retries + 1):
+            if items[seq] is not None:
+                break
+            link.send(link.mav.mission_request_int_encode(link.sysid or 0, link.compid, seq, FENCE))
+            timeout.restart()
+            while items[seq] is None and not timeout.expired():
+                yield
+                for msg in _fence_messages(link):
+                    if msg.get_type() == "MISSION_ITEM_INT" and 0 <= msg.seq < count:
+                        items[msg.seq] = FenceItem(
+                            int(msg.command), int(msg.x), int(msg.y), float(msg.param1)
+                        )
+                    elif (
+                        msg.get_type() == "MISSION_ACK" and msg.type == mavlink2.MAV_MISSION_INVALID_SEQUENCE
+                    ):
+                        raise LinkError(f"{link.name}'s fence changed while it was read (item {seq})")
+        if items[seq] is None:
+            raise LinkError(f"{link.name} did not send fence item {seq} ({retries + 1} requests)")
+    link.send(link.mav.mission_ack_encode(link.sysid or 0, link.compid, mavlink2.MAV_MISSION_ACCEPTED, FENCE))
+    return [item for item in items if item is not None]
+
+
+def op_clear_fence(link: VehicleLink, retries: int = COMMAND_RETRIES) -> Operation[None]:
+    """MISSION_CLEAR_ALL(FENCE) until MISSION_ACK ACCEPTED (resent after a silent second, or when denied)."""
+    _require_alive(link)
+    _fence_messages(link)
+    timeout = Timeout(FIRST_ANSWER_S, link.vehicle_clock)
+    for _ in range(retries + 1):
+        link.send(link.mav.mission_clear_all_encode(link.sysid or 0, link.compid, FENCE))
+        timeout.restart()
+        while not timeout.expired():
+            yield
+            for msg in _fence_messages(link):
+                if msg.get_type() != "MISSION_ACK":
+                    continue
+                if msg.type == mavlink2.MAV_MISSION_ACCEPTED:
+                    return
+                if msg.type not in _REFUSALS_TO_RETRY:
+                    raise LinkError(
+                        f"{link.name} refused to clear its fence: MISSION_ACK {_ack_name(msg.type)}"
+                    )
+    raise LinkError(f"{link.name} did not confirm clearing its fence ({retries + 1} requests)")
+
+
+def _legacy_total(items: list[FenceItem]) -> int:
+    """FENCE_TOTAL an ArduPilot saves with these items (AC_PolyFence_loader::write_fence)."""
+    count = sum(1 for item in items if item.command != mavlink2.MAV_CMD_NAV_FENCE_RETURN_POINT)
+    return count + 2 if count >= 3 else 0
+
+
+def _settle(link: VehicleLink) -> Operation[None]:
+    timeout = Timeout(SETTLE_S, link.vehicle_clock)
+    while not timeout.expired():
+        yield
+
+
+def op_put_fence(
+    link: VehicleLink, items: list[FenceItem], retries: int = COMMAND_RETRIES
+) -> Operation[None]:
+    """Make `items` the vehicle's fence and read it back after SETTLE_S: LinkError if what it stored differs.
+
+    ArduPilot SITL builds erase a fence whose FENCE_TOTAL (circles and vertices + 2, or 0 below 3) is 0 when
+    the previous one's was not (AC_PolyFence_loader::update, the old fence-point protocol): so 1 or 2 circles
+    are uploaded over a cleared fence (FENCE_TOTAL already 0), never straight over a bigger one."""
+    if items and _legacy_total(items) == 0:
+        yield from op_clear_fence(link, retries)
+        yield from _settle(link)
+    if items:
+        yield from op_upload_fence(link, items, retries)
+    else:
+        yield from op_clear_fence(link, retries)
+    yield from _settle(link)
+    stored = yield from op_download_fence(link, retries)
+    if len(stored) != len(items) or not all(a.same_as(b) for a, b in zip(stored, items, strict=True)):
+        raise LinkError(
+            f"{link.name} stored a different fence than uploaded ({len(stored)} items read back, "
+            f"{len(items)} sent)"
+        )
+
+
+# --------------------------------------------------------------------------------------------------- the run
+
+
+class FenceInstall:
+    """What `install_fence` did: the circles and items, each vehicle's fence before the run; `restore` puts
+    that back (a FlightParams restorer), `report` turns a vehicle's breach STATUSTEXT into an event."""
+
+    def __init__(
+        self,
+        circles: list[FenceCircle],
+        items: list[FenceItem],
+        before: dict[str, list[FenceItem]],
+        action: str,
+        events: list[str],
+        progress: Callable[[str], None],
+    ) -> None:
+        self.circles = circles
+        self.items = items
+        self.before = before
+        self.action = action
+        self.events = events
+        self.progress = progress
+
+    def restore(self, link: VehicleLink, change: ParamChange) -> Operation[None]:
+        """The vehicle's own fence back (cleared if it had none), verified by download."""
+        return op_put_fence(link, self.before.get(link.name, []))
+
+    def report(self, link: VehicleLink, text: str) -> None:
+        """A STATUSTEXT "<fences> breached" (ArduCopter/fence.cpp): the autopilot switches mode by itself
+        (BRAKE for FENCE_ACTION 4) and ignores the ground station's attitude targets: say so."""
+        if "fence" in text and text.endswith("breached"):
+            t = max(int(link.state.time_ms[link.index]), 0) / 1000.0
+            said = f"t={t:.2f} s {link.name}: {text}: its autopilot takes over (fence action {self.action})"
+            self.events.append(said)
+            self.progress(f"! {said}")
+
+
+def _same(a: list[FenceItem], b: list[FenceItem]) -> bool:
+    return len(a) == len(b) and all(x.same_as(y) for x, y in zip(a, b, strict=True))
+
+
+def install_fence(
+    fleet: Fleet,
+    flight: FlightParams,
+    mission: Mission,
+    events: list[str],
+    progress: Callable[[str], None],
+) -> FenceInstall | None:
+    """Preflight: fence the obstacles on every live vehicle (see the module docstring) when
+    safety.dead_gcs.fence.enabled; notes and breaches go to `events` (flight.json) and `progress`. LinkError
+    when a vehicle does not take the fence; None when nothing is fenced."""
+    params = mission.safety.dead_gcs.fence
+    if not params.enabled:
+        return None
+    circles, notes = exclusion_circles(mission, params.margin_m)
+    for note in notes:
+        events.append(f"fence: {note}")
+        progress(f"fence: {note}")
+    if not circles:
+        return None
+    items = circle_items(circles, mission.origin)
+    links = fleet.select()
+    old = fleet.run(op_download_fence(link) for link in links)
+    before = {link.name: items_before for link, items_before in zip(links, old, strict=True)}
+    fleet.run(op_put_fence(link, items) for link in links)
+    install = FenceInstall(circles, items, before, params.action, events, progress)
+    flight.restorers[FENCE_ITEMS] = install.restore
+    for link in links:
+        if not _same(before[link.name], items):
+            flight.changes.append(
+                ParamChange(link.name, FENCE_ITEMS, float(len(before[link.name])), float(len(items)))
+            )
+    flight.set_all("FENCE_TYPE", FENCE_TYPE_POLYGON)
+    flight.set_all("FENCE_ACTION", FENCE_ACTION[params.action])
+    flight.set_all("FENCE_ENABLE", 1)
+    for link in fleet.links:  # one reporter per vehicle, even if preflight runs again
+        link.statustext_hooks[:] = [
+            hook
+            for hook in link.statustext_hooks
+            if not isinstance(getattr(hook, "__self__", None), FenceInstall)
+        ]
+        link.statustext_hooks.append(install.report)
+    radii = ", ".join(f"{c.radius:.1f}" for c in circles)
+    progress(
+        f"fence: {len(circles)} exclusion circle(s) on every vehicle, radii {radii} m, action {params.action}"
+    )
+    return install
