@@ -5,10 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import yaml
 from pymavlink import mavutil
 
 from gcs_swarm.cli import main
-from tests.e2e.conftest import fly, static6_short
+from tests.e2e.conftest import MISSIONS, derived_mission, fly, static6_short
 
 REPORT_KEYS = {
     "reached",
@@ -31,6 +32,22 @@ def _figures(report: dict) -> dict:
     return {k: v for k, v in report.items() if k != "wall_duration_s"}
 
 
+def _flies_smoothly(report: dict) -> None:
+    """The flight-quality targets of the whole formation flight (docs/metrics.md, "Whole-flight figures"),
+    formation start to arrival, from the simulator's truth and the commands sent: no cusp, followers within
+    3 m rms and 10 m of their slots, commanded tilt rates within 3 rad/s and no yaw-rate step above 0.1 rad/s
+    a tick, never closer than D_Emg (3 m) nor below the 2 m floor, nor more than 2 m below the formation
+    altitude (10 m) while avoiding, and no safety event."""
+    whole = report["whole_flight"]
+    assert whole["cusps_total"] == 0, whole
+    assert whole["slot_error_rms_m"] <= 3.0 and whole["slot_error_max_m"] <= 10.0, whole
+    assert whole["max_tilt_command_rate_rad_s"] <= 3.0 and whole["max_yaw_rate_step_rad_s"] <= 0.1, whole
+    assert whole["min_separation_whole_flight_m"] >= 3.0 and whole["time_below_d_emg_s"] == 0.0, whole
+    assert whole["min_altitude_in_formation_m"] >= 2.0, whole
+    assert whole["max_drop_below_formation_altitude_m"] <= 2.0, whole
+    assert report["safety_events"] == []
+
+
 def test_quickstart_reaches_goal_and_repeats_exactly(quickstart: Path, tmp_path: Path) -> None:
     first = fly(quickstart, tmp_path / "first")
     assert first.status == 0, first.output[-3000:]
@@ -44,6 +61,7 @@ def test_quickstart_reaches_goal_and_repeats_exactly(quickstart: Path, tmp_path:
     assert report["formation_rms_m"] < 1.5
     assert 5.0 < report["time_to_goal_s"] < 60.0
     assert all(v["reached"] for v in report["vehicles"])
+    _flies_smoothly(report)
     for name in ("truth.csv", "record.csv", "report.md", "telemetry.tlog"):
         assert (first.run_dir / name).stat().st_size > 0, name
     # The telemetry log is a standard tlog that pymavlink reads back.
@@ -86,3 +104,23 @@ def test_bad_mission_is_refused_with_its_sentence(tmp_path: Path) -> None:
     assert "bad.yaml:3" in line and "goal" in line
     assert "Traceback" not in outcome.output
     assert not (tmp_path / "run" / "report.json").exists()
+
+
+def test_v_of_four_started_on_the_wrong_sides_assembles_without_crossing(tmp_path: Path) -> None:
+    """Issue 13's V of four: the first two followers stand at each other's slots (slots go in vehicle order,
+    the first follower's on the right). Least-travel slot assignment gives each the slot it stands at, so
+    nobody crosses: the whole flight keeps the same targets as the quickstart."""
+    data = yaml.safe_load((MISSIONS / "quickstart.yaml").read_text())
+    vehicles = data["vehicles"]
+    for v in vehicles:
+        v.pop("connection", None)
+        v.pop("sysid", None)
+    vehicles[1].update(name="f1", start={"position": [-10, 1.5, 0], "yaw_deg": 37})  # at the left slot
+    vehicles[2].update(name="f2", start={"position": [-1.5, -10, 0], "yaw_deg": 37})  # at the right slot
+    vehicles.append({"name": "f3", "start": {"position": [-3, -20, 0], "yaw_deg": 37}})  # second right
+    mission = derived_mission(tmp_path, "quickstart.yaml", "v4_swapped", vehicles=vehicles)
+    run = fly(mission, tmp_path / "run")
+    assert run.status == 0, run.output[-3000:]
+    report = run.report
+    assert report["reached"] and report["collisions"] == 0
+    _flies_smoothly(report)
