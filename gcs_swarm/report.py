@@ -10,9 +10,10 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from gcs_swarm import metrics
 from gcs_swarm.evaluation import figures, flight_quality, signals
@@ -183,12 +184,15 @@ def report_from(
         _reach_time(tw, np.linalg.norm(pw[:, i] - goals[i], axis=1), tol, hold, arrived)
         for i in range(len(names))
     ]
-    crashed_any = traj.crashed.any(axis=0)
+    crashed_any = cast(NDArray[np.bool_], traj.crashed.any(axis=0))  # (N,)
     reached = all(r is not None for r in reach) and not crashed_any.any() and arrived
     min_sep = metrics.min_separation(traj.pos)
     clearance, _ = metrics.min_obstacle_clearance(traj.pos, traj.obstacle_centres, traj.obstacle_radii)
     cruise = None
     slot_error = None
+    formation_rms: float | None
+    formation_max: float | None
+    settling: float | None
     angles = np.full((len(tw), len(names)), np.nan)
     if psi is not None and len(tw) > 1:
         leaders, flown = flight_quality.formation_schedule(flight, tw, leader, offsets)

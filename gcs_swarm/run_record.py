@@ -12,6 +12,7 @@ import csv
 import functools
 import io
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -48,28 +49,28 @@ class RunRecord:
         active: np.ndarray,
     ) -> None:
         """One row per vehicle. `command` is a guidance Command (arrays of shape (N,...) as attributes)."""
-        c = command
+        c: Any = command  # duck-typed: a Command or anything with its attributes
         block = np.column_stack(
             [
                 pos,
                 vel,
                 att,
-                c.ref_pos,  # type: ignore[attr-defined]
-                c.ref_vel,  # type: ignore[attr-defined]
-                c.slots,  # type: ignore[attr-defined]
-                c.field_force,  # type: ignore[attr-defined]
-                c.roll_d,  # type: ignore[attr-defined]
-                c.pitch_d,  # type: ignore[attr-defined]
-                c.yaw_d,  # type: ignore[attr-defined]
-                c.thrust_acc,  # type: ignore[attr-defined]
+                c.ref_pos,
+                c.ref_vel,
+                c.slots,
+                c.field_force,
+                c.roll_d,
+                c.pitch_d,
+                c.yaw_d,
+                c.thrust_acc,
                 thrust,
             ]
         )
         if block.shape[1] != _NUMERIC_COLUMNS:
             raise ValueError(f"a record row needs {_NUMERIC_COLUMNS} numbers, got {block.shape[1]}")
-        emergency = np.asarray(c.emergency, dtype=int).tolist()  # type: ignore[attr-defined]
+        emergency = np.asarray(c.emergency, dtype=int).tolist()
         flags = np.asarray(active, dtype=int).tolist()
-        psi_l = float(c.psi_leader)  # type: ignore[attr-defined]
+        psi_l = float(c.psi_leader)
         row, field = self._row, _csv_field(phase)
         self._file.write(
             "".join(

@@ -18,8 +18,10 @@ import signal
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
+from numpy.typing import NDArray
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.guidance.degradation import StaleTelemetryMonitor, TelemetryAssessment
@@ -563,7 +565,7 @@ class MissionRunner:
         ctl.set_degraded(verdict.speed_scale, verdict.spacing_scale)
         # a vehicle whose state is not finite (broken telemetry) gets no command this tick, as if lost; a held
         # one brakes on its own autopilot
-        finite = np.isfinite(np.hstack((pos, vel, att))).all(axis=1)
+        finite = cast(NDArray[np.bool_], np.isfinite(np.hstack((pos, vel, att))).all(axis=1))  # (N,)
         active = fleet.alive & finite & ~verdict.held
         ghosts, ghost_radii = self._place_lost(t)
         centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)

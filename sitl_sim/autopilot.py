@@ -504,8 +504,8 @@ class Autopilot:
         1 RTL (else LAND), 2 LAND, 3 SmartRTL (not simulated: RTL) else LAND, 4 BRAKE else LAND, 5 SmartRTL
         (RTL here) else LAND; landed it disarms, more than 100 m outside it lands."""
         p, fence, s = self.params, self.fence, self.state
-        for i in fence.legacy_clears(p.column("FENCE_TOTAL")):
-            fence.store(i, [], np.zeros((0, 2)))
+        for k in fence.legacy_clears(p.column("FENCE_TOTAL")):
+            fence.store(k, [], np.zeros((0, 2)))
         if not fence.active(p.column("FENCE_ENABLE")):  # AC_Fence::check returns at once when disabled
             fence.last_check = t
             return

@@ -51,7 +51,7 @@ def param_specs(hover_fraction: float, names: str = "4.7") -> tuple[ParamSpec, .
     `names` the ArduCopter release whose parameter names to use (PARAM_NAME_RELEASES)."""
     if names not in PARAM_NAME_RELEASES:
         raise ValueError(f"parameter names of ArduCopter {' or '.join(PARAM_NAME_RELEASES)}, not {names!r}")
-    specs = (
+    specs: tuple[ParamSpec, ...] = (
         ParamSpec(
             "ANGLE_MAX", INT16, 3000, 1000, 8000, "cdeg", "maximum lean angle (not of guided attitude)"
         ),

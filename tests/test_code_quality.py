@@ -1,4 +1,4 @@
-"""Lint and type checks, part of the test suite so CI enforces them (ruff, mypy on the pure modules)."""
+"""Lint and type checks, part of the test suite so CI enforces them (ruff, mypy on both packages)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PURE_MODULES = ["gcs_swarm/guidance", "gcs_swarm/metrics.py", "gcs_swarm/frames.py"]
+PACKAGES = ["gcs_swarm", "sitl_sim"]
 
 
 def _run(args: list[str]) -> subprocess.CompletedProcess[str]:
@@ -29,8 +29,7 @@ def test_ruff_format_clean() -> None:
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-def test_mypy_pure_modules() -> None:
+def test_mypy_packages() -> None:
     pytest.importorskip("mypy")
-    paths = [p for p in PURE_MODULES if (ROOT / p).exists()]
-    result = _run([sys.executable, "-m", "mypy", "--ignore-missing-imports", "--no-error-summary", *paths])
+    result = _run([sys.executable, "-m", "mypy", "--ignore-missing-imports", "--no-error-summary", *PACKAGES])
     assert result.returncode == 0, result.stdout + result.stderr

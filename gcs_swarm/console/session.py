@@ -174,7 +174,7 @@ class FlightSession:
         self._publish(force=True)
         self.runner.connect(self.connect_timeout_s)
         rate = self.mission.run.control_rate_hz
-        rates: dict[str | int, float] = dict(telemetry_rates(rate))
+        rates = telemetry_rates(rate)
         results = self.fleet.run((link.op_request_streams(rates) for link in self.fleet.links), strict=False)
         for link, result in zip(self.fleet.links, results, strict=True):
             if isinstance(result, LinkError):

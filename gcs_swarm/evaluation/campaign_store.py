@@ -101,7 +101,7 @@ class CampaignStore:
             os.fsync(f.fileno())
 
 
-def _distribution(values: list[float]) -> dict[str, Any]:
+def _distribution(values: list[float | None]) -> dict[str, Any]:
     finite = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
     if finite.size == 0:
         return {"n": 0, "mean": None, "median": None, "p5": None, "p95": None, "min": None, "max": None}

@@ -55,9 +55,11 @@ def fly(mission_path: Path, run_dir: Path, vehicles: int, link_loss: float = 0.0
     fly). Quiet: only error lines are printed."""
     status = EXIT_USER_ERROR
     # RunOptions.sim_args (the embedded simulator's extra arguments) is only needed for link faults.
-    link = {"sim_args": (f"--link-loss={link_loss:g}",)} if link_loss > 0 else {}
+    sim_args: tuple[str, ...] = (f"--link-loss={link_loss:g}",) if link_loss > 0 else ()
     for _ in range(FLIGHT_TRIES):
-        options = RunOptions(out_dir=run_dir, base_port=free_udp_base(vehicles), quiet=True, **link)
+        options = RunOptions(
+            out_dir=run_dir, base_port=free_udp_base(vehicles), quiet=True, sim_args=sim_args
+        )
         status = run_command(str(mission_path), options)
         if status != EXIT_USER_ERROR:
             break

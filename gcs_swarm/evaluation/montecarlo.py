@@ -233,11 +233,11 @@ def write_summary(store: CampaignStore, labels: list[str], title: str) -> dict[s
     out = store.out_dir
     (out / campaign_store.SUMMARY_FILE).write_text(json.dumps(summary, indent=2) + "\n")
     (out / campaign_store.SUMMARY_MD).write_text(campaign_store.render_summary(summary, title))
-    values = {
+    raw = {
         key: {v: [r.get(key) for r in results if r["variant"] == v and not r.get("error")] for v in labels}
         for key in campaign_store.DISTRIBUTIONS
     }
-    values = {k: {v: [x for x in xs if x is not None] for v, xs in by.items()} for k, by in values.items()}
+    values = {k: {v: [x for x in xs if x is not None] for v, xs in by.items()} for k, by in raw.items()}
     figures.plot_histograms(values, campaign_store.DISTRIBUTIONS, out / "histograms.png")
     return summary
 

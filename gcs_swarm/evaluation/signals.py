@@ -43,7 +43,7 @@ def relative_angles(p: np.ndarray, leader: int, psi_leader: np.ndarray) -> np.nd
     return angles
 
 
-def near(angles: np.ndarray, reference: np.ndarray) -> np.ndarray:
+def near(angles: np.ndarray, reference: np.ndarray | float) -> np.ndarray:
     """angles (..., N) rad shifted by whole turns to lie within pi of reference (N,) (so -179.9 deg is shown
     as 180.1 deg next to a 180 deg slot)."""
     ref = np.asarray(reference, dtype=float)

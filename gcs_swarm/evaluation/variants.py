@@ -34,6 +34,7 @@ import dataclasses
 import itertools
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -122,10 +123,15 @@ def variant_grid(
     for value in controllers or []:
         if value not in CONTROLLERS:
             raise VariantError(f"unknown controller {value!r}: controllers are {', '.join(CONTROLLERS)}")
-    for value in winds or []:
-        if not (math.isfinite(value) and 0.0 <= value <= 100.0):
-            raise VariantError(f"wind speed {value:g} m/s is outside 0..100")
-    combos = itertools.product(methods or [None], controllers or [None], winds or [None], forms or [None])
+    for wind in winds or []:
+        if not (math.isfinite(wind) and 0.0 <= wind <= 100.0):
+            raise VariantError(f"wind speed {wind:g} m/s is outside 0..100")
+    # each axis: the values given, or None (the mission's own) alone
+    method_axis: Sequence[str | None] = methods or [None]
+    controller_axis: Sequence[str | None] = controllers or [None]
+    wind_axis: Sequence[float | None] = winds or [None]
+    form_axis: Sequence[str | None] = forms or [None]
+    combos = itertools.product(method_axis, controller_axis, wind_axis, form_axis)
     grid = [Variant(m, c, w, f) for m, c, w, f in combos]
     if len({v.label for v in grid}) != len(grid):
         raise VariantError("the same variant is listed twice")
@@ -277,7 +283,7 @@ def _point_on_route(route: np.ndarray, fraction: float) -> tuple[np.ndarray, np.
     if total <= 0:
         raise VariantError("the leader starts at its goal: there is no route to place obstacles on")
     s = fraction * total
-    k = int(min(np.searchsorted(np.cumsum(lengths), s), len(legs) - 1))
+    k = min(int(np.searchsorted(np.cumsum(lengths), s)), len(legs) - 1)
     into = s - float(lengths[:k].sum())
     point = route[k] + legs[k] * (into / lengths[k] if lengths[k] > 0 else 0.0)
     horizontal = legs[k, :2]

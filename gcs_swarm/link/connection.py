@@ -21,12 +21,12 @@ import contextlib
 import re
 import socket
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeAlias
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-MAVLinkMessage = mavlink2.MAVLink_message
+MAVLinkMessage: TypeAlias = mavlink2.MAVLink_message
 Address = tuple[str, int]
 
 _MAX_READS_PER_POLL = 512

@@ -230,7 +230,7 @@ class Fleet:
         streams nothing on a link until a ground station asks (its MAVn_* / SRn_* rates are 0 by default),
         and MAVProxy and QGroundControl ask at the first HEARTBEAT too. A vehicle that refuses is reported
         (an event) and asked again by the stream watchdog; nothing here stops the connection."""
-        rates: dict[str | int, float] = dict(telemetry_rates(self.stream_rate_hz))
+        rates = telemetry_rates(self.stream_rate_hz)
         results = self.run((link.op_request_streams(rates) for link in self.links), strict=False)
         for link, result in zip(self.links, results, strict=True):
             if isinstance(result, LinkError):

@@ -38,6 +38,7 @@ from gcs_swarm.link.connection import Endpoint, LinkError, MAVLinkMessage
 from gcs_swarm.link.tlog import TlogWriter
 
 T = TypeVar("T")
+MessageT = TypeVar("MessageT", bound=str | int)  # a MAVLink message name or id
 Operation = Generator[None, None, T]
 """A blocking exchange with one vehicle; yields while it waits, returns its result (see module doc)."""
 
@@ -955,7 +956,7 @@ class VehicleLink:
         interval_us = 1e6 / hz if hz > 0 else -1.0
         return self.op_command(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, float(msg_id), interval_us)
 
-    def op_request_streams(self, rates: Mapping[str | int, float]) -> Operation[None]:
+    def op_request_streams(self, rates: Mapping[MessageT, float]) -> Operation[None]:
         """Ask for each message at its rate (Hz): SET_MESSAGE_INTERVAL, acknowledged, one after the other; a
         message the vehicle refuses (COMMAND_ACK other than ACCEPTED) is asked for by REQUEST_DATA_STREAM of
         its ArduPilot stream group instead (no ACK exists for that; the stream watchdog, `check_streams`,
@@ -1156,7 +1157,7 @@ class VehicleLink:
     def set_message_interval(self, message: str | int, hz: float) -> None:
         self._run(self.op_set_message_interval(message, hz))
 
-    def request_streams(self, rates: Mapping[str | int, float]) -> None:
+    def request_streams(self, rates: Mapping[MessageT, float]) -> None:
         self._run(self.op_request_streams(rates))
 
     def param_get(self, name: str, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0) -> float:
