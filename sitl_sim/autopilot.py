@@ -615,8 +615,10 @@ class Autopilot:
         elif mode == RTL:
             rtl_alt = self.home[i, 2] + self.params.value(i, "RTL_ALT") / 100.0
             self.nav_pos[i] = (pos[0], pos[1], max(pos[2], rtl_alt))
-        elif mode == LAND:
-            self.nav_pos[i] = (stop[0], stop[1], np.nan)
+        elif mode == LAND:  # ModeLand::init: loiter_nav's stop (shaped like BRAKE's, LOIT_BRK_*), descending
+            self.nav_pos[i] = (pos[0], pos[1], np.nan)
+            self.nav_vel[i] = (vel[0], vel[1], 0.0)
+            self.nav_kind[i] = KIND_BRAKE
         else:
             self.nav_pos[i] = np.nan
 
@@ -630,11 +632,12 @@ LOOP_PARAMS = (
     "MOT_THST_HOVER", "ANGLE_MAX", "GUID_TIMEOUT", "PSC_POSXY_P", "PSC_POSZ_P", "PSC_VELXY_P", "PSC_VELXY_I",
     "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
     "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "ATC_ANGLE_BOOST", "PSC_JERK_XY",
+    "LOIT_BRK_ACCEL", "LOIT_BRK_JERK",
 )  # fmt: skip
 (
     P_HOVER, P_ANGLE_MAX, P_GUID_TIMEOUT, P_POSXY_P, P_POSZ_P, P_VELXY_P, P_VELXY_I, P_VELZ_P, P_VELZ_I,
     P_SPEED, P_SPEED_UP, P_SPEED_DN, P_ACCEL, P_LAND_SPEED, P_DISARM_DELAY, P_FS_ENABLE, P_FS_TIMEOUT,
-    P_ANGLE_BOOST, P_JERK_XY,
+    P_ANGLE_BOOST, P_JERK_XY, P_LOIT_BRK_ACCEL, P_LOIT_BRK_JERK,
 ) = range(len(LOOP_PARAMS))  # fmt: skip
 
 
@@ -702,6 +705,11 @@ def _outer_loop(
             nav_vel[i, 2] = -(p[columns[P_LAND_SPEED]] if low else p[columns[P_SPEED_DN]]) / 100.0
         if m == BRAKE and nav_kind[i] == KIND_BRAKE:
             brake_shaping_step(nav_pos[i], nav_vel[i], nav_acc[i], BRAKE_DECEL, p[columns[P_JERK_XY]], dt)
+        elif m == LAND and nav_kind[i] == KIND_BRAKE:  # AC_Loiter's braking: LOIT_BRK_ACCEL, LOIT_BRK_JERK
+            brake_shaping_step(
+                nav_pos[i], nav_vel[i], nav_acc[i], p[columns[P_LOIT_BRK_ACCEL]] / 100.0,
+                p[columns[P_LOIT_BRK_JERK]] / 100.0, dt,
+            )  # fmt: skip
         if guided and control[i] == CTRL_POS:
             nav_yaw[i] += nav_yaw_rate[i] * dt
 

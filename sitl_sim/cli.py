@@ -399,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
                 with contextlib.suppress(OSError):
                     wake_write.send(b"\0")
 
-            ParentWatch(sys.stdin.buffer, parent_gone).start()
+            ParentWatch(sys.stdin.fileno(), parent_gone).start()
         sim.run(lambda: stop_requested, wake_read)
         for line in sim.counters_report():
             print(f"sitl-sim: {line}", file=sys.stderr)

@@ -17,16 +17,19 @@ import os
 import sys
 import threading
 from collections.abc import Callable
-from typing import BinaryIO
 
 
 class ParentWatch:
-    """A daemon thread that reads `stream` (the stdin pipe from the parent) until end of file, then calls
-    `on_gone()` once. Anything the parent writes is ignored."""
+    """A daemon thread that reads the file descriptor `fd` (the stdin pipe from the parent) until end of file,
+    then calls `on_gone()` once. Anything the parent writes is ignored.
 
-    def __init__(self, stream: BinaryIO, on_gone: Callable[[], None]) -> None:
+    It reads the raw descriptor (os.read), not sys.stdin's buffered reader: a daemon thread blocked inside a
+    BufferedReader holds its lock, and the interpreter aborts at exit ("Fatal Python error:
+    _enter_buffered_busy") when it tries to flush that reader."""
+
+    def __init__(self, fd: int, on_gone: Callable[[], None]) -> None:
         self.gone = threading.Event()
-        self._stream = stream
+        self._fd = fd
         self._on_gone = on_gone
         self._thread = threading.Thread(target=self._watch, name="parent-watch", daemon=True)
 
@@ -35,9 +38,9 @@ class ParentWatch:
 
     def _watch(self) -> None:
         try:
-            while self._stream.read(4096):
+            while os.read(self._fd, 4096):
                 pass
-        except (OSError, ValueError):
+        except OSError:
             pass  # a closed or broken pipe means the same: the parent is gone
         self.gone.set()
         self._on_gone()

@@ -91,6 +91,8 @@ def param_specs(hover_fraction: float, names: str = "4.7") -> tuple[ParamSpec, .
         ParamSpec("MAV_GCS_SYSID", INT16, 255, 1, 255, "", "ground station sysid whose heartbeat counts"),
         ParamSpec("MAV_SYSID", INT16, 1, 1, 255, "", "this vehicle's sysid (takes effect on restart)"),
         ParamSpec("WPNAV_ACCEL", REAL32, 250.0, 50.0, 500.0, "cm/s^2", "horizontal acceleration limit"),
+        ParamSpec("LOIT_BRK_ACCEL", REAL32, 250.0, 25.0, 250.0, "cm/s^2", "LAND/LOITER braking acceleration"),
+        ParamSpec("LOIT_BRK_JERK", REAL32, 500.0, 500.0, 5000.0, "cm/s^3", "LAND/LOITER braking jerk"),
         ParamSpec("WPNAV_SPEED", REAL32, 1000.0, 10.0, 2000.0, "cm/s", "horizontal speed to a target"),
         ParamSpec("WPNAV_SPEED_DN", REAL32, 150.0, 10.0, 500.0, "cm/s", "descent speed"),
         ParamSpec("WPNAV_SPEED_UP", REAL32, 250.0, 10.0, 1000.0, "cm/s", "climb speed"),

@@ -35,7 +35,7 @@ from gcs_swarm.guidance.params import (
 )
 from gcs_swarm.guidance.pid import PIDController
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
-from gcs_swarm.guidance.separation import repulsion_range, uav_repulsion
+from gcs_swarm.guidance.separation import closing_speed_caps, repulsion_range, uav_repulsion
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
 
@@ -154,8 +154,12 @@ class FleetController:
         self.relay: LeaderRelay | None = None
         self.speed_scale = 1.0
         self.spacing_scale = 1.0
-        if dead_gcs is not None and dead_gcs.failsafe_timeout_s is None:
-            raise ValueError("dead_gcs.failsafe_timeout_s must be set (the mission loader sets it)")
+        if dead_gcs is not None and None in (
+            dead_gcs.failsafe_timeout_s,
+            dead_gcs.brake_accel,
+            dead_gcs.brake_jerk,
+        ):
+            raise ValueError("dead_gcs timeout and stop limits must be set (the mission loader sets them)")
         self.dead_gcs = dead_gcs
 
     # ----- live changes (operator console) -----
@@ -358,18 +362,22 @@ class FleetController:
 
         # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
         speed_cap = self.v_xy_cap * self.speed_scale
+        if separation.closing_brake_accel > 0.0:  # nobody closes on another faster than it could stop
+            speed_cap = np.minimum(
+                speed_cap,
+                closing_speed_caps(
+                    self.last_pos, self.last_vel, known,
+                    separation.d_emg if separation.mode == "constant" else separation.s_s,
+                    separation.closing_brake_accel,
+                    float(np.max(self.v_xy_cap)),
+                ),
+            )  # fmt: skip
         if self.dead_gcs is not None and self.dead_gcs.speed_scheduling:
             fs = self.dead_gcs
             caps = failsafe_speed_caps(
-                pos,
-                vel,
-                obs_c,
-                obs_r,
-                float(fs.failsafe_timeout_s or 0.0),
-                fs.brake_accel,
-                fs.clearance,
-                fs.brake_jerk,
-            )
+                pos, vel, obs_c, obs_r, float(fs.failsafe_timeout_s or 0.0), float(fs.brake_accel or 0.0),
+                fs.clearance, float(fs.brake_jerk or 0.0),
+            )  # fmt: skip
             speed_cap = np.minimum(speed_cap, caps)
         x_d, xd_dot, xd_ddot = self.generator.step(
             force,

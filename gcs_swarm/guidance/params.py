@@ -55,8 +55,14 @@ class SeparationParams:
     t_r: float = 0.2  # s, reaction time (formula mode)
     s_s: float = 1.0  # m, safe distance (formula mode)
     a_e: float = 10.0  # m/s^2, emergency deceleration (formula mode)
+    # m/s^2 [add]: a vehicle's speed is capped so that it closes on any other vehicle no faster than it could
+    # stop, at this deceleration, 1 m outside d_emg (separation.closing_speed_caps): the repulsion alone let a
+    # follower catching up at 20 m/s run into one slowing ahead of it (1.29 m in the nine-UAV V). 0 = off
+    closing_brake_accel: float = 2.0
 
     def __post_init__(self) -> None:
+        if not self.closing_brake_accel >= 0:
+            raise ValueError("closing_brake_accel must be >= 0 (0 turns the closing-speed cap off)")
         if self.mode not in ("constant", "formula"):
             raise ValueError(f"separation mode must be 'constant' or 'formula', not {self.mode!r}")
         for name in ("d_max", "d_emg", "a_e"):
@@ -98,7 +104,9 @@ class SMCParams:
     """Sliding-mode position controller (spec 7.3 gains, 7.4 boundary layer, per-channel disturbance
     estimate [add] in gcs_swarm.guidance.smc)."""
 
-    xy: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(0.8, 1.5, 0.3, 0.05))
+    # xy: the disturbance estimate on [add] (disturbance_gain 1/s): without integral action a 3.6-5 m/s wind
+    # holds the leader 1.05-1.7 m off its goal for good (4 of 50 quickstart Monte Carlo worlds never arrived)
+    xy: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(0.8, 1.5, 0.3, 0.05, disturbance_gain=1.0))
     z: SMCAxisGains = field(default_factory=lambda: SMCAxisGains(1.0, 2.0, 0.5, 0.1))
     boundary_layer: float = 0.0  # m/s, Phi of sat(s/Phi); 0 = off (sgn, as in the paper)
     # [add] horizontal drag adaptation (gcs_swarm.guidance.smc): U += c_hat v_xy, c_hat_dot = gamma s . v_xy,
@@ -264,6 +272,20 @@ class FenceParams:
             raise ValueError(f"action must be one of {', '.join(FENCE_ACTIONS)}, not {self.action!r}")
 
 
+# How each GCS-failsafe action stops a vehicle at speed (m/s^2, m/s^3): the limits of ArduCopter's shaped
+# stop, each checked against a real ArduCopter SITL quad from 10.1 m/s (docs/reliability.md "How a vehicle
+# stops").
+# brake: BRAKE, BRAKE_MODE_DECEL_RATE 7.5 and PSC_JERK_XY 5 (20.4 m); land: LAND's loiter braking,
+# LOIT_BRK_ACCEL 2.5 and LOIT_BRK_JERK 5 (23.7 m); rtl first stops like a loiter too; off never stops at all
+# (the speed scheduling then bounds nothing, and assumes the gentlest of these).
+STOP_SHAPING: dict[str, tuple[float, float]] = {
+    "brake": (7.5, 5.0),
+    "land": (2.5, 5.0),
+    "rtl": (2.5, 5.0),
+    "off": (2.5, 5.0),
+}
+
+
 @dataclass(frozen=True)
 class DeadGcsParams:
     """What the vehicles do if the ground station dies, and the speed scheduling that keeps it safe [add]
@@ -274,8 +296,10 @@ class DeadGcsParams:
     # s, FS_GCS_TIMEOUT set for the flight (2..120), >= telemetry.lost_s so that an outage the fleet rides out
     # fires no failsafe; None: telemetry.lost_s (the mission loader fills it in)
     failsafe_timeout_s: float | None = None
-    brake_accel: float = 7.5  # m/s^2, BRAKE's shaping acceleration limit (ArduCopter BRAKE_MODE_DECEL_RATE)
-    brake_jerk: float = 5.0  # m/s^3, BRAKE's shaping jerk limit: the vehicles' PSC_JERK_XY (default 5)
+    # m/s^2 and m/s^3, acceleration and jerk limits of the failsafe's shaped stop (failsafe_speed
+    # .brake_distance); None: the failsafe action's own (STOP_SHAPING; the mission loader fills them in)
+    brake_accel: float | None = None
+    brake_jerk: float | None = None
     clearance: float = 3.0  # m, kept between the point a vehicle would stop at and an obstacle's surface
     speed_scheduling: bool = True  # cap each vehicle's speed so that it stops short of what its course meets
     fence: FenceParams = FenceParams()  # the autopilots' geofence around the obstacles (FenceParams)
@@ -285,10 +309,10 @@ class DeadGcsParams:
             raise ValueError("guided_timeout_s must lie in 0.1..5 s (ArduCopter's GUID_TIMEOUT range)")
         if self.failsafe_timeout_s is not None and not 2.0 <= self.failsafe_timeout_s <= 120.0:
             raise ValueError("failsafe_timeout_s must lie in 2..120 s (ArduCopter's FS_GCS_TIMEOUT range)")
-        if not self.brake_accel > 0:
+        if self.brake_accel is not None and not self.brake_accel > 0:
             raise ValueError("brake_accel must be > 0")
-        if not 1.0 <= self.brake_jerk <= 20.0:
-            raise ValueError("brake_jerk must lie in 1..20 m/s^3 (ArduCopter's PSC_JERK_XY range)")
+        if self.brake_jerk is not None and not 1.0 <= self.brake_jerk <= 50.0:
+            raise ValueError("brake_jerk must lie in 1..50 m/s^3 (PSC_JERK_XY 1..20, LOIT_BRK_JERK 5..50)")
         if not self.clearance >= 0:
             raise ValueError("clearance must be >= 0")
 
@@ -307,6 +331,8 @@ PAPER_PLAIN: dict[str, dict[str, float]] = {
     },
     "limits": {"tilt_rate_max_deg": 0.0},
     "control.smc": {"drag_adaptation": 0.0},
+    "control.smc.xy": {"disturbance_gain": 0.0},
+    "safety.separation": {"closing_brake_accel": 0.0},
 }
 
 

@@ -89,6 +89,42 @@ def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float) -> tuple
     return i[near], j[near]
 
 
+CLOSING_MARGIN_M = 1.0  # m kept beyond d_emg by the closing-speed cap
+CLOSING_RANGE_MAX_M = 200.0  # m, pairs farther apart than this are not checked
+
+
+def closing_speed_caps(
+    pos: np.ndarray, vel: np.ndarray, valid: np.ndarray, d_emg: float, accel: float, speed_max: float
+) -> np.ndarray:
+    """(N,) m/s horizontal speed caps [add]: vehicle i closing on vehicle j at c = (v_i - v_j) . u_ij
+    (u_ij the unit vector from i to j) faster than it could stop at `accel` m/s^2 before `d_emg` + 1 m,
+    c > sqrt(2 accel (d - d_emg - 1)), is capped at |v_i,xy| - (c - that), but only while its own velocity
+    points at j (v_i . u_ij > 0): the vehicle behind slows down, the one ahead is left alone. inf where
+    nothing closes in; pairs with an invalid row (`valid` (N,) bool False) are skipped. pos, vel (N, 3) ENU.
+    `speed_max` m/s bounds the relative speeds that set the range checked."""
+    n = len(pos)
+    caps = np.full(n, np.inf)
+    if n < 2 or accel <= 0:
+        return caps
+    reach = d_emg + CLOSING_MARGIN_M + (2.0 * speed_max) ** 2 / (2.0 * accel)
+    rows = np.flatnonzero(valid & np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1))
+    i, j = neighbour_pairs(pos[rows], pos[rows], min(reach, CLOSING_RANGE_MAX_M))
+    if not len(i):
+        return caps
+    i, j = rows[i], rows[j]
+    rel = pos[j] - pos[i]
+    dist = np.sqrt(np.einsum("pd,pd->p", rel, rel))
+    unit = rel / np.maximum(dist, 1e-9)[:, None]
+    own = np.einsum("pd,pd->p", vel[i], unit)
+    closing = own - np.einsum("pd,pd->p", vel[j], unit)
+    allowed = np.sqrt(2.0 * accel * np.maximum(dist - d_emg - CLOSING_MARGIN_M, 0.0))
+    excess = closing - allowed
+    hit = (own > 0.0) & (excess > 0.0)
+    speed = np.hypot(vel[i, 0], vel[i, 1])
+    np.minimum.at(caps, i[hit], np.maximum(speed[hit] - excess[hit], 0.0))
+    return caps
+
+
 def uav_potential(p_at: np.ndarray, p_src: np.ndarray, k_uav: float, n: float, d_max: float) -> np.ndarray:
     """Sum over j != i of U_ij(|p_at[i] - p_src[j]|), (N,) (dense; for tests and small N)."""
     d = np.linalg.norm(p_at[:, None, :] - p_src[None, :, :], axis=-1)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_swarm.guidance.params import (
+    STOP_SHAPING,
     DeadGcsParams,
     FieldParams,
     Limits,
@@ -286,6 +287,13 @@ def _safety(safety: Section) -> SafetySpec:
             f"failsafe_timeout_s ({dead_gcs.failsafe_timeout_s:g} s) must be at least telemetry.lost_s "
             f"({telemetry.lost_s:g} s): a vehicle would brake on a link outage the fleet still rides out"
         )
+    gcs_failsafe = safety.choice("gcs_failsafe", "land", ("brake", "land", "rtl", "off"))
+    stop_accel, stop_jerk = STOP_SHAPING[gcs_failsafe]
+    dead_gcs = dataclasses.replace(
+        dead_gcs,
+        brake_accel=stop_accel if dead_gcs.brake_accel is None else dead_gcs.brake_accel,
+        brake_jerk=stop_jerk if dead_gcs.brake_jerk is None else dead_gcs.brake_jerk,
+    )
     fence = Section.within(safety, "geofence", ("radius", "max_alt"))
     min_altitude = safety.number("min_altitude", 2.0, at_least=0, unit="m")
     return SafetySpec(
@@ -296,7 +304,7 @@ def _safety(safety: Section) -> SafetySpec:
             "max_alt", 300.0, above=min_altitude, unit="m (above safety.min_altitude)"
         ),
         collision_radius=safety.number("collision_radius", 0.175, above=0, unit="m"),
-        gcs_failsafe=safety.choice("gcs_failsafe", "brake", ("brake", "land", "rtl", "off")),
+        gcs_failsafe=gcs_failsafe,
         telemetry=telemetry,
         dead_gcs=dead_gcs,
     )

@@ -64,6 +64,8 @@ def test_quickstart_reaches_goal_and_repeats_exactly(quickstart: Path, tmp_path:
     _flies_smoothly(report)
     for name in ("truth.csv", "record.csv", "report.md", "telemetry.tlog"):
         assert (first.run_dir / name).stat().st_size > 0, name
+    simulator_log = (first.run_dir / "simulator.log").read_text()
+    assert "Traceback" not in simulator_log and "Fatal Python error" not in simulator_log  # a clean exit
     # The telemetry log is a standard tlog that pymavlink reads back.
     log = mavutil.mavlink_connection(str(first.run_dir / "telemetry.tlog"))
     types = set()

@@ -1,8 +1,8 @@
 """A ground station started again while its vehicles are still in the air (a previous one crashed and their
-GCS failsafe left them holding in BRAKE): `gcs-swarm run --connect-only` reads their state and refuses to
-launch on top of them, `--airborne land` lands them where they are, `--airborne finish` flies the mission on
-from where they are. Against a free-running `sitl-sim` (the vehicles must keep flying between the two ground
-stations), on free loopback ports, every process killed at the end."""
+GCS failsafe, set to brake here, left them holding in BRAKE): `gcs-swarm run --connect-only` reads their
+state and refuses to launch on top of them, `--airborne land` lands them where they are, `--airborne finish`
+flies the mission on from where they are. Against a free-running `sitl-sim` (the vehicles must keep flying
+between the two ground stations), on free loopback ports, every process killed at the end."""
 
 from __future__ import annotations
 
@@ -22,7 +22,8 @@ from tests.e2e.conftest import ROOT, derived_mission
 
 SPEEDUP = 4.0  # the simulator's pace: fast enough for a short test, slow enough for a loaded machine
 KILL_AT_S = 24.0  # vehicle s: a few seconds into formation flight (boot 5 s, preflight and take-off ~12 s)
-BRAKE, LAND = 17, 9  # ArduCopter custom_mode
+FAILSAFE_S = 10.0  # s, FS_GCS_TIMEOUT of the test mission
+BRAKE = 17  # ArduCopter custom_mode
 
 
 def _gcs(
@@ -41,8 +42,18 @@ def held_fleet(tmp_path: Path) -> Iterator[tuple[Path, Path]]:
     for vehicle in data["vehicles"]:
         vehicle.pop("connection", None)  # udpout:127.0.0.1:<base_port + i>
     data["run"]["simulator"]["base_port"] = base
+    # brake: they hold in the air for the next ground station (the default, land, would bring them down);
+    # FS_GCS_TIMEOUT 10 s: at SPEEDUP x real time, a ground station starved of CPU for 3 s / SPEEDUP of wall
+    # time (a loaded test machine) would otherwise set off the failsafe of vehicles it is still flying
+    data["safety"]["gcs_failsafe"] = "brake"
+    data["safety"]["dead_gcs"]["failsafe_timeout_s"] = FAILSAFE_S
     mission = derived_mission(
-        tmp_path, "quickstart.yaml", "reattach", vehicles=data["vehicles"], run=data["run"]
+        tmp_path,
+        "quickstart.yaml",
+        "reattach",
+        vehicles=data["vehicles"],
+        run=data["run"],
+        safety=data["safety"],
     )
     truth = tmp_path / "truth.csv"
     sim_cmd = [sys.executable, "-m", "sitl_sim", "--mission", str(mission), "--base-port", str(base)]
@@ -52,7 +63,7 @@ def held_fleet(tmp_path: Path) -> Iterator[tuple[Path, Path]]:
         crashed = _gcs(mission, tmp_path / "crashed", "--crash-at", str(KILL_AT_S))
         assert crashed.returncode == -9, crashed.stdout[-2000:]  # SIGKILL, as a crash
         assert "phase formation" in crashed.stdout
-        time.sleep(6.0 / SPEEDUP)  # FS_GCS_TIMEOUT (3 s) and the brake play out
+        time.sleep((FAILSAFE_S + 6.0) / SPEEDUP)  # FS_GCS_TIMEOUT and the brake play out
         yield mission, truth
     finally:
         sim.kill()

@@ -10,14 +10,15 @@ import numpy as np
 
 from tests.e2e.conftest import SHORT_BOOT, fly, static6_short
 
-BRAKE = 17  # ArduCopter custom_mode: the GCS failsafe the missions ask for (safety.gcs_failsafe: brake)
+LAND = 9  # ArduCopter custom_mode: the GCS failsafe of the missions (safety.gcs_failsafe: land, the default)
 
 
-def _holds_in_brake(track: np.ndarray, since: float) -> None:
-    """After `since` (s) the vehicle is in BRAKE, ends at rest in the air, armed, and never crashed."""
-    assert set(track["mode"][track["t"] > since].astype(int)) == {BRAKE}  # its own GCS failsafe
+def _lands_by_its_failsafe(track: np.ndarray, since: float) -> None:
+    """After `since` (s) the vehicle is in LAND (its own GCS failsafe), stops and comes down where it is:
+    it ends on the ground disarmed, and never crashed."""
+    assert set(track["mode"][track["t"] > since].astype(int)) == {LAND}
     end = track[-1]
-    assert np.hypot(end["vx"], end["vy"]) < 0.3 and end["z"] > 5.0 and end["armed"] == 1
+    assert end["landed"] == 1 and end["armed"] == 0, end
     assert track["crashed"].max() == 0
 
 
@@ -42,12 +43,12 @@ def test_follower_killed_mid_flight_leaves_the_rest_flying_and_reported(
     for i in (0, 1):  # the others reached their slots while the lost one was away
         row = formation_end[formation_end["vehicle"] == i][0]
         assert np.linalg.norm([row["x"] - targets[i, 0], row["y"] - targets[i, 1]]) < 1.5
-    _holds_in_brake(truth[truth["vehicle"] == 2], 15 + 3 + 0.5)  # FS_GCS_TIMEOUT 3 s after the outage
+    _lands_by_its_failsafe(truth[truth["vehicle"] == 2], 15 + 3 + 0.5)  # FS_GCS_TIMEOUT 3 s after the outage
 
 
 def test_leader_lost_mid_flight_hands_the_lead_on(quickstart: Path, tmp_path: Path) -> None:
     """The leader's link dies at 15 s: the lowest-index live vehicle ("right") takes the lead to the same goal
-    and the other follower re-forms on it; the old leader does its own GCS failsafe (BRAKE, and holds)."""
+    and the other follower re-forms on it; the old leader does its own GCS failsafe (LAND where it is)."""
     run = fly(
         quickstart, tmp_path / "run", timeout_s=300, extra=["--sim-arg=--link-outage=0@15:inf", SHORT_BOOT]
     )
@@ -65,7 +66,7 @@ def test_leader_lost_mid_flight_hands_the_lead_on(quickstart: Path, tmp_path: Pa
     goal = np.array(flight["final_targets"])[1]
     assert np.linalg.norm([new_leader["x"] - goal[0], new_leader["y"] - goal[1]]) < 1.5
     assert goal.tolist() == [160.0, 120.0, 10.0]  # the mission's goal, now the new leader's
-    _holds_in_brake(truth[truth["vehicle"] == 0], 15 + 3 + 0.5)
+    _lands_by_its_failsafe(truth[truth["vehicle"] == 0], 15 + 3 + 0.5)
 
 
 def test_six_uav_paper_mission_under_ten_percent_loss_and_100ms_jitter(tmp_path: Path) -> None:

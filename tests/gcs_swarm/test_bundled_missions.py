@@ -133,8 +133,8 @@ def test_quickstart_spells_out_the_defaults() -> None:
     assert mission.safety.separation == SeparationParams()
     assert mission.safety.telemetry == TelemetryParams() and mission.link == LinkSpec()
     assert (
-        mission.safety.dead_gcs == DeadGcsParams(failsafe_timeout_s=3.0)
-        and mission.safety.gcs_failsafe == "brake"
+        mission.safety.dead_gcs == DeadGcsParams(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0)
+        and mission.safety.gcs_failsafe == "land"
     )
     assert not mission.run.airborne_start
     assert mission.formation.altitude == 10.0 and mission.formation.spacing == 10.0

@@ -67,9 +67,11 @@ def test_minimal_mission_takes_the_spec_defaults() -> None:
     assert (mission.safety.min_altitude, mission.safety.collision_radius, mission.safety.gcs_failsafe) == (
         2.0,
         0.175,
-        "brake",
+        "land",
     )
-    assert mission.safety.dead_gcs == DeadGcsParams(failsafe_timeout_s=3.0) and not mission.run.keep_params
+    # LAND's stop (LOIT_BRK_ACCEL 2.5 m/s^2, LOIT_BRK_JERK 5 m/s^3) for the speed scheduling
+    assert mission.safety.dead_gcs == DeadGcsParams(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0)
+    assert not mission.run.keep_params
     assert (mission.formation.shape, mission.formation.spacing, mission.formation.angle_deg) == (
         "v",
         10.0,
@@ -115,7 +117,7 @@ def test_every_params_field_is_settable_and_nested_gains_keep_their_other_defaul
         "guidance: {method: apf, d_g: 12.5, n: 1.2, reference: {leash: 3, paper_literal: true}}\n"
         "control: {controller: pid, smc: {xy: {c1: 1.0}, boundary_layer: 0.05}, pid: {kp_z: 4}}\n"
         "limits: {tilt_max_deg: 30, v_xy: 15}\n"
-        "safety: {separation: {mode: formula, t_r: 0.3}, min_altitude: 3, gcs_failsafe: land}\n"
+        "safety: {separation: {mode: formula, t_r: 0.3}, min_altitude: 3, gcs_failsafe: brake}\n"
     )
     mission = parse_mission(text)
     assert mission.field == dataclasses.replace(FieldParams(), method="apf", d_g=12.5, n=1.2)
@@ -126,7 +128,8 @@ def test_every_params_field_is_settable_and_nested_gains_keep_their_other_defaul
     assert mission.controller == "pid" and mission.pid.kp_z == 4.0
     assert mission.limits.tilt_max_deg == 30.0 and mission.limits.v_xy == 15.0
     assert mission.safety.separation.mode == "formula" and mission.safety.separation.t_r == 0.3
-    assert mission.safety.gcs_failsafe == "land"
+    assert mission.safety.gcs_failsafe == "brake"
+    assert (mission.safety.dead_gcs.brake_accel, mission.safety.dead_gcs.brake_jerk) == (7.5, 5.0)  # BRAKE's
 
 
 def test_waypoints_end_at_the_goal() -> None:

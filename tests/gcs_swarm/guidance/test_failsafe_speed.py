@@ -1,5 +1,5 @@
-"""The dead-ground-station speed scheduling (gcs_swarm.guidance.failsafe_speed): ArduCopter's BRAKE stopping
-distance, checked against its closed form, and the speed caps it gives."""
+"""Speed caps that keep a stop possible: ArduCopter's BRAKE and LAND stopping distances (checked against their
+closed form and the real vehicle) for a dead ground station, and the closing-speed cap between vehicles."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gcs_swarm.guidance.failsafe_speed import brake_distance, distance_along_course, failsafe_speed_caps
+from gcs_swarm.guidance.separation import closing_speed_caps
 
 A, J = 7.5, 5.0  # BRAKE_MODE_DECEL_RATE m/s^2, PSC_JERK_XY m/s^3
 
@@ -40,6 +41,8 @@ def test_brake_distance_against_a_real_arducopter() -> None:
     about 6.5 m (the same vehicle after a ground-station kill, docs/reliability.md)."""
     assert float(brake_distance(10.14, A, J)) == pytest.approx(20.4, rel=0.05)
     assert float(brake_distance(10.0, A, J)) > 2.5 * 10.0**2 / (2 * A)  # not a constant 7.5 m/s^2 stop
+    # LAND's loiter braking (LOIT_BRK_ACCEL 2.5 m/s^2, LOIT_BRK_JERK 5 m/s^3): 23.7 m on the real vehicle
+    assert float(brake_distance(10.14, 2.5, 5.0)) == pytest.approx(23.7, rel=0.05)
 
 
 @given(st.floats(0.0, 40.0), st.floats(0.0, 40.0))
@@ -72,3 +75,17 @@ def test_inside_the_grown_sphere_the_cap_is_zero() -> None:
     centres, radii = np.array([[80.0, 0.0, 10.0]]), np.array([5.0])
     cap = failsafe_speed_caps(pos, np.array([[1.0, 0.0, 0.0]]), centres, radii, 3.0, A, 3.0, J)
     assert float(cap[0]) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_closing_speed_cap_slows_the_vehicle_behind_only() -> None:
+    """Two vehicles on the x axis, 20 m apart: the one behind at 20 m/s, the one ahead at 10 m/s. Closing
+    at 10 m/s, while stopping at 2 m/s^2 one metre outside d_emg = 3 m allows sqrt(2 * 2 * (20 - 3 - 1)) = 8
+    m/s: the one behind is capped at 20 - (10 - 8) = 18 m/s, the one ahead (moving away) not at all."""
+    pos = np.array([[0.0, 0.0, 10.0], [20.0, 0.0, 10.0], [0.0, 500.0, 10.0]])
+    vel = np.array([[20.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, -5.0, 0.0]])  # the third: far, not in range
+    caps = closing_speed_caps(pos, vel, np.ones(3, dtype=bool), 3.0, 2.0, 20.0)
+    assert caps[0] == pytest.approx(18.0)
+    assert np.isinf(caps[1]) and np.isinf(caps[2])
+    # slow enough, or unknown: no cap
+    assert np.isinf(closing_speed_caps(pos, vel * 0.3, np.ones(3, dtype=bool), 3.0, 2.0, 20.0)).all()
+    assert np.isinf(closing_speed_caps(pos, vel, np.array([True, False, True]), 3.0, 2.0, 20.0)).all()
