@@ -5,10 +5,10 @@ formation flight and count, from the simulator's ground truth, what the vehicles
     python benchmarks/bench_gcs_kill.py --mission missions/paper_static_6.yaml --goal 600,600,200 --runs 20
 
 Policies (mission `safety` settings, docs/reliability.md):
-  default   gcs_failsafe brake, dead_gcs as the mission file says (GUID_TIMEOUT 0.5 s,
-            FS_GCS_TIMEOUT = lost_s, failsafe speed scheduling)
+  default   as the mission file says: gcs_failsafe land (the default), GUID_TIMEOUT 0.5 s,
+            FS_GCS_TIMEOUT = lost_s, failsafe speed scheduling on LAND's stop
+  brake     BRAKE (Brake or Land: holds in the air) instead of LAND, otherwise default
   stock     what ArduCopter does with the old settings: RTL after 5 s, GUID_TIMEOUT 3 s, no speed scheduling
-  land      LAND instead of BRAKE, otherwise default
 Prints one line per run and a summary per policy (collisions, smallest clearance and separation after the
 kill, how the vehicles ended, the simulator's exit time).
 """
@@ -38,7 +38,7 @@ POLICIES = {
         "gcs_failsafe": "rtl",
         "dead_gcs": {"guided_timeout_s": 3.0, "failsafe_timeout_s": 5.0, "speed_scheduling": False},
     },
-    "land": {"gcs_failsafe": "land"},
+    "brake": {"gcs_failsafe": "brake"},
 }
 
 

@@ -27,8 +27,8 @@ EXIT_WALL_S = 120.0  # wall s the orphaned simulator may take to land or hold it
 class KillOutcome:
     """What happened after a kill at `killed_at` (simulated s), from truth.csv: vehicles crashed, the
     smallest obstacle clearance (m) and pair separation (m) from the kill on, how each vehicle ended
-    ("landed", "holding" (BRAKE, at rest), or its mode number and speed), the simulator's exit (wall s after
-    the kill; None if it had to be killed), whether record.csv runs up to the kill."""
+    ("landed", "holding" (BRAKE, at rest), "crashed", or its mode number and speed), the simulator's exit
+    (wall s after the kill; None if it had to be killed), whether record.csv runs up to the kill."""
 
     killed_at: float
     crashed: int
@@ -117,7 +117,9 @@ def outcome_after(run_dir: Path, killed_at: float, exit_s: float | None) -> Kill
     for i in range(n):
         last = truth[truth["vehicle"] == i][-1]
         speed = float(np.hypot(last["vx"], last["vy"]))
-        if last["landed"] and not last["armed"]:
+        if last["crashed"]:
+            ends.append("crashed")
+        elif last["landed"] and not last["armed"]:
             ends.append("landed")
         elif int(last["mode"]) == BRAKE and speed < 0.3:
             ends.append("holding")

@@ -161,19 +161,32 @@ class ReferenceGenerator:
             # [add] altitude floor: the allowed descent rate shrinks to zero at z_min (climb below it), so no
             # field (an obstacle pushing down, say) can drive a reference into the ground.
             # With the stopping curve on, the allowed descent follows the braking curve to the floor.
-            height = self.p[:, 2] - self.z_min
+            height = np.maximum(self.p[:, 2] - self.z_min, 0.0)
             if self.params.stop_accel > 0.0:
                 floor_rate = -sqrt_controller(height, self.params.k_v, self.params.stop_accel, 0.0)
             else:
                 floor_rate = -self.params.k_v * height
+            if self.params.jerk_max > 0.0:
+                # the shaped vertical velocity follows a demand change exponentially at rate jerk_max_z / a_z
+                # (1/s, shape_vel_accel's linear region): from a descent w it needs about w / rate to stop.
+                # Half that rate leaves room for the jerk ramp and the vehicle's own lag (a 4-obstacle world
+                # in 4.8 m/s wind drove a reference to -4 m and a vehicle into the ground at 6.8 m/s)
+                rate = 0.5 * self.params.jerk_max_z / self.limits.a_z
+                floor_rate = np.maximum(floor_rate, -rate * height)
             v_cmd[:, 2] = np.maximum(v_cmd[:, 2], np.minimum(floor_rate, self.limits.v_z))
         evasive = np.zeros(len(force), dtype=bool) if evasive is None else evasive
         a = self._acceleration(v_cmd, a_ff, dt, evasive)  # step 4
         a = np.where(rows[:, None], a, self.a)
         now = (self.p.copy(), self.v.copy(), a)
         v = self.v + a * dt  # step 5
+        p = self.p + v * dt
+        if self.z_min is not None:  # [add] whatever the shaping did, a reference never sinks below the floor
+            low = p[:, 2] < self.z_min
+            p[low, 2] = self.z_min
+            v[low, 2] = np.maximum(v[low, 2], 0.0)
+            a[low, 2] = np.maximum(a[low, 2], 0.0)
         sel = rows[:, None]
-        self.p = np.where(sel, self.p + v * dt, self.p)
+        self.p = np.where(sel, p, self.p)
         self.v = np.where(sel, v, self.v)
         self.a = a
         return now

@@ -337,3 +337,28 @@ def test_push_out_moves_points_to_the_grown_circle_only():
     np.testing.assert_allclose(out[0], [8.0, 0.0, 10.0])
     np.testing.assert_allclose(out[1], [math.sqrt(60.0), 0.0, 8.0])
     np.testing.assert_allclose(out[2:], pts[2:])
+
+
+@pytest.mark.parametrize("start_vz", [0.0, -8.0])
+def test_reference_never_sinks_below_the_altitude_floor(start_vz: float) -> None:
+    """A field pushing straight down as hard as it can (an obstacle above, say) from 10 m with a 2 m floor,
+    starting at rest or already diving at 8 m/s (what a 4-obstacle world in 4.8 m/s wind produced, driving a
+    reference to -4 m and a vehicle into the ground): the jerk-limited reference must stop at the floor and
+    not below it, and near the floor descend no faster than its shaping can stop."""
+    params = ReferenceParams()
+    gen = ReferenceGenerator(params, Limits(), k_att=100.0, z_min=2.0)
+    gen.reset(np.array([[0.0, 0.0, 10.0]]), np.array([[0.0, 0.0, start_vz]]))
+    down = np.array([[0.0, 0.0, -1e6]])
+    lowest, rows, arrival = 10.0, np.array([True]), None
+    for _ in range(1500):  # 30 s at 50 Hz
+        p, v, _a = gen.step(down, np.zeros((1, 3)), np.array([10.0]), 0.02, rows)
+        lowest = min(lowest, float(p[0, 2]))
+        if arrival is None and float(p[0, 2]) < 2.2:
+            arrival = -float(v[0, 2])  # descent speed on reaching the last 0.2 m
+    assert lowest >= 2.0 - 1e-9
+    assert arrival is not None
+    if (
+        start_vz == 0.0
+    ):  # from rest the descent near the floor is slow (the shaping could not stop 8 m/s there)
+        assert arrival < 1.0, arrival
+    assert abs(float(gen.p[0, 2]) - 2.0) < 0.05 and abs(float(gen.v[0, 2])) < 0.05  # resting on the floor
