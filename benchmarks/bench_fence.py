@@ -30,27 +30,14 @@ sys.path.insert(0, str(ROOT))
 
 from gcs_swarm.evaluation.flights import free_udp_base  # noqa: E402
 from gcs_swarm.evaluation.gcs_kill import fly_and_kill, kill_moments  # noqa: E402
+from gcs_swarm.evaluation.variants import read_yaml  # noqa: E402
 from gcs_swarm.link.fence import exclusion_circles  # noqa: E402
 from gcs_swarm.mission import load_mission  # noqa: E402
 from gcs_swarm.report import load_truth  # noqa: E402
 
 
-def _numbers(node: object) -> object:
-    """PyYAML reads `1e5` as text (YAML 1.1): numbers again before dumping."""
-    if isinstance(node, dict):
-        return {k: _numbers(v) for k, v in node.items()}
-    if isinstance(node, list):
-        return [_numbers(v) for v in node]
-    if isinstance(node, str):
-        try:
-            return float(node)
-        except ValueError:
-            return node
-    return node
-
-
 def variant(folder: Path, source: str, name: str, fence: dict, **changes: object) -> Path:
-    data = _numbers(yaml.safe_load((ROOT / "missions" / source).read_text()))
+    data = read_yaml(ROOT / "missions" / source)  # YAML 1.2 numbers (1e5) as the mission loader reads them
     assert isinstance(data, dict)
     data.setdefault("mission", {})["name"] = name
     if source == "paper_static_6.yaml":  # the six-UAV mission of the end-to-end tests (static6_short)
