@@ -310,6 +310,22 @@ class Fences:
             self.enabled_mask[i] &= ~fences
             self.breaches[i] &= ~fences
 
+    def _limit_with_backup(
+        self, on: np.ndarray, value: np.ndarray, limit: np.ndarray, bit: int, backup: np.ndarray
+    ) -> np.ndarray:
+        """The rule of ArduCopter's altitude and home-circle fences (AC_Fence check_fence_alt_max,
+        check_fence_circle) for the (N,) vehicles `on`: `value` (N,) m at or beyond `limit` (N,) m is a breach
+        of fence `bit`, new if it was not breached yet or has gone past its backup fence (`backup` (N,) m,
+        updated in place: BACKUP_DISTANCE_M beyond where the breach was last reported; 0 = none); back inside,
+        the breach and the backup clear. Returns (N,) `bit` where the breach is new, else 0."""
+        over = on & (value >= limit)
+        fresh = over & ((self.breaches & bit == 0) | ((backup != 0.0) & (value >= backup)))
+        backup[fresh] = value[fresh] + BACKUP_DISTANCE_M
+        clear = on & ~over & (self.breaches & bit != 0)
+        self.breaches[clear] &= ~bit
+        backup[clear] = 0.0
+        return np.where(fresh, bit, 0)
+
     def check(
         self,
         t: float,
@@ -334,31 +350,14 @@ class Fences:
         on = active & (enabled & ALT_MAX != 0)
         alt = pos[:, 2] - home[:, 2]
         self.distance[:, 0] = np.where(on, alt - alt_max, self.distance[:, 0])
-        over = on & (alt >= alt_max)
-        fresh = over & (
-            (self.breaches & ALT_MAX == 0) | ((self.alt_max_backup != 0.0) & (alt >= self.alt_max_backup))
-        )
-        self.alt_max_backup[fresh] = alt[fresh] + BACKUP_DISTANCE_M
-        new[fresh] |= ALT_MAX
-        clear = on & ~over & (self.breaches & ALT_MAX != 0)
-        self.breaches[clear] &= ~ALT_MAX
-        self.alt_max_backup[clear] = 0.0
+        new |= self._limit_with_backup(on, alt, alt_max, ALT_MAX, self.alt_max_backup)
 
         # circle around home (check_fence_circle); without a position the last distance stands
         on = active & (enabled & CIRCLE != 0)
         home_distance = np.hypot(pos[:, 0] - home[:, 0], pos[:, 1] - home[:, 1])
         home_distance = np.where(have_position, home_distance, self.distance[:, 1] + radius)
         self.distance[:, 1] = np.where(on, home_distance - radius, self.distance[:, 1])
-        out = on & (home_distance >= radius)
-        fresh = out & (
-            (self.breaches & CIRCLE == 0)
-            | ((self.circle_backup != 0.0) & (home_distance >= self.circle_backup))
-        )
-        self.circle_backup[fresh] = home_distance[fresh] + BACKUP_DISTANCE_M
-        new[fresh] |= CIRCLE
-        clear = on & ~out & (self.breaches & CIRCLE != 0)
-        self.breaches[clear] &= ~CIRCLE
-        self.circle_backup[clear] = 0.0
+        new |= self._limit_with_backup(on, home_distance, radius, CIRCLE, self.circle_backup)
 
         # inclusion/exclusion circles and polygons (check_fence_polygon)
         on = active & (enabled & POLYGON != 0)
