@@ -12,9 +12,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from gcs_swarm.evaluation.planner import PlannerSettings, PlanResult, plan_path
+from gcs_swarm.evaluation.planning import draw_plan
 from gcs_swarm.guidance.params import FieldParams
-from gcs_swarm.guidance.planner import PlannerSettings, PlanResult, plan_path
-from gcs_swarm.planning import draw_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 CENTRES = np.array([[25.0, 75.0], [81.0, 30.0], [70.0, 70.0], [32.0, 27.0]])  # Table 1

@@ -16,19 +16,20 @@ from pathlib import Path
 
 from gcs_swarm.console.script import PlainConsole
 from gcs_swarm.console.session import FlightSession
-from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
-from gcs_swarm.link.signing import SigningKeyError
-from gcs_swarm.mission import MissionError, load_mission
-from gcs_swarm.report import RECORD_FILE, write_report
-from gcs_swarm.run_command import (
+from gcs_swarm.evaluation.report import write_report
+from gcs_swarm.flight.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.flight.fly import (
     default_run_dir,
     mission_fleet,
     signing_key,
     start_embedded_simulator,
     write_flight,
 )
-from gcs_swarm.run_record import RunRecord
-from gcs_swarm.runner import FlightResult, MissionRunner
+from gcs_swarm.flight.run_folder import RECORD_FILE
+from gcs_swarm.flight.run_record import RunRecord
+from gcs_swarm.flight.runner import FlightResult, MissionRunner
+from gcs_swarm.link.signing import SigningKeyError
+from gcs_swarm.mission import MissionError, load_mission
 
 EXIT_OK, EXIT_USER_ERROR = 0, 2
 HISTORY_FILE = "console_history.txt"

@@ -37,9 +37,9 @@ from gcs_swarm.console.snapshot import (
     obstacle_clearance,
     vehicle_warnings,
 )
+from gcs_swarm.flight.runner import MissionRunner, PreflightError
 from gcs_swarm.link.fleet import LinkError, VehicleLink
 from gcs_swarm.link.vehicle import Event, mode_name, telemetry_rates
-from gcs_swarm.runner import MissionRunner, PreflightError
 
 _PUBLISH_PERIOD_S = 0.05  # wall s between snapshots (the UI renders a few times a second)
 _MAX_LAG_S = 0.5  # real-time pacing: vehicle time this far behind the wall clock is not caught up

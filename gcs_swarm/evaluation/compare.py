@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm.evaluation import figures, flights, variants
+from gcs_swarm.evaluation.run_data import load_commands, load_trajectories
+from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE
 from gcs_swarm.mission import MissionError, load_mission
-from gcs_swarm.report import FLIGHT_FILE, RECORD_FILE, load_commands, load_trajectories
 
 EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR = 0, 1, 2
 COMPARE_KEYS = ("status", "success", "collision", *flights.RESULT_KEYS, *flights.WHOLE_FLIGHT_RESULT_KEYS)

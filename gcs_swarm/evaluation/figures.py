@@ -23,7 +23,7 @@ from gcs_swarm.evaluation import flight_quality, signals
 from gcs_swarm.guidance.formation import slot_positions
 
 if TYPE_CHECKING:
-    from gcs_swarm.report import CommandLog, Trajectories
+    from gcs_swarm.evaluation.run_data import CommandLog, Trajectories
 
 ENABLED = True  # False: write_run_figures draws nothing (Monte Carlo workers)
 MAX_POINTS = 4000  # samples per plotted series; longer logs are decimated for drawing only

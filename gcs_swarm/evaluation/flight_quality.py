@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import savgol_filter
 
-from gcs_swarm import metrics
+from gcs_swarm.evaluation import metrics
 
 CUSP_TURN_DEG = 90.0  # a cusp: the horizontal course turns by more than this ...
 CUSP_WINDOW_S = 1.0  # ... within this long ...

@@ -1,20 +1,20 @@
-"""Flying one derived mission for an experiment: free UDP ports, `run_command` (a real lockstep flight through
-MAVLink against the embedded simulator) and the figures of its report.json as one flat result.
+"""A flight and its evaluation: `fly_and_report` (the flight, then report.json/md/png from its run folder, and
+the exit status of `gcs-swarm run`), and for experiments one derived mission flown on free UDP ports (a real
+lockstep flight through MAVLink against the embedded simulator) with the figures of its report as one flat
+result.
 """
 
 from __future__ import annotations
 
 import json
-import random
-import socket
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from gcs_swarm.report import SUMMARY_KEYS
-from gcs_swarm.run_command import EXIT_USER_ERROR, RunOptions, run_command
+from gcs_swarm.evaluation.report import SUMMARY_KEYS, write_report
+from gcs_swarm.flight.fly import EXIT_FAILED, EXIT_OK, EXIT_USER_ERROR, Flown, RunOptions, fly_mission
+from swarm_common.ports import free_udp_base
 
-PORT_RANGE = (20000, 60000)
-PORT_TRIES = 200
 FLIGHT_TRIES = 3  # a port taken between the probe and the simulator's bind: try again on other ports
 RESULT_KEYS = SUMMARY_KEYS  # the report figures each campaign result line carries
 WHOLE_FLIGHT_RESULT_KEYS = (  # ... and these of report.json's whole_flight (docs/metrics.md)
@@ -28,25 +28,26 @@ WHOLE_FLIGHT_RESULT_KEYS = (  # ... and these of report.json's whole_flight (doc
 )
 
 
-def free_udp_base(count: int) -> int:
-    """A base port with base..base+count-1 free on 127.0.0.1, probed from a random start so that concurrent
-    workers rarely pick the same block. RuntimeError when none is found."""
-    rng = random.Random()
-    for _ in range(PORT_TRIES):
-        base = rng.randrange(PORT_RANGE[0], PORT_RANGE[1] - count)
-        socks: list[socket.socket] = []
-        try:
-            for i in range(count):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(s)
-                s.bind(("127.0.0.1", base + i))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError(f"no block of {count} free UDP ports found")
+def fly_and_report(
+    mission_path: str, options: RunOptions, say: Callable[[str], None]
+) -> tuple[int, Flown, dict[str, Any] | None]:
+    """Fly the mission, then write its report when formation flight began. Returns the exit status of
+    `gcs-swarm run` (0 flown and every vehicle reached its goal with no collision, no lost vehicle and no
+    safety event; with `--airborne land` every vehicle landed and disarmed; 1 flown but failed; 2 user error),
+    the flight and the report (None when none was written)."""
+    flown = fly_mission(mission_path, options, say)
+    if not flown.report_due:
+        return flown.status, flown, None
+    assert flown.run_dir is not None and flown.mission is not None
+    report = write_report(flown.run_dir, flown.mission)
+    ok = (
+        report["reached"]
+        and report["collisions"] == 0
+        and not flown.result.lost
+        and not report["safety_events"]
+    )
+    status = flown.status if flown.status != EXIT_OK else (EXIT_OK if ok else EXIT_FAILED)
+    return status, flown, report
 
 
 def fly(mission_path: Path, run_dir: Path, vehicles: int, link_loss: float = 0.0) -> int:
@@ -60,7 +61,7 @@ def fly(mission_path: Path, run_dir: Path, vehicles: int, link_loss: float = 0.0
         options = RunOptions(
             out_dir=run_dir, base_port=free_udp_base(vehicles), quiet=True, sim_args=sim_args
         )
-        status = run_command(str(mission_path), options)
+        status, _, _ = fly_and_report(str(mission_path), options, lambda _line: None)
         if status != EXIT_USER_ERROR:
             break
     return status

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from gcs_swarm.evaluation.run_data import load_truth
 from gcs_swarm.guidance.failsafe_speed import distance_along_course
-from gcs_swarm.report import load_truth
 
 BRAKE = 17  # ArduCopter custom_mode
 EXIT_WALL_S = 120.0  # wall s the orphaned simulator may take to land or hold its vehicles and exit

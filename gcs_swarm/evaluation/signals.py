@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_swarm import metrics
+from gcs_swarm.evaluation import metrics
 from gcs_swarm.guidance.formation import leader_frame_offsets
 
 RATE_SETTLE_ABS = 0.02  # rad/s, y_abs of the settling time of rate signals (spec 10)

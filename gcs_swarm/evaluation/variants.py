@@ -45,7 +45,7 @@ import yaml
 from gcs_swarm.guidance.formation import rotate_to_world
 from gcs_swarm.guidance.params import PAPER_PLAIN
 from gcs_swarm.mission import Mission, MissionError, load_mission
-from gcs_swarm.runner import mission_offsets
+from gcs_swarm.mission.geometry import mission_offsets
 
 METHODS = ("apf", "iaapf")
 FORMS = ("paper", "smooth")  # the spec's plain method (PAPER_PLAIN) or the mission's smoothing as written

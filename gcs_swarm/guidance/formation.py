@@ -13,6 +13,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from gcs_swarm.guidance.shaping import sqrt_controller
+from swarm_common.rotations import wrap_pi
 
 SHAPES = ("line", "v", "column", "grid")
 
@@ -136,11 +137,6 @@ def assign_slots(
     return out
 
 
-def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
-    """Angle(s) wrapped to [-pi, pi)."""
-    return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi
-
-
 class LeaderHeading:
     """psi_L: course of the leader's reference velocity, held when slow or near the goal (spec 6 [add]). The
     formation rotates with it and every vehicle's yaw is commanded to it.
@@ -163,7 +159,7 @@ class LeaderHeading:
     ) -> None:
         """`min_speed` m/s, `rate_max` rad/s, `hold_distance` m (d_g), `accel_max` rad/s^2, `filter_s` s,
         `gain` 1/s: turn rate per rad of course error in the linear region of the shaping."""
-        self.psi = float(wrap_angle(psi))
+        self.psi = float(wrap_pi(psi))
         self.rate = 0.0
         self.min_speed = min_speed
         self.rate_max = rate_max
@@ -182,7 +178,7 @@ class LeaderHeading:
             self.v_filtered = self.v_filtered + (v - self.v_filtered) * (dt / (self.filter_s + dt))
         vx, vy = float(self.v_filtered[0]), float(self.v_filtered[1])
         steering = math.hypot(vx, vy) > self.min_speed and distance_to_goal > self.hold_distance
-        error = float(wrap_angle(math.atan2(vy, vx) - self.psi)) if steering else 0.0
+        error = float(wrap_pi(math.atan2(vy, vx) - self.psi)) if steering else 0.0
         if self.accel_max <= 0.0:
             rate = error / dt
         else:
@@ -193,6 +189,6 @@ class LeaderHeading:
             rate = min(max(rate, self.rate - step), self.rate + step)
         if not steering and self.accel_max <= 0.0:
             rate = 0.0
-        self.psi = float(wrap_angle(self.psi + rate * dt))
+        self.psi = float(wrap_pi(self.psi + rate * dt))
         self.rate = rate
         return self.psi

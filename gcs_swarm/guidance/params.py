@@ -253,7 +253,7 @@ FENCE_ACTIONS = ("brake", "land", "rtl", "report")  # safety.dead_gcs.fence.acti
 @dataclass(frozen=True)
 class FenceParams:
     """The autopilots' own geofence around the mission's static obstacles [add] (docs/reliability.md "The
-    ground station dies"; gcs_swarm.link.fence): each obstacle the formation can meet is uploaded as an
+    ground station dies"; gcs_swarm.flight.geofence): each obstacle the formation can meet is uploaded as an
     exclusion circle of radius obstacle (its cross-section at the formation's altitudes) + collision radius +
     `margin_m`, so that a vehicle heading into it stops by itself even with no ground station."""
 

@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gcs_swarm import frames
-from gcs_swarm.link import ardupilot
+from gcs_swarm.link import frames
+from gcs_swarm.link.autopilots import ardupilot
 from gcs_swarm.link.connection import (
     ConnectionSpec,
     Endpoint,
@@ -57,7 +57,6 @@ from gcs_swarm.link.vehicle import (
     VehicleConfig,
     VehicleLink,
     telemetry_rates,
-    thrust_from_acc,
 )
 
 __all__ = [
@@ -66,7 +65,6 @@ __all__ = [
     "VehicleConfig",
     "VehicleLink",
     "Event",
-    "thrust_from_acc",
     "telemetry_rates",
 ]
 

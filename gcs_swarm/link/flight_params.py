@@ -39,8 +39,8 @@ class FlightParams:
     def __init__(self, fleet: Fleet) -> None:
         self.fleet = fleet
         self.changes: list[ParamChange] = []
-        # changes that are not parameters (the fence items, gcs_swarm.link.fence): name -> the operation that
-        # puts the original back on a vehicle
+        # changes that are not parameters (the fence items, gcs_swarm.flight.geofence): name -> the operation
+        # that puts the original back on a vehicle
         self.restorers: dict[str, Callable[[VehicleLink, ParamChange], Operation[Any]]] = {}
 
     def set_all(self, name: str, value: float) -> None:

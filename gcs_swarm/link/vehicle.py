@@ -31,11 +31,11 @@ from numpy.typing import ArrayLike, NDArray
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm import frames
-from gcs_swarm.guidance.params import G
-from gcs_swarm.link import ardupilot, signing
+from gcs_swarm.link import frames, signing
+from gcs_swarm.link.autopilots import ardupilot
 from gcs_swarm.link.connection import Endpoint, LinkError, MAVLinkMessage
 from gcs_swarm.link.tlog import TlogWriter
+from swarm_common import rotations
 
 T = TypeVar("T")
 MessageT = TypeVar("MessageT", bound=str | int)  # a MAVLink message name or id
@@ -211,14 +211,6 @@ def telemetry_rates(
     return rates
 
 
-def thrust_from_acc(acc: ArrayLike, hover: ArrayLike, g: float = G) -> NDArray[np.float64]:
-    """Collective thrust acceleration |U| (m/s^2) -> normalised thrust `hover * acc / g` clipped to [0, 1].
-
-    `hover` is the vehicle's MOT_THST_HOVER (normalised thrust that holds 1 g); spec 5, GUID_OPTIONS bit 3.
-    """
-    return np.asarray(np.clip(np.asarray(hover, dtype=float) * np.asarray(acc, dtype=float) / g, 0.0, 1.0))
-
-
 class FleetState:
     """Per-vehicle state arrays, row i = vehicle i. Written only by `VehicleLink` message handlers.
 
@@ -338,7 +330,7 @@ class VehicleLink:
         self._latest_ms: dict[str, int] = {}  # time_boot_ms of the newest packet of each kind (see _on_time)
         self.stream_rates: dict[str | int, float] = {}  # the telemetry asked for (op_request_streams), Hz
         self.streams_asked_ms = -1  # time_boot_ms of the watchdog's latest request (check_streams), -1: none
-        # MISSION_* messages from the vehicle, read by the mission-protocol operations (gcs_swarm.link.fence)
+        # MISSION_* messages from the vehicle, read by the mission-protocol operations (flight.geofence)
         self.mission_messages: deque[MAVLinkMessage] = deque(maxlen=512)
         self.statustext_hooks: list[Callable[[VehicleLink, str], None]] = []  # called with every STATUSTEXT
 
@@ -478,7 +470,7 @@ class VehicleLink:
         if not self._on_time(m.time_boot_ms, "attitude"):
             return
         q_enu = frames.quaternion_ned_to_enu((m.q1, m.q2, m.q3, m.q4))
-        self.state.att[self.index] = frames.quaternion_to_euler(q_enu)
+        self.state.att[self.index] = rotations.quaternion_to_euler(q_enu)
 
     def _on_timed(self, m: MAVLinkMessage) -> None:
         self._on_time(m.time_boot_ms)
@@ -689,7 +681,7 @@ class VehicleLink:
         if yaw is None:
             mask |= mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
         else:
-            yaw_ned = float(frames.wrap_pi(0.5 * math.pi - yaw))
+            yaw_ned = float(rotations.wrap_pi(0.5 * math.pi - yaw))
         self.send(
             self._mav.set_position_target_local_ned_encode(
                 self._answer_time_ms(),
@@ -724,7 +716,7 @@ class VehicleLink:
         if yaw is None:
             mask |= mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
         else:
-            yaw_ned = float(frames.wrap_pi(0.5 * math.pi - yaw))
+            yaw_ned = float(rotations.wrap_pi(0.5 * math.pi - yaw))
         self.send(
             self._mav.set_position_target_global_int_encode(
                 self._answer_time_ms(),
@@ -1007,7 +999,8 @@ class VehicleLink:
 
     def param_name(self, name: str) -> str:
         """The spelling of parameter `name` this vehicle answers to (ArduCopter 4.7 renamed some,
-        gcs_swarm.link.ardupilot.other_param_name), as learned from its PARAM_VALUEs; `name` until known."""
+        gcs_swarm.link.autopilots.ardupilot.other_param_name), as learned from its PARAM_VALUEs; `name` until
+        known."""
         other = ardupilot.other_param_name(name)
         if name not in self.params and other is not None and other in self.params:
             return other

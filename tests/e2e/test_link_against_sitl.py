@@ -19,7 +19,8 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link import vehicle as vehicle_module
-from gcs_swarm.link.fleet import Fleet, VehicleConfig, thrust_from_acc
+from gcs_swarm.link.autopilots.ardupilot import thrust_from_acc
+from gcs_swarm.link.fleet import Fleet, VehicleConfig
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("sitl_sim.__main__") is None, reason="the sitl_sim simulator is not installed"
@@ -104,7 +105,7 @@ def test_fly_and_land_two_vehicles_in_lockstep(simulator: tuple[int, Path], tmp_
             assert fleet.wait_tick(timeout_s=5.0)
             samples.append((fleet.time_ms.copy(), fleet.pos, fleet.att))
             yaw = samples[0][2][:, 2]
-            fleet.send_attitude_targets(np.zeros(N), np.zeros(N), yaw, thrust_from_acc(9.8, hover))
+            fleet.send_attitude_targets(np.zeros(N), np.zeros(N), yaw, thrust_from_acc(9.8, hover, 9.8))
             fleet.answer_frame()
         assert np.all(np.abs(fleet.vel) < 1.0) and np.all(fleet.pos[:, 2] > 1.5)
         fleet.land_all()

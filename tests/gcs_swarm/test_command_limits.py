@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 from gcs_swarm.link.fleet import Fleet, VehicleConfig
 from gcs_swarm.mission import load_mission
-from gcs_swarm.runner import MissionRunner
 
 QUICKSTART = Path(__file__).resolve().parents[2] / "missions" / "quickstart.yaml"
 

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from gcs_swarm.evaluation.report import render_markdown, report_from
+from gcs_swarm.evaluation.run_data import Trajectories
+from gcs_swarm.flight.fly import write_flight
+from gcs_swarm.flight.runner import FlightResult
 from gcs_swarm.mission import load_mission
-from gcs_swarm.report import Trajectories, render_markdown, report_from
-from gcs_swarm.run_command import write_flight
-from gcs_swarm.runner import FlightResult, mission_offsets
+from gcs_swarm.mission.geometry import mission_offsets
 
 QUICKSTART = Path(__file__).resolve().parents[2] / "missions" / "quickstart.yaml"
 

@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gcs_swarm import frames
+from gcs_swarm.link import frames
+from swarm_common import rotations
 
 ORIGIN = (47.397742, 8.545594, 488.0)
 ENU_TO_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # also NED -> ENU
@@ -76,7 +77,7 @@ def test_ned_enu_vectors() -> None:
 )
 def test_yaw_quadrants(yaw_enu_deg: float, yaw_ned_deg: float) -> None:
     ned = frames.attitude_enu_to_ned([0.0, 0.0, math.radians(yaw_enu_deg)])
-    assert math.degrees(frames.wrap_pi(ned[2] - math.radians(yaw_ned_deg))) == pytest.approx(0.0, abs=1e-9)
+    assert math.degrees(rotations.wrap_pi(ned[2] - math.radians(yaw_ned_deg))) == pytest.approx(0.0, abs=1e-9)
 
 
 def test_known_cases() -> None:
@@ -90,10 +91,10 @@ def test_known_cases() -> None:
 
 @given(angles)
 def test_euler_quaternion_round_trip(euler: tuple[float, float, float]) -> None:
-    q = frames.euler_to_quaternion(euler)
+    q = rotations.euler_to_quaternion(euler)
     np.testing.assert_allclose(quaternion_rotation(q), rotation(euler), atol=1e-12)
     np.testing.assert_allclose(
-        quaternion_rotation(frames.euler_to_quaternion(frames.quaternion_to_euler(q))),
+        quaternion_rotation(rotations.euler_to_quaternion(rotations.quaternion_to_euler(q))),
         rotation(euler),
         atol=1e-9,
     )
@@ -109,7 +110,7 @@ def test_attitude_conversion_is_the_frame_change(euler: tuple[float, float, floa
     np.testing.assert_allclose(
         quaternion_rotation(frames.attitude_target_quaternion(euler)), r_ned, atol=1e-12
     )
-    q_enu = frames.quaternion_ned_to_enu(frames.euler_to_quaternion(ned))
+    q_enu = frames.quaternion_ned_to_enu(rotations.euler_to_quaternion(ned))
     np.testing.assert_allclose(quaternion_rotation(q_enu), r_enu, atol=1e-12)
     np.testing.assert_allclose(quaternion_rotation(frames.quaternion_enu_to_ned(q_enu)), r_ned, atol=1e-12)
     back = frames.attitude_ned_to_enu(ned)
@@ -120,7 +121,7 @@ def test_vectorised_shapes() -> None:
     euler = np.zeros((5, 3))
     euler[:, 2] = np.linspace(-3, 3, 5)
     assert frames.attitude_target_quaternion(euler).shape == (5, 4)
-    assert frames.quaternion_to_euler(frames.euler_to_quaternion(euler)).shape == (5, 3)
+    assert rotations.quaternion_to_euler(rotations.euler_to_quaternion(euler)).shape == (5, 3)
     np.testing.assert_allclose(
-        frames.wrap_pi([3 * math.pi, -math.pi, math.pi / 2]), [-math.pi, -math.pi, math.pi / 2]
+        rotations.wrap_pi([3 * math.pi, -math.pi, math.pi / 2]), [-math.pi, -math.pi, math.pi / 2]
     )

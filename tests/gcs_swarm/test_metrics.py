@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm import metrics
+from gcs_swarm.evaluation import metrics
 from gcs_swarm.guidance.formation import slot_positions
 
 

@@ -9,8 +9,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from gcs_swarm.evaluation.planning import JSON_KEYS, plan_json, plan_mission, plot_plan
 from gcs_swarm.guidance.params import FieldParams, Limits, ReferenceParams
-from gcs_swarm.planning import JSON_KEYS, plan_json, plan_mission, plot_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 

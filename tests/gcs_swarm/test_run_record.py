@@ -11,8 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gcs_swarm.report import read_columns
-from gcs_swarm.run_record import COLUMNS, RunRecord
+from gcs_swarm.evaluation.run_data import read_columns
+from gcs_swarm.flight.run_record import COLUMNS, RunRecord
 
 SPECIAL = [0.0, -0.0, math.nan, math.inf, -math.inf, 1e16, 1.5e-7, 123456.5, 2.5e-310, -1.7e308]
 

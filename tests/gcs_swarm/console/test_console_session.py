@@ -15,9 +15,9 @@ import pytest
 from gcs_swarm.console.commands import Request
 from gcs_swarm.console.session import FlightSession
 from gcs_swarm.console.snapshot import Snapshot
+from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.fleet import Fleet, VehicleConfig
 from gcs_swarm.mission import load_mission
-from gcs_swarm.runner import MissionRunner
 from tests.gcs_swarm.link.fake_vehicle import ORIGIN, FakeVehicle
 
 MISSIONS = Path(__file__).resolve().parents[3] / "missions"

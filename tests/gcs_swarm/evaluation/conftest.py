@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gcs_swarm.flight.run_record import COLUMNS
 from gcs_swarm.guidance.formation import slot_positions
 from gcs_swarm.mission import Mission, load_mission
-from gcs_swarm.run_record import COLUMNS
-from gcs_swarm.runner import mission_offsets
+from gcs_swarm.mission.geometry import mission_offsets
 
 ROOT = Path(__file__).resolve().parents[3]
 TRUTH_COLUMNS = (

@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 
 from gcs_swarm.cli import main
+from gcs_swarm.evaluation.report import NO_PLOT_NOTE, write_report
 from gcs_swarm.mission import Mission
-from gcs_swarm.report import NO_PLOT_NOTE, write_report
 from tests.gcs_swarm.evaluation.conftest import write_run_folder
 
 PAPER_FIGURES = [

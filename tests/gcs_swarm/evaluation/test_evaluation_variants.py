@@ -14,7 +14,7 @@ from gcs_swarm.evaluation.variants import Ranges, Variant, VariantError
 from gcs_swarm.guidance.formation import rotate_to_world
 from gcs_swarm.guidance.params import PAPER_PLAIN
 from gcs_swarm.mission import load_mission
-from gcs_swarm.runner import mission_offsets
+from gcs_swarm.mission.geometry import mission_offsets
 
 ROOT = Path(__file__).resolve().parents[3]
 QUICKSTART = ROOT / "missions" / "quickstart.yaml"

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm import metrics
+from gcs_swarm.evaluation import metrics
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets, rotate_to_world, slot_positions
 from gcs_swarm.guidance.inversion import thrust_vector

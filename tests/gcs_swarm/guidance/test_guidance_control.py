@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm import metrics
+from gcs_swarm.evaluation import metrics
 from gcs_swarm.guidance.inversion import invert, limit_thrust_vector, thrust_vector
 from gcs_swarm.guidance.params import G, Limits, PIDParams, SMCAxisGains, SMCParams
 from gcs_swarm.guidance.pid import PIDController

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gcs_swarm.evaluation.planner import PlannerSettings, plan_path
 from gcs_swarm.guidance.params import FieldParams
-from gcs_swarm.guidance.planner import PlannerSettings, plan_path
 
 TABLE1_CENTRES = np.array([[25.0, 75.0], [81.0, 30.0], [70.0, 70.0], [32.0, 27.0]])
 TABLE1_RADII = np.array([9.0, 8.0, 18.0, 14.0])

@@ -1,4 +1,4 @@
-"""ArduCopter facts the ground station relies on (gcs_swarm/link/ardupilot.py)."""
+"""ArduCopter facts the ground station relies on (gcs_swarm/link/autopilots/ardupilot.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link import ardupilot
+from gcs_swarm.link.autopilots import ardupilot
 
 
 @pytest.mark.parametrize(

@@ -1,5 +1,5 @@
-"""The ground station's geofence (gcs_swarm.link.fence): which obstacles become exclusion circles and how big
-(hand-worked), and the mission protocol against a running sitl-sim, also under 20 % packet loss each way:
+"""The ground station's geofence (gcs_swarm.flight.geofence): which obstacles become exclusion circles and how
+big (hand-worked), and the mission protocol against a running sitl-sim, also under 20 % packet loss each way:
 upload, verify by download, clear, a refused fence, install_fence in preflight and its restore."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from gcs_swarm import frames
-from gcs_swarm.link import fence
+from gcs_swarm.flight import geofence as fence
+from gcs_swarm.link import frames
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet, VehicleConfig
 from gcs_swarm.link.flight_params import FlightParams

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm import frames
-from gcs_swarm.link.fleet import thrust_from_acc
+from gcs_swarm.link import frames
+from gcs_swarm.link.autopilots.ardupilot import thrust_from_acc
 
 
 def answered_exactly_once(vehicle) -> None:
@@ -95,9 +95,9 @@ def test_non_finite_targets_never_leave_the_ground_station(fake, fleet_of) -> No
 
 def test_thrust_from_acceleration() -> None:
     np.testing.assert_allclose(
-        thrust_from_acc([9.8, 0.0, 19.6, 100.0, -1.0], 0.35), [0.35, 0.0, 0.7, 1.0, 0.0]
+        thrust_from_acc([9.8, 0.0, 19.6, 100.0, -1.0], 0.35, 9.8), [0.35, 0.0, 0.7, 1.0, 0.0]
     )
-    assert thrust_from_acc(9.8, [0.3, 0.5]).tolist() == pytest.approx([0.3, 0.5])
+    assert thrust_from_acc(9.8, [0.3, 0.5], 9.8).tolist() == pytest.approx([0.3, 0.5])
 
 
 def test_unanswered_waits_stall_the_simulator_when_answers_are_off(fake, fleet_of) -> None:

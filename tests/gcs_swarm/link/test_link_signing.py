@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.cli.run import run_command
+from gcs_swarm.flight.fly import EXIT_USER_ERROR, RunOptions
 from gcs_swarm.link import signing
-from gcs_swarm.run_command import EXIT_USER_ERROR, RunOptions, run_command
 
 KEY = bytes(range(32))
 

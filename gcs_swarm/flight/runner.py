@@ -24,18 +24,20 @@ import numpy as np
 from numpy.typing import NDArray
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.flight.geofence import install_fence
+from gcs_swarm.flight.run_record import RunRecord
 from gcs_swarm.guidance.degradation import StaleTelemetryMonitor, TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.formation import assign_slots, formation_offsets
 from gcs_swarm.guidance.lost_vehicles import LostTrack, avoidance_radius, predicted_position
-from gcs_swarm.link import ardupilot
+from gcs_swarm.guidance.params import G
+from gcs_swarm.link.autopilots import ardupilot
 from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
-from gcs_swarm.link.fence import install_fence
-from gcs_swarm.link.fleet import Fleet, LinkError, thrust_from_acc
+from gcs_swarm.link.fleet import Fleet, LinkError
 from gcs_swarm.link.flight_params import FlightParams
 from gcs_swarm.link.vehicle import mode_name, mode_number
 from gcs_swarm.mission import Mission
-from gcs_swarm.run_record import RunRecord
+from gcs_swarm.mission.geometry import follower_targets, mission_offsets
 
 # ArduCopter FS_GCS_ENABLE values (events.cpp failsafe_gcs_on_event): 1 RTL, 5 Land, 7 Brake or Land
 FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5, "brake": 7}
@@ -75,33 +77,6 @@ class FlightResult:
     # "land", whether every vehicle was disarmed on the ground at the end
     reattached: str | None = None
     landed_all: bool = False
-
-
-def mission_offsets(mission: Mission, shape: str | None = None, spacing: float | None = None) -> np.ndarray:
-    """Leader-frame slot offsets (N, 3): explicit `slot`s where given, else from the formation shape
-    (`shape`/`spacing` override the mission's, for a live reshape)."""
-    n = len(mission.vehicles)
-    form = mission.formation
-    shape = shape or form.shape
-    followers = [i for i in range(n) if i != mission.leader_index]
-    offsets = np.zeros((n, 3))
-    if shape != "offsets":
-        offsets[followers] = formation_offsets(shape, len(followers), spacing or form.spacing, form.angle_deg)
-    if shape == form.shape:
-        for i, v in enumerate(mission.vehicles):
-            if v.slot is not None:
-                offsets[i] = v.slot
-    return offsets
-
-
-def follower_targets(mission: Mission) -> np.ndarray | None:
-    """Final destinations g_i (N, 3) when every follower names one, else None (controller default)."""
-    targets = [v.target for i, v in enumerate(mission.vehicles) if i != mission.leader_index]
-    if not targets or any(t is None for t in targets):
-        return None
-    out = np.array([mission.goal if v.target is None else v.target for v in mission.vehicles], dtype=float)
-    out[mission.leader_index] = mission.goal
-    return out
 
 
 def live_offsets(
@@ -248,7 +223,7 @@ class MissionRunner:
             flight.set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[safety.gcs_failsafe])
             flight.set_all("FS_GCS_TIMEOUT", float(safety.dead_gcs.failsafe_timeout_s or 0.0))
             flight.set_all("GUID_TIMEOUT", safety.dead_gcs.guided_timeout_s)
-            # the autopilots' own geofence around the obstacles (gcs_swarm.link.fence, docs/reliability.md)
+            # the autopilots' own geofence around the obstacles (flight.geofence, docs/reliability.md)
             install_fence(fleet, flight, self.mission, self.result.events, self.progress)
             self.hover = fleet.param_get_all("MOT_THST_HOVER")
             self.angle_boost = np.array(
@@ -573,7 +548,7 @@ class MissionRunner:
         cmd = ctl.tick(t, verdict.pos, vel, att, centres, radii, active)
         # ArduCopter adds its own 1/cos(tilt) to guided thrust when ATC_ANGLE_BOOST is on: not twice
         acc = ardupilot.unboosted_thrust(cmd.thrust_acc, att[:, 0], att[:, 1], self.angle_boost)
-        thrust = thrust_from_acc(np.nan_to_num(acc), self.hover)
+        thrust = ardupilot.thrust_from_acc(np.nan_to_num(acc), self.hover, G)
         roll, pitch, yaw, thrust, limited = guard_attitude_commands(
             cmd.roll_d,
             cmd.pitch_d,

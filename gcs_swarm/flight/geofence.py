@@ -51,12 +51,13 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm import frames
+from gcs_swarm.link import frames
 from gcs_swarm.link.connection import LinkError, MAVLinkMessage
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams, ParamChange
 from gcs_swarm.link.vehicle import COMMAND_RETRIES, Operation, Timeout, VehicleLink
 from gcs_swarm.mission import Mission
+from gcs_swarm.mission.geometry import mission_offsets
 
 FENCE = mavlink2.MAV_MISSION_TYPE_FENCE
 CIRCLE_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
@@ -103,18 +104,10 @@ class FenceCircle:
     radius: float
 
 
-def _offsets(mission: Mission) -> np.ndarray:
-    """(N, 3) slot offsets of the mission (gcs_swarm.runner.mission_offsets; imported late: the runner
-    imports this module)."""
-    from gcs_swarm.runner import mission_offsets
-
-    return mission_offsets(mission)
-
-
 def exclusion_circles(mission: Mission, margin_m: float) -> tuple[list[FenceCircle], list[str]]:
     """The circles to fence (see the module docstring) and one note per obstacle left out or shrunk."""
     body = float(mission.safety.collision_radius)
-    offsets = _offsets(mission)
+    offsets = mission_offsets(mission)
     heights = np.concatenate(
         [mission.formation.altitude + offsets[:, 2], [float(w[2]) for w in mission.waypoints]]
     )

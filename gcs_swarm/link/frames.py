@@ -18,6 +18,8 @@ import numpy as np
 import pymap3d
 from numpy.typing import ArrayLike, NDArray
 
+from swarm_common.rotations import euler_to_quaternion, quaternion_multiply, wrap_pi
+
 Origin = tuple[float, float, float]
 """Mission origin: latitude deg, longitude deg, altitude m."""
 
@@ -57,55 +59,6 @@ def ned_to_enu(v: ArrayLike) -> FloatArray:
 def enu_to_ned(v: ArrayLike) -> FloatArray:
     """ENU vector(s) (..., 3) -> NED: `(y, x, -z)` (spec 1.1)."""
     return ned_to_enu(v)
-
-
-def wrap_pi(angle: ArrayLike) -> FloatArray:
-    """Angle(s) in rad wrapped to [-pi, pi)."""
-    return np.asarray((np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi, dtype=float)
-
-
-def euler_to_quaternion(euler: ArrayLike) -> FloatArray:
-    """ZYX Euler `(roll, pitch, yaw)` (..., 3) rad -> quaternion `(w, x, y, z)` (..., 4); R = Rz Ry Rx."""
-    a = np.asarray(euler, dtype=float) * 0.5
-    cr, sr = np.cos(a[..., 0]), np.sin(a[..., 0])
-    cp, sp = np.cos(a[..., 1]), np.sin(a[..., 1])
-    cy, sy = np.cos(a[..., 2]), np.sin(a[..., 2])
-    return np.stack(
-        (
-            cr * cp * cy + sr * sp * sy,
-            sr * cp * cy - cr * sp * sy,
-            cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy,
-        ),
-        axis=-1,
-    )
-
-
-def quaternion_to_euler(q: ArrayLike) -> FloatArray:
-    """Quaternion `(w, x, y, z)` (..., 4), any norm > 0 -> ZYX Euler `(roll, pitch, yaw)` rad (..., 3)."""
-    a = np.asarray(q, dtype=float)
-    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
-    w, x, y, z = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
-    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return np.stack((roll, pitch, yaw), axis=-1)
-
-
-def quaternion_multiply(p: ArrayLike, q: ArrayLike) -> FloatArray:
-    """Hamilton product `p * q` of quaternions `(w, x, y, z)`, shapes broadcast over (..., 4)."""
-    a, b = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
-    w1, x1, y1, z1 = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    w2, x2, y2, z2 = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack(
-        (
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ),
-        axis=-1,
-    )
 
 
 def attitude_enu_to_ned(euler_flu_enu: ArrayLike) -> FloatArray:

@@ -14,7 +14,8 @@ VARIANTS_HELP = "guidance methods and forms, e.g. apf,iaapf or paper,smooth (the
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from gcs_swarm.run_command import RunOptions, run_command
+    from gcs_swarm.cli.run import run_command
+    from gcs_swarm.flight.fly import RunOptions
 
     options = RunOptions(
         out_dir=Path(args.out) if args.out else None,
@@ -62,8 +63,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    from gcs_swarm.evaluation.planning import plan_json, plan_mission, plot_plan
     from gcs_swarm.mission import MissionError, load_mission
-    from gcs_swarm.planning import plan_json, plan_mission, plot_plan
 
     try:
         mission = load_mission(args.mission)
@@ -84,8 +85,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    from gcs_swarm.evaluation.report import write_report
     from gcs_swarm.mission import MissionError, load_mission
-    from gcs_swarm.report import write_report
 
     run_dir = Path(args.run_dir)
     flight_path = run_dir / "flight.json"

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_swarm import metrics
+from gcs_swarm.evaluation import metrics
 from gcs_swarm.guidance import field as fieldmod
 from gcs_swarm.guidance.obstacles import centres_at
 from gcs_swarm.guidance.params import FieldParams

@@ -1,7 +1,7 @@
-"""`gcs-swarm run MISSION.yaml`: fly a mission (against the embedded simulator or running vehicles), write
-the run folder (telemetry.tlog, truth.csv, record.csv, flight.json, report.json/md/png) and return the exit
-status: 0 flown and every vehicle reached its goal with no collision (with `--airborne land`: every vehicle
-landed and disarmed); 1 flown but failed; 2 user error.
+"""Fly a mission (against the embedded simulator or running vehicles) into a run folder: telemetry.tlog,
+truth.csv, record.csv, flight.json. The report is the evaluation's job
+(gcs_swarm.evaluation.flights.fly_and_report).
+Exit statuses: 0 flown, 1 flown but failed, 2 user error.
 """
 
 from __future__ import annotations
@@ -9,19 +9,21 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 
-from gcs_swarm.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.flight.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE
+from gcs_swarm.flight.run_record import RunRecord
+from gcs_swarm.flight.runner import FlightResult, MissionRunner, PreflightError
 from gcs_swarm.link import signing
 from gcs_swarm.link.fleet import Fleet, LinkError, VehicleConfig
 from gcs_swarm.mission import Mission, MissionError, load_mission
-from gcs_swarm.report import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE, write_report
-from gcs_swarm.run_record import RunRecord
-from gcs_swarm.runner import FlightResult, MissionRunner, PreflightError, mission_offsets
+from gcs_swarm.mission.geometry import mission_offsets
 
 EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR = 0, 1, 2
 
@@ -161,21 +163,34 @@ def start_embedded_simulator(
     return sim
 
 
-def run_command(mission_path: str, options: RunOptions) -> int:
-    """The whole `run` command; prints progress and a summary."""
-    say = (lambda _msg: None) if options.quiet else (lambda msg: print(msg, flush=True))
+@dataclass
+class Flown:
+    """What a flight left behind: the exit status so far, the mission and run folder (None when the mission
+    did not load), the runner's result, and whether formation flight began so the run folder can be
+    evaluated (`report_due`)."""
+
+    status: int
+    result: FlightResult
+    mission: Mission | None = None
+    run_dir: Path | None = None
+    report_due: bool = False
+
+
+def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], None]) -> Flown:
+    """Load and fly the mission with the command-line choices; progress lines go to `say`, errors are
+    printed."""
     try:
         mission = load_mission(mission_path)
     except MissionError as exc:
         print(f"error: {exc}")
-        return EXIT_USER_ERROR
+        return Flown(EXIT_USER_ERROR, FlightResult())
     if options.keep_params:
         mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
     try:
         key_file, key = signing_key(mission)
     except signing.SigningKeyError as exc:
         print(f"error: {exc}")
-        return EXIT_USER_ERROR
+        return Flown(EXIT_USER_ERROR, FlightResult(), mission)
     run_dir = options.out_dir or default_run_dir(mission)
     run_dir.mkdir(parents=True, exist_ok=True)
     sim_spec = mission.run.simulator
@@ -234,27 +249,12 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     latencies = runner.tick_latency_s if runner is not None else []
     limited = runner.commands_limited if runner is not None else 0
     write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies, limited)
+    flown = Flown(status, result, mission, run_dir)
     if status == EXIT_OK and result.reattached == "land":
         say("every vehicle landed and disarmed" if result.landed_all else "not every vehicle disarmed")
-        return EXIT_OK if result.landed_all and not result.lost else EXIT_FAILED
-    if status == EXIT_USER_ERROR or result.t_formation_start is None:
-        return status if status != EXIT_OK else EXIT_FAILED
-    report = write_report(run_dir, mission)
-    say(
-        f"reached={report['reached']} time_to_goal={report['time_to_goal_s']} s "
-        f"collisions={report['collisions']} "
-        f"min_separation={report['min_separation_m']} m min_clearance={report['min_obstacle_clearance_m']} m "
-        f"formation_rms={report['formation_rms_m']} m (from {report['source']})"
-    )
-    whole = report.get("whole_flight") or {}
-    say(
-        f"whole flight: slot error rms {whole.get('slot_error_rms_m')} m, "
-        f"max {whole.get('slot_error_max_m')} m, "
-        f"cusps {whole.get('cusps_total')}, max tilt-command rate {whole.get('max_tilt_command_rate_rad_s')} "
-        f"rad/s, min altitude {whole.get('min_altitude_in_formation_m')} m"
-    )
-    for event in report.get("safety_events", []):
-        say(f"SAFETY EVENT: {event}")
-    say(f"report: {run_dir / 'report.md'}")
-    ok = report["reached"] and report["collisions"] == 0 and not result.lost and not report["safety_events"]
-    return status if status != EXIT_OK else (EXIT_OK if ok else EXIT_FAILED)
+        flown.status = EXIT_OK if result.landed_all and not result.lost else EXIT_FAILED
+    elif status == EXIT_USER_ERROR or result.t_formation_start is None:
+        flown.status = status if status != EXIT_OK else EXIT_FAILED
+    else:
+        flown.report_due = True
+    return flown

@@ -9,6 +9,7 @@ import math
 import re
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 # REQUEST_DATA_STREAM groups of the messages the ground station uses (libraries/GCS_MAVLink/
@@ -121,3 +122,12 @@ def unboosted_thrust(
 def is_boost_on(value: float) -> bool:
     """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
     return not (math.isfinite(value) and value == 0.0)
+
+
+def thrust_from_acc(acc: ArrayLike, hover: ArrayLike, g: float) -> NDArray[np.float64]:
+    """Collective thrust acceleration |U| (m/s^2) -> normalised thrust `hover * acc / g` clipped to [0, 1],
+    the meaning of SET_ATTITUDE_TARGET.thrust with GUID_OPTIONS bit 3 set.
+
+    `hover` is the vehicle's MOT_THST_HOVER (normalised thrust that holds 1 g); `g` gravity, m/s^2; spec 5.
+    """
+    return np.asarray(np.clip(np.asarray(hover, dtype=float) * np.asarray(acc, dtype=float) / g, 0.0, 1.0))

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_swarm.guidance.planner import PlannerSettings, PlanResult, plan_path
+from gcs_swarm.evaluation.planner import PlannerSettings, PlanResult, plan_path
 
 METHODS = ("apf", "iaapf")
 JSON_KEYS = (

@@ -1,0 +1,31 @@
+"""Free UDP ports on the loopback interface, for simulators and tests started side by side."""
+
+from __future__ import annotations
+
+import random
+import socket
+
+PORT_RANGE = (20000, 60000)  # where probed blocks start
+PORT_TRIES = 200
+
+
+def free_udp_base(count: int, host: str = "127.0.0.1") -> int:
+    """A base port with base..base+count-1 all free on `host`, probed from a random start so that concurrent
+    workers rarely pick the same block. The ports are released before returning: a caller that loses a race
+    for them gets an error from its own bind and may ask again. RuntimeError when no block is found."""
+    rng = random.Random()
+    for _ in range(PORT_TRIES):
+        base = rng.randrange(PORT_RANGE[0], PORT_RANGE[1] - count)
+        socks: list[socket.socket] = []
+        try:
+            for i in range(count):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind((host, base + i))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise RuntimeError(f"no block of {count} free UDP ports found")
