@@ -24,11 +24,12 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.e2e.conftest import _numbers, free_udp_base  # noqa: E402
+from swarm_common.ports import free_udp_base  # noqa: E402
+from tests.e2e.flights import numbers  # noqa: E402
 
 
 def derived(source: str, name: str, out: Path, goal: list[float], time_limit_s: float) -> Path:
-    data = _numbers(yaml.safe_load((ROOT / "missions" / source).read_text()))
+    data = numbers(yaml.safe_load((ROOT / "missions" / source).read_text()))
     data["mission"]["name"] = name
     data["goal"] = goal
     data.setdefault("run", {})["time_limit_s"] = time_limit_s

@@ -28,12 +28,12 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_swarm.evaluation.flights import free_udp_base  # noqa: E402
 from gcs_swarm.evaluation.gcs_kill import fly_and_kill, kill_moments  # noqa: E402
 from gcs_swarm.evaluation.run_data import load_truth  # noqa: E402
 from gcs_swarm.evaluation.variants import read_yaml  # noqa: E402
 from gcs_swarm.flight.geofence import exclusion_circles  # noqa: E402
 from gcs_swarm.mission import load_mission  # noqa: E402
+from swarm_common.ports import free_udp_base  # noqa: E402
 
 
 def variant(folder: Path, source: str, name: str, fence: dict, **changes: object) -> Path:

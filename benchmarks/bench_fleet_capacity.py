@@ -30,9 +30,9 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_swarm.evaluation.flights import free_udp_base  # noqa: E402
 from gcs_swarm.evaluation.run_data import read_columns  # noqa: E402
 from gcs_swarm.guidance.formation import formation_offsets  # noqa: E402
+from swarm_common.ports import free_udp_base  # noqa: E402
 
 RATE_HZ = 50.0
 SPACING_M = 10.0

@@ -29,8 +29,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_swarm.evaluation.flights import free_udp_base  # noqa: E402
 from gcs_swarm.evaluation.gcs_kill import fly_and_kill  # noqa: E402
+from swarm_common.ports import free_udp_base  # noqa: E402
 
 POLICIES = {
     "default": {},

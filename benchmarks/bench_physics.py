@@ -16,7 +16,9 @@ import time
 
 import numpy as np
 
-from sitl_sim.dynamics import FleetDynamics, FleetState, QuadParams, quat_from_euler
+from sitl_sim.vehicle_model.airframe import QuadParams
+from sitl_sim.vehicle_model.dynamics import FleetDynamics, FleetState
+from swarm_common.rotations import euler_to_quaternion
 
 RATE_HZ = 1000.0
 
@@ -26,7 +28,8 @@ def make_fleet(n: int, backend: str) -> tuple[FleetDynamics, tuple]:
     pos = np.column_stack((rng.uniform(-50, 50, (n, 2)), np.full(n, 20.0)))
     dyn = FleetDynamics(n, rate_hz=RATE_HZ, backend=backend, state=FleetState.at_rest(pos, np.zeros(n)))
     hover = QuadParams().mass * QuadParams().g
-    quat = quat_from_euler(rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), rng.uniform(-3, 3, n))
+    angles = (rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), rng.uniform(-3, 3, n))
+    quat = euler_to_quaternion(np.column_stack(angles))
     targets = (quat, np.zeros((n, 3)), np.full(n, hover), np.ones(n, dtype=bool), np.radians(30.0))
     return dyn, targets
 

@@ -25,8 +25,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_swarm.evaluation.flights import free_udp_base  # noqa: E402
-from tests.e2e.conftest import _numbers  # noqa: E402
+from swarm_common.ports import free_udp_base  # noqa: E402
+from tests.e2e.flights import numbers  # noqa: E402
 
 KILLED = 4  # 0-based index of the vehicle whose link dies
 QUIET = 6  # 0-based index of the vehicle whose link is silent for QUIET_S (longer than hold_s, < lost_s)
@@ -46,7 +46,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as scratch:
         tmp = args.keep or scratch
         Path(tmp).mkdir(parents=True, exist_ok=True)
-        data = _numbers(yaml.safe_load((ROOT / "missions" / "paper_nine_9.yaml").read_text()))
+        data = numbers(yaml.safe_load((ROOT / "missions" / "paper_nine_9.yaml").read_text()))
         start = data["vehicles"][0]["start"]["position"]
         data["mission"]["name"] = "soak9"
         data["goal"] = [start[0], start[1] + leg, start[2]]

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import ipaddress
+import logging
 import math
 import signal
 import socket
@@ -26,13 +27,13 @@ from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
+from sitl_sim.autopilot.params import PARAM_NAME_RELEASES
 from sitl_sim.clock import plan_timing
-from sitl_sim.link_faults import LinkFaults, Outage, parse_outage
+from sitl_sim.network.link_faults import LinkFaults, Outage, parse_outage
 from sitl_sim.orphan import ParentWatch, detach_output
-from sitl_sim.params import PARAM_NAME_RELEASES
-from sitl_sim.signing import read_key
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
+from swarm_common.signing_keys import SigningKeyError, read_key
 
 if TYPE_CHECKING:
     from gcs_swarm.mission import World
@@ -357,12 +358,24 @@ def signing_key(parser: OneLineParser, path: Path | None) -> bytes | None:
         return None
     try:
         return read_key(path)
-    except ValueError as exc:
+    except SigningKeyError as exc:
         parser.error(f"--signing-key: {exc}")
+
+
+def log_to_stderr() -> None:
+    """The simulator's log (the `sitl_sim.*` loggers) goes to stderr as "sitl-sim: <message>" lines; a
+    handler exception follows its line with the traceback."""
+    logger = logging.getLogger("sitl_sim")
+    if not logger.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("sitl-sim: %(message)s"))
+        logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; returns the exit status (0 after SIGINT/SIGTERM)."""
+    log_to_stderr()
     parser = build_parser()
     args = parser.parse_args(argv)
     config = build_config(parser, args)

@@ -9,39 +9,41 @@ sockets.
 
 from __future__ import annotations
 
+import logging
 import math
 import selectors
 import socket
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from sitl_sim.autopilot import Autopilot
+from sitl_sim.autopilot.copter import Autopilot
+from sitl_sim.autopilot.fence import FenceItem
+from sitl_sim.autopilot.params import ParamTable, param_specs
 from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
-from sitl_sim.dynamics import FleetDynamics, FleetState, QuadParams
-from sitl_sim.endpoint import VehicleEndpoint
-from sitl_sim.fence import FenceItem
-from sitl_sim.link_faults import UP, LinkFaults
-from sitl_sim.params import ParamTable, param_specs
-from sitl_sim.streams import Geodesy, StreamSchedule, TelemetryView, ned_telemetry
+from sitl_sim.network.endpoint import VehicleEndpoint
+from sitl_sim.network.link_faults import UP, LinkFaults
+from sitl_sim.network.streams import Geodesy, StreamSchedule, TelemetryView, ned_telemetry
 from sitl_sim.truth_log import TruthLog
-from sitl_sim.wind import Wind
+from sitl_sim.vehicle_model.airframe import QuadParams
+from sitl_sim.vehicle_model.dynamics import FleetDynamics, FleetState
+from sitl_sim.vehicle_model.wind import Wind
 from sitl_sim.world import Obstacles, find_collisions
 
+logger = logging.getLogger(__name__)
 KEEPALIVE_S = 1.0  # wall seconds between HEARTBEATs while paused for lockstep clients
 FLUSH_LOG_S = 1.0  # wall seconds between truth-log flushes
 SPIN_S = 0.002  # wall seconds a lockstep frame end polls for the answers before sleeping in select
 STAMPED_MESSAGES = (  # streams that carry time_boot_ms
-    mavlink.MAVLINK_MSG_ID_ATTITUDE,
-    mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
-    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
-    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-    mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,
+    mavlink2.MAVLINK_MSG_ID_ATTITUDE,
+    mavlink2.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+    mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+    mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+    mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,
 )
 
 
@@ -67,8 +69,10 @@ class SimConfig:
     seed: int
     ready_delay: float
     link: LinkFaults = LinkFaults()  # link faults of every vehicle (SIM_LINK_* param defaults, outages)
-    signing_key: bytes | None = field(default=None, repr=False)  # MAVLink 2 signing key (sitl_sim.signing)
-    param_names: str = "4.7"  # the ArduCopter release whose parameter names the vehicles show (params.py)
+    signing_key: bytes | None = field(
+        default=None, repr=False
+    )  # MAVLink 2 signing key (sitl_sim.network.signing)
+    param_names: str = "4.7"  # ArduCopter release of the parameter names (autopilot/params.py)
     orphan_speedup: float = math.inf  # x real time once the parent is gone (sitl_sim.orphan); inf = at once
     orphan_grace_s: float = 300.0  # simulated s an orphan flies at most before it exits
 
@@ -131,7 +135,17 @@ class Simulator:
         self.truth: TruthLog | None = None
         try:
             for i in range(n):
-                endpoint = VehicleEndpoint(i, int(self.sysids[i]), config.bind, config.base_port + i, self)
+                endpoint = VehicleEndpoint(
+                    i,
+                    int(self.sysids[i]),
+                    config.bind,
+                    config.base_port + i,
+                    self,
+                    config.signing_key,
+                    config.seed,
+                    config.link.outages,
+                    config.link.start_s,
+                )
                 self.endpoints.append(endpoint)
                 self.selector.register(endpoint, selectors.EVENT_READ)
             if config.truth_log is not None:
@@ -170,7 +184,8 @@ class Simulator:
                 self._end_frame(stop)
 
     def parent_gone(self) -> bool:
-        """Whether the ground station that started the simulator has died (set by sitl_sim.orphan)."""
+        """Whether the ground station that started the simulator has died (mark_parent_gone, called by the
+        CLI's sitl_sim.orphan watch)."""
         return self._parent_gone
 
     def mark_parent_gone(self) -> None:
@@ -182,11 +197,11 @@ class Simulator:
         self.orphaned_at = self.t
         self.lockstep = None
         self.pacer = RealTimePacer(self.orphan_speedup)
-        print(
-            f"sitl-sim: the ground station is gone at t={self.t:.2f} s: flying the vehicles on their own "
-            f"autopilots until all are down (at most {self.orphan_grace_s:g} s)",
-            file=sys.stderr,
-            flush=True,
+        logger.warning(
+            "the ground station is gone at t=%.2f s: flying the vehicles on their own autopilots until all "
+            "are down (at most %g s)",
+            self.t,
+            self.orphan_grace_s,
         )
 
     def _orphan_done(self) -> bool:
@@ -197,17 +212,15 @@ class Simulator:
         if bool(down.all()) or self.t - self.orphaned_at >= self.orphan_grace_s:
             self._write_truth()  # the final state, whatever the sample rate
         if bool(down.all()):
-            print(
-                f"sitl-sim: every vehicle is down at t={self.t:.2f} s: exiting", file=sys.stderr, flush=True
-            )
+            logger.warning("every vehicle is down at t=%.2f s: exiting", self.t)
             return True
         if self.t - self.orphaned_at >= self.orphan_grace_s:
             up = ", ".join(str(i) for i in np.flatnonzero(~down))
-            print(
-                f"sitl-sim: grace time {self.orphan_grace_s:g} s over at t={self.t:.2f} s, vehicle(s) {up} "
-                "still flying: exit",
-                file=sys.stderr,
-                flush=True,
+            logger.warning(
+                "grace time %g s over at t=%.2f s, vehicle(s) %s still flying: exit",
+                self.orphan_grace_s,
+                self.t,
+                up,
             )
             return True
         return False
@@ -231,23 +244,23 @@ class Simulator:
             self._write_truth()
         for ready in np.flatnonzero(self.autopilot.ready & ~was_ready):  # EKF origin and home just got set
             self._send_now(
-                int(ready), (mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+                int(ready), (mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, mavlink2.MAVLINK_MSG_ID_HOME_POSITION)
             )
         if self.lockstep is None or self.ticks % timing.ticks_per_frame == 0:  # lockstep: frame ends only
             self._emit_telemetry()
 
     def _fence_tick(self) -> None:
-        """Fence uploads' timers; a new breach sends FENCE_STATUS at once and goes to the log (stderr)."""
+        """Fence uploads' timers; a new breach sends FENCE_STATUS at once and goes to the log."""
         for endpoint in self.endpoints:
             if endpoint.missions.receiving:
                 endpoint.missions.update()
         fence = self.autopilot.fence
         if fence.status_now:
             for i in fence.status_now:
-                self._send_now(i, (mavlink.MAVLINK_MSG_ID_FENCE_STATUS,))
+                self._send_now(i, (mavlink2.MAVLINK_MSG_ID_FENCE_STATUS,))
             fence.status_now = []
         for line in self.autopilot.fence_log:
-            print(f"sitl-sim: {line}", file=sys.stderr, flush=True)
+            logger.warning("%s", line)
         self.autopilot.fence_log.clear()
 
     def store_fence(self, i: int, items: list[FenceItem]) -> None:
@@ -264,14 +277,14 @@ class Simulator:
         for i, msg_id in self.streams.due(self.time_us):
             endpoint = self.endpoints[i]
             if endpoint.peers:
-                data = self.telemetry_view().encode(endpoint.framer, msg_id, i)
+                data = self.telemetry_view().encode(endpoint.outbox.framer, msg_id, i)
                 if data is not None:
-                    endpoint.out.append(data)
+                    endpoint.outbox.append(data)
                     stamped[i] |= msg_id in STAMPED_MESSAGES
         if self.lockstep is not None:
             for silent in np.flatnonzero(~stamped):  # every frame end carries a time_boot_ms to answer
                 if self.endpoints[silent].peers:
-                    self._send_now(int(silent), (mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,))
+                    self._send_now(int(silent), (mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,))
         wall = time.monotonic()
         clock_ms = self.time_us // 1000 if self.lockstep is not None else None
         for endpoint in self.endpoints:
@@ -318,13 +331,16 @@ class Simulator:
                     clients.drop(pending)
                     for vehicle, addr in pending:
                         client = f"{addr[0]}:{addr[1]} of vehicle {vehicle}"
-                        message = f"lockstep client {client} dropped (no answer for {clients.timeout_s:g} s)"
-                        print(f"sitl-sim: {message}", file=sys.stderr, flush=True)
+                        logger.warning(
+                            "lockstep client %s dropped (no answer for %g s)", client, clients.timeout_s
+                        )
                     continue
             if now - keepalive >= KEEPALIVE_S:
                 keepalive = now
                 for i in range(len(self.endpoints)):
-                    self._send_now(i, (mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_SYSTEM_TIME))
+                    self._send_now(
+                        i, (mavlink2.MAVLINK_MSG_ID_HEARTBEAT, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME)
+                    )
             spinning = now - frame_wall < SPIN_S  # poll first: a wake-up costs more than a short busy wait
             self._serve(0.0 if spinning else min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
 
@@ -347,7 +363,7 @@ class Simulator:
                     pass
         texts = self.autopilot.texts
         for endpoint in self.endpoints:
-            if endpoint.out or texts[endpoint.index]:
+            if endpoint.outbox.packets or texts[endpoint.index]:
                 endpoint.flush(wall)
 
     # --- services for the endpoints -------------------------------------------------------------------------
@@ -358,22 +374,23 @@ class Simulator:
             self._view = TelemetryView(self.autopilot, self.time_us, self.geodesy, self.unix_epoch_us)
         return self._view
 
-    def on_new_peer(self, endpoint: VehicleEndpoint) -> None:
-        """A client spoke for the first time: greet it at once (it may wait while the clock is paused)."""
-        self._send_now(endpoint.index, (mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_SYSTEM_TIME))
+    def on_new_peer(self, vehicle: int) -> None:
+        """A client spoke to `vehicle` for the first time: greet it at once (it may wait while the clock is
+        paused)."""
+        self._send_now(vehicle, (mavlink2.MAVLINK_MSG_ID_HEARTBEAT, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME))
 
     def _send_now(self, i: int, msg_ids: tuple[int, ...]) -> None:
         endpoint = self.endpoints[i]
         for msg_id in msg_ids:
-            data = self.telemetry_view().encode(endpoint.framer, msg_id, i)
+            data = self.telemetry_view().encode(endpoint.outbox.framer, msg_id, i)
             if data is not None:
-                endpoint.out.append(data)
+                endpoint.outbox.append(data)
 
     def set_param(self, i: int, name: str, value: float) -> None:
         """Store a checked parameter value set on vehicle i; world parameters change the world at once."""
         j = self.params.index[name]
         for row in self.params.set(i, name, value):
-            self.endpoints[row].send_param(j)
+            self.endpoints[row].outbox.send_param(self.params, row, j)
         if name.startswith("SIM_WIND_"):
             p = self.params
             self.wind.set(p.value(i, "SIM_WIND_SPD"), p.value(i, "SIM_WIND_DIR"), p.value(i, "SIM_WIND_TURB"))

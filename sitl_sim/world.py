@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from sitl_sim.position_control import njit
+from sitl_sim.vehicle_model.jit import njit
 
 FUSELAGE_RADIUS = 0.175  # m (the paper's arm length, Table 2)
 

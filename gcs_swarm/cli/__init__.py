@@ -121,7 +121,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         winds=args.wind,
         out_dir=Path(args.out) if args.out else None,
     )
-    return compare_command(args.mission, options)
+    return compare_command(args.mission, options, print)
 
 
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
@@ -137,7 +137,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
         ranges_path=Path(args.ranges) if args.ranges else None,
         keep_runs=args.keep_runs,
     )
-    return montecarlo_command(args.mission, options)
+    return montecarlo_command(args.mission, options, print)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -14,6 +14,8 @@ def run_command(mission_path: str, options: RunOptions) -> int:
     """The whole `run` command; prints progress and a summary."""
     say = (lambda _msg: None) if options.quiet else (lambda msg: print(msg, flush=True))
     status, flown, report = fly_and_report(mission_path, options, say)
+    if flown.error is not None:
+        print(f"error: {flown.error}")
     if report is None:
         return status
     say(

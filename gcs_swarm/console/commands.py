@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from gcs_swarm.console.snapshot import Snapshot
 from gcs_swarm.guidance.formation import SHAPES
-from gcs_swarm.link.vehicle import ARDUCOPTER_MODES
+from gcs_swarm.link.autopilots.ardupilot import ARDUCOPTER_MODES
 from gcs_swarm.mission import Mission
 
 PHASE_NAMES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")

@@ -25,9 +25,10 @@ from gcs_swarm.flight.fly import (
     start_embedded_simulator,
     write_flight,
 )
+from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.flight.run_folder import RECORD_FILE
 from gcs_swarm.flight.run_record import RunRecord
-from gcs_swarm.flight.runner import FlightResult, MissionRunner
+from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.signing import SigningKeyError
 from gcs_swarm.mission import MissionError, load_mission
 
@@ -92,10 +93,14 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         with mission_fleet(mission, base_port, run_dir, key) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             runner = MissionRunner(
-                mission, fleet, record, progress_period_s=2.0 if script is not None else 1e9
+                mission,
+                fleet,
+                record,
+                progress=lambda _line: None,  # FlightSession takes the progress lines into its event log
+                progress_period_s=2.0 if script is not None else 1e9,
             )
             # A person typing wants vehicle time at wall-clock pace; a script runs as fast as the link goes.
-            session = FlightSession(runner, realtime=sys.stdin.isatty() and script is None)
+            session = FlightSession(runner, run_dir, realtime=sys.stdin.isatty() and script is None)
             session.start()
             try:
                 if interactive:

@@ -20,6 +20,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,9 +38,13 @@ from gcs_swarm.console.snapshot import (
     obstacle_clearance,
     vehicle_warnings,
 )
-from gcs_swarm.flight.runner import MissionRunner, PreflightError
-from gcs_swarm.link.fleet import LinkError, VehicleLink
-from gcs_swarm.link.vehicle import Event, mode_name, telemetry_rates
+from gcs_swarm.evaluation.error_log import log_exception, traceback_note
+from gcs_swarm.flight.preflight import PreflightError
+from gcs_swarm.flight.runner import MissionRunner
+from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.streams import telemetry_rates
+from gcs_swarm.link.telemetry import Event
+from gcs_swarm.link.vehicle import VehicleLink
 
 _PUBLISH_PERIOD_S = 0.05  # wall s between snapshots (the UI renders a few times a second)
 _MAX_LAG_S = 0.5  # real-time pacing: vehicle time this far behind the wall clock is not caught up
@@ -77,13 +82,20 @@ class FlightSession:
     """Owns `runner` (and its fleet) on a background thread; see the module doc.
 
     realtime: pace vehicle time to the wall clock (a lockstep simulator otherwise runs as fast as it can;
-    real vehicles are paced by nature). connect_timeout_s: for every vehicle's first HEARTBEAT.
+    real vehicles are paced by nature). connect_timeout_s: for every vehicle's first HEARTBEAT. run_dir: the
+    run folder, whose errors.log receives the traceback of an unexpected exception (a bug) in the flight
+    thread; the event log then names that file in one line.
     """
 
     def __init__(
-        self, runner: MissionRunner, realtime: bool = False, connect_timeout_s: float = 30.0
+        self,
+        runner: MissionRunner,
+        run_dir: Path,
+        realtime: bool = False,
+        connect_timeout_s: float = 30.0,
     ) -> None:
         self.runner = runner
+        self.run_dir = run_dir
         self.fleet = runner.fleet
         self.mission = runner.mission
         self.realtime = realtime
@@ -102,6 +114,7 @@ class FlightSession:
         self._error = ""
         self._busy = ""
         self._busy_since = 0.0  # time.monotonic() when the running request began
+        self._serving: Ticket | None = None  # the request being run, finished on the way out if it raised
         self._started = False
         self._phases = ["connect"]
         self._min_separation = math.inf
@@ -159,7 +172,10 @@ class FlightSession:
         except LinkError as exc:
             self._fail(str(exc))
         except Exception as exc:  # noqa: BLE001 - the UI must learn why the flight thread ended
-            self._fail(f"internal error in the flight thread: {type(exc).__name__}: {exc}")
+            logged = log_exception(self.run_dir, "internal error in the console's flight thread")
+            self._fail(
+                f"internal error in the flight thread: {type(exc).__name__}: {exc}{traceback_note(logged)}"
+            )
         finally:
             if self._state != "failed":
                 self._restore_params()
@@ -175,7 +191,9 @@ class FlightSession:
         self.runner.connect(self.connect_timeout_s)
         rate = self.mission.run.control_rate_hz
         rates = telemetry_rates(rate)
-        results = self.fleet.run((link.op_request_streams(rates) for link in self.fleet.links), strict=False)
+        results = self.fleet.run(
+            (link.streams.op_request_streams(rates) for link in self.fleet.links), strict=False
+        )
         for link, result in zip(self.fleet.links, results, strict=True):
             if isinstance(result, LinkError):
                 self._event(link.name, f"telemetry rates not set: {result}", "warning", self._vt())
@@ -189,8 +207,12 @@ class FlightSession:
         """Leaving: put back what the run changed on grounded vehicles (MissionRunner.restore_params)."""
         try:
             self.runner.restore_params()
-        except Exception as exc:  # noqa: BLE001 - best effort on the way out; say why
+        except LinkError as exc:
             self._event("console", f"parameters not restored: {exc}", "warning")
+            return
+        except Exception as exc:  # noqa: BLE001 - best effort on the way out; say why
+            logged = log_exception(self.run_dir, "parameters not restored")
+            self._event("console", f"parameters not restored: {exc}{traceback_note(logged)}", "warning")
             return
         for change in self.runner.result.params_changed:
             if change["restored"]:
@@ -201,6 +223,9 @@ class FlightSession:
         self._event("console", message, "error")
 
     def _cancel_pending(self) -> None:
+        if self._serving is not None:  # its handler raised: the event log already says why
+            self._serving.finish(False)
+            self._serving = None
         while True:
             try:
                 ticket = self._requests.get_nowait()
@@ -314,7 +339,7 @@ class FlightSession:
             if cmd is not None and i != leader and np.isfinite(cmd.slots[i]).all():
                 slot_error = float(np.linalg.norm(pos[i] - cmd.slots[i]))
             emergency = cmd is not None and runner.phase == "formation" and bool(cmd.emergency[i])
-            age = now - link.last_rx_wall
+            age = now - link.telemetry.last_rx_wall
             rows.append(
                 VehicleRow(
                     name=link.name,
@@ -322,7 +347,7 @@ class FlightSession:
                     alive=bool(alive[i]),
                     age_s=age,
                     loss=self._loss.fraction(i),
-                    mode=mode_name(int(st.mode[i])),
+                    mode=link.mode_name(),
                     armed=bool(st.armed[i]),
                     airborne=is_airborne(bool(st.armed[i]), int(st.landed_state[i]), float(pos[i, 2])),
                     position=(float(pos[i, 0]), float(pos[i, 1]), float(pos[i, 2])),
@@ -348,7 +373,7 @@ class FlightSession:
             busy=self._busy,
             busy_s=now - self._busy_since if self._busy else 0.0,
         )
-        params = sorted({name for link in fleet.links for name in link.params})
+        params = sorted({name for link in fleet.links for name in link.parameters.values})
         return Snapshot(self._state, tuple(rows), line, tuple(self._phases), tuple(params), self._error)
 
     # ------------------------------------------------------------------ requests
@@ -360,6 +385,7 @@ class FlightSession:
             except queue.Empty:
                 return
             request = ticket.request
+            self._serving = ticket
             handler = _HANDLERS.get(request.verb)
             self._busy, self._busy_since = request.line or request.verb, time.monotonic()
             self._publish(force=True)
@@ -374,6 +400,7 @@ class FlightSession:
             finally:
                 self._busy = ""
             self._publish(force=True)  # before the ticket: whoever waits on it then sees the outcome
+            self._serving = None
             ticket.finish(ok)
 
     def _reply(self, text: str, source: str = "console") -> bool:
@@ -430,7 +457,7 @@ class FlightSession:
         armed = [link for link in self.fleet.links if self.fleet.state.armed[link.index]]
         if not armed:
             return self._reply("nothing to abort: no vehicle is armed")
-        return self._vehicle_ops(armed, lambda link: link.op_set_mode("LAND"), "landing (mode LAND)")
+        return self._vehicle_ops(armed, lambda link: link.commands.op_land(), "landing (mode LAND)")
 
     def _goal(self, request: Request) -> bool:
         if self.runner.phase in ("land", "done"):
@@ -464,17 +491,19 @@ class FlightSession:
         links = [self.fleet.links[i] for i in request.vehicles]
         mode = {"land": "LAND", "rtl": "RTL", "mode": request.name}.get(verb)
         if mode is not None:
-            return self._vehicle_ops(links, lambda link: link.op_set_mode(mode), f"mode {mode}")
+            return self._vehicle_ops(links, lambda link: link.commands.op_set_mode(mode), f"mode {mode}")
         if verb == "takeoff":
             alt = request.value if request.value is not None else math.nan
-            return self._vehicle_ops(links, lambda link: link.op_takeoff(alt), f"taking off to {alt:g} m")
+            return self._vehicle_ops(
+                links, lambda link: link.commands.op_takeoff(alt), f"taking off to {alt:g} m"
+            )
         if verb == "arm":
-            return self._vehicle_ops(links, lambda link: link.op_arm(), "armed")
-        return self._vehicle_ops(links, lambda link: link.op_disarm(), "disarmed")
+            return self._vehicle_ops(links, lambda link: link.commands.op_arm(), "armed")
+        return self._vehicle_ops(links, lambda link: link.commands.op_disarm(), "disarmed")
 
     def _param_get(self, request: Request) -> bool:
         links = [self.fleet.links[i] for i in request.vehicles]
-        results = self.fleet.run((link.op_param_get(request.name) for link in links), strict=False)
+        results = self.fleet.run((link.parameters.op_get(request.name) for link in links), strict=False)
         ok = True
         for link, result in zip(links, results, strict=True):
             if isinstance(result, LinkError):
@@ -487,7 +516,7 @@ class FlightSession:
         links = [self.fleet.links[i] for i in request.vehicles]
         value = request.value if request.value is not None else math.nan
         return self._vehicle_ops(
-            links, lambda link: link.op_param_set(request.name, value), f"{request.name} = {value:g}"
+            links, lambda link: link.parameters.op_set(request.name, value), f"{request.name} = {value:g}"
         )
 
     def _param_fetch(self, request: Request) -> bool:
@@ -496,7 +525,7 @@ class FlightSession:
                 "param fetch pauses the formation controller for seconds: not while the mission flies"
             )
         links = [self.fleet.links[i] for i in request.vehicles]
-        results = self.fleet.run((link.op_params_all() for link in links), strict=False)
+        results = self.fleet.run((link.parameters.op_all() for link in links), strict=False)
         ok = True
         for link, result in zip(links, results, strict=True):
             if isinstance(result, LinkError):

@@ -68,9 +68,9 @@ def _compare_run(label: str, run_dir: Path, mission: Any) -> figures.CompareRun 
     )
 
 
-def compare_command(mission_path: str, options: CompareOptions, say: Callable[[str], None] = print) -> int:
+def compare_command(mission_path: str, options: CompareOptions, say: Callable[[str], None]) -> int:
     """The whole `compare` command: 0 every variant flew (whatever its outcome), 1 a variant could not fly,
-    2 user error."""
+    2 user error. `say` shows the user a line (the command line prints it)."""
     path = Path(mission_path)
     try:
         base = load_mission(path)

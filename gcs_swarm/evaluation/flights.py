@@ -61,7 +61,9 @@ def fly(mission_path: Path, run_dir: Path, vehicles: int, link_loss: float = 0.0
         options = RunOptions(
             out_dir=run_dir, base_port=free_udp_base(vehicles), quiet=True, sim_args=sim_args
         )
-        status, _, _ = fly_and_report(str(mission_path), options, lambda _line: None)
+        status, flown, _ = fly_and_report(str(mission_path), options, lambda _line: None)
+        if flown.error is not None:
+            print(f"error: {flown.error}")
         if status != EXIT_USER_ERROR:
             break
     return status

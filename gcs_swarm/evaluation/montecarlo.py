@@ -27,6 +27,7 @@ from typing import IO, Any
 
 from gcs_swarm.evaluation import campaign_store, figures, flights, variants
 from gcs_swarm.evaluation.campaign_store import CampaignError, CampaignStore
+from gcs_swarm.evaluation.error_log import log_exception, traceback_note
 from gcs_swarm.mission import MissionError, load_mission
 
 EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -49,7 +50,8 @@ class RunTask:
 
 def fly_task(task: RunTask) -> dict[str, Any]:
     """Fly one task (in a worker process or a Dask worker) and return its result line. Never raises: a failure
-    outside the flight becomes a line with an `error`, which a resumed campaign flies again."""
+    outside the flight becomes a line with an `error` naming the run folder's errors.log, which holds its
+    traceback; a resumed campaign flies the run again."""
     start = time.monotonic()
     run_dir = Path(task.run_dir)
     result: dict[str, Any] = {"seed": task.seed, "variant": task.variant, "world": task.world}
@@ -71,7 +73,8 @@ def fly_task(task: RunTask) -> dict[str, Any]:
     except KeyboardInterrupt:
         result["error"] = "interrupted"
     except Exception as exc:  # noqa: BLE001 - reported in the result line, the campaign goes on
-        result["error"] = f"{type(exc).__name__}: {exc}"
+        logged = log_exception(run_dir, f"Monte Carlo run seed {task.seed} variant {task.variant} failed")
+        result["error"] = f"{type(exc).__name__}: {exc}{traceback_note(logged)}"
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
@@ -178,7 +181,9 @@ def _local_results(tasks: list[RunTask], jobs: int) -> Iterator[dict[str, Any]]:
             return future.result()
         except Exception as exc:  # noqa: BLE001 - a worker process died: report the run, go on
             task = futures[future]
-            return {"seed": task.seed, "variant": task.variant, "error": f"worker failed: {exc!r}"}
+            logged = log_exception(task.run_dir, f"worker of seed {task.seed} variant {task.variant} failed")
+            error = f"worker failed: {exc!r}{traceback_note(logged)}"
+            return {"seed": task.seed, "variant": task.variant, "error": error}
 
     try:
         for future in cf.as_completed(futures):
@@ -249,11 +254,10 @@ def _note(result: dict[str, Any]) -> str:
     return f"seed {result['seed']} {result['variant']}: {outcome} in {result['wall_s']:.0f} s"
 
 
-def montecarlo_command(
-    mission_path: str, options: CampaignOptions, say: Callable[[str], None] = print
-) -> int:
+def montecarlo_command(mission_path: str, options: CampaignOptions, say: Callable[[str], None]) -> int:
     """The whole `montecarlo` command: 0 every run flown (whatever their outcomes), 1 some runs ended in an
-    error, 2 user error, 130 interrupted (finished runs are kept; rerun to resume)."""
+    error, 2 user error, 130 interrupted (finished runs are kept; rerun to resume). `say` shows the user a
+    line (the command line prints it)."""
     path = Path(mission_path)
     if options.runs < 1 or options.jobs < 1:
         say("error: --runs and --jobs must be at least 1")

@@ -33,7 +33,6 @@ import copy
 import dataclasses
 import itertools
 import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,10 +45,10 @@ from gcs_swarm.guidance.formation import rotate_to_world
 from gcs_swarm.guidance.params import PAPER_PLAIN
 from gcs_swarm.mission import Mission, MissionError, load_mission
 from gcs_swarm.mission.geometry import mission_offsets
+from gcs_swarm.mission.schema import settings_problem
+from gcs_swarm.mission.yaml_tree import YamlLoader
 
-METHODS = ("apf", "iaapf")
 FORMS = ("paper", "smooth")  # the spec's plain method (PAPER_PLAIN) or the mission's smoothing as written
-CONTROLLERS = ("smc", "pid")
 MIN_START_GAP_M = 2.0  # m between jittered start positions
 PLACEMENT_TRIES = 2000
 
@@ -58,21 +57,10 @@ class VariantError(Exception):
     """A variant or a ranges file that cannot be used (one sentence)."""
 
 
-class _Loader(yaml.SafeLoader):
-    """SafeLoader that also reads YAML 1.2 floats such as 1e5 (as the mission loader does)."""
-
-
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."),
-)
-
-
 def read_yaml(path: Path) -> Any:
     """A YAML file as plain Python data; VariantError on unreadable files or syntax errors."""
     try:
-        return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_Loader)  # noqa: S506 (safe loader)
+        return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=YamlLoader)  # noqa: S506 (safe loader)
     except OSError as exc:
         raise VariantError(f"{path}: cannot read ({exc.strerror or exc})") from None
     except yaml.YAMLError as exc:
@@ -105,6 +93,20 @@ class Variant:
             parts.append(f"wind{self.wind_speed:g}")
         return "-".join(parts) or "mission"
 
+    def settings(self) -> dict[str, object]:
+        """The mission-file keys (dotted paths such as "guidance.method") this variant sets, with values."""
+        out: dict[str, object] = {}
+        if self.method is not None:
+            out["guidance.method"] = self.method
+        if self.controller is not None:
+            out["control.controller"] = self.controller
+        if self.wind_speed is not None:
+            out["world.wind.speed"] = float(self.wind_speed)
+        if self.form == "paper":
+            for section, values in PAPER_PLAIN.items():
+                out |= {f"{section}.{key}": value for key, value in values.items()}
+        return out
+
 
 def variant_grid(
     methods: list[str] | None, controllers: list[str] | None, winds: list[float] | None
@@ -112,20 +114,19 @@ def variant_grid(
     """Every combination of the given methods, controllers and wind speeds (an absent list keeps the
     mission's value); `methods` may also name guidance forms (FORMS: `paper` flies the spec's plain
     method, `smooth` the mission as written), crossed with the methods given. VariantError on an unknown
-    name or a bad wind speed."""
+    name or a bad wind speed: each value is checked by the mission schema, as the mission file would be."""
     forms = [v for v in methods or [] if v in FORMS]
     methods = [v for v in methods or [] if v not in FORMS] or None
-    for value in methods or []:
-        if value not in METHODS:
-            raise VariantError(
-                f"unknown variant {value!r}: methods are {', '.join(METHODS)}, forms {', '.join(FORMS)}"
-            )
-    for value in controllers or []:
-        if value not in CONTROLLERS:
-            raise VariantError(f"unknown controller {value!r}: controllers are {', '.join(CONTROLLERS)}")
-    for wind in winds or []:
-        if not (math.isfinite(wind) and 0.0 <= wind <= 100.0):
-            raise VariantError(f"wind speed {wind:g} m/s is outside 0..100")
+    checked: list[tuple[str, object, Variant]] = [
+        *(("unknown variant", v, Variant(method=v)) for v in methods or []),
+        *(("unknown controller", v, Variant(controller=v)) for v in controllers or []),
+        *(("wind speed", v, Variant(wind_speed=v)) for v in winds or []),
+    ]
+    for what, value, variant in checked:
+        problem = settings_problem(variant.settings())
+        if problem:
+            hint = f" (forms: {', '.join(FORMS)})" if variant.method is not None else ""
+            raise VariantError(f"{what} {value!r}: {problem}{hint}")
     # each axis: the values given, or None (the mission's own) alone
     method_axis: Sequence[str | None] = methods or [None]
     controller_axis: Sequence[str | None] = controllers or [None]
@@ -141,23 +142,14 @@ def variant_grid(
 def apply_variant(data: dict[str, Any], variant: Variant, name: str) -> dict[str, Any]:
     """A copy of mission data with the variant's settings and mission.name = name."""
     out = copy.deepcopy(data)
-    out.setdefault("mission", {})
-    out["mission"] = {**(out["mission"] or {}), "name": name}
-    if variant.method is not None:
-        out["guidance"] = {**(out.get("guidance") or {}), "method": variant.method}
-    if variant.controller is not None:
-        out["control"] = {**(out.get("control") or {}), "controller": variant.controller}
-    if variant.wind_speed is not None:
-        world = dict(out.get("world") or {})
-        world["wind"] = {**(world.get("wind") or {}), "speed": float(variant.wind_speed)}
-        out["world"] = world
-    if variant.form == "paper":
-        for path, values in PAPER_PLAIN.items():
-            section = out
-            for key in path.split("."):
-                section[key] = dict(section.get(key) or {})
-                section = section[key]
-            section.update(values)
+    out["mission"] = {**(out.get("mission") or {}), "name": name}
+    for path, value in variant.settings().items():
+        *sections, key = path.split(".")
+        section = out
+        for part in sections:
+            section[part] = dict(section.get(part) or {})
+            section = section[part]
+        section[key] = value
     return out
 
 

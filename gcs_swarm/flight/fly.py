@@ -1,13 +1,15 @@
 """Fly a mission (against the embedded simulator or running vehicles) into a run folder: telemetry.tlog,
 truth.csv, record.csv, flight.json. The report is the evaluation's job
 (gcs_swarm.evaluation.flights.fly_and_report).
-Exit statuses: 0 flown, 1 flown but failed, 2 user error.
+Exit statuses: 0 flown, 1 flown but failed, 2 user error; the sentence that ended a flight early is
+returned (`Flown.error`) for the front end to show.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,13 +19,19 @@ from pathlib import Path
 import numpy as np
 
 from gcs_swarm.flight.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.flight.preflight import PreflightError
+from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE
 from gcs_swarm.flight.run_record import RunRecord
-from gcs_swarm.flight.runner import FlightResult, MissionRunner, PreflightError
+from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link import signing
-from gcs_swarm.link.fleet import Fleet, LinkError, VehicleConfig
+from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.vehicle import VehicleConfig
 from gcs_swarm.mission import Mission, MissionError, load_mission
 from gcs_swarm.mission.geometry import mission_offsets
+
+log = logging.getLogger(__name__)
 
 EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR = 0, 1, 2
 
@@ -166,31 +174,30 @@ def start_embedded_simulator(
 @dataclass
 class Flown:
     """What a flight left behind: the exit status so far, the mission and run folder (None when the mission
-    did not load), the runner's result, and whether formation flight began so the run folder can be
-    evaluated (`report_due`)."""
+    did not load), the runner's result, whether formation flight began so the run folder can be
+    evaluated (`report_due`), and the error to show the user (None: none)."""
 
     status: int
     result: FlightResult
     mission: Mission | None = None
     run_dir: Path | None = None
     report_due: bool = False
+    error: str | None = None  # the one sentence that ended the flight early (a user error, a lost link)
 
 
 def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], None]) -> Flown:
-    """Load and fly the mission with the command-line choices; progress lines go to `say`, errors are
-    printed."""
+    """Load and fly the mission with the command-line choices; progress lines go to `say`, the error that
+    ended the flight early to `Flown.error`."""
     try:
         mission = load_mission(mission_path)
     except MissionError as exc:
-        print(f"error: {exc}")
-        return Flown(EXIT_USER_ERROR, FlightResult())
+        return Flown(EXIT_USER_ERROR, FlightResult(), error=str(exc))
     if options.keep_params:
         mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
     try:
         key_file, key = signing_key(mission)
     except signing.SigningKeyError as exc:
-        print(f"error: {exc}")
-        return Flown(EXIT_USER_ERROR, FlightResult(), mission)
+        return Flown(EXIT_USER_ERROR, FlightResult(), mission, error=str(exc))
     run_dir = options.out_dir or default_run_dir(mission)
     run_dir.mkdir(parents=True, exist_ok=True)
     sim_spec = mission.run.simulator
@@ -201,6 +208,7 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     result = FlightResult()
     runner: MissionRunner | None = None
     status = EXIT_OK
+    error: str | None = None
     say(f"run folder {run_dir}")
     if key is not None:
         say(f"MAVLink 2 signing with the key in {key_file}")
@@ -230,16 +238,16 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
                     runner.restore_params()
                     result = runner.result
     except (MissionError, SimulatorError, PreflightError) as exc:
-        print(f"error: {exc}")
-        status = EXIT_USER_ERROR
+        error, status = str(exc), EXIT_USER_ERROR
     except LinkError as exc:
-        print(f"error: {exc}")
+        error = str(exc)
         status = (
             EXIT_USER_ERROR if result.phase_reached in ("connect", "preflight", "launch") else EXIT_FAILED
         )
         result.events.append(str(exc))
     except KeyboardInterrupt:
-        print("interrupted: stopping")
+        say("interrupted: stopping")
+        log.info("interrupted by the operator during phase %s", result.phase_reached)
         status = EXIT_FAILED
         result.events.append("interrupted by the operator")
     finally:
@@ -249,7 +257,7 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     latencies = runner.tick_latency_s if runner is not None else []
     limited = runner.commands_limited if runner is not None else 0
     write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies, limited)
-    flown = Flown(status, result, mission, run_dir)
+    flown = Flown(status, result, mission, run_dir, error=error)
     if status == EXIT_OK and result.reattached == "land":
         say("every vehicle landed and disarmed" if result.landed_all else "not every vehicle disarmed")
         flown.status = EXIT_OK if result.landed_all and not result.lost else EXIT_FAILED

@@ -20,7 +20,7 @@ inside a circle could not arm, "PreArm: Vehicle breaching Polygon fence", or wou
 obstacle that cannot be fenced so is skipped and said. Moving obstacles cannot be fenced (a fence is static).
 
 The protocol (libraries/GCS_MAVLink/MissionItemProtocol.cpp, MissionItemProtocol_Fence.cpp), each step resent
-on loss and timed in vehicle time like every other exchange (gcs_swarm.link.vehicle):
+on loss and timed in vehicle time like every other exchange (gcs_swarm.link.operations):
 - upload: MISSION_COUNT(n, FENCE); the vehicle asks for each item with MISSION_REQUEST (ArduPilot; the
   MAVLink spec's MISSION_REQUEST_INT is answered too) and re-asks by itself after 1 s; each is answered with
   MISSION_ITEM_INT (frame GLOBAL, x/y lat/lon degE7, param1 the radius in m); done on MISSION_ACK ACCEPTED
@@ -55,7 +55,8 @@ from gcs_swarm.link import frames
 from gcs_swarm.link.connection import LinkError, MAVLinkMessage
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams, ParamChange
-from gcs_swarm.link.vehicle import COMMAND_RETRIES, Operation, Timeout, VehicleLink
+from gcs_swarm.link.operations import COMMAND_RETRIES, Operation, Timeout
+from gcs_swarm.link.vehicle import VehicleLink
 from gcs_swarm.mission import Mission
 from gcs_swarm.mission.geometry import mission_offsets
 
@@ -209,7 +210,7 @@ def op_upload_fence(
     MISSION_ACK ACCEPTED); started over (up to `retries` times) when it stalls, is cancelled or denied."""
     _require_alive(link)
     count = len(items)
-    texts = link.statustexts
+    texts = link.telemetry.statustexts
     last_refusal = "no answer"
     _fence_messages(link)
     timeout = Timeout(FIRST_ANSWER_S, link.vehicle_clock)
@@ -241,7 +242,7 @@ def op_upload_fence(
                 if result in _REFUSALS_TO_RETRY or (result == mavlink2.MAV_MISSION_ERROR and not sent_last):
                     restart = True
                     break
-                said = f' ("{link.last_statustext}")' if link.statustexts > texts else ""
+                said = f' ("{link.telemetry.last_statustext}")' if link.telemetry.statustexts > texts else ""
                 raise LinkError(f"{link.name} refused the fence: {last_refusal}{said}")
     raise LinkError(f"{link.name} did not take the fence ({retries + 1} attempts; last: {last_refusal})")
 

@@ -12,7 +12,7 @@ BRAKE does not stop at a constant deceleration: AC_PosControl shapes the stop (A
 shape_vel_accel, BRAKE_MODE_DECEL_RATE a = 7.5 m/s^2, PSC_JERK_XY j = 5 m/s^3): the deceleration ramps up
 at j and then, below a^2 / j = 11.25 m/s, follows k v with k = j / a, an exponential decay of time constant
 1.5 s. From 10 m/s that is about 20 m, not the 6.7 m of v^2 / 2a (a real ArduCopter SITL quad stopped from
-10.1 m/s in 20.4 m; the sitl-sim vehicle follows the same shaping: sitl_sim.position_control
+10.1 m/s in 20.4 m; the sitl-sim vehicle follows the same shaping: sitl_sim.vehicle_model.position_control
 .brake_shaping_step).
 
 Shapes: pos, vel (N, 3) ENU m, m/s; centres (K, 3), radii (K,) m.

@@ -1,5 +1,6 @@
 """One control tick for the whole fleet: formation targets, potential field, reference generator, position
-controller (SMC or PID) and thrust/attitude inversion (spec 5-8).
+controller (any `gcs_swarm.guidance.controller.PositionController`: SMC or PID) and thrust/attitude inversion
+(spec 5-8).
 
 Everything is local ENU metres, FLU body, rad; arrays have one row per vehicle (N). The ground station calls
 `tick` once per control period with the measured state; the returned `Command` rows of active vehicles become
@@ -14,6 +15,7 @@ import numpy as np
 
 from gcs_swarm.guidance import field as fieldmod
 from gcs_swarm.guidance.attitude_slew import TiltSlew
+from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.failsafe_speed import failsafe_speed_caps
 from gcs_swarm.guidance.formation import (
     LeaderHeading,
@@ -28,18 +30,14 @@ from gcs_swarm.guidance.params import (
     FieldParams,
     G,
     Limits,
-    PIDParams,
     ReferenceParams,
     SeparationParams,
     SMCParams,
 )
-from gcs_swarm.guidance.pid import PIDController
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
 from gcs_swarm.guidance.separation import closing_speed_caps, repulsion_range, uav_repulsion
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
-
-CONTROLLERS = ("smc", "pid")
 
 
 @dataclass(frozen=True)
@@ -81,7 +79,8 @@ def _as_array(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarra
 
 
 class FleetController:
-    """Leader-follower IAAPF (or APF) guidance with SMC (or PID) control for N vehicles (spec 8)."""
+    """Leader-follower IAAPF (or APF) guidance with a position controller (SMC or PID) for N vehicles
+    (spec 8)."""
 
     def __init__(
         self,
@@ -94,9 +93,7 @@ class FleetController:
         separation: SeparationParams | None = None,
         reference: ReferenceParams | None = None,
         limits: Limits | None = None,
-        controller: str = "smc",
-        smc: SMCParams | None = None,
-        pid: PIDParams | None = None,
+        position_controller: PositionController | None = None,
         adjacency: np.ndarray | None = None,
         topology: str = "broadcast",
         control_dt: float = 0.02,
@@ -109,13 +106,13 @@ class FleetController:
         `goal_waypoints` (W, 3) the leader's goals in order, `follower_targets` (N, 3) final destinations g_i
         for the adaptive factor (default g_L + R(psi_L) delta_i, spec 8 step 1), `topology` "broadcast"
         (every follower hears the leader at once) or "relay" (one tick of delay per hop along `adjacency`,
-        default the star graph), `thrust_mode` "measured" (Eq 36) or "norm" (m|U|), `control_dt` s the
-        nominal tick, `dead_gcs` the failsafe speed scheduling (None: off, gcs_swarm.guidance.failsafe_speed).
+        default the star graph), `position_controller` the control law of step 7 (None: the SMC with the
+        spec's gains and `limits`; gcs_swarm.guidance.controller.make_position_controller builds a mission's
+        choice), `thrust_mode` "measured" (Eq 36) or "norm" (m|U|), `control_dt` s the nominal tick,
+        `dead_gcs` the failsafe speed scheduling (None: off, gcs_swarm.guidance.failsafe_speed).
         """
         if n < 1 or not 0 <= leader < n:
             raise ValueError(f"leader index {leader} is not a vehicle of a fleet of {n}")
-        if controller not in CONTROLLERS:
-            raise ValueError(f"controller must be one of {CONTROLLERS}, not {controller!r}")
         if topology not in TOPOLOGIES:
             raise ValueError(f"topology must be one of {TOPOLOGIES}, not {topology!r}")
         if thrust_mode not in THRUST_MODES:
@@ -144,10 +141,8 @@ class FleetController:
         self.is_leader = np.arange(n) == leader
         self.v_xy_cap = np.where(self.is_leader, self.limits.v_xy_leader, self.limits.v_xy)
         self.generator = ReferenceGenerator(self.reference, self.limits, self.field.k_att, g, z_min)
-        self.controller: SMCController | PIDController = (
-            SMCController(smc or SMCParams(), g, self.limits)
-            if controller == "smc"
-            else PIDController(pid or PIDParams(), g)
+        self.position_controller: PositionController = position_controller or SMCController(
+            SMCParams(), g, self.limits
         )
         self.slew = TiltSlew(np.deg2rad(self.limits.tilt_rate_max_deg))
         self.heading: LeaderHeading | None = None
@@ -220,7 +215,7 @@ class FleetController:
         self.was_active = known.copy()
         self.last_t: float | None = None
         self.generator.reset(self.last_pos, self.last_vel)
-        self.controller.reset(self.n)
+        self.position_controller.reset(self.n)
         rate = np.deg2rad(self.reference.heading_rate_max_deg)
         ref = self.reference
         self.heading = LeaderHeading(
@@ -300,7 +295,7 @@ class FleetController:
         self.was_active = active.copy()
         if returning.any():
             self.generator.reset_rows(returning, pos, vel)
-            self.controller.reset_rows(returning)
+            self.position_controller.reset_rows(returning)
             self.slew.reset_rows(returning, att[:, 0], att[:, 1])
 
         # Leader goal and heading (spec 6 [add]); the heading follows the leader's reference velocity.
@@ -393,7 +388,7 @@ class FleetController:
             lit = paper_literal_reference(targets, v_ff, f_obs + f_uav, self.field.k_att, self.field.l0)
             for arr, lit_arr in zip((x_d, xd_dot, xd_ddot), lit, strict=True):
                 arr[literal] = lit_arr[literal]
-        u = self.controller(x_d, xd_dot, xd_ddot, pos, vel, dt)
+        u = self.position_controller(x_d, xd_dot, xd_ddot, pos, vel, dt)
         if self.thrust_mode == "measured":
             cmd = invert(u, att[:, 2], self.limits, self.g, att[:, 0], att[:, 1])
         else:

@@ -1,4 +1,5 @@
-"""PID position controller, the baseline the SMC is compared against (same interface as SMCController).
+"""PID position controller, the baseline the SMC is compared against (a
+`gcs_swarm.guidance.controller.PositionController`, like smc.SMCController).
 
 U = xd_ddot + kp e + kd (xd_dot - v) + ki integral(e) (+g in z), (N, 3) m/s^2, with the integral term
 clamped to +-i_limit m/s^2 (anti-windup).

@@ -101,8 +101,8 @@ def winding(u: np.ndarray, step: np.ndarray, limits: Limits, g: float = G) -> np
 
 
 class SMCController:
-    """Eq 49 behind the position-controller interface shared with `pid.PIDController`, plus the optional
-    disturbance estimate d_hat [add] (module docstring)."""
+    """Eq 49 as a `gcs_swarm.guidance.controller.PositionController`, plus the optional disturbance estimate
+    d_hat and drag adaptation c_hat [add] (module docstring)."""
 
     def __init__(self, params: SMCParams, g: float = G, limits: Limits | None = None) -> None:
         """`limits`: the spec 5 limits the inversion applies, so the estimate holds while they cut U; None:

@@ -16,16 +16,15 @@ Flight loop (spec 8; the same code runs against hardware in real time and agains
 Lockstep (team brief): the simulator waits until each frame is answered by SYSTEM_TIME / SET_ATTITUDE_TARGET
 / SET_POSITION_TARGET_* carrying time_boot_ms >= the frame's. `wait_tick` and `pump` never answer (the flight
 loop does, after its commands); every blocking wait of the link (`connect`, `run`, `wait_until` and all
-`*_all` / per-vehicle blocking methods) answers each new frame itself when `lockstep_answers` is on.
+`*_all` methods) answers each new frame itself when `lockstep_answers` is on.
 
 Timeouts of the waits for the vehicles (`wait_until`, `wait_ready`, and every command, mode, arming and
-parameter exchange) are seconds of vehicle time (vehicle.Timeout), with a wall-clock backstop for clocks that
-stop; those of the waits for the link itself (`connect`, `wait_tick`, `pump`) are wall seconds.
+parameter exchange) are seconds of vehicle time (operations.Timeout), with a wall-clock backstop for clocks
+that stop; those of the waits for the link itself (`connect`, `wait_tick`, `pump`) are wall seconds.
 """
 
 from __future__ import annotations
 
-import selectors
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
@@ -38,39 +37,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm.link import frames
-from gcs_swarm.link.autopilots import ardupilot
-from gcs_swarm.link.connection import (
-    ConnectionSpec,
-    Endpoint,
-    LinkError,
-    MAVLinkMessage,
-    UdpRouter,
-    open_endpoint,
-    parse_connection,
-)
-from gcs_swarm.link.tlog import TlogWriter
-from gcs_swarm.link.vehicle import (
-    Event,
-    FleetState,
-    Operation,
-    Timeout,
-    VehicleConfig,
-    VehicleLink,
-    telemetry_rates,
-)
-
-__all__ = [
-    "Fleet",
-    "LinkError",
-    "VehicleConfig",
-    "VehicleLink",
-    "Event",
-    "telemetry_rates",
-]
+from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.lockstep import frame_ready
+from gcs_swarm.link.network import Network
+from gcs_swarm.link.operations import Operation, Timeout
+from gcs_swarm.link.streams import telemetry_rates
+from gcs_swarm.link.telemetry import Event, TelemetryState
+from gcs_swarm.link.vehicle import VehicleConfig, VehicleLink
 
 _POLL_S = 0.02  # longest single select() inside blocking waits; they return as soon as packets arrive
 _FRAME_GRACE_S = 0.25  # wall s a blocking wait waits for a complete telemetry frame before acting anyway
-_SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before connect refuses it
 
 
 class Fleet:
@@ -104,17 +80,14 @@ class Fleet:
         self.loss_timeout_s = loss_timeout_s
         self.loss_wall_timeout_s = loss_timeout_s if loss_wall_timeout_s is None else loss_wall_timeout_s
         self.tlog_path = tlog_path
-        self.state = FleetState(len(self.configs), origin)
+        self.state = TelemetryState(len(self.configs), origin)
         self.events: deque[Event] = deque(maxlen=10_000)
         self.links = [
-            VehicleLink(i, cfg, self.state, self.events, self._run_one, gcs_sysid, gcs_compid, signing_key)
+            VehicleLink(i, cfg, self.state, self.events, gcs_sysid, gcs_compid, signing_key)
             for i, cfg in enumerate(self.configs)
         ]
         self._by_name = {link.name: link for link in self.links}
-        self._routes: dict[Endpoint, list[VehicleLink]] = {}
-        self._selector = selectors.DefaultSelector()
-        self._tlog: TlogWriter | None = None
-        self.unrouted = 0  # packets on a shared udpin endpoint from no configured vehicle
+        self.network = Network(self.links)
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
 
     # ------------------------------------------------------------------ state arrays (copies)
@@ -153,8 +126,16 @@ class Fleet:
 
     @property
     def mode(self) -> NDArray[np.int64]:
-        """(N,) ArduCopter custom_mode from HEARTBEAT (-1 unknown); names via vehicle.mode_name."""
+        """(N,) the autopilots' custom_mode from HEARTBEAT (-1 unknown); names via VehicleLink.mode_name."""
         return self.state.mode.copy()
+
+    def in_mode(self, mode: str) -> NDArray[np.bool_]:
+        """(N,) each vehicle's HEARTBEAT shows flight mode `mode`, named in its autopilot's dialect
+        (ValueError if a dialect has no such mode)."""
+        return np.array(
+            [self.state.mode[link.index] == link.channel.autopilot.mode_number(mode) for link in self.links],
+            dtype=bool,
+        )
 
     @property
     def ready(self) -> NDArray[np.bool_]:
@@ -186,29 +167,25 @@ class Fleet:
         raise LinkError(f"there is no vehicle {key!r} (vehicles: {', '.join(self.names)})")
 
     def stats(self) -> dict[str, dict[str, int]]:
-        """Per-vehicle packet counters (received, sent, bad, ignored, lost, unsent)."""
-        return {link.name: asdict(link.counters) for link in self.links}
+        """Per-vehicle packet counters (channel.LinkStats: received, sent, bad, ignored, lost, ...)."""
+        return {link.name: asdict(link.channel.stats) for link in self.links}
 
     # ------------------------------------------------------------------ connection
 
     def connect(self, timeout_s: float = 10.0) -> None:
         """Open every endpoint and wait for each vehicle's HEARTBEAT; refuse sysid mismatches/duplicates."""
-        if self._routes:
+        if self.network.connected:
             raise RuntimeError("the fleet is already connected")
         try:
-            self._open_endpoints(connect_timeout_s=min(timeout_s, 5.0))
-            if self.tlog_path is not None:
-                self._tlog = TlogWriter(self.tlog_path)
-                for link in self.links:
-                    link.tlog = self._tlog
+            self.network.open(min(timeout_s, 5.0), self.tlog_path)
             deadline = time.monotonic() + timeout_s
             while True:
-                self._check_identities()
+                self.network.check_identities()
                 if all(link.sysid is not None for link in self.links):
                     break
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    self._check_identities(wrong_sysid_heartbeats=1)
+                    self.network.check_identities(wrong_sysid_heartbeats=1)
                     missing = [f"{v.name} ({v.config.connection})" for v in self.links if v.sysid is None]
                     raise LinkError(
                         f"no HEARTBEAT within {timeout_s:g} s from {', '.join(missing)}; "
@@ -217,7 +194,7 @@ class Fleet:
                 self._pump_answering(min(remaining, _POLL_S))
             for link in self.links:
                 if link.state.time_ms[link.index] < 0:
-                    link.request_message("SYSTEM_TIME")  # learn the frame time to answer in lockstep
+                    link.streams.request_message("SYSTEM_TIME")  # learn the frame time to answer in lockstep
             self._request_streams()
         except BaseException:
             self.close()
@@ -229,75 +206,14 @@ class Fleet:
         and MAVProxy and QGroundControl ask at the first HEARTBEAT too. A vehicle that refuses is reported
         (an event) and asked again by the stream watchdog; nothing here stops the connection."""
         rates = telemetry_rates(self.stream_rate_hz)
-        results = self.run((link.op_request_streams(rates) for link in self.links), strict=False)
+        results = self.run((link.streams.op_request_streams(rates) for link in self.links), strict=False)
         for link, result in zip(self.links, results, strict=True):
             if isinstance(result, LinkError):
                 link.add_event(f"telemetry not set up: {result}")
 
-    def _open_endpoints(self, connect_timeout_s: float) -> None:
-        groups: dict[tuple[str, str, int], tuple[ConnectionSpec, list[VehicleLink]]] = {}
-        for link in self.links:
-            try:
-                spec = parse_connection(link.config.connection)
-            except ValueError as err:
-                raise LinkError(f"{link.name}: {err}") from None
-            groups.setdefault(spec.key, (spec, []))[1].append(link)
-        for spec, members in groups.values():
-            names = ", ".join(m.name for m in members)
-            if len(members) > 1 and spec.kind != "udpin":
-                raise LinkError(
-                    f"{names} share the connection {spec.text}; "
-                    "only a udpin endpoint can serve several vehicles"
-                )
-            if len(members) > 1 and any(m.config.sysid is None for m in members):
-                raise LinkError(
-                    f"{names} share {spec.text}: give each of them its sysid so they can be told apart"
-                )
-            endpoint = open_endpoint(spec, names, connect_timeout_s)
-            self._routes[endpoint] = members
-            self._selector.register(endpoint.fileno(), selectors.EVENT_READ, endpoint)
-            for member in members:
-                member.endpoint = endpoint
-
-    def _check_identities(self, wrong_sysid_heartbeats: int = _SYSID_CONFLICT_HEARTBEATS) -> None:
-        by_sysid: dict[int, VehicleLink] = {}
-        for link in self.links:
-            conn = link.config.connection
-            if link.sysid is not None:
-                other = by_sysid.setdefault(link.sysid, link)
-                if other is not link:
-                    raise LinkError(
-                        f"{other.name} ({other.config.connection}) and {link.name} ({conn}) both report "
-                        f"sysid {link.sysid}; give each vehicle its own {ardupilot.sysid_param_hint()}"
-                    )
-            elif link.config.sysid is not None:
-                wrong = [s for s, n in link.foreign_heartbeats.items() if n >= wrong_sysid_heartbeats]
-                if wrong:
-                    raise LinkError(
-                        f"{link.name} ({conn}) reports sysid {wrong[0]}, but the mission gives it sysid "
-                        f"{link.config.sysid}"
-                    )
-            endpoint = link.endpoint
-            wanted = link.sysid if link.sysid is not None else link.config.sysid
-            if isinstance(endpoint, UdpRouter) and wanted is not None:
-                addresses = endpoint.addresses.get(wanted, [])
-                if len(addresses) > 1:
-                    shown = ", ".join(f"{host}:{port}" for host, port in addresses)
-                    raise LinkError(
-                        f"{link.name}'s sysid {wanted} is heard from several addresses on {conn} ({shown}); "
-                        "two vehicles share that sysid"
-                    )
-
     def close(self) -> None:
         """Close every endpoint and the tlog (idempotent)."""
-        for endpoint in self._routes:
-            endpoint.close()
-        self._routes.clear()
-        self._selector.close()
-        self._selector = selectors.DefaultSelector()
-        if self._tlog is not None:
-            self._tlog.close()
-            self._tlog = None
+        self.network.close()
 
     def __enter__(self) -> Fleet:
         return self
@@ -315,60 +231,22 @@ class Fleet:
         Never answers lockstep frames (see the module doc). Then calls `on_pump`, if set: every blocking wait
         pumps, so the fleet's owner can, e.g., publish its state from inside one (it must not pump itself).
         """
-        if not self._routes:
+        if not self.network.connected:
             raise RuntimeError("the fleet is not connected")
-        if self._selector.get_map():
-            ready = self._selector.select(max(timeout_s, 0.0))
-        else:  # every stream endpoint was closed by its peer
-            ready = []
-            time.sleep(max(timeout_s, 0.0))
-        now = time.monotonic()
-        for key, _ in ready:
-            endpoint: Endpoint = key.data
-            for msg, peer in endpoint.receive():
-                self._deliver(endpoint, msg, peer, now)
-            if endpoint.closed:
-                self._selector.unregister(key.fd)
-                for link in self._routes[endpoint]:
-                    link.add_event(f"connection {endpoint.spec.text} closed by the peer")
+        now = self.network.receive(timeout_s)
         for link in self.links:
-            if link.endpoint is not None:
-                link.heartbeat_if_due(now)
-                link.check_loss(now, self.loss_timeout_s, self.loss_wall_timeout_s)
-                link.check_streams()
+            if link.channel.endpoint is not None:
+                link.heartbeat.send_if_due(now)
+                link.telemetry.check_loss(now, self.loss_timeout_s, self.loss_wall_timeout_s)
+                link.streams.check()
         if self.on_pump is not None:
             self.on_pump()
 
-    def _deliver(self, endpoint: Endpoint, msg: MAVLinkMessage, peer: Any, now: float) -> None:
-        bad = msg.get_type() == "BAD_DATA"
-        if self._tlog is not None and not bad:
-            self._tlog.write(msg.get_msgbuf())
-        members = self._routes[endpoint]
-        if len(members) == 1:
-            members[0].handle(msg, now)
-            return
-        assert isinstance(endpoint, UdpRouter)
-        sysid = endpoint.sysid_of.get(peer) if bad else msg.get_srcSystem()
-        for link in members:
-            if link.config.sysid == sysid:
-                link.handle(msg, now)
-                return
-        self.unrouted += 1
-
     def _frame_ready(self) -> bool:
-        """Every alive vehicle has a telemetry frame that no answer has covered yet: in lockstep, the fleet's
-        frame is complete and the simulator waits for us."""
-        st = self.state
-        alive = [link for link in self.links if st.alive[link.index] and link.endpoint is not None]
-        if not alive:
-            return False
-        last = max(link.answered_ms for link in alive)
-        clocked = [  # lost, but a lockstep simulator still sends its clock ticks and waits for its answers
-            link
-            for link in self.links
-            if not st.alive[link.index] and link.endpoint is not None and st.frame_ms[link.index] >= last >= 0
-        ]
-        return all(link.needs_answer for link in alive + clocked)
+        """Every alive vehicle has a telemetry frame no answer has covered yet (lockstep.frame_ready)."""
+        return frame_ready(
+            [link.lockstep for link in self.links], [link.channel.endpoint is not None for link in self.links]
+        )
 
     def _next_frame(self, deadline: float) -> None:
         """Pump until a complete unanswered frame is here (immediately if one already is), or a short
@@ -417,7 +295,7 @@ class Fleet:
 
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
         """Pump (answering frames) until `predicate()`; LinkError "timed out after T s waiting for {what}"
-        after `timeout_s` of fleet vehicle time (vehicle.Timeout).
+        after `timeout_s` of fleet vehicle time (operations.Timeout).
 
         The predicate is evaluated on complete frames, and the frame on which it first holds is left
         unanswered, so the caller's next commands take effect at that very frame.
@@ -457,9 +335,6 @@ class Fleet:
             raise errors[0] if len(errors) == 1 else LinkError("; ".join(str(e) for e in errors))
         return results
 
-    def _run_one(self, op: Operation[Any]) -> Any:
-        return self.run([op])[0]
-
     # ------------------------------------------------------------------ flight-loop output
 
     def answer_frame(self, mask: ArrayLike | None = None) -> None:
@@ -469,8 +344,8 @@ class Fleet:
         """
         selected = self._mask(mask)
         for link in self.links:
-            if selected[link.index] and link.endpoint is not None:
-                link.answer_frame()
+            if selected[link.index] and link.channel.endpoint is not None:
+                link.lockstep.answer_frame()
 
     def send_attitude_targets(
         self,
@@ -483,9 +358,9 @@ class Fleet:
         """SET_ATTITUDE_TARGET to each connected vehicle in `mask` (default all), echoing its time_boot_ms.
 
         roll, pitch, yaw: (N,) rad, body FLU in world ENU (spec 1.1); thrust: (N,) normalised, clipped to
-        [0, 1] (see `thrust_from_acc`). A NaN or inf in a selected row is a bug upstream: ValueError naming
-        the vehicles, and nothing is sent to any vehicle (each keeps its previous target until the caller
-        decides, e.g. BRAKE).
+        [0, 1] (see autopilots.ardupilot.thrust_from_acc). A NaN or inf in a selected row is a bug upstream:
+        ValueError naming the vehicles, and nothing is sent to any vehicle (each keeps its previous target
+        until the caller decides, e.g. BRAKE).
         """
         n = len(self.links)
         euler = np.stack(
@@ -503,7 +378,7 @@ class Fleet:
         for link in self.links:
             i = link.index
             if selected[i] and link.sysid is not None:
-                link.send_attitude_quaternion(q[i], thrust_list[i])
+                link.setpoints.send_attitude_quaternion(q[i], thrust_list[i])
 
     def _mask(self, mask: ArrayLike | None) -> NDArray[np.bool_]:
         n = len(self.links)
@@ -530,7 +405,7 @@ class Fleet:
         progress_period_s: float = 10.0,
     ) -> None:
         """Wait until each vehicle (default: all) is ready to arm; after `timeout_s` of fleet vehicle time
-        (vehicle.Timeout), LinkError naming the others and why, in the vehicles' own words where they give
+        (operations.Timeout), LinkError naming the others and why, in the vehicles' own words where they give
         them (EKF flags, GPS fix, the latest PreArm text). `progress` hears the same every
         `progress_period_s` s of vehicle time while it waits (a real ArduCopter takes about a minute)."""
         links = self.links if vehicles is None else self.select(vehicles)
@@ -559,34 +434,35 @@ class Fleet:
     ) -> None:
         """SET_MESSAGE_INTERVAL for the telemetry the ground station uses (see `telemetry_rates`)."""
         rates = telemetry_rates(control_hz, status_hz, local_position)
-        self.run(link.op_request_streams(rates) for link in self.select(vehicles))
+        self.run(link.streams.op_request_streams(rates) for link in self.select(vehicles))
 
     def set_mode_all(self, mode: str | int, vehicles: Iterable[int | str] | None = None) -> None:
-        """Set an ArduCopter mode on each vehicle, confirmed by HEARTBEAT."""
-        self.run(link.op_set_mode(mode) for link in self.select(vehicles))
+        """Set a flight mode (named in each vehicle's autopilot dialect), confirmed by HEARTBEAT."""
+        self.run(link.commands.op_set_mode(mode) for link in self.select(vehicles))
 
     def arm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
-        self.run(link.op_arm(force) for link in self.select(vehicles))
+        self.run(link.commands.op_arm(force) for link in self.select(vehicles))
 
     def disarm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
-        self.run(link.op_disarm(force) for link in self.select(vehicles))
+        self.run(link.commands.op_disarm(force) for link in self.select(vehicles))
 
     def takeoff_all(self, alt_m: ArrayLike, vehicles: Iterable[int | str] | None = None) -> None:
         """MAV_CMD_NAV_TAKEOFF; alt_m (m above each home) is a scalar or one value per selected vehicle."""
         links = self.select(vehicles)
         alts = np.broadcast_to(np.asarray(alt_m, dtype=float), (len(links),))
-        self.run(link.op_takeoff(float(a)) for link, a in zip(links, alts, strict=True))
+        self.run(link.commands.op_takeoff(float(a)) for link, a in zip(links, alts, strict=True))
 
     def land_all(self, vehicles: Iterable[int | str] | None = None) -> None:
-        self.set_mode_all("LAND", vehicles)
+        """Land each vehicle where it is (its dialect's landing mode), confirmed by HEARTBEAT."""
+        self.run(link.commands.op_land() for link in self.select(vehicles))
 
     def param_set_all(self, name: str, value: float, vehicles: Iterable[int | str] | None = None) -> None:
         """Set and read back a parameter on each vehicle."""
-        self.run(link.op_param_set(name, value) for link in self.select(vehicles))
+        self.run(link.parameters.op_set(name, value) for link in self.select(vehicles))
 
     def param_get_all(self, name: str, vehicles: Iterable[int | str] | None = None) -> NDArray[np.float64]:
         """Read a parameter from each vehicle, in selection order."""
-        return np.array(self.run(link.op_param_get(name) for link in self.select(vehicles)), dtype=float)
+        return np.array(self.run(link.parameters.op_get(name) for link in self.select(vehicles)), dtype=float)
 
 
 def _validate(vehicles: Sequence[VehicleConfig], gcs_sysid: int, gcs_compid: int) -> None:

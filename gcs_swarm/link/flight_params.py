@@ -16,7 +16,8 @@ import numpy as np
 
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
-from gcs_swarm.link.vehicle import Operation, VehicleLink
+from gcs_swarm.link.operations import Operation
+from gcs_swarm.link.vehicle import VehicleLink
 
 
 @dataclass
@@ -69,7 +70,7 @@ class FlightParams:
                 if restorer is not None:
                     fleet.run([restorer(link, change)])
                 else:
-                    fleet.run([link.op_param_set(change.name, change.original)])
+                    fleet.run([link.parameters.op_set(change.name, change.original)])
                 change.restored = True
             except LinkError:
                 continue

@@ -1,20 +1,20 @@
-"""Cross-field checks of a mission: fleet consistency, placement against obstacles and geofence, limits.
+"""The rules of a mission that relate several keys: bounds set by other keys, references (outage vehicles,
+the adjacency matrix), fleet consistency, placement against obstacles and geofence, limits.
 
-Each check raises a MissionError at the YAML line of the value that is wrong.
+`check_file` runs on the validated file (what building the `Mission` relies on), `check_mission` on the built
+`Mission`. Each raises a MissionError at the YAML line of the value that is wrong (`root.at(key path)`).
 """
 
 from __future__ import annotations
 
+import difflib
 import re
-from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_swarm.guidance.params import Limits
-from gcs_swarm.mission.fields import Section, param_fields
-from gcs_swarm.mission.model import FormationSpec, Obstacle, RunSpec, SafetySpec, VehicleSpec
-from gcs_swarm.mission.yaml_tree import Node
+from gcs_swarm.mission.model import Mission
+from gcs_swarm.mission.schema import MissionFile, Range, SafetySection, describe
+from gcs_swarm.mission.yaml_tree import MissionError, Node
 
 # pymavlink connection strings: network forms "kind:host:port", serial "/dev/ttyX[,baud]" or "COMn[,baud]"
 _NETWORK = re.compile(r"(udpin|udpout|udp|udpbcast|tcp|tcpin):([^:\s]+):([0-9]{1,5})")
@@ -24,243 +24,346 @@ _CONNECTION_HINT = (
     "expected a pymavlink connection string such as 'udpout:127.0.0.1:14541', 'udpin:0.0.0.0:14550', "
     "'tcp:192.168.1.10:5760' or '/dev/ttyUSB0,57600'"
 )
+FS_GCS_TIMEOUT_S = (2.0, 120.0)  # ArduCopter's FS_GCS_TIMEOUT range (DeadGcsParams)
 
 
-@dataclass(frozen=True)
-class ParsedVehicle:
-    """A vehicle and the YAML it came from (for errors about it found later)."""
-
-    spec: VehicleSpec
-    section: Section  # the vehicle's mapping
-    start_section: Section  # its `start` mapping
+def failsafe_timeout(safety: SafetySection) -> float:
+    """safety.dead_gcs.failsafe_timeout_s, or its default telemetry.lost_s (at least 2 s), in s."""
+    given = safety.dead_gcs.failsafe_timeout_s
+    return max(safety.telemetry.lost_s, FS_GCS_TIMEOUT_S[0]) if given is None else given
 
 
-def endpoint(node: Node) -> tuple[str, str, int]:
+# ---------------------------------------------------------------- on the validated file
+
+
+def check_file(file: MissionFile, root: Node) -> None:
+    """Bounds other keys set, the goal or route, the fleet's list, the topology, the outages' vehicles."""
+    run, safety, planner = file.run, file.safety, file.planner
+    above_floor = Range(gt=safety.min_altitude, unit="m (above safety.min_altitude)")
+    below_limit = Range(lt=planner.time_limit_s, unit="s (below planner.time_limit_s)")
+    for loc, value, bounds in (
+        (("run", "simulator", "rate_hz"), run.simulator.rate_hz, Range(ge=run.control_rate_hz, unit="Hz")),
+        (("safety", "geofence", "max_alt"), safety.geofence.max_alt, above_floor),
+        (("planner", "dt"), planner.dt, below_limit),
+    ):
+        problem = bounds.problem(value)
+        if problem:
+            raise root.at(loc).error(problem)
+    _safety(file.safety, root)
+    if not file.vehicles:
+        raise root.at(("vehicles",)).error(
+            "the list is empty; a mission needs one leader and any number of followers"
+        )
+    for i, vehicle in enumerate(file.vehicles):
+        for key in ("slot", "target"):
+            if vehicle.role == "leader" and key in vehicle.model_fields_set:
+                owner = "the mission goal" if key == "target" else "the formation's reference point"
+                raise root.at(("vehicles", i, key)).error(f"the leader has no {key}; it is {owner}")
+    _route(file, root)
+    _adjacency(file, root)
+    _outage_vehicles(file, root)
+
+
+def _safety(safety: SafetySection, root: Node) -> None:
+    separation = safety.separation
+    if separation.mode == "constant" and separation.d_emg > separation.d_max:
+        raise root.at(("safety", "separation", "d_emg")).error(
+            f"d_emg ({separation.d_emg:g} m) must not exceed d_max ({separation.d_max:g} m) (spec 4)"
+        )
+    timeout, lost_s = failsafe_timeout(safety), safety.telemetry.lost_s
+    blamed = root.at(("safety", "dead_gcs", "failsafe_timeout_s"))
+    if timeout < lost_s:
+        raise blamed.error(
+            f"failsafe_timeout_s ({timeout:g} s) must be at least telemetry.lost_s "
+            f"({lost_s:g} s): a vehicle would brake on a link outage the fleet still rides out"
+        )
+    if timeout > FS_GCS_TIMEOUT_S[1]:
+        raise blamed.error(
+            f"failsafe_timeout_s defaults to telemetry.lost_s ({lost_s:g} s), outside 2..120 s "
+            "(ArduCopter's FS_GCS_TIMEOUT range); lower telemetry.lost_s"
+        )
+
+
+def _route(file: MissionFile, root: Node) -> None:
+    given = file.model_fields_set
+    if "goal" in given and "waypoints" in given:
+        raise root.at(("waypoints",)).error(
+            "give either 'goal' or 'waypoints' (whose last point is the goal), not both"
+        )
+    if "goal" not in given and "waypoints" not in given:
+        raise root.at(("goal",)).error(
+            "required key is missing (give the leader's 'goal' or a list of 'waypoints')"
+        )
+    if "waypoints" in given and not file.waypoints:
+        raise root.at(("waypoints",)).error("the list is empty; give at least the goal")
+
+
+def _adjacency(file: MissionFile, root: Node) -> None:
+    """formation.adjacency: N x N of 0/1 in vehicle order, diagonal 0; required for topology 'relay'."""
+    rows, n = file.formation.adjacency, len(file.vehicles)
+    if rows is None:
+        if file.formation.topology == "relay":
+            raise root.at(("formation", "topology")).error(
+                "topology 'relay' needs formation.adjacency (an N x N matrix of 0/1 in vehicle order)"
+            )
+        return
+    if len(rows) != n:
+        raise root.at(("formation", "adjacency")).error(
+            f"expected {n} rows (one per vehicle), got {len(rows)}"
+        )
+    for i, row in enumerate(rows):
+        if len(row) != n:
+            raise root.at(("formation", "adjacency", i)).error(
+                f"expected {n} entries (one per vehicle), got {len(row)}"
+            )
+        for j, value in enumerate(row):
+            entry = root.at(("formation", "adjacency", i, j))
+            if value not in (0, 1):
+                raise entry.error(f"expected 0 or 1, got {value}")
+            if i == j and value:
+                raise entry.error("the diagonal must be 0 (a vehicle does not link to itself)")
+
+
+def _outage_vehicles(file: MissionFile, root: Node) -> None:
+    """world.link.outages[k].vehicle names a vehicle (given: the default names uav<i+1> count too)."""
+    names = [vehicle.name or f"uav{i + 1}" for i, vehicle in enumerate(file.vehicles)]
+    for k, outage in enumerate(file.world.link.outages or ()):
+        name = outage.vehicle
+        if "vehicle" in outage.model_fields_set and not (isinstance(name, str) and name in names):
+            close = difflib.get_close_matches(name, names, n=1) if isinstance(name, str) else []
+            hint = f"; did you mean {close[0]!r}?" if close else f" (vehicles: {', '.join(names)})"
+            raise root.at(("world", "link", "outages", k, "vehicle")).error(
+                f"expected the name of a vehicle, got {describe(name)}{hint}"
+            )
+
+
+# ---------------------------------------------------------------- on the built mission
+
+
+def check_mission(mission: Mission, root: Node) -> None:
+    """One leader; unique names, sysids and endpoints; starts, targets, slots; relay reach; placement of the
+    route and the planner start; formation altitude; the leader's speed cap."""
+    _one_leader(mission, root)
+    _unique_identities(mission, root)
+    placed = _Placement(mission, root)
+    _starts(mission, root, placed)
+    for i, vehicle in enumerate(mission.vehicles):
+        if vehicle.target is not None:
+            placed.check(vehicle.target, ("vehicles", i, "target"), "this target")
+    _slots(mission, root)
+    _relay(mission, root)
+    if len(mission.waypoints) == 1 and root.at(("waypoints",)).value is None:  # written as `goal`
+        placed.check(mission.goal, ("goal",), "the goal")
+    else:
+        for k, point in enumerate(mission.waypoints):
+            placed.check(point, ("waypoints", k), "this waypoint")
+    if mission.planner.start is not None:
+        placed.check(
+            mission.planner.start, ("planner", "start"), "the planner start", fenced=False, floor=False
+        )
+    formation, safety = mission.formation, mission.safety
+    if not safety.min_altitude <= formation.altitude <= safety.geofence_max_alt:
+        raise root.at(("formation", "altitude")).error(
+            f"{formation.altitude:g} m is outside safety.min_altitude..safety.geofence.max_alt "
+            f"({safety.min_altitude:g}..{safety.geofence_max_alt:g} m)"
+        )
+    limits = mission.limits
+    if len(mission.vehicles) > 1 and not limits.v_xy_leader < limits.v_xy:
+        raise root.at(("limits", "v_xy_leader")).error(
+            f"the leader's cap ({limits.v_xy_leader:g} m/s) must be below the followers' v_xy "
+            f"({limits.v_xy:g} m/s) so they can close gaps (spec 8 step 3)"
+        )
+
+
+def endpoint(connection: str, blamed: Node) -> tuple[str, str, int]:
     """(kind, host or device, port) of a connection string; `udp` reads as `udpin`, localhost as 127.0.0.1."""
-    value = str(node.value).strip()
+    value = connection.strip()
     network = _NETWORK.fullmatch(value)
     if network:
         kind, host, port = network.group(1), network.group(2).lower(), int(network.group(3))
         if not 1 <= port <= 65535:
-            raise node.error(f"port {port} is outside 1..65535")
+            raise blamed.error(f"port {port} is outside 1..65535")
         kind = "udpin" if kind == "udp" else kind
         host = "127.0.0.1" if host == "localhost" else host
         return kind, ("*" if kind in _LISTENING else host), port
     serial = _SERIAL.fullmatch(value)
     if serial:
         return "serial", serial.group(1), 0
-    raise node.error(f"{_CONNECTION_HINT}, got {value!r}")
+    raise blamed.error(f"{_CONNECTION_HINT}, got {value!r}")
 
 
-class Placed:
+class _Placement:
     """Checks that points lie outside every obstacle (at t = 0) and inside the geofence and altitude band."""
 
-    def __init__(self, obstacles: Sequence[Obstacle], nodes: Sequence[Node], safety: SafetySpec) -> None:
-        self.obstacles = obstacles
-        self.nodes = nodes
-        self.safety = safety
+    def __init__(self, mission: Mission, root: Node) -> None:
+        self.mission = mission
+        self.root = root
 
     def check(
-        self, point: np.ndarray, node: Node, what: str, *, fenced: bool = True, floor: bool = True
+        self,
+        point: np.ndarray,
+        loc: tuple[str | int, ...],
+        what: str,
+        *,
+        fenced: bool = True,
+        floor: bool = True,
     ) -> None:
-        """`what` names the point in the sentence ("the goal", "this start position")."""
-        margin = self.safety.collision_radius
-        for k, obstacle in enumerate(self.obstacles):
+        """`point` (3,) m ENU at key path `loc`; `what` names it in the sentence ("the goal", "a target")."""
+        safety, node = self.mission.safety, self.root.at(loc)
+        margin = safety.collision_radius
+        for k, obstacle in enumerate(self.mission.obstacles):
             distance = float(np.linalg.norm(point - obstacle.center))
             if distance <= obstacle.radius + margin:
+                where = self.root.at(("world", "obstacles", k))
                 raise node.error(
-                    f"{what} lies inside obstacle {self.nodes[k].path} (line {self.nodes[k].line}): "
+                    f"{what} lies inside obstacle {where.path} (line {where.line}): "
                     f"{distance:.2f} m from its centre, which needs more than radius {obstacle.radius:g} m "
                     f"+ vehicle radius {margin:g} m"
                 )
         if fenced:
             horizontal = float(np.hypot(point[0], point[1]))
-            if horizontal > self.safety.geofence_radius:
+            if horizontal > safety.geofence_radius:
                 raise node.error(
                     f"{what} is {horizontal:.0f} m from the origin, outside the geofence "
-                    f"(safety.geofence.radius = {self.safety.geofence_radius:g} m)"
+                    f"(safety.geofence.radius = {safety.geofence_radius:g} m)"
                 )
-            if point[2] > self.safety.geofence_max_alt:
+            if point[2] > safety.geofence_max_alt:
                 raise node.error(
                     f"{what} is at {point[2]:g} m, above the geofence "
-                    f"(safety.geofence.max_alt = {self.safety.geofence_max_alt:g} m)"
+                    f"(safety.geofence.max_alt = {safety.geofence_max_alt:g} m)"
                 )
-        if floor and point[2] < self.safety.min_altitude:
+        if floor and point[2] < safety.min_altitude:
             raise node.error(
-                f"{what} is at {point[2]:g} m, below safety.min_altitude ({self.safety.min_altitude:g} m)"
+                f"{what} is at {point[2]:g} m, below safety.min_altitude ({safety.min_altitude:g} m)"
             )
 
 
-def vehicles(
-    listed: Node,
-    fleet: Sequence[ParsedVehicle],
-    run: RunSpec,
-    safety: SafetySpec,
-    formation: FormationSpec,
-    placed: Placed,
-) -> None:
-    """One leader; unique names, sysids and endpoints; embedded-simulator ports; starts, targets, slots.
-
-    `listed` is the `vehicles` list node.
-    """
-    _one_leader(listed, fleet)
-    _unique_identities(fleet, run)
-    _starts(fleet, run, safety, placed)
-    for vehicle in fleet:
-        if vehicle.spec.target is not None:
-            placed.check(vehicle.spec.target, vehicle.section.line_of("target"), "this target")
-    _slots(fleet, formation, safety)
-
-
-def _one_leader(listed: Node, fleet: Sequence[ParsedVehicle]) -> None:
-    leaders = [v for v in fleet if v.spec.role == "leader"]
+def _one_leader(mission: Mission, root: Node) -> None:
+    leaders = [i for i, v in enumerate(mission.vehicles) if v.role == "leader"]
     if not leaders:
-        raise listed.error("no vehicle has 'role: leader'; exactly one must lead")
+        raise root.at(("vehicles",)).error("no vehicle has 'role: leader'; exactly one must lead")
     if len(leaders) > 1:
-        raise (
-            leaders[1]
-            .section.line_of("role")
-            .error(
-                f"a second leader ({leaders[0].section.node.path} already leads); exactly one vehicle leads"
-            )
+        raise root.at(("vehicles", leaders[1], "role")).error(
+            f"a second leader (vehicles[{leaders[0]}] already leads); exactly one vehicle leads"
         )
 
 
-def _unique_identities(fleet: Sequence[ParsedVehicle], run: RunSpec) -> None:
+def _unique_identities(mission: Mission, root: Node) -> None:
     names: dict[str, str] = {}
     sysids: dict[int, str] = {}
-    endpoints: dict[tuple[str, str, int], ParsedVehicle] = {}
-    embedded = run.simulator.embedded
-    for index, vehicle in enumerate(fleet):
-        spec, path = vehicle.spec, vehicle.section.node.path
-        if spec.name in names:
-            raise vehicle.section.line_of("name").error(
-                f"the name {spec.name!r} is already used by {names[spec.name]}"
+    endpoints: dict[tuple[str, str, int], int] = {}
+    simulator = mission.run.simulator
+    for index, vehicle in enumerate(mission.vehicles):
+        path = f"vehicles[{index}]"
+        if vehicle.name in names:
+            raise root.at(("vehicles", index, "name")).error(
+                f"the name {vehicle.name!r} is already used by {names[vehicle.name]}"
             )
-        names[spec.name] = path
-        if spec.sysid is not None:
-            if spec.sysid in sysids:
-                raise vehicle.section.line_of("sysid").error(
-                    f"sysid {spec.sysid} is already used by {sysids[spec.sysid]}"
-                )
-            if embedded and spec.sysid != index + 1:
-                raise vehicle.section.line_of("sysid").error(
+        names[vehicle.name] = path
+        if vehicle.sysid is not None:
+            sysid = root.at(("vehicles", index, "sysid"))
+            if vehicle.sysid in sysids:
+                raise sysid.error(f"sysid {vehicle.sysid} is already used by {sysids[vehicle.sysid]}")
+            if simulator.embedded and vehicle.sysid != index + 1:
+                raise sysid.error(
                     f"the embedded simulator numbers vehicles in order, so this one has sysid {index + 1}, "
-                    f"not {spec.sysid} (or set run.simulator.embedded: false)"
+                    f"not {vehicle.sysid} (or set run.simulator.embedded: false)"
                 )
-            sysids[spec.sysid] = path
-        connection = vehicle.section.line_of("connection")
-        key = endpoint(Node(spec.connection, connection.line, connection.path, connection.source))
-        expected = f"udpout:127.0.0.1:{run.simulator.base_port + index}"
-        if embedded and key != ("udpout", "127.0.0.1", run.simulator.base_port + index):
+            sysids[vehicle.sysid] = path
+        connection = root.at(("vehicles", index, "connection"))
+        key = endpoint(vehicle.connection, connection)
+        expected = f"udpout:127.0.0.1:{simulator.base_port + index}"
+        if simulator.embedded and key != ("udpout", "127.0.0.1", simulator.base_port + index):
             raise connection.error(
                 f"the embedded simulator serves this vehicle at {expected!r} "
-                f"(run.simulator.base_port + {index}), got {spec.connection!r}"
+                f"(run.simulator.base_port + {index}), got {vehicle.connection!r}"
             )
         other = endpoints.get(key)
         if other is not None:
-            shared_listener = key[0] == "udpin" and spec.sysid is not None and other.spec.sysid is not None
+            shared_listener = (
+                key[0] == "udpin" and vehicle.sysid is not None and mission.vehicles[other].sysid is not None
+            )
             if not shared_listener:
                 raise connection.error(
-                    f"{spec.connection!r} is already used by {other.section.node.path}; vehicles may share "
+                    f"{vehicle.connection!r} is already used by vehicles[{other}]; vehicles may share "
                     "only a 'udpin:' listening endpoint, and then each needs its own sysid"
                 )
-        endpoints[key] = vehicle
-    last_port = run.simulator.base_port + len(fleet) - 1
-    if embedded and last_port > 65535:
-        raise fleet[-1].section.node.error(f"needs port {last_port}; lower run.simulator.base_port")
+        endpoints[key] = index
+    last_port = simulator.base_port + len(mission.vehicles) - 1
+    if simulator.embedded and last_port > 65535:
+        last = len(mission.vehicles) - 1
+        raise root.at(("vehicles", last)).error(f"needs port {last_port}; lower run.simulator.base_port")
 
 
-def _starts(fleet: Sequence[ParsedVehicle], run: RunSpec, safety: SafetySpec, placed: Placed) -> None:
-    for index, vehicle in enumerate(fleet):
-        start, node = vehicle.spec.start, vehicle.start_section.line_of("position")
+def _starts(mission: Mission, root: Node, placed: _Placement) -> None:
+    run, safety = mission.run, mission.safety
+    for index, vehicle in enumerate(mission.vehicles):
+        start, loc = vehicle.start, ("vehicles", index, "start", "position")
         z = float(start.position[2])
         if run.airborne_start and z < safety.min_altitude:
-            raise node.error(
+            raise root.at(loc).error(
                 f"an airborne start (run.airborne_start: true) must be at least safety.min_altitude "
                 f"({safety.min_altitude:g} m) up, got z = {z:g} m"
             )
         if not run.airborne_start:
             if z != 0.0:
-                raise node.error(
+                raise root.at(loc).error(
                     f"a ground start needs z = 0, got {z:g} m "
                     "(set run.airborne_start: true to start in flight)"
                 )
             if np.any(start.velocity != 0.0):
-                raise vehicle.start_section.line_of("velocity").error(
+                raise root.at(("vehicles", index, "start", "velocity")).error(
                     "a ground start needs zero velocity (set run.airborne_start: true to start in flight)"
                 )
-        placed.check(start.position, node, "this start position", floor=False)
-        for other in fleet[:index]:
-            gap = float(np.linalg.norm(start.position - other.spec.start.position))
+        placed.check(start.position, loc, "this start position", floor=False)
+        for other_index, other in enumerate(mission.vehicles[:index]):
+            gap = float(np.linalg.norm(start.position - other.start.position))
             if gap < 2 * safety.collision_radius:
-                raise node.error(
-                    f"is {gap:.2f} m from the start of {other.section.node.path}; vehicles need at least "
+                raise root.at(loc).error(
+                    f"is {gap:.2f} m from the start of vehicles[{other_index}]; vehicles need at least "
                     f"{2 * safety.collision_radius:g} m (twice safety.collision_radius)"
                 )
 
 
-def _slots(fleet: Sequence[ParsedVehicle], formation: FormationSpec, safety: SafetySpec) -> None:
+def _slots(mission: Mission, root: Node) -> None:
+    collision_radius = mission.safety.collision_radius
     taken: list[tuple[np.ndarray, str]] = [(np.zeros(3), "the leader")]
-    for vehicle in fleet:
-        if vehicle.spec.role == "leader":
+    for index, vehicle in enumerate(mission.vehicles):
+        if vehicle.role == "leader":
             continue
-        slot = vehicle.spec.slot
+        slot = vehicle.slot
         if slot is None:
-            if formation.shape == "offsets":
-                missing = Node(
-                    None,
-                    vehicle.section.node.line,
-                    f"{vehicle.section.node.path}.slot",
-                    vehicle.section.node.source,
-                )
-                raise missing.error(
+            if mission.formation.shape == "offsets":
+                raise root.at(("vehicles", index, "slot")).error(
                     "formation.shape is 'offsets', so every follower needs its slot [x, y, z]"
                 )
             continue
         for other, owner in taken:
             gap = float(np.linalg.norm(slot - other))
-            if gap < 2 * safety.collision_radius:
-                raise vehicle.section.line_of("slot").error(
-                    f"is {gap:.2f} m from the slot of {owner}; "
-                    f"slots need at least {2 * safety.collision_radius:g} m"
+            if gap < 2 * collision_radius:
+                raise root.at(("vehicles", index, "slot")).error(
+                    f"is {gap:.2f} m from the slot of {owner}; slots need at least {2 * collision_radius:g} m"
                 )
-        taken.append((slot, vehicle.section.node.path))
+        taken.append((slot, f"vehicles[{index}]"))
 
 
-def relay(formation_yaml: Section, formation: FormationSpec, fleet: Sequence[ParsedVehicle]) -> None:
+def _relay(mission: Mission, root: Node) -> None:
     """With topology 'relay' every follower must hear the leader via the graph (A[i, j] = 1: i hears j)."""
-    if formation.topology != "relay" or formation.adjacency is None:
+    adjacency, n = mission.formation.adjacency, len(mission.vehicles)
+    if mission.formation.topology != "relay" or adjacency is None:
         return
-    adjacency = formation.adjacency
-    reached = {next(i for i, v in enumerate(fleet) if v.spec.role == "leader")}
+    reached = {mission.leader_index}
     grew = True
     while grew:
-        hearing = {i for i in range(len(fleet)) if i not in reached and any(adjacency[i, j] for j in reached)}
+        hearing = {i for i in range(n) if i not in reached and any(adjacency[i, j] for j in reached)}
         reached |= hearing
         grew = bool(hearing)
-    deaf = [i for i in range(len(fleet)) if i not in reached]
+    deaf = [i for i in range(n) if i not in reached]
     if deaf:
-        raise formation_yaml.line_of("adjacency").error(
-            f"with topology 'relay' vehicles[{deaf[0]}] ({fleet[deaf[0]].spec.name}) never hears the leader; "
-            "row i lists whom vehicle i hears"
+        raise root.at(("formation", "adjacency")).error(
+            f"with topology 'relay' vehicles[{deaf[0]}] ({mission.vehicles[deaf[0]].name}) never hears the "
+            "leader; row i lists whom vehicle i hears"
         )
 
 
-def altitudes(formation_yaml: Section, formation: FormationSpec, safety: SafetySpec) -> None:
-    """The formation altitude lies between the altitude floor and the geofence ceiling."""
-    if not safety.min_altitude <= formation.altitude <= safety.geofence_max_alt:
-        raise formation_yaml.line_of("altitude").error(
-            f"{formation.altitude:g} m is outside safety.min_altitude..safety.geofence.max_alt "
-            f"({safety.min_altitude:g}..{safety.geofence_max_alt:g} m)"
-        )
-
-
-def limits(top: Section, limits: Limits, fleet_size: int) -> None:
-    """The leader must be slower than the followers, or they never close a gap (spec 8 step 3)."""
-    if fleet_size > 1 and not limits.v_xy_leader < limits.v_xy:
-        node = Section.within(top, "limits", param_fields(limits)).line_of("v_xy_leader")
-        raise node.error(
-            f"the leader's cap ({limits.v_xy_leader:g} m/s) must be below the followers' v_xy "
-            f"({limits.v_xy:g} m/s) so they can close gaps (spec 8 step 3)"
-        )
+__all__ = ["MissionError", "check_file", "check_mission", "endpoint", "failsafe_timeout"]

@@ -8,6 +8,7 @@ duplicate keys, and turns every parser failure into a `MissionError`.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import yaml
@@ -37,6 +38,29 @@ class Node:
         where = f"{self.path}: " if self.path else ""
         return MissionError(f"{self.source}:{self.line}: {where}{message}")
 
+    def plain(self) -> object:
+        """The value as plain Python data (lists and dicts of values), without lines."""
+        if isinstance(self.value, list):
+            return [item.plain() for item in self.value]
+        if isinstance(self.value, dict):
+            return {key: item.plain() for key, item in self.value.items()}
+        return self.value
+
+    def at(self, loc: Sequence[str | int]) -> Node:
+        """The node at `loc` (mapping keys and list indexes) below this one. Where the file does not give that
+        value, a stand-in named by the full path at the line of the closest node that is given (to blame a
+        missing or defaulted key)."""
+        node = self
+        for depth, step in enumerate(loc):
+            value = node.value
+            if isinstance(value, dict) and isinstance(step, str) and step in value:
+                node = value[step]
+            elif isinstance(value, list) and isinstance(step, int) and 0 <= step < len(value):
+                node = value[step]
+            else:
+                return Node(None, node.line, loc_path(loc[depth:], node.path), self.source)
+        return node
+
 
 def child_path(parent: str, key: str) -> str:
     """Field path of `key` inside the mapping at `parent` ("a.b", or "a['odd key']")."""
@@ -45,11 +69,20 @@ def child_path(parent: str, key: str) -> str:
     return f"{parent}[{key!r}]"
 
 
-class _Loader(yaml.SafeLoader):
-    """SafeLoader that also resolves YAML 1.2 floats such as 1e5, 1.5e5 and 2E-3."""
+def loc_path(loc: Sequence[str | int], parent: str = "") -> str:
+    """Field path of `loc` (mapping keys and list indexes) below `parent`: ("a", 2, "b") -> "a[2].b"."""
+    path = parent
+    for step in loc:
+        path = child_path(path, step) if isinstance(step, str) else f"{path}[{step}]"
+    return path
 
 
-_Loader.add_implicit_resolver(
+class YamlLoader(yaml.SafeLoader):
+    """SafeLoader that also resolves YAML 1.2 floats such as 1e5, 1.5e5 and 2E-3 (for every YAML file the
+    ground station reads: missions, Monte Carlo ranges)."""
+
+
+YamlLoader.add_implicit_resolver(
     _TAG + "float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
     list("-+0123456789."),
@@ -60,7 +93,7 @@ def parse_yaml(text: str, source: str) -> Node:
     """Parse one YAML document into a Node tree; MissionError for syntax errors, empty files, bad tags."""
     loader = None
     try:
-        loader = _Loader(text)
+        loader = YamlLoader(text)
         root = loader.get_single_node()
         if root is None:
             raise MissionError(
@@ -90,7 +123,7 @@ def parse_yaml(text: str, source: str) -> Node:
 class _Converter:
     """Walks composed YAML nodes into `Node`s (aliases expanded, merges `<<` applied)."""
 
-    def __init__(self, loader: _Loader, source: str) -> None:
+    def __init__(self, loader: YamlLoader, source: str) -> None:
         self._loader = loader
         self._source = source
         self._count = 0

@@ -16,8 +16,9 @@ import pytest
 import yaml
 
 from gcs_swarm.mission import load_mission
+from swarm_common.ports import free_udp_base
 from tests.e2e.ardupilot_sitl import SitlBuild, start_vehicles, stop_vehicles
-from tests.e2e.conftest import MISSIONS, ROOT, _numbers, free_udp_base
+from tests.e2e.flights import MISSIONS, ROOT, numbers
 
 BUILD = SitlBuild.from_environment()
 pytestmark = [
@@ -28,7 +29,7 @@ pytestmark = [
 
 def _mission_on_free_ports(tmp_path: Path) -> Path:
     """missions/ardupilot_sitl_3.yaml with its three udpin ports moved to free ones."""
-    data = _numbers(yaml.safe_load((MISSIONS / "ardupilot_sitl_3.yaml").read_text()))
+    data = numbers(yaml.safe_load((MISSIONS / "ardupilot_sitl_3.yaml").read_text()))
     base = free_udp_base(3)
     for k, vehicle in enumerate(data["vehicles"]):
         vehicle["connection"] = f"udpin:127.0.0.1:{base + k}"

@@ -17,12 +17,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
+import pexpect
 import yaml
 
-from tests.e2e.conftest import MISSIONS, ROOT, _numbers, free_udp_base
-
-pexpect = pytest.importorskip("pexpect")
+from swarm_common.ports import free_udp_base
+from tests.e2e.flights import MISSIONS, ROOT, numbers
 
 SCRIPT = """\
 # bad commands before the flight: each is refused and the session goes on
@@ -261,7 +260,7 @@ class Terminal:
 
 def test_interactive_console_in_a_pseudo_terminal(tmp_path: Path) -> None:
     """Airborne start 3 m up: the table shows the fleet at once, and quit offers to land it (~6 s)."""
-    data = _numbers(yaml.safe_load((MISSIONS / "quickstart.yaml").read_text()))
+    data = numbers(yaml.safe_load((MISSIONS / "quickstart.yaml").read_text()))
     data["mission"]["name"] = "console_pty"
     data["run"]["airborne_start"] = True
     for vehicle in data["vehicles"]:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.e2e.conftest import SHORT_BOOT, fly
+from tests.e2e.flights import SHORT_BOOT, fly
 
 OUTAGE_S = (20.0, 2.0)  # start, duration in simulated s: the quickstart cruises past its obstacles by then
 

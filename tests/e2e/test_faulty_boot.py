@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
-from tests.e2e.conftest import RunOutcome, derived_mission, fly
+from tests.e2e.flights import RunOutcome, derived_mission, fly
 
 SEEDS = (1, 4, 7)
 FAULTS = ["--sim-arg=--link-loss=0.1", "--sim-arg=--link-jitter-ms=100"]

@@ -15,7 +15,8 @@ import pytest
 import yaml
 
 from gcs_swarm.evaluation.gcs_kill import fly_and_kill, kill_moments
-from tests.e2e.conftest import ROOT, derived_mission, fly, free_udp_base
+from swarm_common.ports import free_udp_base
+from tests.e2e.flights import ROOT, derived_mission, fly
 
 COURSE_FROM_DEG = 233.13  # the wind blows from here: along the quickstart's route (0, 0) -> (160, 120)
 

@@ -17,7 +17,8 @@ import pytest
 from pymavlink import mavutil
 
 from gcs_swarm.evaluation.gcs_kill import fly_and_kill, kill_moments
-from tests.e2e.conftest import ROOT, derived_mission, fly, free_udp_base, static6_short
+from swarm_common.ports import free_udp_base
+from tests.e2e.flights import ROOT, derived_mission, fly, static6_short
 
 D_EMG = 3.0  # m, the missions' safety.separation.d_emg
 

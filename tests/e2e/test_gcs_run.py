@@ -9,7 +9,7 @@ import yaml
 from pymavlink import mavutil
 
 from gcs_swarm.cli import main
-from tests.e2e.conftest import MISSIONS, derived_mission, fly, static6_short
+from tests.e2e.flights import MISSIONS, derived_mission, fly, static6_short
 
 REPORT_KEYS = {
     "reached",

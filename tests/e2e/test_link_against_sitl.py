@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import importlib.util
 import queue
-import socket
 import subprocess
 import sys
 import threading
@@ -18,9 +17,11 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link import vehicle as vehicle_module
 from gcs_swarm.link.autopilots.ardupilot import thrust_from_acc
-from gcs_swarm.link.fleet import Fleet, VehicleConfig
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.streams import STREAM_QUIET_S
+from gcs_swarm.link.vehicle import VehicleConfig
+from swarm_common.ports import free_udp_base
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("sitl_sim.__main__") is None, reason="the sitl_sim simulator is not installed"
@@ -31,32 +32,11 @@ N = 2
 BOOT_TIMEOUT_S = 60.0
 
 
-def free_port_block(n: int) -> int:
-    """A base port with base..base+n-1 free for UDP on 127.0.0.1 (a moment ago)."""
-    for _ in range(100):
-        probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        probe.bind(("127.0.0.1", 0))
-        base = probe.getsockname()[1]
-        held = [probe]
-        try:
-            for k in range(1, n):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                held.append(s)
-                s.bind(("127.0.0.1", base + k))
-            return int(base)
-        except OSError:
-            continue
-        finally:
-            for s in held:
-                s.close()
-    raise RuntimeError("no block of free UDP ports")
-
-
 @pytest.fixture
 def simulator(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[tuple[int, Path]]:
     """A lockstep sitl_sim with N vehicles: (base port, truth log path); terminated afterwards. Extra
     command-line arguments through indirect parametrisation (request.param, a list)."""
-    base = free_port_block(N)
+    base = free_udp_base(N)
     truth = tmp_path / "truth.csv"
     home = ",".join(f"{v:.7f}" for v in ORIGIN)
     args = [sys.executable, "-m", "sitl_sim", "--vehicles", str(N), "--base-port", str(base), "--lockstep"]
@@ -144,11 +124,11 @@ def test_streams_are_asked_for_at_connect_and_again_when_they_stop(simulator: tu
         fleet.connect(timeout_s=10.0)  # asks for the telemetry: no request_streams_all here
         fleet.wait_ready(timeout_s=20.0)
         link = fleet.vehicle("v0")
-        assert link.counters.stream_requests == 0
-        link.set_message_interval("GLOBAL_POSITION_INT", 0.0)  # the stream stops
-        fleet.wait_until(lambda: link.counters.stream_requests >= 1, 10.0, "the watchdog asks again")
-        quiet_ms = link.streams_asked_ms - int(fleet.state.position_ms[0])
-        assert quiet_ms >= vehicle_module.STREAM_QUIET_S * 1000
+        assert link.channel.stats.stream_requests == 0
+        fleet.run([link.streams.op_set_message_interval("GLOBAL_POSITION_INT", 0.0)])  # the stream stops
+        fleet.wait_until(lambda: link.channel.stats.stream_requests >= 1, 10.0, "the watchdog asks again")
+        quiet_ms = link.streams.asked_ms - int(fleet.state.position_ms[0])
+        assert quiet_ms >= STREAM_QUIET_S * 1000
         seen = int(fleet.state.position_count[0])
         fleet.wait_until(lambda: fleet.state.position_count[0] > seen + 10, 5.0, "positions again")
 
@@ -162,8 +142,12 @@ def test_parameters_read_under_the_name_the_vehicle_has(simulator: tuple[int, Pa
     with Fleet(configs, ORIGIN) as fleet:
         fleet.connect(timeout_s=10.0)
         link = fleet.vehicle("v1")
-        assert link.param_get("MAV_SYSID") == 2.0
-        assert link.param_name("MAV_SYSID") == "SYSID_THISMAV"
-        assert link.param_get("SYSID_MYGCS") == 255.0
-        assert link.param_set("MAV_GCS_SYSID", 254) == 254.0  # written under the vehicle's own name
-        assert link.params["SYSID_MYGCS"] == 254.0 and "MAV_GCS_SYSID" not in link.params
+        assert fleet.run([link.parameters.op_get("MAV_SYSID")])[0] == 2.0
+        assert link.parameters.spelling("MAV_SYSID") == "SYSID_THISMAV"
+        assert fleet.run([link.parameters.op_get("SYSID_MYGCS")])[0] == 255.0
+        assert (
+            fleet.run([link.parameters.op_set("MAV_GCS_SYSID", 254)])[0] == 254.0
+        )  # written under the vehicle's own name
+        assert (
+            link.parameters.values["SYSID_MYGCS"] == 254.0 and "MAV_GCS_SYSID" not in link.parameters.values
+        )

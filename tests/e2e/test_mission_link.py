@@ -7,7 +7,7 @@ import json
 import re
 from pathlib import Path
 
-from tests.e2e.conftest import MISSIONS, fly
+from tests.e2e.flights import MISSIONS, fly
 
 
 def test_quickstart_faulty_flies_through_the_link_faults_of_its_mission_file(tmp_path: Path) -> None:

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 import yaml
 
-from gcs_swarm.evaluation.flights import free_udp_base
-from tests.e2e.conftest import ROOT, derived_mission
+from swarm_common.ports import free_udp_base
+from tests.e2e.flights import ROOT, derived_mission
 
 SPEEDUP = 4.0  # the simulator's pace: fast enough for a short test, slow enough for a loaded machine
 KILL_AT_S = 24.0  # vehicle s: a few seconds into formation flight (boot 5 s, preflight and take-off ~12 s)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.e2e.conftest import SHORT_BOOT, fly, static6_short
+from tests.e2e.flights import SHORT_BOOT, fly, static6_short
 
 LAND = 9  # ArduCopter custom_mode: the GCS failsafe of the missions (safety.gcs_failsafe: land, the default)
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
-from tests.e2e.conftest import derived_mission, fly
+from tests.e2e.flights import derived_mission, fly
 
 KEY = bytes(range(100, 132))
 

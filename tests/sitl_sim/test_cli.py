@@ -7,9 +7,9 @@ import subprocess
 import sys
 
 import pytest
-from conftest import M
 
 from sitl_sim.cli import main
+from tests.sitl_sim.sim_process import M
 
 
 @pytest.mark.parametrize(

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from conftest import M, read_truth
+
+from tests.sitl_sim.sim_process import M, read_truth
 
 GUIDED, LAND, RTL = 4, 9, 6
 FAST = ("--lockstep", "--lockstep-timeout", "60", "--ready-delay", "1")  # generous timeout: a loaded CI

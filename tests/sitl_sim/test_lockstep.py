@@ -8,9 +8,9 @@ import select
 import time
 
 import pytest
-from conftest import M, Vehicle
 
 from sitl_sim.clock import plan_timing
+from tests.sitl_sim.sim_process import M, Vehicle
 
 LAND = 9
 

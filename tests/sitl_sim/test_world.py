@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import M, read_truth
 
 from sitl_sim.world import FUSELAGE_RADIUS, Obstacles, closest_approach, find_collisions
+from tests.sitl_sim.sim_process import M, read_truth
 
 NONE = np.zeros(3, dtype=bool)
 

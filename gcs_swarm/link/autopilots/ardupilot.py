@@ -1,16 +1,27 @@
 """What the ground station must know about ArduCopter on the wire, in one place (issue 18 will add PX4 beside
-it): telemetry stream groups, parameter names that changed between releases, how to read its health, and
-what its guided-attitude thrust means. Each fact cites the ArduPilot source it comes from.
+it): flight modes, telemetry stream groups, parameter names that changed between releases, how to read its
+health, and what its guided-attitude thrust means. Each fact cites the ArduPilot source it comes from.
+
+`ARDUPILOT` is the dialect object the link uses (registered in gcs_swarm.link.autopilots under
+MAV_AUTOPILOT_ARDUPILOTMEGA); the thrust functions below it are used by the flight loop.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
+from types import MappingProxyType
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+ARDUCOPTER_MODES: Mapping[str, int] = MappingProxyType(
+    {name: number for number, name in mavutil.mode_mapping_acm.items()}
+)
+"""ArduCopter flight mode name -> custom_mode number (pymavlink's table)."""
 
 # REQUEST_DATA_STREAM groups of the messages the ground station uses (libraries/GCS_MAVLink/
 # GCS_MAVLink_Parameters.cpp STREAM_*_msgs): the fallback for firmware that refuses SET_MESSAGE_INTERVAL.
@@ -31,26 +42,6 @@ STREAM_GROUP = {
 _RENAMED = {"SYSID_THISMAV": "MAV_SYSID", "SYSID_MYGCS": "MAV_GCS_SYSID"}
 _STREAM_RATE_OLD = re.compile(r"^SR(\d)_(\w+)$")
 _STREAM_RATE_NEW = re.compile(r"^MAV(\d)_(\w+)$")
-
-
-def other_param_name(name: str) -> str | None:
-    """The other release's spelling of a renamed parameter (e.g. SYSID_THISMAV <-> MAV_SYSID, SR0_EXTRA1 <->
-    MAV1_EXTRA1), or None."""
-    for old, new in _RENAMED.items():
-        if name == old:
-            return new
-        if name == new:
-            return old
-    if m := _STREAM_RATE_OLD.match(name):
-        return f"MAV{int(m.group(1)) + 1}_{m.group(2)}"
-    if (m := _STREAM_RATE_NEW.match(name)) and int(m.group(1)) >= 1:
-        return f"SR{int(m.group(1)) - 1}_{m.group(2)}"
-    return None
-
-
-def sysid_param_hint() -> str:
-    """How to name the sysid parameter to a user who may fly either release."""
-    return "MAV_SYSID (SYSID_THISMAV before ArduCopter 4.7)"
 
 
 # EKF_STATUS_REPORT.flags bit names, for a preflight that says what the estimator still lacks.
@@ -74,32 +65,83 @@ def ekf_flag_names(flags: int) -> list[str]:
     return [name for bit, name in sorted(_EKF_FLAG_NAMES.items()) if flags & bit]
 
 
-def ekf_missing(flags: int, required: int, horizontal: int, forbidden: int) -> str:
-    """A clause saying why `flags` is not a usable position estimate: what is missing and what is wrong."""
-    missing = ekf_flag_names(required & ~flags)
-    if not flags & horizontal:
-        missing.append("absolute horizontal position")
-    wrong = ekf_flag_names(flags & forbidden)
-    parts = []
-    if missing:
-        parts.append("no " + ", ".join(missing))
-    if wrong:
-        parts.append(", ".join(wrong))
-    return "; ".join(parts) or "estimate not usable"
+FORCE_ARM_MAGIC = 2989  # MAV_CMD_COMPONENT_ARM_DISARM param2 (ArduPilot): arm skipping the pre-arm checks
+FORCE_DISARM_MAGIC = 21196  # ... and disarm even in flight
+
+_GPS_FIX_NAMES = {
+    0: "no GPS",
+    1: "no fix",
+    2: "2D fix",
+    3: "3D fix",
+    4: "DGPS fix",
+    5: "RTK float",
+    6: "RTK fixed",
+}
 
 
-def gps_fix_name(fix_type: int) -> str:
-    """GPS_RAW_INT.fix_type as words, e.g. "no fix", "3D fix"."""
-    names = {
-        0: "no GPS",
-        1: "no fix",
-        2: "2D fix",
-        3: "3D fix",
-        4: "DGPS fix",
-        5: "RTK float",
-        6: "RTK fixed",
-    }
-    return names.get(fix_type, f"fix type {fix_type}")
+class ArduPilotDialect:
+    """ArduCopter as the link speaks to it (gcs_swarm.link.autopilots.AutopilotDialect)."""
+
+    name = "ArduCopter"
+    modes = ARDUCOPTER_MODES
+    force_arm_param2 = float(FORCE_ARM_MAGIC)
+    force_disarm_param2 = float(FORCE_DISARM_MAGIC)
+    land_mode = "LAND"
+
+    def mode_number(self, mode: str | int) -> int:
+        """ArduCopter mode name (case-insensitive) or number -> custom_mode number; ValueError if unknown."""
+        if isinstance(mode, int | np.integer):
+            if int(mode) in mavutil.mode_mapping_acm:
+                return int(mode)
+        elif mode.strip().upper() in ARDUCOPTER_MODES:
+            return ARDUCOPTER_MODES[mode.strip().upper()]
+        raise ValueError(f"unknown ArduCopter mode {mode!r} (known: {', '.join(ARDUCOPTER_MODES)})")
+
+    def mode_name(self, number: int) -> str:
+        """custom_mode number -> ArduCopter mode name ("MODE_<n>" when unknown, "UNKNOWN" for -1)."""
+        return "UNKNOWN" if number < 0 else mavutil.mode_mapping_acm.get(int(number), f"MODE_{number}")
+
+    def other_param_name(self, name: str) -> str | None:
+        """The other release's spelling of a renamed parameter (e.g. SYSID_THISMAV <-> MAV_SYSID,
+        SR0_EXTRA1 <-> MAV1_EXTRA1), or None."""
+        for old, new in _RENAMED.items():
+            if name == old:
+                return new
+            if name == new:
+                return old
+        if m := _STREAM_RATE_OLD.match(name):
+            return f"MAV{int(m.group(1)) + 1}_{m.group(2)}"
+        if (m := _STREAM_RATE_NEW.match(name)) and int(m.group(1)) >= 1:
+            return f"SR{int(m.group(1)) - 1}_{m.group(2)}"
+        return None
+
+    def sysid_param_hint(self) -> str:
+        """How to name the sysid parameter to a user who may fly either release."""
+        return "MAV_SYSID (SYSID_THISMAV before ArduCopter 4.7)"
+
+    def stream_group(self, message: str) -> int | None:
+        """The REQUEST_DATA_STREAM group (MAV_DATA_STREAM) that carries `message`, or None (STREAM_GROUP)."""
+        return STREAM_GROUP.get(message)
+
+    def ekf_missing(self, flags: int, required: int, horizontal: int, forbidden: int) -> str:
+        """A clause saying why `flags` is not a usable position estimate: what is missing, what is wrong."""
+        missing = ekf_flag_names(required & ~flags)
+        if not flags & horizontal:
+            missing.append("absolute horizontal position")
+        wrong = ekf_flag_names(flags & forbidden)
+        parts = []
+        if missing:
+            parts.append("no " + ", ".join(missing))
+        if wrong:
+            parts.append(", ".join(wrong))
+        return "; ".join(parts) or "estimate not usable"
+
+    def gps_fix_name(self, fix_type: int) -> str:
+        """GPS_RAW_INT.fix_type as words, e.g. "no fix", "3D fix"."""
+        return _GPS_FIX_NAMES.get(fix_type, f"fix type {fix_type}")
+
+
+ARDUPILOT = ArduPilotDialect()
 
 
 def unboosted_thrust(

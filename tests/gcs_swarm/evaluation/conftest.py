@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -81,6 +82,12 @@ def write_run_folder(
     }
     (run_dir / "flight.json").write_text(json.dumps(flight))
     return run_dir
+
+
+@pytest.fixture
+def make_run_folder() -> Callable[..., Path]:
+    """`write_run_folder` itself, for tests that write several folders or shift the clock."""
+    return write_run_folder
 
 
 @pytest.fixture

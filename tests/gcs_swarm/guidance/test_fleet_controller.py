@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from gcs_swarm.evaluation import metrics
+from gcs_swarm.guidance.controller import make_position_controller
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets, rotate_to_world, slot_positions
 from gcs_swarm.guidance.inversion import thrust_vector
@@ -51,7 +52,8 @@ def fly(controller: str, seconds: float = 50.0, field: FieldParams | None = None
     goal = np.array([200.0, 40.0, 20.0])
     # centred on the straight line from the leader's start to its goal: a saddle of the paper's field
     obstacles_c, obstacles_r = np.array([[100.0, 20.0, 20.0]]), np.array([8.0])
-    ctl = FleetController(n, 0, offsets, goal[None, :], controller=controller, control_dt=DT, field=field)
+    law = make_position_controller(controller)
+    ctl = FleetController(n, 0, offsets, goal[None, :], position_controller=law, control_dt=DT, field=field)
     start = offsets + np.array([0.0, 0.0, 20.0])
     start[1:, :2] += [[2, 1], [-1, 2], [1, -2], [-2, -1]]  # followers a little off their slots
     plant = PointMassFleet(start)
@@ -243,7 +245,7 @@ def test_bad_inputs_give_clear_errors():
     offsets = np.array([[0, 0, 0], [-20.0, 0, 0], [-40.0, 0, 0]])
     goal = np.array([[10.0, 0, 20]])
     with pytest.raises(ValueError, match="controller"):
-        FleetController(n, 0, offsets, goal, controller="lqr")
+        make_position_controller("lqr")
     with pytest.raises(ValueError, match="topology"):
         FleetController(n, 0, offsets, goal, topology="mesh")
     with pytest.raises(ValueError, match="leader index"):

@@ -5,9 +5,10 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 
 import pytest
-from fake_vehicle import ORIGIN, FakeVehicle
 
-from gcs_swarm.link.fleet import Fleet, VehicleConfig, VehicleLink
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.vehicle import VehicleConfig, VehicleLink
+from tests.gcs_swarm.link.fake_vehicle import ORIGIN, FakeVehicle
 
 
 @pytest.fixture
@@ -59,7 +60,9 @@ def lead(
         fleet = fleet_of(vehicle, names=["lead"])
         fleet.connect(timeout_s=3.0)
         link = fleet.vehicle("lead")
-        link.param_get("SYSID_THISMAV")  # a round trip: the vehicle has now handled connect's requests
+        fleet.run(
+            [link.parameters.op_get("SYSID_THISMAV")]
+        )  # a round trip: the vehicle has now handled connect's requests
         return fleet, link, vehicle
 
     return make

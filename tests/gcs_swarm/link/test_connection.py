@@ -6,11 +6,12 @@ import select
 import socket
 
 import pytest
-from fake_vehicle import ORIGIN, free_udp_port
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.connection import LinkError, open_endpoint, parse_connection
-from gcs_swarm.link.fleet import Fleet, VehicleConfig
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.vehicle import VehicleConfig
+from tests.gcs_swarm.link.fake_vehicle import ORIGIN, free_udp_port
 
 
 @pytest.mark.parametrize(

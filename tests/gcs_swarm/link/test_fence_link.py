@@ -5,6 +5,7 @@ upload, verify by download, clear, a refused fence, install_fence in preflight a
 from __future__ import annotations
 
 import signal
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -13,10 +14,11 @@ import pytest
 from gcs_swarm.flight import geofence as fence
 from gcs_swarm.link import frames
 from gcs_swarm.link.connection import LinkError
-from gcs_swarm.link.fleet import Fleet, VehicleConfig
+from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams
+from gcs_swarm.link.vehicle import VehicleConfig
 from gcs_swarm.mission.loader import parse_mission
-from tests.sitl_sim.conftest import SimProcess, start_sim
+from tests.sitl_sim.sim_process import SimProcess, start_sim
 
 ORIGIN = (-35.0, 149.0, 500.0)
 
@@ -125,17 +127,23 @@ def test_install_fence_sets_the_params_reports_breaches_and_restores(sim_fleet):
     assert install is not None and len(install.items) == 3
     stored = fleet.run([fence.op_download_fence(link)])[0]
     assert all(a.same_as(b) for a, b in zip(stored, install.items, strict=True))
-    assert [link.param_get(name) for name in ("FENCE_TYPE", "FENCE_ACTION", "FENCE_ENABLE")] == [4, 4, 1]
+    assert [
+        fleet.run([link.parameters.op_get(name)])[0]
+        for name in ("FENCE_TYPE", "FENCE_ACTION", "FENCE_ENABLE")
+    ] == [4, 4, 1]
     assert [c.name for c in flight.changes] == ["fence items", "FENCE_TYPE", "FENCE_ACTION", "FENCE_ENABLE"]
     assert len([e for e in events if e.startswith("fence: obstacle")]) == 4
-    link._on_statustext(_statustext("Polygon fence breached"))  # as the vehicle says it
+    link.handle(_statustext("Polygon fence breached"), time.monotonic())  # as the vehicle says it
     assert events[-1].endswith("lead: Polygon fence breached: its autopilot takes over (fence action brake)")
     assert said[-1].startswith("! t=")
     flight.restore()  # disarmed: everything goes back, the old fence too
     assert all(c.restored for c in flight.changes)
     stored = fleet.run([fence.op_download_fence(link)])[0]
     assert len(stored) == 2 and all(a.same_as(b) for a, b in zip(stored, old, strict=True))
-    assert [link.param_get(name) for name in ("FENCE_TYPE", "FENCE_ACTION", "FENCE_ENABLE")] == [7, 1, 0]
+    assert [
+        fleet.run([link.parameters.op_get(name)])[0]
+        for name in ("FENCE_TYPE", "FENCE_ACTION", "FENCE_ENABLE")
+    ] == [7, 1, 0]
 
 
 def _statustext(text: str):  # noqa: ANN202 - a pymavlink message

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fake_vehicle import ORIGIN, free_udp_port
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link.connection import new_parser
-from gcs_swarm.link.fleet import Fleet, LinkError, VehicleConfig
+from gcs_swarm.link.connection import LinkError, new_parser
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.vehicle import VehicleConfig
+from tests.gcs_swarm.link.fake_vehicle import ORIGIN, free_udp_port
 
 FAST_HEARTBEAT = {"HEARTBEAT": 10.0}
 
@@ -84,7 +85,9 @@ def test_shared_udpin_routes_two_lockstep_vehicles_by_sysid(fake) -> None:
             assert fleet.wait_tick(timeout_s=3.0)
             fleet.answer_frame()
         np.testing.assert_allclose(fleet.pos[:, :2], [[10.0, 0.0], [0.0, -20.0]], atol=0.02)
-        assert fleet.vehicle("south").param_get("MOT_THST_HOVER") == pytest.approx(0.35)
+        assert fleet.run([fleet.vehicle("south").parameters.op_get("MOT_THST_HOVER")])[0] == pytest.approx(
+            0.35
+        )
     assert {target for _, _, target in v1.commands} == {1}
     assert {target for _, _, target in v2.commands} == {2}
     assert v1.lockstep_drops == 0 and v2.lockstep_drops == 0
@@ -107,7 +110,7 @@ def test_packets_of_another_sysid_on_a_connection_are_ignored(fake) -> None:
             position=(-5.0, 0.0, 0.0),
         )
         fleet.wait_until(lambda: any("sysid 2" in e.text for e in fleet.events), 3.0, "the event")
-        fleet.wait_until(lambda: fleet.vehicle("lead").counters.ignored > 2, 3.0, "ignored packets")
+        fleet.wait_until(lambda: fleet.vehicle("lead").channel.stats.ignored > 2, 3.0, "ignored packets")
         assert fleet.pos[0, 0] == pytest.approx(5.0, abs=0.02)
         event = next(e for e in fleet.events if "sysid 2" in e.text)
         assert event.vehicle == "lead" and "ignored" in event.text
@@ -131,7 +134,11 @@ def test_heartbeat_from_a_gcs_does_not_bind(fake, fleet_of) -> None:
     fleet.connect(timeout_s=3.0)
     link = fleet.vehicle("lead")
     gcs = mavlink2.MAVLink(None, 7, 190)
-    link.handle(decoded(gcs, gcs.heartbeat_encode(mavlink2.MAV_TYPE_GCS, 8, 0, 0, 4)), 0.0)
+    fleet.network.accept(link, decoded(gcs, gcs.heartbeat_encode(mavlink2.MAV_TYPE_GCS, 8, 0, 0, 4)), 0.0)
     other = mavlink2.MAVLink(None, 9, 1)
-    link.handle(decoded(other, other.heartbeat_encode(2, 3, 0, 0, 3)), 0.0)
-    assert link.sysid == 7 and link.foreign_heartbeats == {9: 1} and link.counters.ignored >= 2
+    fleet.network.accept(link, decoded(other, other.heartbeat_encode(2, 3, 0, 0, 3)), 0.0)
+    assert (
+        link.sysid == 7
+        and fleet.network.foreign_heartbeats[link.index] == {9: 1}
+        and link.channel.stats.ignored >= 2
+    )

@@ -67,7 +67,7 @@ def test_facing_east_is_ned_yaw_90_on_the_wire(fake, fleet_of) -> None:
     fleet.connect(timeout_s=3.0)
     fleet.request_streams_all(50.0)
     assert fleet.wait_tick(timeout_s=2.0)
-    fleet.vehicle(0).send_attitude_target(0.0, 0.0, 0.0, 0.5)
+    fleet.vehicle(0).setpoints.send_attitude_target(0.0, 0.0, 0.0, 0.5)
     fleet.wait_until(lambda: len(vehicle.attitude_targets) > 0, 2.0, "the target")
     q = vehicle.attitude_targets[0].q
     yaw_ned = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
@@ -81,12 +81,14 @@ def test_non_finite_targets_never_leave_the_ground_station(fake, fleet_of) -> No
     with pytest.raises(ValueError, match="non-finite attitude target for lead; nothing sent"):
         fleet.send_attitude_targets([0.0], [math.nan], [0.0], [0.5])
     with pytest.raises(ValueError, match="non-finite attitude target for lead"):
-        fleet.vehicle("lead").send_attitude_target(0.0, 0.0, 0.0, math.inf)
+        fleet.vehicle("lead").setpoints.send_attitude_target(0.0, 0.0, 0.0, math.inf)
     with pytest.raises(ValueError, match="position target for lead"):
-        fleet.vehicle("lead").send_position_target([0.0, math.nan, 1.0])
+        fleet.vehicle("lead").setpoints.send_position_target([0.0, math.nan, 1.0])
     with pytest.raises(ValueError, match=r"shape \(1,\)"):
         fleet.send_attitude_targets([0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.5, 0.5])
-    fleet.vehicle("lead").param_get("GUID_OPTIONS")  # round trip: anything sent before has arrived
+    fleet.run(
+        [fleet.vehicle("lead").parameters.op_get("GUID_OPTIONS")]
+    )  # round trip: anything sent before has arrived
     assert (
         vehicle.received["SET_ATTITUDE_TARGET"] == 0
         and vehicle.received["SET_POSITION_TARGET_GLOBAL_INT"] == 0
@@ -105,6 +107,6 @@ def test_unanswered_waits_stall_the_simulator_when_answers_are_off(fake, fleet_o
     vehicle = fake(1, lockstep=True, lockstep_timeout_s=0.2)
     fleet = fleet_of(vehicle, lockstep_answers=False)
     fleet.connect(timeout_s=3.0)
-    fleet.wait_until(lambda: fleet.vehicle(0).needs_answer, 3.0, "a frame")
+    fleet.wait_until(lambda: fleet.vehicle(0).lockstep.needs_answer, 3.0, "a frame")
     fleet.answer_frame()  # become a lockstep client once, then stay silent
     fleet.wait_until(lambda: vehicle.lockstep_drops > 0, 3.0, "the fake to drop the silent client")

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pymap3d
 import pytest
-from fake_vehicle import ORIGIN
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link.fleet import LinkError
+from gcs_swarm.link.connection import LinkError
+from tests.gcs_swarm.link.fake_vehicle import ORIGIN
 
 STATE_STREAMS = {"GLOBAL_POSITION_INT": 50.0, "ATTITUDE": 50.0}
 
@@ -22,9 +22,9 @@ def test_position_velocity_attitude_in_mission_enu(fake, fleet_of, attitude_stre
     fleet = fleet_of(still, moving)
     fleet.connect(timeout_s=3.0)
     fleet.request_streams_all(50.0)
-    fleet.run(v.op_set_message_interval(attitude_stream, 50.0) for v in fleet.links)
+    fleet.run(v.streams.op_set_message_interval(attitude_stream, 50.0) for v in fleet.links)
     if attitude_stream == "ATTITUDE_QUATERNION":
-        fleet.run(v.op_set_message_interval("ATTITUDE", 0) for v in fleet.links)
+        fleet.run(v.streams.op_set_message_interval("ATTITUDE", 0) for v in fleet.links)
     assert fleet.wait_tick(timeout_s=2.0)
     np.testing.assert_allclose(fleet.pos[0], [10.0, -5.0, 3.0], atol=0.02)  # 1e-7 deg is ~1 cm
     np.testing.assert_allclose(fleet.vel, [[0.0, 0.0, 0.0], [1.0, 2.0, -0.5]], atol=1e-9)
@@ -63,11 +63,11 @@ def test_loss_by_wall_time_and_regain(fake, fleet_of) -> None:
     texts = [e.text for e in fleet.events if e.vehicle == "lead"]
     assert any(t.startswith("link lost: no message for") and t.endswith("s of wall time") for t in texts)
     assert texts[-1] == "link regained"
-    assert fleet.vehicle("lead").counters.lost == 1
+    assert fleet.vehicle("lead").channel.stats.lost == 1
     with pytest.raises(LinkError, match="lead is not responding"):
         vehicle.silent = True
         fleet.wait_until(lambda: not fleet.alive[0], 3.0, "the second loss")
-        fleet.vehicle("lead").param_get("GUID_OPTIONS")
+        fleet.run([fleet.vehicle("lead").parameters.op_get("GUID_OPTIONS")])
 
 
 def test_loss_by_vehicle_time_while_the_others_fly_on(fake, fleet_of) -> None:
@@ -98,10 +98,10 @@ def test_garbage_is_counted_and_ignored(fake, fleet_of) -> None:
         bytes(range(256)),
     ):
         vehicle.send_raw(garbage)
-    fleet.wait_until(lambda: link.counters.bad >= 3, 3.0, "the garbage")
+    fleet.wait_until(lambda: link.channel.stats.bad >= 3, 3.0, "the garbage")
     count = fleet.state.position_count[0]
     fleet.wait_until(lambda: fleet.state.position_count[0] > count + 2, 3.0, "positions after the garbage")
-    assert fleet.alive[0] and link.counters.received > link.counters.bad
+    assert fleet.alive[0] and link.channel.stats.received > link.channel.stats.bad
 
 
 def test_statustext_becomes_an_event(fake, fleet_of) -> None:
@@ -109,7 +109,7 @@ def test_statustext_becomes_an_event(fake, fleet_of) -> None:
     fleet = fleet_of(vehicle, names=["lead"])
     fleet.connect(timeout_s=3.0)
     with pytest.raises(LinkError):
-        fleet.vehicle("lead").arm()
+        fleet.run([fleet.vehicle("lead").commands.op_arm()])
     event = fleet.events[-1]
     assert (event.vehicle, event.text, event.severity) == ("lead", "PreArm: Compass not calibrated", 2)
 
@@ -122,9 +122,9 @@ def test_position_and_velocity_targets_on_the_wire(fake, fleet_of) -> None:
     assert fleet.wait_tick(timeout_s=2.0)
     frame_ms = fleet.time_ms[0]
     link = fleet.vehicle("lead")
-    link.send_position_target([10.0, 20.0, 5.0], yaw=0.0)
-    link.send_velocity_target([1.0, 2.0, 3.0])
-    link.hold()
+    link.setpoints.send_position_target([10.0, 20.0, 5.0], yaw=0.0)
+    link.setpoints.send_velocity_target([1.0, 2.0, 3.0])
+    link.setpoints.hold()
     fleet.wait_until(lambda: len(vehicle.position_targets) == 3, 2.0, "the targets")
     position, velocity, hold = vehicle.position_targets
     lat, lon, alt = pymap3d.enu2geodetic(10.0, 20.0, 5.0, *ORIGIN)

@@ -24,7 +24,7 @@ def test_a_delayed_position_behind_newer_packets_of_other_kinds_is_still_taken()
     intake.feed(attitude(intake.mav, 1100, 0.2))
     intake.feed(position(intake.mav, 1040))  # sent at 1040 ms, delayed past the 1100 ms packets
     assert st.position_ms[i] == 1040 and st.time_ms[i] == 1100
-    assert intake.link.counters.late == 0
+    assert intake.link.channel.stats.late == 0
 
 
 def test_an_older_packet_of_the_same_kind_is_dropped_and_counted() -> None:
@@ -36,4 +36,4 @@ def test_an_older_packet_of_the_same_kind_is_dropped_and_counted() -> None:
     intake.feed(attitude(intake.mav, 1020, 0.9))
     assert st.position_ms[0] == 1060
     assert abs(st.att[0, 0] - 0.3) < 1e-6
-    assert intake.link.counters.late == 2
+    assert intake.link.channel.stats.late == 2

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.connection import _DatagramParser
-from gcs_swarm.link.fleet import Fleet, VehicleConfig
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.vehicle import VehicleConfig
 
 ORIGIN = (47.397742, 8.545594, 488.0)
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -48,7 +49,7 @@ class Intake:
     def __init__(self) -> None:
         self.fleet = Fleet([VehicleConfig("v0", "udpout:127.0.0.1:9", sysid=1)], ORIGIN)
         self.link = self.fleet.links[0]
-        self.link.endpoint = Discard()  # type: ignore[assignment]
+        self.link.channel.endpoint = Discard()  # type: ignore[assignment]
         self.parser = _DatagramParser()
         self.mav = vehicle()
         self.t_ms = 1000
@@ -58,10 +59,10 @@ class Intake:
 
     def feed(self, data: bytes) -> None:
         for msg in self.parser.parse(data):
-            self.link.handle(msg, 0.0)
+            self.fleet.network.accept(self.link, msg, 0.0)
 
     def dropped(self) -> int:
-        c = self.link.counters
+        c = self.link.channel.stats
         return c.bad + c.ignored + c.invalid + c.late
 
     def assert_still_served(self) -> None:
@@ -81,7 +82,7 @@ def test_random_bytes(data: bytes) -> None:
     intake = Intake()
     before = intake.dropped()
     intake.feed(data)
-    assert intake.dropped() > before or intake.link.counters.received > 2
+    assert intake.dropped() > before or intake.link.channel.stats.received > 2
     intake.assert_still_served()
 
 
@@ -90,9 +91,9 @@ def test_random_bytes(data: bytes) -> None:
 def test_truncated_and_oversized_frames(cut: int, tail: bytes) -> None:
     intake = Intake()
     frame = position(intake.mav, intake.t_ms + 20)
-    before = intake.link.counters.bad
+    before = intake.link.channel.stats.bad
     intake.feed(frame[:cut])
-    assert intake.link.counters.bad > before
+    assert intake.link.channel.stats.bad > before
     intake.feed(frame[:-1] + tail)  # the CRC cut short or followed by junk
     intake.assert_still_served()
 
@@ -110,8 +111,8 @@ def test_valid_frames_with_extreme_fields_and_spoofed_sysids(values: list[float]
     intake.feed(mav.global_position_int_encode(t, lat, lat, 0, 0, 0, 0, 0, 0).pack(mav))
     intake.assert_still_served()
     if sysid != 1:
-        assert intake.link.counters.ignored >= 4  # another system's packets never touch this vehicle
-    assert all(math.isfinite(v) for v in intake.link.params.values())
+        assert intake.link.channel.stats.ignored >= 4  # another system's packets never touch this vehicle
+    assert all(math.isfinite(v) for v in intake.link.parameters.values.values())
 
 
 def test_flood_of_garbage_then_valid_traffic() -> None:
@@ -119,5 +120,5 @@ def test_flood_of_garbage_then_valid_traffic() -> None:
     rng = np.random.default_rng(7)
     for _ in range(2000):
         intake.feed(rng.integers(0, 256, size=int(rng.integers(1, 300)), dtype=np.uint8).tobytes())
-    assert intake.link.counters.bad >= 2000
+    assert intake.link.channel.stats.bad >= 2000
     intake.assert_still_served()

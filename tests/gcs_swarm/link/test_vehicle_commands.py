@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
-from fake_vehicle import DEFAULT_PARAMS
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link.fleet import LinkError
+from gcs_swarm.link.connection import LinkError
+from tests.gcs_swarm.link.fake_vehicle import DEFAULT_PARAMS
 
 
 def test_refused_arm_names_result_and_prearm_reason_then_force_arms(lead) -> None:
@@ -14,27 +14,27 @@ def test_refused_arm_names_result_and_prearm_reason_then_force_arms(lead) -> Non
     with pytest.raises(
         LinkError, match=r"^lead refused MAV_CMD_COMPONENT_ARM_DISARM: FAILED \(PreArm: Need 3D Fix\)$"
     ):
-        link.arm()
+        fleet.run([link.commands.op_arm()])
     assert not fleet.armed[0]
-    link.arm(force=True)
+    fleet.run([link.commands.op_arm(force=True)])
     assert fleet.armed[0]  # confirmed by HEARTBEAT, not just by the ACK
     arm_commands = [c for c in vehicle.commands if c[0] == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM]
     assert len(arm_commands) == 2
-    link.disarm()
+    fleet.run([link.commands.op_disarm()])
     assert not fleet.armed[0]
 
 
 def test_mode_counts_once_heartbeat_shows_it(lead) -> None:
     fleet, link, vehicle = lead()
-    link.set_mode("guided")
+    fleet.run([link.commands.op_set_mode("guided")])
     assert fleet.mode[0] == 4  # set_mode returned only after a HEARTBEAT showed GUIDED
     vehicle.ignore_mode_changes = True
     with pytest.raises(
         LinkError, match="^lead accepted mode LAND but its HEARTBEAT still shows GUIDED after 0.5 s$"
     ):
-        link.set_mode("LAND", timeout_s=0.5)
+        fleet.run([link.commands.op_set_mode("LAND", timeout_s=0.5)])
     with pytest.raises(LinkError, match="lead: unknown ArduCopter mode 'HOVER'"):
-        link.set_mode("HOVER")
+        fleet.run([link.commands.op_set_mode("HOVER")])
 
 
 def test_command_retries_with_confirmation_and_times_out(lead) -> None:
@@ -42,33 +42,34 @@ def test_command_retries_with_confirmation_and_times_out(lead) -> None:
     vehicle.ignore_commands = 2
     cmd = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
     before = len(vehicle.commands)  # connect already asked for the telemetry streams
-    link.command_long(cmd, mavlink2.MAVLINK_MSG_ID_ATTITUDE, 20000, timeout_s=0.2)
+    fleet.run([link.commands.op_command(cmd, mavlink2.MAVLINK_MSG_ID_ATTITUDE, 20000, timeout_s=0.2)])
     assert [conf for c, conf, _ in vehicle.commands[before:] if c == cmd] == [0, 1, 2]
     vehicle.ignore_commands = 10
     with pytest.raises(
         LinkError, match="^lead did not acknowledge MAV_CMD_SET_MESSAGE_INTERVAL \\(2 attempts, 0.2 s"
     ):
-        link.command_long(cmd, mavlink2.MAVLINK_MSG_ID_ATTITUDE, 20000, retries=1, timeout_s=0.2)
+        fleet.run(
+            [link.commands.op_command(cmd, mavlink2.MAVLINK_MSG_ID_ATTITUDE, 20000, retries=1, timeout_s=0.2)]
+        )
 
 
 def test_in_progress_then_accepted_and_unsupported(lead) -> None:
-    _, link, _ = lead()
-    assert (
-        link.command_long(mavlink2.MAV_CMD_PREFLIGHT_CALIBRATION, timeout_s=0.5)
-        == mavlink2.MAV_RESULT_ACCEPTED
-    )
+    fleet, link, _ = lead()
+    assert fleet.run([link.commands.op_command(mavlink2.MAV_CMD_PREFLIGHT_CALIBRATION, timeout_s=0.5)]) == [
+        mavlink2.MAV_RESULT_ACCEPTED
+    ]
     with pytest.raises(LinkError, match="^lead refused MAV_CMD_DO_SET_SERVO: UNSUPPORTED$"):
-        link.command_long(mavlink2.MAV_CMD_DO_SET_SERVO, 1, 1500)
+        fleet.run([link.commands.op_command(mavlink2.MAV_CMD_DO_SET_SERVO, 1, 1500)])
 
 
 def test_takeoff_needs_guided_and_armed(lead) -> None:
     fleet, link, _ = lead()
     with pytest.raises(LinkError, match="lead refused MAV_CMD_NAV_TAKEOFF: FAILED"):
-        link.takeoff(5.0)
-    link.request_streams({"EXTENDED_SYS_STATE": 10.0, "GLOBAL_POSITION_INT": 10.0})
-    link.set_mode("GUIDED")
-    link.arm()
-    link.takeoff(5.0)
+        fleet.run([link.commands.op_takeoff(5.0)])
+    fleet.run([link.streams.op_request_streams({"EXTENDED_SYS_STATE": 10.0, "GLOBAL_POSITION_INT": 10.0})])
+    fleet.run([link.commands.op_set_mode("GUIDED")])
+    fleet.run([link.commands.op_arm()])
+    fleet.run([link.commands.op_takeoff(5.0)])
     fleet.wait_until(
         lambda: fleet.landed_state[0] == mavlink2.MAV_LANDED_STATE_IN_AIR, 3.0, "lead in the air"
     )
@@ -76,33 +77,33 @@ def test_takeoff_needs_guided_and_armed(lead) -> None:
 
 
 def test_param_set_is_verified_by_its_echo(lead) -> None:
-    _, link, vehicle = lead(readonly_params=("SYSID_THISMAV",))
-    assert link.param_set("GUID_OPTIONS", 8) == 8.0
+    fleet, link, vehicle = lead(readonly_params=("SYSID_THISMAV",))
+    assert fleet.run([link.parameters.op_set("GUID_OPTIONS", 8)])[0] == 8.0
     assert vehicle.params["GUID_OPTIONS"] == 8.0
-    assert link.param_get("MOT_THST_HOVER") == pytest.approx(0.35)
+    assert fleet.run([link.parameters.op_get("MOT_THST_HOVER")])[0] == pytest.approx(0.35)
     with pytest.raises(LinkError, match="^lead did not accept SYSID_THISMAV = 3: it reads back 1$"):
-        link.param_set("SYSID_THISMAV", 3, retries=1)
+        fleet.run([link.parameters.op_set("SYSID_THISMAV", 3, retries=1)])
     with pytest.raises(LinkError, match="^lead did not confirm parameter NOPE"):
-        link.param_set("NOPE", 1, retries=1, timeout_s=0.2)
+        fleet.run([link.parameters.op_set("NOPE", 1, retries=1, timeout_s=0.2)])
     with pytest.raises(LinkError, match="^lead did not report parameter NOPE"):
-        link.param_get("NOPE", retries=0, timeout_s=0.2)
+        fleet.run([link.parameters.op_get("NOPE", retries=0, timeout_s=0.2)])
     with pytest.raises(LinkError, match="1-16 ASCII characters"):
-        link.param_get("A_NAME_MUCH_TOO_LONG")
+        fleet.run([link.parameters.op_get("A_NAME_MUCH_TOO_LONG")])
 
 
 def test_params_all_fills_gaps_by_index(lead) -> None:
-    _, link, _ = lead(drop_param_indices=(1, 2))
-    params = link.params_all(timeout_s=5.0)
+    fleet, link, _ = lead(drop_param_indices=(1, 2))
+    params = fleet.run([link.parameters.op_all(timeout_s=5.0)])[0]
     assert params == pytest.approx(DEFAULT_PARAMS)
 
 
 def test_message_interval_is_acked_and_the_stream_flows(lead) -> None:
     fleet, link, vehicle = lead()
-    link.set_message_interval("GLOBAL_POSITION_INT", 25.0)
+    fleet.run([link.streams.op_set_message_interval("GLOBAL_POSITION_INT", 25.0)])
     assert vehicle.intervals_ms[mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT] == 40
     fleet.wait_until(lambda: fleet.state.position_count[0] >= 3, 3.0, "positions")
     with pytest.raises(LinkError, match="unknown MAVLink message 'NOT_A_MESSAGE'"):
-        link.set_message_interval("NOT_A_MESSAGE", 1.0)
+        fleet.run([link.streams.op_set_message_interval("NOT_A_MESSAGE", 1.0)])
 
 
 def test_fleet_wide_operations_report_only_the_failing_vehicle(fake, fleet_of) -> None:
@@ -128,7 +129,11 @@ def test_a_vehicle_that_refuses_message_intervals_is_asked_by_stream_group(lead)
     vehicle.refuse_message_interval = True
     before = vehicle.received["REQUEST_DATA_STREAM"]
     fleet.run(
-        [link.op_request_streams({"GLOBAL_POSITION_INT": 10.0, "ATTITUDE": 10.0, "EXTENDED_SYS_STATE": 2.0})]
+        [
+            link.streams.op_request_streams(
+                {"GLOBAL_POSITION_INT": 10.0, "ATTITUDE": 10.0, "EXTENDED_SYS_STATE": 2.0}
+            )
+        ]
     )
     # two of the three have a stream group (POSITION, EXTRA1); EXTENDED_SYS_STATE is in none (ardupilot.py)
     assert vehicle.received["REQUEST_DATA_STREAM"] - before == 2

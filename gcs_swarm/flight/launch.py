@@ -1,0 +1,45 @@
+"""Launch: GUIDED, arm and take off to the formation altitude (each vehicle plus its slot's dz)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gcs_swarm.flight.preflight import PreflightError
+from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.mission import Mission
+from gcs_swarm.mission.geometry import mission_offsets
+
+
+def takeoff_altitudes(mission: Mission) -> np.ndarray:
+    """(N,) m: the formation altitude plus each vehicle's slot dz."""
+    return mission.formation.altitude + mission_offsets(mission)[:, 2]
+
+
+def launched(fleet: Fleet, mission: Mission) -> bool:
+    """Every vehicle is within 0.5 m of its takeoff altitude (always, for an airborne start)."""
+    if mission.run.airborne_start:
+        return True
+    return bool((fleet.pos[:, 2] >= takeoff_altitudes(mission) - 0.5).all())
+
+
+def home_positions(fleet: Fleet, mission: Mission) -> np.ndarray:
+    """(N, 3) ENU m, the failsafe's home of each vehicle: where it stands before takeoff (an airborne start's
+    home is the ground below it)."""
+    home = fleet.pos
+    if mission.run.airborne_start:
+        home[:, 2] = 0.0
+    return home
+
+
+def command_launch(fleet: Fleet, mission: Mission) -> None:
+    """GUIDED, arm and take off (each acknowledged; only GUIDED for an airborne start); the climb itself is
+    not awaited. PreflightError if a vehicle refuses."""
+    try:
+        fleet.set_mode_all("GUIDED")
+        if mission.run.airborne_start:
+            return
+        fleet.arm_all()
+        fleet.takeoff_all(takeoff_altitudes(mission))
+    except LinkError as exc:
+        raise PreflightError(f"launch refused: {exc}") from exc

@@ -1,0 +1,36 @@
+"""What a mission run did, from the ground station's point of view (`FlightResult`, written to flight.json by
+gcs_swarm.flight.fly; the metrics come from the evaluation)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class FlightResult:
+    """What the run did, from the ground station's point of view (metrics come from report.py)."""
+
+    phase_reached: str = "connect"
+    arrived: bool = False
+    t_formation_start: float | None = None
+    t_arrival: float | None = None
+    t_formation_end: float | None = None
+    lost: list[str] = field(default_factory=list)
+    lost_at: dict[str, float] = field(default_factory=dict)  # vehicle time s at which each was declared lost
+    events: list[str] = field(default_factory=list)
+    ticks: int = 0
+    final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
+    leader: int | None = None  # the leading vehicle at the end (the lead passes on when a leader is lost)
+    offsets: np.ndarray | None = None  # (N, 3) slot offsets in force at the end
+    degraded_s: float = 0.0  # vehicle s flown in degraded mode (stale telemetry: slower, wider)
+    holds: int = 0  # times a vehicle was held for stale telemetry
+    max_telemetry_age_s: float = 0.0  # oldest position telemetry of a live vehicle at any formation tick
+    params_changed: list[dict[str, object]] = field(default_factory=list)  # flight_params.ParamChange rows
+    # (vehicle time s, leader, (N, 3) slot offsets flown, NaN rows for lost vehicles) at each change
+    formation_timeline: list[tuple[float, int, np.ndarray]] = field(default_factory=list)
+    # vehicles found flying at the start (`--airborne`): None (none were), "finish" or "land"; and for
+    # "land", whether every vehicle was disarmed on the ground at the end
+    reattached: str | None = None
+    landed_all: bool = False

@@ -1,0 +1,78 @@
+"""The ground station's side of the simulator's lockstep protocol (docs/sitl.md).
+
+A lockstep simulator sends each frame's telemetry stamped with time_boot_ms and waits until the frame is
+answered by a SYSTEM_TIME / SET_ATTITUDE_TARGET / SET_POSITION_TARGET_* carrying time_boot_ms >= the frame's.
+With link faults it also marks each frame's end with SYSTEM_TIME(time_unix_usec=0) (a clock tick), so a frame
+is complete even when the vehicle's telemetry was lost or delayed. A real ArduPilot ignores the answers (it
+refuses UNIX times before 2022) and sends no clock ticks, so all this is always safe.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from gcs_swarm.link.channel import Channel
+from gcs_swarm.link.connection import MAVLinkMessage
+from gcs_swarm.link.telemetry import TelemetryState, VehicleTelemetry
+
+
+def is_clock_tick(msg: MAVLinkMessage) -> bool:
+    """SYSTEM_TIME(time_unix_usec=0): a lockstep frame's end (no evidence that the radio link works)."""
+    return msg.get_type() == "SYSTEM_TIME" and msg.time_unix_usec == 0
+
+
+class LockstepAnswer:
+    """Answers vehicle `index`'s frames: the time_boot_ms its outgoing targets echo; SYSTEM_TIME answers."""
+
+    def __init__(self, index: int, channel: Channel, telemetry: VehicleTelemetry) -> None:
+        self.index = index
+        self.channel = channel
+        self.telemetry = telemetry
+        self.state: TelemetryState = telemetry.state
+        self.answered_ms = -1  # time_boot_ms of the last lockstep answer sent
+
+    def on_clock_tick(self, m: MAVLinkMessage) -> None:
+        """A clock tick (`is_clock_tick`): the frame it ends is complete."""
+        if self.telemetry.on_time(m.time_boot_ms, "clock"):
+            self.state.frame_ms[self.index] = max(int(self.state.frame_ms[self.index]), m.time_boot_ms)
+
+    @property
+    def needs_answer(self) -> bool:
+        """A telemetry frame (time_boot_ms) has arrived that no lockstep answer has covered yet."""
+        t = int(self.state.time_ms[self.index])
+        return t > 0 and t != self.answered_ms
+
+    def answer_time_ms(self) -> int:
+        """time_boot_ms to echo in an outgoing target: the latest frame, now answered (and consumed, so
+        the next tick waits for a newer GLOBAL_POSITION_INT)."""
+        t = max(int(self.state.time_ms[self.index]), 0)
+        if t > 0:
+            self.answered_ms = t
+            self.state.tick_ms[self.index] = t
+        return t
+
+    def answer_frame(self) -> bool:
+        """Answer the latest frame with SYSTEM_TIME(time_unix_usec=0, time_boot_ms=frame) unless answered."""
+        if not self.needs_answer:
+            return False
+        self.channel.send(self.channel.mav.system_time_encode(0, self.answer_time_ms()))
+        return True
+
+
+def frame_ready(answers: Sequence[LockstepAnswer], connected: Sequence[bool]) -> bool:
+    """Every alive connected vehicle has a telemetry frame that no answer has covered yet: in lockstep, the
+    fleet's frame is complete and the simulator waits for us. `answers[k]` and `connected[k]` belong to the
+    same vehicle."""
+    if not answers:
+        return False
+    st = answers[0].state
+    alive = [a for a, c in zip(answers, connected, strict=True) if c and st.alive[a.index]]
+    if not alive:
+        return False
+    last = max(a.answered_ms for a in alive)
+    clocked = [  # lost, but a lockstep simulator still sends its clock ticks and waits for its answers
+        a
+        for a, c in zip(answers, connected, strict=True)
+        if c and not st.alive[a.index] and st.frame_ms[a.index] >= last >= 0
+    ]
+    return all(a.needs_answer for a in alive + clocked)

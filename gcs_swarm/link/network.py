@@ -1,0 +1,193 @@
+"""The fleet's network: its endpoints, the sysid -> vehicle map, and the routing of every incoming packet.
+
+Each vehicle's connection string is opened once (several vehicles may share one udpin endpoint); a packet
+is routed to the vehicle configured on its endpoint (by sysid when the endpoint is shared), and a vehicle is
+bound to its sysid, component and autopilot dialect at its first HEARTBEAT. Packets from a sysid the mission
+does not give a vehicle are counted (`unrouted` on a shared endpoint, `foreign_heartbeats` on a vehicle's
+own one), and the identity checks refuse two vehicles answering to one sysid.
+"""
+
+from __future__ import annotations
+
+import selectors
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_swarm.link.autopilots import dialect_for
+from gcs_swarm.link.connection import (
+    ConnectionSpec,
+    Endpoint,
+    LinkError,
+    MAVLinkMessage,
+    UdpRouter,
+    open_endpoint,
+    parse_connection,
+)
+from gcs_swarm.link.tlog import TlogWriter
+from gcs_swarm.link.vehicle import VehicleLink
+
+SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before the connection is refused
+
+
+class Network:
+    """Endpoints and routing for `links` (row i = links[i]); every packet in and out goes to the tlog."""
+
+    def __init__(self, links: Sequence[VehicleLink]) -> None:
+        self.links = list(links)
+        self._routes: dict[Endpoint, list[VehicleLink]] = {}
+        self._selector = selectors.DefaultSelector()
+        self._tlog: TlogWriter | None = None
+        self.unrouted = 0  # packets on a shared udpin endpoint from no configured vehicle
+        self.foreign_heartbeats: list[dict[int, int]] = [{} for _ in self.links]
+        """Per vehicle: other vehicles' sysids heard on its connection -> their HEARTBEATs."""
+
+    @property
+    def connected(self) -> bool:
+        """The endpoints are open."""
+        return bool(self._routes)
+
+    def open(self, connect_timeout_s: float, tlog_path: Path | None) -> None:
+        """Open every vehicle's endpoint (shared udpin endpoints once) and the tlog; LinkError on failure."""
+        groups: dict[tuple[str, str, int], tuple[ConnectionSpec, list[VehicleLink]]] = {}
+        for link in self.links:
+            try:
+                spec = parse_connection(link.config.connection)
+            except ValueError as err:
+                raise LinkError(f"{link.name}: {err}") from None
+            groups.setdefault(spec.key, (spec, []))[1].append(link)
+        for spec, members in groups.values():
+            names = ", ".join(m.name for m in members)
+            if len(members) > 1 and spec.kind != "udpin":
+                raise LinkError(
+                    f"{names} share the connection {spec.text}; "
+                    "only a udpin endpoint can serve several vehicles"
+                )
+            if len(members) > 1 and any(m.config.sysid is None for m in members):
+                raise LinkError(
+                    f"{names} share {spec.text}: give each of them its sysid so they can be told apart"
+                )
+            endpoint = open_endpoint(spec, names, connect_timeout_s)
+            self._routes[endpoint] = members
+            self._selector.register(endpoint.fileno(), selectors.EVENT_READ, endpoint)
+            for member in members:
+                member.channel.endpoint = endpoint
+        if tlog_path is not None:
+            self._tlog = TlogWriter(tlog_path)
+            for link in self.links:
+                link.channel.tlog = self._tlog
+
+    def close(self) -> None:
+        """Close every endpoint and the tlog (idempotent)."""
+        for endpoint in self._routes:
+            endpoint.close()
+        self._routes.clear()
+        self._selector.close()
+        self._selector = selectors.DefaultSelector()
+        if self._tlog is not None:
+            self._tlog.close()
+            self._tlog = None
+
+    def receive(self, timeout_s: float) -> float:
+        """Wait up to `timeout_s` for packets and route all that are readable; returns the time.monotonic() at
+        which they were read."""
+        if self._selector.get_map():
+            ready = self._selector.select(max(timeout_s, 0.0))
+        else:  # every stream endpoint was closed by its peer
+            ready = []
+            time.sleep(max(timeout_s, 0.0))
+        now = time.monotonic()
+        for key, _ in ready:
+            endpoint: Endpoint = key.data
+            for msg, peer in endpoint.receive():
+                self._deliver(endpoint, msg, peer, now)
+            if endpoint.closed:
+                self._selector.unregister(key.fd)
+                for link in self._routes[endpoint]:
+                    link.add_event(f"connection {endpoint.spec.text} closed by the peer")
+        return now
+
+    def _deliver(self, endpoint: Endpoint, msg: MAVLinkMessage, peer: Any, now: float) -> None:
+        bad = msg.get_type() == "BAD_DATA"
+        if self._tlog is not None and not bad:
+            self._tlog.write(msg.get_msgbuf())
+        members = self._routes[endpoint]
+        if len(members) == 1:
+            self.accept(members[0], msg, now)
+            return
+        assert isinstance(endpoint, UdpRouter)
+        sysid = endpoint.sysid_of.get(peer) if bad else msg.get_srcSystem()
+        for link in members:
+            if link.config.sysid == sysid:
+                self.accept(link, msg, now)
+                return
+        self.unrouted += 1
+
+    def accept(self, link: VehicleLink, msg: MAVLinkMessage, now: float) -> None:
+        """A packet from `link`'s connection (`now` = time.monotonic()): counted, garbage and other systems
+        set aside, the rest handed to the link."""
+        stats = link.channel.stats
+        stats.received += 1
+        mtype = msg.get_type()
+        if mtype == "BAD_DATA":
+            stats.bad += 1
+            return
+        sysid = msg.get_srcSystem()
+        if sysid != link.sysid and not self._bind(link, msg, mtype, sysid):
+            stats.ignored += 1
+            return
+        link.handle(msg, now)
+
+    def _bind(self, link: VehicleLink, msg: MAVLinkMessage, mtype: str, sysid: int) -> bool:
+        """Bind `link` at the first vehicle HEARTBEAT with the expected sysid (its component and autopilot
+        dialect with it); count other vehicles' sysids."""
+        if mtype != "HEARTBEAT" or msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
+            return False
+        if msg.type == mavlink2.MAV_TYPE_GCS:
+            return False
+        channel = link.channel
+        if channel.sysid is None and link.config.sysid in (None, sysid):
+            channel.sysid, channel.compid = sysid, msg.get_srcComponent()
+            channel.autopilot = dialect_for(msg.autopilot)
+            return True
+        foreign = self.foreign_heartbeats[link.index]
+        foreign[sysid] = foreign.get(sysid, 0) + 1
+        if channel.sysid is not None and foreign[sysid] == 1:
+            link.add_event(f"its connection also carries sysid {sysid}; those packets are ignored")
+        return False
+
+    def check_identities(self, wrong_sysid_heartbeats: int = SYSID_CONFLICT_HEARTBEATS) -> None:
+        """LinkError when two vehicles report one sysid, a vehicle keeps reporting a sysid other than its
+        configured one (`wrong_sysid_heartbeats` HEARTBEATs), or one sysid is heard from several addresses."""
+        by_sysid: dict[int, VehicleLink] = {}
+        for link in self.links:
+            conn = link.config.connection
+            if link.sysid is not None:
+                other = by_sysid.setdefault(link.sysid, link)
+                if other is not link:
+                    hint = link.channel.autopilot.sysid_param_hint()
+                    raise LinkError(
+                        f"{other.name} ({other.config.connection}) and {link.name} ({conn}) both report "
+                        f"sysid {link.sysid}; give each vehicle its own {hint}"
+                    )
+            elif link.config.sysid is not None:
+                foreign = self.foreign_heartbeats[link.index]
+                wrong = [s for s, n in foreign.items() if n >= wrong_sysid_heartbeats]
+                if wrong:
+                    raise LinkError(
+                        f"{link.name} ({conn}) reports sysid {wrong[0]}, but the mission gives it sysid "
+                        f"{link.config.sysid}"
+                    )
+            endpoint = link.channel.endpoint
+            wanted = link.sysid if link.sysid is not None else link.config.sysid
+            if isinstance(endpoint, UdpRouter) and wanted is not None:
+                addresses = endpoint.addresses.get(wanted, [])
+                if len(addresses) > 1:
+                    shown = ", ".join(f"{host}:{port}" for host, port in addresses)
+                    raise LinkError(
+                        f"{link.name}'s sysid {wanted} is heard from several addresses on {conn} ({shown}); "
+                        "two vehicles share that sysid"
+                    )

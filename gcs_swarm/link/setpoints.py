@@ -1,0 +1,158 @@
+"""Guided-mode targets for one vehicle: SET_ATTITUDE_TARGET and SET_POSITION_TARGET_* from mission-frame
+(ENU/FLU) values, converted to the wire's NED/FRD once (spec 1.1). Each target echoes the vehicle's latest
+time_boot_ms and so answers its lockstep frame (gcs_swarm.link.lockstep)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_swarm.link import frames
+from gcs_swarm.link.channel import Channel
+from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.lockstep import LockstepAnswer
+from swarm_common import rotations
+
+ATTITUDE_TARGET_IGNORE_RATES = 0b00000111  # SET_ATTITUDE_TARGET.type_mask: use quaternion + thrust only
+
+_IGNORE_ACCEL = (
+    mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_AY_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+)
+_IGNORE_POSITION = (
+    mavlink2.POSITION_TARGET_TYPEMASK_X_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_Y_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_Z_IGNORE
+)
+_IGNORE_VELOCITY = (
+    mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_VZ_IGNORE
+)
+
+
+def _require_finite(name: str, what: str, values: NDArray[np.float64], yaw: float | None) -> None:
+    if (
+        values.shape != (3,)
+        or not np.all(np.isfinite(values))
+        or (yaw is not None and not math.isfinite(yaw))
+    ):
+        raise ValueError(
+            f"{what} for {name} must be 3 finite numbers and a finite yaw: {values.tolist()}, {yaw}"
+        )
+
+
+class Setpoints:
+    """Sends targets to the vehicle behind `channel`; its state row (for `hold`) is `lockstep`'s."""
+
+    def __init__(self, channel: Channel, lockstep: LockstepAnswer) -> None:
+        self.channel = channel
+        self.lockstep = lockstep
+        self.name = channel.name
+
+    def send_attitude_target(self, roll: float, pitch: float, yaw: float, thrust: float) -> None:
+        """SET_ATTITUDE_TARGET from FLU/ENU angles (rad) and normalised thrust; ValueError if not finite."""
+        values = np.array([roll, pitch, yaw, thrust], dtype=float)
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"non-finite attitude target for {self.name}: {values.tolist()}")
+        self.send_attitude_quaternion(frames.attitude_target_quaternion(values[:3]), float(values[3]))
+
+    def send_attitude_quaternion(self, q_ned_frd: ArrayLike, thrust: float) -> None:
+        """SET_ATTITUDE_TARGET with a LOCAL_NED->BODY_FRD quaternion (w,x,y,z), thrust clipped to [0,1]."""
+        q = np.asarray(q_ned_frd, dtype=float).tolist()
+        thrust = min(max(float(thrust), 0.0), 1.0)
+        ch = self.channel
+        ch.send(
+            ch.mav.set_attitude_target_encode(
+                self.lockstep.answer_time_ms(),
+                ch.target_sysid,
+                ch.compid,
+                ATTITUDE_TARGET_IGNORE_RATES,
+                q,
+                0.0,
+                0.0,
+                0.0,
+                thrust,
+            )
+        )
+
+    def send_velocity_target(self, vel_enu: ArrayLike, yaw: float | None = None) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED velocity (ENU m/s) and optional ENU yaw (rad); GUIDED mode."""
+        v = np.asarray(vel_enu, dtype=float)
+        _require_finite(self.name, "velocity target", v, yaw)
+        vn = frames.enu_to_ned(v)
+        mask = _IGNORE_POSITION | _IGNORE_ACCEL
+        yaw_ned = 0.0
+        if yaw is None:
+            mask |= mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+        else:
+            yaw_ned = float(rotations.wrap_pi(0.5 * math.pi - yaw))
+        ch = self.channel
+        ch.send(
+            ch.mav.set_position_target_local_ned_encode(
+                self.lockstep.answer_time_ms(),
+                ch.target_sysid,
+                ch.compid,
+                mavlink2.MAV_FRAME_LOCAL_NED,
+                mask,
+                0.0,
+                0.0,
+                0.0,
+                float(vn[0]),
+                float(vn[1]),
+                float(vn[2]),
+                0.0,
+                0.0,
+                0.0,
+                yaw_ned,
+                0.0,
+            )
+        )
+
+    def send_position_target(self, pos_enu: ArrayLike, yaw: float | None = None) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT at a mission-frame ENU position (m); GUIDED mode.
+
+        Global coordinates, because each vehicle's LOCAL_NED frame has its own (EKF) origin.
+        """
+        p = np.asarray(pos_enu, dtype=float)
+        _require_finite(self.name, "position target", p, yaw)
+        lat, lon, alt = frames.enu_to_geodetic(p, self.lockstep.state.origin)
+        mask = _IGNORE_VELOCITY | _IGNORE_ACCEL
+        yaw_ned = 0.0
+        if yaw is None:
+            mask |= mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+        else:
+            yaw_ned = float(rotations.wrap_pi(0.5 * math.pi - yaw))
+        ch = self.channel
+        ch.send(
+            ch.mav.set_position_target_global_int_encode(
+                self.lockstep.answer_time_ms(),
+                ch.target_sysid,
+                ch.compid,
+                mavlink2.MAV_FRAME_GLOBAL_INT,
+                mask,
+                int(round(float(lat) * 1e7)),
+                int(round(float(lon) * 1e7)),
+                float(alt),
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                yaw_ned,
+                0.0,
+            )
+        )
+
+    def hold(self) -> None:
+        """Hold the current position and heading with a position target (vehicle must be in GUIDED)."""
+        st, i = self.lockstep.state, self.lockstep.index
+        if st.position_count[i] == 0:
+            raise LinkError(f"{self.name} cannot hold position: no position received yet")
+        self.send_position_target(st.pos[i], yaw=float(st.att[i, 2]) if np.isfinite(st.att[i, 2]) else None)

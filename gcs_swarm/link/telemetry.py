@@ -1,0 +1,320 @@
+"""Telemetry into state: one vehicle's packets become its row of the fleet's arrays, here and only here.
+
+Frames are converted once (spec 1.1): GLOBAL_POSITION_INT -> geodetic position (ENU around the mission origin
+on demand) and ENU velocity, ATTITUDE / ATTITUDE_QUATERNION -> FLU/ENU Euler angles, HEARTBEAT ->
+mode/armed/system status, EKF_STATUS_REPORT + SYS_STATUS -> readiness, EXTENDED_SYS_STATE -> landed state,
+STATUSTEXT -> the fleet's event queue. Stamped packets (time_boot_ms) advance the vehicle's clock, reveal late
+packets and reboots, and mark the link alive; silence marks it lost.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_swarm.link import frames
+from gcs_swarm.link.autopilots import AutopilotDialect
+from gcs_swarm.link.channel import LinkStats
+from gcs_swarm.link.connection import MAVLinkMessage
+from swarm_common import rotations
+
+REBOOT_BACKSTEP_MS = 5000  # a time_boot_ms this much older than the latest means a reboot, not a late packet
+
+# EKF_STATUS_REPORT.flags: a usable position estimate (as ArduCopter's ekf_position_ok, disarmed case).
+EKF_REQUIRED = (
+    mavlink2.EKF_ATTITUDE
+    | mavlink2.EKF_VELOCITY_HORIZ
+    | mavlink2.EKF_VELOCITY_VERT
+    | mavlink2.EKF_POS_VERT_ABS
+)
+EKF_HORIZONTAL = mavlink2.EKF_POS_HORIZ_ABS | mavlink2.EKF_PRED_POS_HORIZ_ABS
+EKF_FORBIDDEN = mavlink2.EKF_CONST_POS_MODE | mavlink2.EKF_UNINITIALIZED
+
+_PREARM = mavlink2.MAV_SYS_STATUS_PREARM_CHECK
+
+
+class Event(NamedTuple):
+    """A STATUSTEXT or link event. `time_s` is the vehicle's time since boot (s) when it was received."""
+
+    time_s: float
+    vehicle: str
+    text: str
+    severity: int  # MAV_SEVERITY (0 emergency .. 7 debug)
+
+
+class TelemetryState:
+    """The fleet's telemetry as per-vehicle arrays, row i = vehicle i. Written only by `VehicleTelemetry`
+    (and the lockstep bookkeeping: tick_ms, frame_ms).
+
+    Units: geodetic (N,3) lat deg, lon deg, alt m AMSL; vel (N,3) ENU m/s; att (N,3) FLU/ENU roll, pitch,
+    yaw rad; time_ms (N,) latest time_boot_ms (-1 = none yet). mode: the autopilot's custom_mode (-1 unknown).
+    """
+
+    def __init__(self, n: int, origin: frames.Origin) -> None:
+        self.n = n
+        self.origin = origin
+        self.geodetic = np.full((n, 3), np.nan)
+        self.vel = np.full((n, 3), np.nan)
+        self.att = np.full((n, 3), np.nan)
+        self.time_ms = np.full(n, -1, dtype=np.int64)
+        self.alive = np.zeros(n, dtype=bool)
+        self.armed = np.zeros(n, dtype=bool)
+        self.mode = np.full(n, -1, dtype=np.int64)
+        self.system_status = np.full(n, -1, dtype=np.int64)  # MAV_STATE
+        self.landed_state = np.zeros(n, dtype=np.int64)  # MAV_LANDED_STATE (0 = undefined)
+        self.ekf_flags = np.full(n, -1, dtype=np.int64)  # EKF_STATUS_REPORT.flags (-1 = none yet)
+        self.prearm = np.full(n, -1, dtype=np.int8)  # SYS_STATUS pre-arm check: -1 unknown, 0 failing, 1 ok
+        self.gps_fix = np.full(n, -1, dtype=np.int64)  # GPS_RAW_INT.fix_type (-1 = none received)
+        self.rtt_ms = np.full(n, np.nan)  # round trip of the latest TIMESYNC exchange, wall ms
+        self.position_count = np.zeros(n, dtype=np.int64)  # GLOBAL_POSITION_INT messages received
+        self.position_ms = np.full(n, -1, dtype=np.int64)  # time_boot_ms of the latest GLOBAL_POSITION_INT
+        self.tick_ms = np.full(n, -1, dtype=np.int64)  # latest frame consumed by a tick or a lockstep answer
+        self.frame_ms = np.full(n, -1, dtype=np.int64)  # latest lockstep clock tick (link.lockstep)
+        self.clock_ms = 0  # fleet vehicle clock: the largest time progress of any vehicle since connect
+        self.clock_wall = -math.inf  # time.monotonic() at which clock_ms last advanced
+        self._pos = np.full((n, 3), np.nan)
+        self.pos_stale = False  # set by GLOBAL_POSITION_INT: `pos` recomputes lazily
+
+    def vehicle_clock(self) -> tuple[int, float]:
+        """The fleet vehicle clock for a `Timeout`: (clock_ms, wall time it last advanced)."""
+        return self.clock_ms, self.clock_wall
+
+    @property
+    def pos(self) -> NDArray[np.float64]:
+        """(N,3) ENU metres around the origin (NaN before the first GLOBAL_POSITION_INT)."""
+        if self.pos_stale:
+            g = self.geodetic
+            self._pos = frames.geodetic_to_enu(g[:, 0], g[:, 1], g[:, 2], self.origin)
+            self.pos_stale = False
+        return self._pos
+
+    @property
+    def ekf_ok(self) -> NDArray[np.bool_]:
+        f = self.ekf_flags
+        return (
+            (f >= 0)
+            & ((f & EKF_REQUIRED) == EKF_REQUIRED)
+            & ((f & EKF_HORIZONTAL) != 0)
+            & ((f & EKF_FORBIDDEN) == 0)
+        )
+
+    @property
+    def ready(self) -> NDArray[np.bool_]:
+        """(N,) usable position estimate, pre-arm checks passing, position received, link alive."""
+        return self.alive & (self.position_count > 0) & self.ekf_ok & (self.prearm == 1)
+
+
+class VehicleTelemetry:
+    """Decodes one vehicle's telemetry into `state` row `index`; keeps its clock, events and liveness.
+
+    `on_time(t_ms)` is called whenever the vehicle's time_boot_ms moves (forward, or back at a reboot) and
+    `on_reboot()` when it reboots (its stream rates are gone): the link's GCS heartbeat and stream watchdog.
+    """
+
+    def __init__(
+        self,
+        index: int,
+        name: str,
+        state: TelemetryState,
+        events: deque[Event],
+        stats: LinkStats,
+        on_time: Callable[[int], None],
+        on_reboot: Callable[[], None],
+    ) -> None:
+        self.index = index
+        self.name = name
+        self.state = state
+        self.events = events
+        self.stats = stats
+        self._on_time_hook = on_time
+        self._on_reboot_hook = on_reboot
+        self.statustexts = 0  # STATUSTEXT messages received so far
+        self.last_statustext = ""
+        self.last_prearm = ""  # the latest "PreArm: ..." / "Arm: ..." STATUSTEXT (ArduPilot's own reason)
+        self.last_rx_wall = -math.inf  # time.monotonic() of the last packet from the autopilot
+        self._progress_ms = 0  # this vehicle's time progress since connect (reboots do not count back)
+        self._progress_wall = -math.inf  # time.monotonic() at which _progress_ms last advanced
+        self._heard_clock_ms = 0  # fleet clock at the last packet from this vehicle
+        self._latest_ms: dict[str, int] = {}  # time_boot_ms of the newest packet of each kind (see on_time)
+        self.handlers: dict[str, Callable[[MAVLinkMessage], None]] = {
+            "HEARTBEAT": self._on_heartbeat,
+            "GLOBAL_POSITION_INT": self._on_global_position_int,
+            "ATTITUDE": self._on_attitude,
+            "ATTITUDE_QUATERNION": self._on_attitude_quaternion,
+            "LOCAL_POSITION_NED": self._on_timed,
+            "SYSTEM_TIME": self._on_timed,
+            "SYS_STATUS": self._on_sys_status,
+            "EKF_STATUS_REPORT": self._on_ekf_status_report,
+            "GPS_RAW_INT": self._on_gps_raw_int,
+            "EXTENDED_SYS_STATE": self._on_extended_sys_state,
+        }
+        """Message type -> decoder, for the telemetry messages this class turns into state."""
+
+    def vehicle_clock(self) -> tuple[int, float]:
+        """This vehicle's clock for a `Timeout`: (ms of its time_boot_ms progress since connect, wall time it
+        last advanced)."""
+        return self._progress_ms, self._progress_wall
+
+    def add_event(self, text: str, severity: int = mavlink2.MAV_SEVERITY_WARNING) -> None:
+        """Append an event for this vehicle, stamped with its latest time since boot."""
+        self.events.append(
+            Event(max(int(self.state.time_ms[self.index]), 0) / 1000.0, self.name, text, severity)
+        )
+
+    def heard(self, now: float) -> None:
+        """A packet from the autopilot arrived at `now` (time.monotonic()): the link is alive."""
+        st, i = self.state, self.index
+        self.last_rx_wall = now
+        self._heard_clock_ms = st.clock_ms
+        if not st.alive[i]:
+            st.alive[i] = True
+            if self.stats.lost:
+                self.add_event("link regained", mavlink2.MAV_SEVERITY_NOTICE)
+
+    def on_time(self, t_ms: int, kind: str | None = None) -> bool:
+        """A packet stamped with the vehicle's time_boot_ms: advance clocks, call `on_time` (the heartbeat).
+
+        False for a late packet of `kind` (older than the latest of that kind: delayed or reordered on the
+        way), whose data must not overwrite newer data. Lateness is per kind: a
+        delayed position report older than the latest attitude is still the newest position. A stamp older
+        than the vehicle's newest by more than REBOOT_BACKSTEP_MS is a reboot.
+        """
+        st, i = self.state, self.index
+        prev = int(st.time_ms[i])
+        if t_ms > prev or t_ms < prev - REBOOT_BACKSTEP_MS:
+            if t_ms > prev and prev >= 0:
+                self._progress_ms += t_ms - prev
+                self._progress_wall = time.monotonic()
+                if self._progress_ms > st.clock_ms:
+                    st.clock_ms, st.clock_wall = self._progress_ms, self._progress_wall
+            elif t_ms < prev:  # rebooted: frames start again from zero, and its stream rates are gone
+                st.tick_ms[i] = -1
+                st.frame_ms[i] = -1
+                st.position_ms[i] = -1
+                self._latest_ms.clear()
+                self._on_reboot_hook()
+            st.time_ms[i] = t_ms
+            self._on_time_hook(t_ms)
+        if kind is None:
+            return True
+        if t_ms < self._latest_ms.get(kind, -1):
+            self.stats.late += 1
+            return False
+        self._latest_ms[kind] = t_ms
+        return True
+
+    def _on_heartbeat(self, m: MAVLinkMessage) -> None:
+        st, i = self.state, self.index
+        st.mode[i] = m.custom_mode
+        st.armed[i] = bool(m.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
+        st.system_status[i] = m.system_status
+
+    def _invalid(self) -> None:
+        self.stats.invalid += 1
+
+    def _on_global_position_int(self, m: MAVLinkMessage) -> None:
+        if abs(m.lat) > 900_000_000 or abs(m.lon) > 1_800_000_000:
+            return self._invalid()
+        if not self.on_time(m.time_boot_ms, "position"):
+            return
+        st, i = self.state, self.index
+        st.geodetic[i] = (m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3)  # degE7, degE7, mm AMSL
+        st.vel[i] = (m.vy * 0.01, m.vx * 0.01, -m.vz * 0.01)  # cm/s NED -> m/s ENU (spec 1.1)
+        st.pos_stale = True
+        st.position_count[i] += 1
+        st.position_ms[i] = m.time_boot_ms
+
+    def _on_attitude(self, m: MAVLinkMessage) -> None:
+        if not (math.isfinite(m.roll) and math.isfinite(m.pitch) and math.isfinite(m.yaw)):
+            return self._invalid()
+        if not self.on_time(m.time_boot_ms, "attitude"):
+            return
+        yaw = (0.5 * math.pi - m.yaw + math.pi) % (2.0 * math.pi) - math.pi
+        self.state.att[self.index] = (m.roll, -m.pitch, yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
+
+    def _on_attitude_quaternion(self, m: MAVLinkMessage) -> None:
+        q = (m.q1, m.q2, m.q3, m.q4)
+        if not all(math.isfinite(c) for c in q) or not 0.5 < math.hypot(*q) < 1.5:
+            return self._invalid()
+        if not self.on_time(m.time_boot_ms, "attitude"):
+            return
+        q_enu = frames.quaternion_ned_to_enu((m.q1, m.q2, m.q3, m.q4))
+        self.state.att[self.index] = rotations.quaternion_to_euler(q_enu)
+
+    def _on_timed(self, m: MAVLinkMessage) -> None:
+        self.on_time(m.time_boot_ms)
+
+    def _on_sys_status(self, m: MAVLinkMessage) -> None:
+        # ArduPilot: PREARM_CHECK enabled when arming checks are on; healthy when armed or checks pass.
+        checked = bool(m.onboard_control_sensors_enabled & _PREARM)
+        self.state.prearm[self.index] = 1 if not checked or m.onboard_control_sensors_health & _PREARM else 0
+
+    def _on_gps_raw_int(self, m: MAVLinkMessage) -> None:
+        self.state.gps_fix[self.index] = m.fix_type
+
+    def _on_ekf_status_report(self, m: MAVLinkMessage) -> None:
+        self.state.ekf_flags[self.index] = m.flags
+
+    def _on_extended_sys_state(self, m: MAVLinkMessage) -> None:
+        self.state.landed_state[self.index] = m.landed_state
+
+    def on_statustext(self, m: MAVLinkMessage) -> str:
+        """A STATUSTEXT: remembered (the latest, the latest pre-arm reason), queued as an event; its text."""
+        text = m.text.decode(errors="replace") if isinstance(m.text, bytes | bytearray) else str(m.text)
+        self.last_statustext = text
+        if text.startswith("PreArm:") or text.startswith("Arm:"):
+            self.last_prearm = text
+        self.statustexts += 1
+        self.add_event(text, m.severity)
+        return text
+
+    def check_loss(self, now: float, timeout_s: float, wall_timeout_s: float) -> None:
+        """Mark the vehicle lost after `timeout_s` of fleet vehicle time or `wall_timeout_s` without a packet.
+
+        Vehicle time catches a silent vehicle while the others' clocks run (a lockstep simulator keeps
+        stepping for them); wall time catches everything else (the whole simulator or network gone).
+        """
+        st, i = self.state, self.index
+        if not st.alive[i]:
+            return
+        silent_vehicle_s = (st.clock_ms - self._heard_clock_ms) / 1000.0
+        silent_wall_s = now - self.last_rx_wall
+        if silent_vehicle_s > timeout_s:
+            reason = f"no message for {silent_vehicle_s:.1f} s of vehicle time"
+        elif silent_wall_s > wall_timeout_s:
+            reason = f"no message for {silent_wall_s:.1f} s of wall time"
+        else:
+            return
+        st.alive[i] = False
+        self.stats.lost += 1
+        self.add_event(f"link lost: {reason}", mavlink2.MAV_SEVERITY_WARNING)
+
+    def not_ready_reason(self, dialect: AutopilotDialect, streams_asked: bool) -> str | None:
+        """Why the vehicle is not ready to arm (None when it is), as a clause for an error sentence, in the
+        autopilot's words where it gives them (`dialect`); `streams_asked`: its telemetry was asked for."""
+        st, i = self.state, self.index
+        if not st.alive[i]:
+            return "its link is down"
+        gps = "" if st.gps_fix[i] < 0 else f"; GPS: {dialect.gps_fix_name(int(st.gps_fix[i]))}"
+        said = f'; it says "{self.last_prearm}"' if self.last_prearm else ""
+        if st.position_count[i] == 0:
+            asked = "asked for" if streams_asked else "not yet asked for"
+            return f"no GLOBAL_POSITION_INT received (telemetry {asked}){gps}{said}"
+        if st.ekf_flags[i] < 0:
+            return f"no EKF_STATUS_REPORT received{gps}{said}"
+        if not st.ekf_ok[i]:
+            flags = int(st.ekf_flags[i])
+            why = dialect.ekf_missing(flags, EKF_REQUIRED, EKF_HORIZONTAL, EKF_FORBIDDEN)
+            return f"no usable position estimate (EKF: {why}; flags 0x{flags:04x}){gps}{said}"
+        if st.prearm[i] < 0:
+            return f"no SYS_STATUS received{said}"
+        if st.prearm[i] == 0:
+            return f"pre-arm checks failing{gps}{said or ' (no PreArm message yet)'}"
+        return None

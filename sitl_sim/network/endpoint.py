@@ -1,0 +1,262 @@
+"""One UDP MAVLink endpoint per simulated vehicle: peers, datagrams in, the dispatch to the message handlers,
+the (faulty) link, telemetry and replies out.
+
+Clients speak first; every peer heard from in the last PEER_TIMEOUT_S wall seconds receives the vehicle's
+traffic (streams, acks, params, texts), several clients at once. MAVLink 2 out, MAVLink 1 or 2 in. The
+handlers live in sitl_sim.network.commands, .setpoints and .mission_protocol. Bad input never raises: it is
+ignored or refused and counted in `counters`; an exception escaping a handler is a simulator bug, logged with
+its traceback and counted in `counters.handler_errors`, and the vehicle goes on serving.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+from collections import deque
+from collections.abc import Callable
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from sitl_sim.network import signing
+from sitl_sim.network.commands import CommandHandlers
+from sitl_sim.network.counters import LinkCounters
+from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, Outage
+from sitl_sim.network.mission_protocol import FenceProtocol
+from sitl_sim.network.outbox import Outbox
+from sitl_sim.network.services import SimulatorServices
+from sitl_sim.network.setpoints import SetpointHandlers
+from sitl_sim.network.streams import Framer
+
+logger = logging.getLogger(__name__)
+PEER_TIMEOUT_S = 5.0  # wall seconds a silent peer keeps receiving traffic
+MAX_DATAGRAM = 1400  # bytes; messages are batched per datagram up to this size
+LOCKSTEP_ANSWERS = (
+    mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,
+    mavlink2.MAVLINK_MSG_ID_SET_ATTITUDE_TARGET,
+    mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED,
+    mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT,
+)
+Handler = Callable[[mavlink2.MAVLink_message, tuple[str, int]], None]
+
+
+class VehicleEndpoint:
+    """UDP endpoint of vehicle `index` (sysid) on bind:port, served by the simulator `sim`.
+
+    signing_key: MAVLink 2 signing key or None; seed, outages: the faulty link's
+    (sitl_sim.network.link_faults); link_from_s: simulated s before which the SIM_LINK_* faults do not apply.
+    """
+
+    def __init__(
+        self,
+        index: int,
+        sysid: int,
+        bind: str,
+        port: int,
+        sim: SimulatorServices,
+        signing_key: bytes | None,
+        seed: int,
+        outages: tuple[Outage, ...],
+        link_from_s: float,
+    ) -> None:
+        self.index = index
+        self.sysid = sysid
+        self.sim = sim
+        self.link_from_s = link_from_s
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self.sock.setblocking(False)
+            self.sock.bind((bind, port))
+        except OSError:
+            self.sock.close()
+            raise
+        self.rx = signing.new_parser(signing_key)
+        self.clock_rx = signing.new_parser(signing_key)  # reads lockstep answers before the faulty link
+        self.signer = None if signing_key is None else signing.FrameSigner(signing_key)
+        self.channel = FaultChannel(seed, index, outages)
+        self.outbox = Outbox(Framer(sysid, 1))
+        self.peers: dict[tuple[str, int], float] = {}
+        self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
+        self.counters = LinkCounters()
+        self.missions = FenceProtocol(index, self.counters, self.outbox, sim)  # MISSION_* of the fence
+        self.handlers: dict[int, Handler] = {
+            **CommandHandlers(index, sysid, self.counters, self.outbox, sim).handlers(),
+            **SetpointHandlers(index, self.counters, sim).handlers(),
+        }
+        for msg_id in self.missions.handlers:
+            self.handlers[msg_id] = lambda msg, addr: self.missions.handle(msg)
+
+    def fileno(self) -> int:
+        """The socket's file descriptor (for selectors)."""
+        return self.sock.fileno()
+
+    def close(self) -> None:
+        """Release the port."""
+        self.sock.close()
+
+    # --- input ----------------------------------------------------------------------------------------------
+
+    def receive(self, wall_now: float, frame_ms: int | None = None) -> int:
+        """Read every datagram waiting on the socket and handle them in order; returns how many were handled.
+
+        frame_ms: the simulator is paused at this lockstep frame end. Once this vehicle's lockstep clients
+        have all answered it, later datagrams wait in the inbox for the next frame end, so what a client sends
+        after its answer never depends on how fast the simulator read it.
+        """
+        while True:
+            try:
+                self.inbox.append(self.sock.recvfrom(65535))
+            except BlockingIOError:
+                break
+            except OSError:  # e.g. ICMP port unreachable from a peer that went away
+                continue
+        lockstep = self.sim.lockstep
+        handled = 0
+        while self.inbox:
+            if (
+                frame_ms is not None
+                and lockstep is not None
+                and lockstep.vehicle_answered(self.index, frame_ms)
+            ):
+                break
+            data, addr = self.inbox.popleft()
+            handled += 1
+            if addr not in self.peers:
+                self.peers[addr] = wall_now
+                self.sim.on_new_peer(self.index)
+            self.peers[addr] = wall_now
+            rates = self.link_rates()
+            if not self.channel.active(rates):
+                self.handle_datagram(data, addr, wall_now)
+                continue
+            self._register_lockstep_answers(data, addr, wall_now)
+            self.channel.push(UP, data, addr, self.sim.time_us // 1000, rates)
+            handled += self._deliver_due(wall_now)
+        return handled + self._deliver_due(wall_now)
+
+    def link_rates(self) -> tuple[float, ...]:
+        """This vehicle's SIM_LINK_* values: loss, dup, corrupt, reorder, delay_ms, jitter_ms (all zero while
+        a lockstep simulator waits at boot for its clients, as delays in simulated time could not elapse, and
+        before --link-from)."""
+        if self.sim.lockstep is not None and not self.sim.lockstep_started or self.sim.t < self.link_from_s:
+            return (0.0,) * 6
+        p, i = self.sim.params, self.index
+        return tuple(
+            p.value(i, name)
+            for name in (
+                "SIM_LINK_LOSS",
+                "SIM_LINK_DUP",
+                "SIM_LINK_CORRUPT",
+                "SIM_LINK_REORDER",
+                "SIM_LINK_DELAY",
+                "SIM_LINK_JITTER",
+            )
+        )
+
+    def _deliver_due(self, wall_now: float) -> int:
+        """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""
+        if not self.channel.pending(UP):
+            return 0
+        due = self.channel.due(UP, self.sim.time_us // 1000)
+        for data, addr in due:
+            self.handle_datagram(data, addr, wall_now)  # type: ignore[arg-type]
+        return len(due)
+
+    def _register_lockstep_answers(self, data: bytes, addr: tuple[str, int], wall_now: float) -> None:
+        """The lockstep clock hears every answer that reaches the socket, whatever the radio does with it."""
+        if self.sim.lockstep is None:
+            return
+        try:
+            messages = self.clock_rx.parse_buffer(data) or []
+        except Exception:  # noqa: BLE001 - hostile bytes: the radio path counts them
+            messages = []
+        _reset_parser(self.clock_rx)
+        for msg in messages:
+            if msg.get_msgId() in LOCKSTEP_ANSWERS and getattr(msg, "target_system", 0) in (0, self.sysid):
+                self.sim.lockstep.answer(self.index, addr, int(msg.time_boot_ms), wall_now)
+
+    def handle_datagram(self, data: bytes, addr: tuple[str, int], wall_now: float) -> None:
+        try:
+            messages = self.rx.parse_buffer(data) or []
+        except Exception:  # noqa: BLE001 - a parser failure on hostile bytes must not stop the vehicle
+            messages = []
+            self.counters.bad_frames += 1
+        if self.rx.buf_len() > 0:  # a datagram ended inside a frame: drop the fragment, resync on the next
+            self.counters.bad_frames += 1
+            _reset_parser(self.rx)
+        for msg in messages:
+            self._handle_message(msg, addr, wall_now)
+
+    def _handle_message(self, msg: mavlink2.MAVLink_message, addr: tuple[str, int], wall_now: float) -> None:
+        msg_id = msg.get_msgId()
+        if msg_id < 0:  # MAVLink_bad_data
+            if getattr(msg, "reason", "") == signing.SIGNATURE_REJECTED:
+                self.counters.unsigned += 1
+            else:
+                self.counters.bad_frames += 1
+            return
+        target_system = getattr(msg, "target_system", 0)
+        target_component = getattr(msg, "target_component", 0)
+        if target_system not in (0, self.sysid) or target_component not in (0, 1):
+            self.counters.foreign += 1
+            return
+        self.counters.received += 1
+        handler = self.handlers.get(msg_id)
+        if handler is None:
+            return
+        try:
+            handler(msg, addr)
+        except Exception:  # a simulator bug: log it, count it apart from bad input, keep serving
+            self.counters.handler_errors += 1
+            logger.exception("vehicle %d: error handling %s", self.index, msg.get_type())
+            return
+        if msg_id in LOCKSTEP_ANSWERS and self.sim.lockstep is not None:
+            time_boot_ms = msg.time_boot_ms
+            self.sim.lockstep.answer(self.index, addr, int(time_boot_ms), wall_now)
+
+    # --- output ---------------------------------------------------------------------------------------------
+
+    def flush(self, wall_now: float, clock_ms: int | None = None) -> None:
+        """Queue pending STATUSTEXTs, pass everything queued through the (faulty) link, send what it lets
+        through to the live peers, batched in datagrams. clock_ms: a lockstep frame end (a faulty link then
+        ends with the fault-exempt clock tick SYSTEM_TIME(0, clock_ms), see link_faults)."""
+        for severity, text in self.sim.autopilot.texts[self.index]:
+            self.outbox.send(self.outbox.tx.statustext_encode(severity, text.encode("ascii", "replace")[:50]))
+        self.sim.autopilot.texts[self.index].clear()
+        packets = self.outbox.take()
+        if self.signer is not None:
+            packets = [self.signer.sign(packet) for packet in packets]
+        rates = self.link_rates()
+        if self.channel.active(rates):
+            now_ms = self.sim.time_us // 1000
+            for packet in packets:
+                self.channel.push(DOWN, packet, None, now_ms, rates)
+            packets = [packet for packet, _ in self.channel.due(DOWN, now_ms)]
+            if clock_ms is not None and self.peers:
+                tick = self.outbox.framer.pack(self.outbox.tx.system_time_encode(0, clock_ms))
+                packets.append(tick if self.signer is None else self.signer.sign(tick))
+        if not packets:
+            return
+        datagrams: list[bytes] = []
+        chunk = bytearray()
+        for packet in packets:
+            if chunk and len(chunk) + len(packet) > MAX_DATAGRAM:
+                datagrams.append(bytes(chunk))
+                chunk = bytearray()
+            chunk += packet
+        datagrams.append(bytes(chunk))
+        for addr, heard in list(self.peers.items()):
+            if wall_now - heard > PEER_TIMEOUT_S:
+                del self.peers[addr]
+                continue
+            for datagram in datagrams:
+                try:
+                    self.sock.sendto(datagram, addr)
+                except OSError:  # peer gone or buffer full: UDP is lossy, the next stream sample follows
+                    break
+
+
+def _reset_parser(parser: mavlink2.MAVLink) -> None:
+    """Forget a partial frame left in a pymavlink parser's buffer (resync on the next datagram)."""
+    parser.buf = bytearray()
+    parser.buf_index = 0
+    parser.expected_length = mavlink2.HEADER_LEN_V1 + 2

@@ -1,0 +1,328 @@
+"""The MAVLink mission protocol of one simulated vehicle, for geofence items (mission_type FENCE), as
+ArduPilot answers it (libraries/GCS_MAVLink/MissionItemProtocol.cpp, MissionItemProtocol_Fence.cpp,
+GCS_Common.cpp):
+
+- upload: MISSION_COUNT(count, FENCE) -> the vehicle asks MISSION_REQUEST(seq, FENCE) for seq 0.. (ArduPilot
+  asks with MISSION_REQUEST, id 40, not MISSION_REQUEST_INT: MissionItemProtocol::queued_request_send),
+  re-asking after 1 s without the item and giving up 8 s after the last item it received ("Fence upload
+  timeout", MISSION_ACK OPERATION_CANCELLED); each MISSION_ITEM_INT (or the deprecated MISSION_ITEM) with
+  the requested seq is stored, any other seq is answered MISSION_ACK INVALID_SEQUENCE and the upload goes
+  on; after the last item the whole fence is validated and stored: MISSION_ACK ACCEPTED, or ERROR with a
+  STATUSTEXT saying why (AC_PolyFence_loader::validate_fence). A new MISSION_COUNT from the uploader starts
+  over; from anyone else it is DENIED while an upload runs. An item that is not a fence command is
+  UNSUPPORTED, an unsupported frame UNSUPPORTED_FRAME, a vertex count over 255 INVALID_PARAM1: all end the
+  upload. More than MAX_ITEMS items: NO_SPACE ("Only 70 items are supported").
+- MISSION_WRITE_PARTIAL_LIST(start, end, FENCE): the same for items start..end of the stored fence.
+- download: MISSION_REQUEST_LIST(FENCE) -> MISSION_COUNT; MISSION_REQUEST_INT(seq, FENCE) -> MISSION_ITEM_INT
+  (frame GLOBAL, x/y lat/lon degE7, param1 radius or vertex count), a seq out of range -> MISSION_COUNT and
+  MISSION_ACK INVALID_SEQUENCE; the deprecated MISSION_REQUEST -> MISSION_ITEM (once "got MISSION_REQUEST;
+  use MISSION_REQUEST_INT!"). While an upload runs both are DENIED.
+- MISSION_CLEAR_ALL(FENCE): cancels an own upload, stores an empty fence, MISSION_ACK ACCEPTED.
+- other mission types: this simulator keeps no mission (AUTO) nor rally points, so MISSION_COUNT,
+  MISSION_REQUEST_LIST, MISSION_CLEAR_ALL, MISSION_WRITE_PARTIAL_LIST and items of those types are answered
+  MISSION_ACK UNSUPPORTED (what ArduPilot answers for a type it has no protocol for, MAV_MISSION_TYPE_ALL
+  too); MISSION_REQUEST(_INT) of them get no answer (GCS_MAVLINK::handle_mission_request_int, no protocol).
+  Over MAVLink 1 the mission_type extension is absent, so fence transfers need MAVLink 2.
+
+Errors are counted in the endpoint's `refused` (well-formed, refused as ArduCopter would) or `invalid`
+(NaN/absurd numbers); nothing here raises on input. Time is simulated time.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from sitl_sim.autopilot.fence import (
+    FENCE_COMMANDS,
+    MAX_ITEMS,
+    POLYGON_EXCLUSION,
+    POLYGON_INCLUSION,
+    FenceItem,
+    validate,
+)
+from sitl_sim.network.counters import LinkCounters
+from sitl_sim.network.outbox import Outbox
+from sitl_sim.network.services import SimulatorServices
+
+FENCE = mavlink2.MAV_MISSION_TYPE_FENCE
+UPLOAD_TIMEOUT_S = 8.0  # MissionItemProtocol upload_timeout_ms
+REQUEST_RESEND_S = 1.0  # MissionItemProtocol::update wp_recv_timeout_ms (1000 + stream slowdown)
+ITEM_FRAMES = (
+    mavlink2.MAV_FRAME_GLOBAL,
+    mavlink2.MAV_FRAME_GLOBAL_INT,
+    mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+    mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
+)  # MissionItemProtocol_Fence::convert_MISSION_ITEM_INT_to_AC_PolyFenceItem
+
+
+class FenceProtocol:
+    """Mission-protocol state of vehicle `index` (fence uploads, downloads and clears), served by `sim`;
+    replies go to `outbox`, refusals to `counters`."""
+
+    def __init__(self, index: int, counters: LinkCounters, outbox: Outbox, sim: SimulatorServices) -> None:
+        self.index = index
+        self.counters = counters
+        self.outbox = outbox
+        self.sim = sim
+        self.receiving = False
+        self.dest = (0, 0)  # (sysid, compid) of the uploader
+        self.request_i = 0
+        self.request_last = -1
+        self.new_items: list[FenceItem | None] = []
+        self.last_receive = 0.0
+        self.last_request = 0.0
+        self._item_warned = False
+        self._request_warned = False
+        self.handlers = {
+            mavlink2.MAVLINK_MSG_ID_MISSION_COUNT: self._on_count,
+            mavlink2.MAVLINK_MSG_ID_MISSION_WRITE_PARTIAL_LIST: self._on_write_partial_list,
+            mavlink2.MAVLINK_MSG_ID_MISSION_ITEM_INT: self._on_item,
+            mavlink2.MAVLINK_MSG_ID_MISSION_ITEM: self._on_item,
+            mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_LIST: self._on_request_list,
+            mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_INT: self._on_request,
+            mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST: self._on_request,
+            mavlink2.MAVLINK_MSG_ID_MISSION_CLEAR_ALL: self._on_clear_all,
+            mavlink2.MAVLINK_MSG_ID_MISSION_ACK: lambda msg: None,  # not used (GCS_Common.cpp)
+        }
+
+    @property
+    def now(self) -> float:
+        """Simulated seconds since boot."""
+        return self.sim.t
+
+    # --- replies --------------------------------------------------------------------------------------------
+
+    def _ack(self, msg: mavlink2.MAVLink_message, result: int, mission_type: int = FENCE) -> None:
+        if result != mavlink2.MAV_MISSION_ACCEPTED:
+            self.counters.refused += 1
+        self.outbox.send(
+            self.outbox.tx.mission_ack_encode(
+                msg.get_srcSystem(), msg.get_srcComponent(), result, mission_type
+            )
+        )
+
+    def _say(self, severity: int, text: str) -> None:
+        self.sim.autopilot.say(self.index, severity, text)
+
+    def _send_request(self) -> None:
+        self.outbox.send(self.outbox.tx.mission_request_encode(*self.dest, self.request_i, FENCE))
+        self.last_request = self.now
+
+    # --- handlers -------------------------------------------------------------------------------------------
+
+    def handle(self, msg: mavlink2.MAVLink_message) -> None:
+        """One MISSION_* message addressed to this vehicle."""
+        handler = self.handlers.get(msg.get_msgId())
+        if handler is not None:
+            handler(msg)
+
+    def _fence(self, msg: mavlink2.MAVLink_message) -> bool:
+        """Whether msg is about the fence; other mission types are answered UNSUPPORTED (no store)."""
+        mission_type = int(getattr(msg, "mission_type", 0))
+        if mission_type == FENCE:
+            return True
+        if msg.get_msgId() not in (
+            mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_INT,
+            mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST,
+        ):
+            self._ack(msg, mavlink2.MAV_MISSION_UNSUPPORTED, mission_type)
+        else:
+            self.counters.refused += 1
+        return False
+
+    def _cancel_upload(self, msg: mavlink2.MAVLink_message) -> bool:
+        """MissionItemProtocol::cancel_upload: True if no upload runs or it was the sender's own."""
+        if not self.receiving:
+            return True
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != self.dest:
+            self._ack(msg, mavlink2.MAV_MISSION_DENIED)
+            return False
+        self.receiving = False
+        return True
+
+    def _on_count(self, msg: mavlink2.MAVLink_mission_count_message) -> None:
+        if not self._fence(msg) or not self._cancel_upload(msg):
+            return
+        if msg.count > MAX_ITEMS:
+            self._ack(msg, mavlink2.MAV_MISSION_NO_SPACE)
+            self._say(mavlink2.MAV_SEVERITY_WARNING, f"Only {MAX_ITEMS} items are supported")
+            return
+        self.new_items = [None] * msg.count
+        if msg.count == 0:
+            self._complete(msg)
+            return
+        self._start(msg, 0, msg.count - 1)
+
+    def _on_write_partial_list(self, msg: mavlink2.MAVLink_mission_write_partial_list_message) -> None:
+        if not self._fence(msg):
+            return
+        if self.receiving:
+            self._ack(msg, mavlink2.MAV_MISSION_DENIED)
+            return
+        stored = self.sim.autopilot.fence.items[self.index]
+        start, end = msg.start_index, msg.end_index
+        if start > len(stored) or end > len(stored) or end < start or start < 0:
+            self._say(mavlink2.MAV_SEVERITY_WARNING, "Flight plan update rejected")
+            self._ack(msg, mavlink2.MAV_MISSION_ERROR)
+            return
+        self.new_items = list(stored)
+        self._start(msg, start, end)
+
+    def _start(self, msg: mavlink2.MAVLink_message, first: int, last: int) -> None:
+        """MissionItemProtocol::init_send_requests: ask for items first..last from the sender."""
+        self.receiving = True
+        self.dest = (msg.get_srcSystem(), msg.get_srcComponent())
+        self.request_i, self.request_last = first, last
+        self.last_receive = self.now
+        self._send_request()
+
+    def _on_item(self, msg: mavlink2.MAVLink_message) -> None:
+        if not self._fence(msg):
+            return
+        deprecated = msg.get_msgId() == mavlink2.MAVLINK_MSG_ID_MISSION_ITEM
+        if deprecated:
+            # GCS_MAVLINK::handle_mission_item converts it first (AP_Mission::
+            # convert_MISSION_ITEM_to_MISSION_ITEM_INT: fence commands carry lat/lon in degrees)
+            if not (math.isfinite(msg.x) and abs(msg.x) <= 90.0):
+                self._ack(msg, mavlink2.MAV_MISSION_INVALID_PARAM5_X)
+                return
+            if not (math.isfinite(msg.y) and abs(msg.y) <= 180.0):
+                self._ack(msg, mavlink2.MAV_MISSION_INVALID_PARAM6_Y)
+                return
+            if not self._item_warned:
+                self._item_warned = True
+                self._say(mavlink2.MAV_SEVERITY_WARNING, "got MISSION_ITEM; GCS should send MISSION_ITEM_INT")
+        if not self.receiving:
+            self._ack(msg, mavlink2.MAV_MISSION_ERROR)
+            return
+        if msg.seq != self.request_i:
+            self._ack(msg, mavlink2.MAV_MISSION_INVALID_SEQUENCE)  # the upload goes on
+            return
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != self.dest:
+            self._ack(msg, mavlink2.MAV_MISSION_DENIED)
+            return
+        if msg.seq >= len(self.new_items):
+            result = mavlink2.MAV_MISSION_INVALID_SEQUENCE
+            item = None
+        else:
+            item, result = self._convert(msg, deprecated)
+        if item is None:
+            self._ack(msg, result)
+            self.receiving = False
+            return
+        self.new_items[msg.seq] = item
+        self.last_receive = self.now
+        self.request_i += 1
+        if self.request_i > self.request_last:
+            self._complete(msg)
+            return
+        self._send_request()
+
+    def _convert(self, msg: mavlink2.MAVLink_message, deprecated: bool) -> tuple[FenceItem | None, int]:
+        """MISSION_ITEM(_INT) -> FenceItem, or (None, the MAV_MISSION_RESULT refusing it)
+        (MissionItemProtocol_Fence::convert_MISSION_ITEM_INT_to_AC_PolyFenceItem). What the conversion lets
+        through (a NaN or negative radius, a vertex count of 0) is refused when the fence is validated."""
+        if msg.frame not in ITEM_FRAMES:
+            return None, mavlink2.MAV_MISSION_UNSUPPORTED_FRAME
+        if msg.command not in FENCE_COMMANDS:
+            return None, mavlink2.MAV_MISSION_UNSUPPORTED
+        param1 = float(msg.param1)
+        if not math.isfinite(param1):
+            self.counters.invalid += 1
+        if msg.command in (POLYGON_INCLUSION, POLYGON_EXCLUSION):
+            if param1 > 255:
+                return None, mavlink2.MAV_MISSION_INVALID_PARAM1
+            param1 = float(int(param1)) if math.isfinite(param1) and param1 >= 0 else 0.0  # a uint8 count
+        else:
+            param1 = float(np.float32(param1))  # the radius is stored as a float
+        scale = 1e7 if deprecated else 1.0  # AP_Mission::convert_MISSION_ITEM_to_MISSION_ITEM_INT
+        lat, lon = round(float(msg.x) * scale), round(float(msg.y) * scale)
+        return FenceItem(int(msg.command), lat, lon, param1), mavlink2.MAV_MISSION_ACCEPTED
+
+    def _complete(self, msg: mavlink2.MAVLink_message) -> None:
+        """MissionItemProtocol::transfer_is_complete: validate and store, then ACK."""
+        self.receiving = False
+        items = [item for item in self.new_items if item is not None]
+        if len(items) != len(self.new_items):
+            self._say(mavlink2.MAV_SEVERITY_INFO, "Error replacing item")
+            self._ack(msg, mavlink2.MAV_MISSION_ERROR)
+            return
+        problem = validate(items)
+        if problem is not None:
+            self._say(mavlink2.MAV_SEVERITY_WARNING, problem)
+            self._say(mavlink2.MAV_SEVERITY_WARNING, "Fence validation failed")
+            self._ack(msg, mavlink2.MAV_MISSION_ERROR)
+            return
+        self.sim.store_fence(self.index, items)
+        self._ack(msg, mavlink2.MAV_MISSION_ACCEPTED)
+
+    def _on_request_list(self, msg: mavlink2.MAVLink_mission_request_list_message) -> None:
+        if not self._fence(msg):
+            return
+        if self.receiving:
+            self._ack(msg, mavlink2.MAV_MISSION_DENIED)
+            return
+        count = self.sim.autopilot.fence.count(self.index)
+        sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
+        self.outbox.send(self.outbox.tx.mission_count_encode(sysid, compid, count, FENCE))
+
+    def _on_request(self, msg: mavlink2.MAVLink_message) -> None:
+        if not self._fence(msg):
+            return
+        deprecated = msg.get_msgId() == mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST
+        if self.receiving and not deprecated:
+            self._ack(msg, mavlink2.MAV_MISSION_DENIED)
+            return
+        stored = self.sim.autopilot.fence.items[self.index]
+        sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
+        if not 0 <= msg.seq < len(stored):
+            if not deprecated:
+                self.outbox.send(self.outbox.tx.mission_count_encode(sysid, compid, len(stored), FENCE))
+            self._ack(msg, mavlink2.MAV_MISSION_INVALID_SEQUENCE)
+            return
+        item = stored[msg.seq]
+        if deprecated:
+            if not self._request_warned:
+                self._request_warned = True
+                self._say(mavlink2.MAV_SEVERITY_WARNING, "got MISSION_REQUEST; use MISSION_REQUEST_INT!")
+            self.outbox.send(self.outbox.tx.mission_item_encode(
+                sysid, compid, msg.seq, mavlink2.MAV_FRAME_GLOBAL, item.command, 0, 0, item.param1, 0.0, 0.0,
+                0.0, item.lat_e7 * 1e-7, item.lon_e7 * 1e-7, 0.0, FENCE,
+            ))  # fmt: skip
+            return
+        self.outbox.send(self.outbox.tx.mission_item_int_encode(
+            sysid, compid, msg.seq, mavlink2.MAV_FRAME_GLOBAL, item.command, 0, 0, item.param1, 0.0, 0.0, 0.0,
+            item.lat_e7, item.lon_e7, 0.0, FENCE,
+        ))  # fmt: skip
+
+    def _on_clear_all(self, msg: mavlink2.MAVLink_mission_clear_all_message) -> None:
+        if not self._fence(msg):
+            return
+        if not self._cancel_upload(msg):
+            return
+        self.sim.store_fence(self.index, [])
+        self._ack(msg, mavlink2.MAV_MISSION_ACCEPTED)
+
+    # --- time -----------------------------------------------------------------------------------------------
+
+    def update(self) -> None:
+        """MissionItemProtocol::update, every autopilot tick: give up an upload 8 s after its last item,
+        re-ask for the awaited item after 1 s."""
+        if not self.receiving:
+            return
+        now = self.now
+        if now - self.last_receive > UPLOAD_TIMEOUT_S:
+            self.receiving = False
+            self._say(mavlink2.MAV_SEVERITY_WARNING, "Fence upload timeout")
+            self.counters.refused += 1
+            self.outbox.send(
+                self.outbox.tx.mission_ack_encode(*self.dest, mavlink2.MAV_MISSION_OPERATION_CANCELLED, FENCE)
+            )
+            return
+        if now - self.last_request > REQUEST_RESEND_S:
+            self._send_request()

@@ -1,0 +1,422 @@
+"""Telemetry: which message is due when (per vehicle), and how each is built from the simulated state.
+
+Streams are scheduled at multiples of their interval from boot, checked at every autopilot tick, so a 50 Hz
+stream lands on every 20 ms frame end. Intervals shorter than the tick are raised to the tick (the fastest the
+autopilot state changes). This module is also the MAVLink frame boundary for telemetry: physics is ENU/FLU,
+everything built here is NED/FRD (spec 1.1).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pymap3d
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from sitl_sim.vehicle_model.jit import njit
+
+if TYPE_CHECKING:
+    from sitl_sim.autopilot.copter import Autopilot
+
+# Default rates (Hz). A fresh ArduCopter streams nothing on a link until a ground station asks: its per-link
+# rates MAVn_* (SRn_* before 4.7) default to 0 in SITL (seen on a V4.7.0-dev SITL build: HEARTBEAT and a
+# TIMESYNC only, until REQUEST_DATA_STREAM or SET_MESSAGE_INTERVAL). HEARTBEAT goes out at 1 Hz regardless.
+# 0 = only on request (SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM, REQUEST_MESSAGE) or on change.
+DEFAULT_RATES_HZ: dict[int, float] = {
+    mavlink2.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
+    mavlink2.MAVLINK_MSG_ID_SYS_STATUS: 0.0,
+    mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 0.0,
+    mavlink2.MAVLINK_MSG_ID_ATTITUDE: 0.0,
+    mavlink2.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 0.0,
+    mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 0.0,
+    mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.0,
+    mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT: 0.0,
+    mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 0.0,
+    mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME: 0.0,
+    mavlink2.MAVLINK_MSG_ID_HOME_POSITION: 0.0,
+    mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 0.0,
+    mavlink2.MAVLINK_MSG_ID_FENCE_STATUS: 0.0,
+}
+STREAM_IDS = tuple(DEFAULT_RATES_HZ)
+# Legacy REQUEST_DATA_STREAM groups (MAVProxy uses them) -> the messages of ours they contain, as ArduPilot
+# groups them (libraries/GCS_MAVLink/GCS_MAVLink_Parameters.cpp STREAM_*_msgs); EXTENDED_SYS_STATE is in
+# none (only SET_MESSAGE_INTERVAL starts it).
+DATA_STREAM_GROUPS: dict[int, tuple[int, ...]] = {
+    mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS: (
+        mavlink2.MAVLINK_MSG_ID_SYS_STATUS,
+        mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT,
+        mavlink2.MAVLINK_MSG_ID_FENCE_STATUS,
+    ),
+    mavlink2.MAV_DATA_STREAM_POSITION: (
+        mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+        mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+    ),
+    mavlink2.MAV_DATA_STREAM_EXTRA1: (mavlink2.MAVLINK_MSG_ID_ATTITUDE,),
+    mavlink2.MAV_DATA_STREAM_EXTRA3: (
+        mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
+        mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,
+    ),
+}
+DATA_STREAM_GROUPS[mavlink2.MAV_DATA_STREAM_ALL] = tuple(
+    m for group in DATA_STREAM_GROUPS.values() for m in group
+)
+
+SQRT_HALF = math.sqrt(0.5)
+
+
+def swap_quat_enu_ned(q: np.ndarray) -> np.ndarray:
+    """Body FLU->ENU quaternions (..., 4) [w,x,y,z] <-> body FRD->NED ones (the map is its own inverse).
+
+    q_ned = q(ENU->NED) * q * q(FRD->FLU), both fixed rotations being half turns (about (1,1,0)/sqrt 2 and x).
+    """
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return SQRT_HALF * np.stack((w + z, x + y, x - y, w - z), axis=-1)
+
+
+@njit(cache=True)
+def ned_telemetry(
+    pos: np.ndarray, vel: np.ndarray, quat: np.ndarray, omega: np.ndarray, origin: np.ndarray
+) -> np.ndarray:
+    """(N,16) per vehicle: quaternion FRD->NED (4), roll, pitch, yaw NED (3), body rates FRD (3), position NED
+    from origin (3), velocity NED (3); from ENU/FLU pos, vel, origin (N,3), quat (N,4), omega (N,3)."""
+    out = np.empty((pos.shape[0], 16))
+    for i in range(pos.shape[0]):
+        w, x, y, z = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+        qw, qx, qy, qz = SQRT_HALF * (w + z), SQRT_HALF * (x + y), SQRT_HALF * (x - y), SQRT_HALF * (w - z)
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = qw, qx, qy, qz
+        out[i, 4] = math.atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
+        out[i, 5] = math.asin(min(max(2.0 * (qw * qy - qz * qx), -1.0), 1.0))
+        out[i, 6] = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        out[i, 7], out[i, 8], out[i, 9] = omega[i, 0], -omega[i, 1], -omega[i, 2]
+        out[i, 10], out[i, 11], out[i, 12] = (
+            pos[i, 1] - origin[i, 1],
+            pos[i, 0] - origin[i, 0],
+            origin[i, 2] - pos[i, 2],
+        )
+        out[i, 13], out[i, 14], out[i, 15] = vel[i, 1], vel[i, 0], -vel[i, 2]
+    return out
+
+
+def enu_to_ned(v: np.ndarray) -> np.ndarray:
+    """(..., 3) ENU vectors -> NED (spec 1.1: p_NED = (p_y, p_x, -p_z))."""
+    v = np.asarray(v, dtype=float)
+    return np.stack((v[..., 1], v[..., 0], -v[..., 2]), axis=-1)
+
+
+WGS84_A = 6378137.0  # m, semi-major axis
+WGS84_F = 1.0 / 298.257223563
+WGS84_B = WGS84_A * (1.0 - WGS84_F)
+WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+
+
+@njit(cache=True)
+def enu_to_geodetic(enu: np.ndarray, lat0: float, lon0: float, alt0: float) -> np.ndarray:
+    """(N,3) ENU m around (lat0, lon0 deg, alt0 m) -> (N,3) lat, lon (deg), alt (m), WGS84, exact.
+
+    ENU -> ECEF by rotation, ECEF -> geodetic by Heikkinen's closed form (no iteration).
+    """
+    phi, lam = math.radians(lat0), math.radians(lon0)
+    sp, cp, sl, cl = math.sin(phi), math.cos(phi), math.sin(lam), math.cos(lam)
+    a, b, e2 = WGS84_A, WGS84_B, WGS84_E2
+    n0 = a / math.sqrt(1.0 - e2 * sp * sp)
+    x0, y0, z0 = (n0 + alt0) * cp * cl, (n0 + alt0) * cp * sl, (n0 * (1.0 - e2) + alt0) * sp
+    out = np.empty_like(enu)
+    for i in range(enu.shape[0]):
+        e, n, u = enu[i, 0], enu[i, 1], enu[i, 2]
+        x = x0 - sl * e - sp * cl * n + cp * cl * u
+        y = y0 + cl * e - sp * sl * n + cp * sl * u
+        z = z0 + cp * n + sp * u
+        p = math.hypot(x, y)
+        f54 = 54.0 * b * b * z * z
+        g = p * p + (1.0 - e2) * z * z - e2 * (a * a - b * b)
+        c = e2 * e2 * f54 * p * p / (g * g * g)
+        s = (1.0 + c + math.sqrt(c * c + 2.0 * c)) ** (1.0 / 3.0)
+        k = s + 1.0 + 1.0 / s
+        pp = f54 / (3.0 * k * k * g * g)
+        q = math.sqrt(1.0 + 2.0 * e2 * e2 * pp)
+        r0 = -(pp * e2 * p) / (1.0 + q) + math.sqrt(
+            0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * p * p
+        )
+        t = p - e2 * r0
+        uu = math.sqrt(t * t + z * z)
+        vv = math.sqrt(t * t + (1.0 - e2) * z * z)
+        zz = b * b * z / (a * vv)
+        out[i, 0] = math.degrees(math.atan2(z + (e2 / (1.0 - e2)) * zz, p))
+        out[i, 1] = math.degrees(math.atan2(y, x))
+        out[i, 2] = uu * (1.0 - b * b / (a * vv))
+    return out
+
+
+class Geodesy:
+    """Local ENU metres (mission frame) <-> WGS84 around home = the ENU origin (lat, lon deg, alt m AMSL)."""
+
+    def __init__(self, home: tuple[float, float, float]) -> None:
+        self.lat0, self.lon0, self.alt0 = home
+
+    def to_geodetic(self, enu: np.ndarray) -> np.ndarray:
+        """(N,3) ENU -> (N,3) lat, lon (deg), alt (m AMSL)."""
+        return enu_to_geodetic(np.ascontiguousarray(enu, dtype=float), self.lat0, self.lon0, self.alt0)
+
+    def to_enu(self, lat: float, lon: float, alt: float) -> np.ndarray:
+        """One WGS84 point (deg, deg, m AMSL) -> (3,) ENU m."""
+        e, n, u = pymap3d.geodetic2enu(lat, lon, alt, self.lat0, self.lon0, self.alt0)
+        return np.array([float(e), float(n), float(u)])
+
+
+class StreamSchedule:
+    """Per-vehicle stream intervals (N, M) us (0 = off) and next due times, M = len(STREAM_IDS)."""
+
+    def __init__(self, n: int, tick_us: int) -> None:
+        self.tick_us = tick_us
+        self.column = {msg_id: j for j, msg_id in enumerate(STREAM_IDS)}
+        default = np.array([self.default_interval(m) for m in STREAM_IDS], dtype=np.int64)
+        self.interval_us = np.tile(default, (n, 1))
+        self.next_due_us = np.zeros((n, len(STREAM_IDS)), dtype=np.int64)
+
+    def default_interval(self, msg_id: int) -> int:
+        """Default interval of a stream in us (0 = off)."""
+        rate = DEFAULT_RATES_HZ[msg_id]
+        return 0 if rate <= 0 else max(self.tick_us, round(1e6 / rate))
+
+    def set_interval(self, i: int, msg_id: int, interval_us: float, now_us: int) -> bool:
+        """SET_MESSAGE_INTERVAL semantics: us > 0 period, 0 default, -1 off; False if msg_id is no stream."""
+        j = self.column.get(msg_id)
+        if j is None:
+            return False
+        if interval_us < 0:
+            value = 0
+        elif interval_us == 0:
+            value = self.default_interval(msg_id)
+        else:
+            value = max(self.tick_us, round(interval_us))
+        self.interval_us[i, j] = value
+        if value:
+            self.next_due_us[i, j] = -(-now_us // value) * value  # next multiple of the interval from boot
+        return True
+
+    def interval(self, i: int, msg_id: int) -> int | None:
+        """Current interval (us, -1 = off) or None when msg_id is not a stream."""
+        j = self.column.get(msg_id)
+        if j is None:
+            return None
+        value = int(self.interval_us[i, j])
+        return value if value else -1
+
+    def due(self, now_us: int) -> list[tuple[int, int]]:
+        """(vehicle, msg_id) pairs due at now_us (vehicle, then STREAM_IDS order); schedules the next."""
+        on = self.interval_us > 0
+        mask = on & (self.next_due_us <= now_us)
+        if not mask.any():
+            return []
+        rows, cols = np.nonzero(mask)
+        interval = self.interval_us[rows, cols]
+        self.next_due_us[rows, cols] = (now_us // interval + 1) * interval
+        return [(int(r), STREAM_IDS[c]) for r, c in zip(rows, cols, strict=True)]
+
+
+class Framer:
+    """MAVLink 2 framing of one sender (sysid, compid) with its own sequence number.
+
+    `pack` frames a pymavlink message object; `frame` builds the same bytes straight from a message class and
+    its field values in wire order (the hot telemetry path: no per-message objects).
+    """
+
+    HEADER = struct.Struct("<BBBBBBBHB")
+    CRC = struct.Struct("<H")
+
+    def __init__(self, sysid: int, compid: int) -> None:
+        self.mav = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+
+    def pack(self, msg: mavlink2.MAVLink_message) -> bytes:
+        """Bytes of a pymavlink message (then the sequence number advances)."""
+        data = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return data
+
+    def frame(self, cls: type[mavlink2.MAVLink_message], *values: float) -> bytes:
+        """Bytes of message class cls from field values in wire order (ordered_fieldnames, flat arrays)."""
+        payload = cls.unpacker.pack(*values).rstrip(b"\0") or b"\0"  # MAVLink 2 trailing-zero truncation
+        mav = self.mav
+        header = self.HEADER.pack(
+            253, len(payload), 0, 0, mav.seq, mav.srcSystem, mav.srcComponent, cls.id & 0xFFFF, cls.id >> 16
+        )
+        mav.seq = (mav.seq + 1) % 256
+        body = header + payload
+        crc = mavlink2.x25crc(body[1:] + bytes((cls.crc_extra,)))
+        return body + self.CRC.pack(crc.crc)
+
+
+class TelemetryView:
+    """The fleet as MAVLink sees it at one instant; arrays computed on first use, as Python lists."""
+
+    def __init__(self, autopilot: Autopilot, time_us: int, geodesy: Geodesy, unix_epoch_us: int) -> None:
+        self.ap = autopilot
+        self.time_us = time_us
+        self.time_boot_ms = time_us // 1000
+        self.geodesy = geodesy
+        self.unix_epoch_us = unix_epoch_us
+
+    @cached_property
+    def ned(self) -> list[list[float]]:
+        """Per vehicle (ned_telemetry): q FRD->NED 0:4, roll pitch yaw 4:7, rates FRD 7:10, position NED 10:13
+        (from its EKF origin), velocity NED 13:16."""
+        state = self.ap.state
+        return ned_telemetry(state.pos, state.vel, state.quat, state.omega, self.ap.origin).tolist()
+
+    @cached_property
+    def global_position(self) -> tuple[list, list, list, list]:
+        """(lat 1e7, lon 1e7, alt mm AMSL, alt mm above home) as (N,) integer lists."""
+        geodetic = self.geodesy.to_geodetic(self.ap.state.pos) * np.array([1e7, 1e7, 1000.0])
+        rel = (self.ap.state.pos[:, 2] - self.ap.home[:, 2]) * 1000.0
+        lat, lon, alt = np.round(geodetic).astype(np.int64).T.tolist()
+        return lat, lon, alt, np.round(rel).astype(np.int64).tolist()
+
+    def encode(self, framer: Framer, msg_id: int, i: int) -> bytes | None:
+        """The framed message msg_id of vehicle i now, or None when the vehicle has nothing to say yet."""
+        return _ENCODERS[msg_id](self, framer, i)
+
+
+def _heartbeat(v: TelemetryView, f: Framer, i: int) -> bytes:
+    ap = v.ap
+    return f.pack(
+        f.mav.heartbeat_encode(
+            mavlink2.MAV_TYPE_QUADROTOR,
+            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            ap.base_mode(i),
+            int(ap.mode[i]),
+            ap.system_status(i),
+            3,
+        )
+    )
+
+
+def _sys_status(v: TelemetryView, f: Framer, i: int) -> bytes:
+    present, enabled, health = v.ap.sensor_bits(i)
+    return f.pack(f.mav.sys_status_encode(present, enabled, health, 120, 12600, 100, 100, 0, 0, 0, 0, 0, 0))
+
+
+def _ekf_status(v: TelemetryView, f: Framer, i: int) -> bytes:
+    return f.pack(f.mav.ekf_status_report_encode(v.ap.ekf_flags(i), 0.02, 0.02, 0.02, 0.02, 0.0, 0.0))
+
+
+def _attitude(v: TelemetryView, f: Framer, i: int) -> bytes:
+    return f.frame(mavlink2.MAVLink_attitude_message, v.time_boot_ms, *v.ned[i][4:10])
+
+
+def _attitude_quaternion(v: TelemetryView, f: Framer, i: int) -> bytes:
+    row = v.ned[i]
+    return f.frame(
+        mavlink2.MAVLink_attitude_quaternion_message,
+        v.time_boot_ms,
+        *row[0:4],
+        *row[7:10],
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+    )
+
+
+def _local_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
+    if not v.ap.position_ok(i):
+        return None  # ArduPilot sends it only once the EKF has an origin
+    return f.frame(mavlink2.MAVLink_local_position_ned_message, v.time_boot_ms, *v.ned[i][10:16])
+
+
+def _global_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
+    if not v.ap.position_ok(i):
+        return None
+    lat, lon, alt, rel = v.global_position
+    row = v.ned[i]
+    hdg = round(math.degrees(row[6]) * 100.0) % 36000
+    vn, ve, vd = (max(-32768, min(32767, round(c * 100.0))) for c in row[13:16])
+    return f.frame(
+        mavlink2.MAVLink_global_position_int_message,
+        v.time_boot_ms,
+        lat[i],
+        lon[i],
+        alt[i],
+        rel[i],
+        vn,
+        ve,
+        vd,
+        hdg,
+    )
+
+
+def _gps_raw(v: TelemetryView, f: Framer, i: int) -> bytes:
+    if not v.ap.gps_fix(i):
+        return f.pack(
+            f.mav.gps_raw_int_encode(v.time_us, mavlink2.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 9999, 9999, 0, 0, 0)
+        )
+    lat, lon, alt, _ = v.global_position
+    vn, ve = v.ned[i][13:15]
+    speed = math.hypot(vn, ve)
+    cog = round(math.degrees(math.atan2(ve, vn)) * 100.0) % 36000 if speed > 0.2 else 0
+    return f.pack(f.mav.gps_raw_int_encode(
+        v.time_us, mavlink2.GPS_FIX_TYPE_3D_FIX, lat[i], lon[i], alt[i], 121, 200, round(speed * 100.0), cog,
+        10, alt[i], 300, 500, 200, 0, 0,
+    ))  # fmt: skip
+
+
+def _extended_sys_state(v: TelemetryView, f: Framer, i: int) -> bytes:
+    return f.pack(f.mav.extended_sys_state_encode(mavlink2.MAV_VTOL_STATE_UNDEFINED, v.ap.landed_state(i)))
+
+
+def _system_time(v: TelemetryView, f: Framer, i: int) -> bytes:
+    unix_us = v.unix_epoch_us + v.time_us if v.ap.position_ok(i) else 0  # GPS time once there is a fix
+    return f.frame(mavlink2.MAVLink_system_time_message, unix_us, v.time_boot_ms)
+
+
+def _home_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
+    if not v.ap.position_ok(i):
+        return None
+    home = v.ap.home[i : i + 1]
+    lat, lon, alt = v.geodesy.to_geodetic(home)[0]
+    x, y, z = enu_to_ned(home[0] - v.ap.origin[i]).tolist()
+    return f.pack(f.mav.home_position_encode(
+        round(lat * 1e7), round(lon * 1e7), round(alt * 1000.0), x, y, z, [1.0, 0.0, 0.0, 0.0],
+        0.0, 0.0, 0.0, v.time_us,
+    ))  # fmt: skip
+
+
+def _gps_global_origin(v: TelemetryView, f: Framer, i: int) -> bytes | None:
+    if not v.ap.position_ok(i):
+        return None
+    lat, lon, alt = v.geodesy.to_geodetic(v.ap.origin[i : i + 1])[0]
+    return f.pack(
+        f.mav.gps_global_origin_encode(round(lat * 1e7), round(lon * 1e7), round(alt * 1000.0), v.time_us)
+    )
+
+
+def _fence_status(v: TelemetryView, f: Framer, i: int) -> bytes | None:
+    """GCS_MAVLINK::send_fence_status (GCS_Fence.cpp): only while a fence is enabled; mitigation NONE (Copter
+    has AC_Avoid, whose velocity limits are not simulated)."""
+    fence = v.ap.fence
+    if not fence.enabled_mask[i]:
+        return None
+    return f.pack(f.mav.fence_status_encode(
+        int(fence.breaches[i] != 0), int(fence.breach_count[i]) & 0xFFFF, fence.mavlink_breach_type(i),
+        int(fence.breach_time_ms[i]) & 0xFFFFFFFF, mavlink2.FENCE_MITIGATE_NONE,
+    ))  # fmt: skip
+
+
+_ENCODERS = {
+    mavlink2.MAVLINK_MSG_ID_HEARTBEAT: _heartbeat,
+    mavlink2.MAVLINK_MSG_ID_SYS_STATUS: _sys_status,
+    mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT: _ekf_status,
+    mavlink2.MAVLINK_MSG_ID_ATTITUDE: _attitude,
+    mavlink2.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: _attitude_quaternion,
+    mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED: _local_position,
+    mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: _global_position,
+    mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT: _gps_raw,
+    mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: _extended_sys_state,
+    mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME: _system_time,
+    mavlink2.MAVLINK_MSG_ID_HOME_POSITION: _home_position,
+    mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: _gps_global_origin,
+    mavlink2.MAVLINK_MSG_ID_FENCE_STATUS: _fence_status,
+}

@@ -1,0 +1,87 @@
+"""The quadrotor airframe: its parameters (SI units) and the wrench its four motors produce.
+
+X-quad torques from thrusts in ArduCopter's motor order (see attitude_control.MOTOR_*_SIGN): roll/pitch arm
+= arm/sqrt(2); yaw reaction torque = (k_D/k_T) * f_i (Table 6: thrust k_T w^2, torque k_D w^2).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sitl_sim.vehicle_model.attitude_control import MOTOR_PITCH_SIGN, MOTOR_ROLL_SIGN, MOTOR_YAW_SIGN
+
+
+@dataclass(frozen=True)
+class QuadParams:
+    """Airframe parameters, SI units. Table 2 (mass, arm, inertias, g) and Table 6 (k_t, k_d) [paper]."""
+
+    mass: float = 0.9  # kg
+    arm: float = 0.175  # m, motor distance from the centre
+    ixx: float = 8.276e-3  # kg m^2
+    iyy: float = 8.276e-3
+    izz: float = 1.612e-2  # spec 9.2 reading of "1.612 x 10 3"
+    g: float = 9.8  # m/s^2
+    k_t: float = 1e-3  # kg m, thrust = k_t w^2
+    k_d: float = 2e-5  # kg m^2, reaction torque = k_d w^2
+    thrust_to_weight: float = 2.5  # [add] all motors at full thrust / weight
+    motor_tau: float = 0.02  # s, first-order motor lag [add]
+    # [add] linear drag on air-relative velocity, N per m/s: at the 30 deg default ANGLE_MAX the level-flight
+    # terminal speed is m g tan(30 deg) / drag_lin = 20.4 m/s (24.7 m/s at 35 deg), the spec's v_max 20 m/s.
+    drag_lin: float = 0.25
+    # [add] rotational drag on body rates, N m per rad/s: weak damping (time constant I/drag ~ 4 s) that
+    # bounds tumbling after a crash without affecting the controller.
+    drag_rot: float = 2e-3
+
+    def __post_init__(self) -> None:
+        for name in ("mass", "arm", "ixx", "iyy", "izz", "g", "k_t", "k_d", "motor_tau"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"quadrotor parameter {name} must be a finite number > 0, not {value!r}")
+        for name in ("drag_lin", "drag_rot"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"quadrotor parameter {name} must be a finite number >= 0, not {value!r}")
+        if not (math.isfinite(self.thrust_to_weight) and self.thrust_to_weight > 1):
+            raise ValueError("thrust_to_weight must be > 1 (the vehicle must be able to hover)")
+
+    @property
+    def f_max(self) -> float:
+        """Maximum thrust of one motor, N."""
+        return self.thrust_to_weight * self.mass * self.g / 4.0
+
+    @property
+    def thrust_max(self) -> float:
+        """Maximum total thrust of the four motors, N."""
+        return 4.0 * self.f_max
+
+    @property
+    def hover_fraction(self) -> float:
+        """Hover thrust as a fraction of thrust_max (ArduCopter MOT_THST_HOVER), 0.4 by default."""
+        return self.mass * self.g / self.thrust_max
+
+    @property
+    def yaw_coef(self) -> float:
+        """Rotor reaction torque per newton of thrust, k_d / k_t (m)."""
+        return self.k_d / self.k_t
+
+    @property
+    def inertia(self) -> np.ndarray:
+        """(3,) principal inertias Ixx, Iyy, Izz, kg m^2."""
+        return np.array([self.ixx, self.iyy, self.izz])
+
+
+def motor_wrench(motor: np.ndarray, params: QuadParams) -> tuple[np.ndarray, np.ndarray]:
+    """Total thrust (N,) N and body FLU torques (N,3) N m of motor thrusts (N,4), X quad, ArduCopter order."""
+    arm_xy = params.arm * math.sqrt(0.5)
+    torque = np.stack(
+        (
+            (motor * MOTOR_ROLL_SIGN).sum(axis=1) * arm_xy,
+            (motor * MOTOR_PITCH_SIGN).sum(axis=1) * arm_xy,
+            (motor * MOTOR_YAW_SIGN).sum(axis=1) * params.yaw_coef,
+        ),
+        axis=1,
+    )
+    return motor.sum(axis=1), torque

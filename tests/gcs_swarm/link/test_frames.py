@@ -1,0 +1,93 @@
+"""Frame conversions at the MAVLink boundary (spec 1.1): geodesy, NED/ENU vectors, FLU/ENU <-> FRD/NED."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymap3d
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from gcs_swarm.link import frames
+from swarm_common import rotations
+from tests.swarm_common.rotation_matrices import quaternion_rotation, rotation
+
+ORIGIN = (47.397742, 8.545594, 488.0)
+ENU_TO_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # also NED -> ENU
+FLU_TO_FRD = np.diag([1.0, -1.0, -1.0])  # also FRD -> FLU
+
+angles = st.tuples(
+    st.floats(-math.pi, math.pi),
+    st.floats(-1.5, 1.5),  # away from the pitch singularity of ZYX Euler angles
+    st.floats(-math.pi, math.pi),
+)
+
+
+def test_geodetic_to_enu_matches_pymap3d_and_round_trips() -> None:
+    lat = np.array([47.397742, 47.398742, 47.396742])
+    lon = np.array([8.545594, 8.547594, 8.544594])
+    alt = np.array([488.0, 498.5, 470.0])
+    enu = frames.geodetic_to_enu(lat, lon, alt, ORIGIN)
+    assert enu.shape == (3, 3)
+    for k in range(3):
+        expected = pymap3d.geodetic2enu(lat[k], lon[k], alt[k], *ORIGIN)
+        np.testing.assert_allclose(enu[k], expected, atol=1e-9)
+    assert enu[1, 1] == pytest.approx(111.2, abs=0.5)  # 0.001 deg of latitude is ~111 m North
+    back = frames.enu_to_geodetic(enu, ORIGIN)
+    np.testing.assert_allclose(back[0], lat, atol=1e-10)
+    np.testing.assert_allclose(back[1], lon, atol=1e-10)
+    np.testing.assert_allclose(back[2], alt, atol=1e-6)
+
+
+def test_origin_is_zero_and_scalar_inputs_give_one_vector() -> None:
+    np.testing.assert_allclose(frames.geodetic_to_enu(*ORIGIN, ORIGIN), [0.0, 0.0, 0.0], atol=1e-9)
+
+
+def test_ned_enu_vectors() -> None:
+    np.testing.assert_array_equal(frames.ned_to_enu([1.0, 2.0, 3.0]), [2.0, 1.0, -3.0])
+    np.testing.assert_array_equal(frames.enu_to_ned([2.0, 1.0, -3.0]), [1.0, 2.0, 3.0])
+    v = np.arange(12.0).reshape(4, 3)
+    np.testing.assert_array_equal(frames.ned_to_enu(v), v @ ENU_TO_NED.T)
+
+
+@pytest.mark.parametrize(
+    ("yaw_enu_deg", "yaw_ned_deg"),
+    [(0, 90), (90, 0), (180, -90), (-90, 180), (30, 60), (120, -30), (-60, 150), (-150, -120)],
+)
+def test_yaw_quadrants(yaw_enu_deg: float, yaw_ned_deg: float) -> None:
+    ned = frames.attitude_enu_to_ned([0.0, 0.0, math.radians(yaw_enu_deg)])
+    assert math.degrees(rotations.wrap_pi(ned[2] - math.radians(yaw_ned_deg))) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_known_cases() -> None:
+    # Facing East (ENU yaw 0) is NED yaw 90 deg; nose down (FLU pitch > 0) is FRD pitch < 0; roll unchanged.
+    np.testing.assert_allclose(frames.attitude_enu_to_ned([0.1, 0.2, 0.0]), [0.1, -0.2, math.pi / 2])
+    # Level, facing North in NED (yaw 0): the MAVLink quaternion is the identity.
+    np.testing.assert_allclose(
+        frames.attitude_target_quaternion([0.0, 0.0, math.pi / 2]), [1, 0, 0, 0], atol=1e-12
+    )
+
+
+@given(angles)
+def test_attitude_conversion_is_the_frame_change(euler: tuple[float, float, float]) -> None:
+    """R_NED<-FRD = T * R_ENU<-FLU * B for the converted Euler angles and quaternions."""
+    r_enu = rotation(euler)
+    r_ned = ENU_TO_NED @ r_enu @ FLU_TO_FRD
+    ned = frames.attitude_enu_to_ned(euler)
+    np.testing.assert_allclose(rotation(tuple(ned)), r_ned, atol=1e-12)
+    np.testing.assert_allclose(
+        quaternion_rotation(frames.attitude_target_quaternion(euler)), r_ned, atol=1e-12
+    )
+    q_enu = frames.quaternion_ned_to_enu(rotations.euler_to_quaternion(ned))
+    np.testing.assert_allclose(quaternion_rotation(q_enu), r_enu, atol=1e-12)
+    np.testing.assert_allclose(quaternion_rotation(frames.quaternion_enu_to_ned(q_enu)), r_ned, atol=1e-12)
+    back = frames.attitude_ned_to_enu(ned)
+    np.testing.assert_allclose(rotation(tuple(back)), r_enu, atol=1e-12)
+
+
+def test_vectorised_shapes() -> None:
+    euler = np.zeros((5, 3))
+    euler[:, 2] = np.linspace(-3, 3, 5)
+    assert frames.attitude_target_quaternion(euler).shape == (5, 4)
