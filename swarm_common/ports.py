@@ -12,7 +12,10 @@ PORT_TRIES = 200
 def free_udp_base(count: int, host: str = "127.0.0.1") -> int:
     """A base port with base..base+count-1 all free on `host`, probed from a random start so that concurrent
     workers rarely pick the same block. The ports are released before returning: a caller that loses a race
-    for them gets an error from its own bind and may ask again. RuntimeError when no block is found."""
+    for them gets an error from its own bind and may ask again. ValueError for a count outside
+    1..PORT_RANGE span; RuntimeError when no block is found."""
+    if not 1 <= count < PORT_RANGE[1] - PORT_RANGE[0]:
+        raise ValueError(f"a block of {count} UDP ports cannot be found in {PORT_RANGE[0]}..{PORT_RANGE[1]}")
     rng = random.Random()
     for _ in range(PORT_TRIES):
         base = rng.randrange(PORT_RANGE[0], PORT_RANGE[1] - count)

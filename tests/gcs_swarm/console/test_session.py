@@ -2,8 +2,9 @@
 command handler that raises (a bug) leaves its traceback in the run folder's errors.log, a bad command gets
 one sentence and no traceback.
 
-Three fake ArduCopters (tests/gcs_swarm/link/fake_vehicle.py, free ports on 127.0.0.1, not in lockstep, so
-vehicle time runs with the wall clock) behind the quickstart mission's Fleet and MissionRunner.
+Three simulated ArduCopters (one real-time sitl_sim for the module, free ports on 127.0.0.1, so vehicle time
+runs with the wall clock; each test talks to them through its own wire taps) behind the quickstart mission's
+Fleet and MissionRunner.
 """
 
 from __future__ import annotations
@@ -22,19 +23,32 @@ from gcs_swarm.evaluation.error_log import ERRORS_FILE
 from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.fleet import Fleet, VehicleConfig
 from gcs_swarm.mission import load_mission
-from tests.gcs_swarm.link.fake_vehicle import ORIGIN, FakeVehicle
+from tests.gcs_swarm.link.simulated_vehicles import ORIGIN, SimulatedVehicles, reap, start_vehicles
+from tests.gcs_swarm.link.wire_tap import WireTap
 
 MISSIONS = Path(__file__).resolve().parents[3] / "missions"
 
 
+@pytest.fixture(scope="module")
+def vehicles() -> Iterator[SimulatedVehicles]:
+    """The quickstart's three vehicles (sysids 1-3) in a real-time simulator, ready at once; terminated after
+    the module (tests share it: without lockstep a finished client holds nothing up)."""
+    sim = start_vehicles(3, "--ready-delay", "0")
+    try:
+        yield sim
+    finally:
+        sim.sim.proc.terminate()
+        reap([sim.sim.proc])
+
+
 @pytest.fixture
-def session(tmp_path: Path) -> Iterator[tuple[FlightSession, list[FakeVehicle]]]:
-    """A connected FlightSession over three fake vehicles with its run folder in tmp_path, stopped and closed
-    afterwards."""
+def session(vehicles: SimulatedVehicles, tmp_path: Path) -> Iterator[tuple[FlightSession, list[WireTap]]]:
+    """A connected FlightSession over the three vehicles, each behind a wire tap, with its run folder in
+    tmp_path, stopped and closed afterwards."""
     mission = load_mission(MISSIONS / "quickstart.yaml")
-    fakes = [FakeVehicle(k + 1).start() for k in range(len(mission.vehicles))]
+    taps = [vehicles.tap(k) for k in range(len(mission.vehicles))]  # vehicle k has sysid k + 1
     configs = [
-        VehicleConfig(v.name, f.connection, v.sysid) for v, f in zip(mission.vehicles, fakes, strict=True)
+        VehicleConfig(v.name, t.connection, v.sysid) for v, t in zip(mission.vehicles, taps, strict=True)
     ]
     fleet = Fleet(configs, ORIGIN)
     flight = FlightSession(
@@ -46,21 +60,20 @@ def session(tmp_path: Path) -> Iterator[tuple[FlightSession, list[FakeVehicle]]]
         while flight.snapshot().state == "connecting" and time.monotonic() < end:
             time.sleep(0.02)
         assert flight.snapshot().state == "ready", flight.snapshot().error
-        yield flight, fakes
+        yield flight, taps
     finally:
         flight.stop()
         fleet.close()
-        for fake in fakes:
-            fake.stop()
+        vehicles.close_taps()
 
 
 def test_snapshots_keep_coming_while_a_command_blocks(
-    session: tuple[FlightSession, list[FakeVehicle]],
+    session: tuple[FlightSession, list[WireTap]],
 ) -> None:
     """`param get` whose first answer is lost blocks for its 1 s retry timeout; meanwhile the table's figures
     (vehicle time, packet age) and the command's elapsed time keep being republished."""
-    flight, fakes = session
-    fakes[0].drop_param_values = 1
+    flight, taps = session
+    taps[0].drop_downlink("PARAM_VALUE", 1)
     ticket = flight.submit(Request("param_get", "param get MOT_THST_HOVER lead", (0,), name="MOT_THST_HOVER"))
     seen: list[Snapshot] = []
     while not ticket.wait(0.01):
@@ -78,7 +91,7 @@ def test_snapshots_keep_coming_while_a_command_blocks(
 
 
 def test_a_handler_that_raises_leaves_its_traceback_in_errors_log(
-    session: tuple[FlightSession, list[FakeVehicle]], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    session: tuple[FlightSession, list[WireTap]], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A bug in a command handler ends the flight session as before, but its full traceback is in
     <run folder>/errors.log and the one line the operator sees names that file."""
@@ -103,7 +116,7 @@ def test_a_handler_that_raises_leaves_its_traceback_in_errors_log(
 
 
 def test_a_bad_command_is_one_sentence_and_no_traceback(
-    session: tuple[FlightSession, list[FakeVehicle]], tmp_path: Path
+    session: tuple[FlightSession, list[WireTap]], tmp_path: Path
 ) -> None:
     """`hold` before the mission flies is the operator's mistake: refused in one sentence, nothing logged."""
     flight, _ = session

@@ -1,4 +1,5 @@
-"""Fixtures: fake vehicles (threads on 127.0.0.1 free ports) and fleets over them, always cleaned up."""
+"""Fixtures: real simulated vehicles (simulated_vehicles.py), wire taps in front of them, fleets over the
+taps; every process, socket and fleet cleaned up."""
 
 from __future__ import annotations
 
@@ -8,38 +9,49 @@ import pytest
 
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.vehicle import VehicleConfig, VehicleLink
-from tests.gcs_swarm.link.fake_vehicle import ORIGIN, FakeVehicle
+from tests.gcs_swarm.link.simulated_vehicles import ORIGIN, Launcher, SimulatedVehicles
+from tests.gcs_swarm.link.wire_tap import WireTap
+
+
+@pytest.fixture(scope="session")
+def launcher() -> Iterator[Launcher]:
+    """Starts the tests' simulators; reaps them all at the end of the session."""
+    sims = Launcher()
+    try:
+        yield sims
+    finally:
+        sims.close()
 
 
 @pytest.fixture
-def fake() -> Iterator[Callable[..., FakeVehicle]]:
-    """Factory: fake(sysid, **options) -> a started FakeVehicle, stopped at teardown."""
-    started: list[FakeVehicle] = []
+def simulator(launcher: Launcher) -> Iterator[Callable[..., SimulatedVehicles]]:
+    """Factory: simulator(count=1, *args, sysid_base=1) -> a running sitl_sim (args default: LOCKSTEP: ready
+    at once), stopped with its taps at teardown."""
+    started: list[SimulatedVehicles] = []
 
-    def make(sysid: int = 1, **options: object) -> FakeVehicle:
-        vehicle = FakeVehicle(sysid, **options).start()  # type: ignore[arg-type]
-        started.append(vehicle)
-        return vehicle
+    def make(count: int = 1, *args: str, sysid_base: int = 1) -> SimulatedVehicles:
+        started.append(launcher.start(count, *args, sysid_base=sysid_base))
+        return started[-1]
 
     yield make
-    for vehicle in started:
-        vehicle.stop()
+    for vehicles in started:
+        launcher.stop(vehicles)
 
 
 @pytest.fixture
 def fleet_of() -> Iterator[Callable[..., Fleet]]:
-    """Factory: fleet_of(*fakes, names=, sysids=, **fleet options) -> unconnected Fleet, closed after."""
+    """Factory: fleet_of(*taps, names=, sysids=, **fleet options) -> unconnected Fleet, closed after."""
     fleets: list[Fleet] = []
 
     def make(
-        *fakes: FakeVehicle,
+        *taps: WireTap,
         names: list[str] | None = None,
         sysids: list[int | None] | None = None,
         **options: object,
     ) -> Fleet:
-        names = names or [f"v{k}" for k in range(len(fakes))]
-        sysids = sysids or [None] * len(fakes)
-        configs = [VehicleConfig(n, f.connection, s) for n, f, s in zip(names, fakes, sysids, strict=True)]
+        names = names or [f"v{k}" for k in range(len(taps))]
+        sysids = sysids or [None] * len(taps)
+        configs = [VehicleConfig(n, t.connection, s) for n, t, s in zip(names, taps, sysids, strict=True)]
         fleet = Fleet(configs, ORIGIN, **options)  # type: ignore[arg-type]
         fleets.append(fleet)
         return fleet
@@ -51,18 +63,18 @@ def fleet_of() -> Iterator[Callable[..., Fleet]]:
 
 @pytest.fixture
 def lead(
-    fake: Callable[..., FakeVehicle], fleet_of: Callable[..., Fleet]
-) -> Callable[..., tuple[Fleet, VehicleLink, FakeVehicle]]:
-    """Factory: lead(**fake options) -> (fleet, link, fake) with one connected lockstep vehicle named lead."""
+    simulator: Callable[..., SimulatedVehicles], fleet_of: Callable[..., Fleet]
+) -> Callable[..., tuple[Fleet, VehicleLink, WireTap]]:
+    """Factory: lead(**fleet options) -> (fleet, link, tap): one simulated vehicle (lockstep, ready at once)
+    named lead, connected through a wire tap, after a parameter round trip (so the vehicle has handled
+    connect's requests)."""
 
-    def make(**options: object) -> tuple[Fleet, VehicleLink, FakeVehicle]:
-        vehicle = fake(1, lockstep=True, **options)
-        fleet = fleet_of(vehicle, names=["lead"])
-        fleet.connect(timeout_s=3.0)
+    def make(**options: object) -> tuple[Fleet, VehicleLink, WireTap]:
+        wire = simulator(1).tap(0)
+        fleet = fleet_of(wire, names=["lead"], **options)
+        fleet.connect(timeout_s=10.0)
         link = fleet.vehicle("lead")
-        fleet.run(
-            [link.parameters.op_get("SYSID_THISMAV")]
-        )  # a round trip: the vehicle has now handled connect's requests
-        return fleet, link, vehicle
+        fleet.run([link.parameters.op_get("GUID_OPTIONS")])
+        return fleet, link, wire
 
     return make

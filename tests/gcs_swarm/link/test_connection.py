@@ -11,7 +11,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from gcs_swarm.link.connection import LinkError, open_endpoint, parse_connection
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.vehicle import VehicleConfig
-from tests.gcs_swarm.link.fake_vehicle import ORIGIN, free_udp_port
+from swarm_common.ports import free_udp_base
+from tests.gcs_swarm.link.simulated_vehicles import ORIGIN
 
 
 @pytest.mark.parametrize(
@@ -58,7 +59,7 @@ def test_fleet_names_the_vehicle_of_a_bad_string() -> None:
 
 
 def test_unreachable_tcp_endpoint_is_a_link_error() -> None:
-    port = free_udp_port()  # nothing listens on this TCP port either (very likely)
+    port = free_udp_base(1)  # nothing listens on this TCP port either (very likely)
     with pytest.raises(LinkError, match=f"cannot open lead's connection tcp:127.0.0.1:{port}"):
         open_endpoint(parse_connection(f"tcp:127.0.0.1:{port}"), "lead", connect_timeout_s=1.0)
 
@@ -72,7 +73,7 @@ def test_udpin_port_in_use_is_a_link_error() -> None:
 
 
 def test_router_parses_each_datagram_alone_and_learns_sender_addresses() -> None:
-    address = ("127.0.0.1", free_udp_port())
+    address = ("127.0.0.1", free_udp_base(1))
     router = open_endpoint(parse_connection(f"udpin:127.0.0.1:{address[1]}"), "test")
     try:
         mav = mavlink2.MAVLink(None, 7, 1)

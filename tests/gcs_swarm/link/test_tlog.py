@@ -33,12 +33,11 @@ def read_tlog(path: Path) -> dict:
     return json.loads(out.stdout)
 
 
-def test_fleet_tlog_records_sent_and_received_packets(fake, fleet_of, tmp_path: Path) -> None:
+def test_fleet_tlog_records_sent_and_received_packets(simulator, fleet_of, tmp_path: Path) -> None:
     path = tmp_path / "run" / "flight.tlog"
     started = time.time()
-    vehicle = fake(1, lockstep=True)
-    fleet = fleet_of(vehicle, names=["lead"], tlog_path=path)
-    fleet.connect(timeout_s=3.0)
+    fleet = fleet_of(simulator(1).tap(0), names=["lead"], tlog_path=path)
+    fleet.connect(timeout_s=10.0)
     fleet.request_streams_all(50.0)
     for _ in range(10):
         assert fleet.wait_tick(timeout_s=2.0)
@@ -62,12 +61,12 @@ def test_tlog_writer_format(tmp_path: Path) -> None:
     assert data[:8] == (1_500_000).to_bytes(8, "big") and len(data) == 8 + 17
 
 
-def test_mavlogdump_reads_the_fleet_tlog(fake, fleet_of, tmp_path: Path) -> None:
+def test_mavlogdump_reads_the_fleet_tlog(simulator, fleet_of, tmp_path: Path) -> None:
     mavlogdump = Path(sys.executable).parent / "mavlogdump.py"  # installed with pymavlink into the venv
     assert mavlogdump.is_file(), f"{mavlogdump} is missing: pymavlink installs it"
     path = tmp_path / "flight.tlog"
-    fleet = fleet_of(fake(1, lockstep=True), tlog_path=path)
-    fleet.connect(timeout_s=3.0)
+    fleet = fleet_of(simulator(1).tap(0), tlog_path=path)
+    fleet.connect(timeout_s=10.0)
     fleet.run([fleet.vehicle(0).parameters.op_get("GUID_OPTIONS")])
     fleet.close()
     out = subprocess.run(
