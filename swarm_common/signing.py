@@ -67,4 +67,8 @@ def is_signature_rejection(msg: mavlink2.MAVLink_message) -> bool:
 def was_signed(msg: mavlink2.MAVLink_message) -> bool:
     """A refused packet (BAD_DATA) carried a signature (forged or replayed) rather than none (unsigned)."""
     data = bytes(getattr(msg, "data", b""))
-    return len(data) > 2 and data[0] == mavlink2.PROTOCOL_MARKER_V2 and bool(data[2] & mavlink2.MAVLINK_IFLAG_SIGNED)
+    return (
+        len(data) > 2
+        and data[0] == mavlink2.PROTOCOL_MARKER_V2
+        and bool(data[2] & mavlink2.MAVLINK_IFLAG_SIGNED)
+    )

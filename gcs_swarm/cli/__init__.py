@@ -28,6 +28,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         keep_params=args.keep_params,
         crash_at=args.crash_at,
         airborne=args.airborne,
+        forward=tuple(args.forward),
+        forward_rw=args.forward_rw,
     )
     return run_command(args.mission, options)
 
@@ -42,8 +44,29 @@ def _cmd_console(args: argparse.Namespace) -> int:
         script=Path(args.script) if args.script else None,
         yes=args.yes,
         keep_params=args.keep_params,
+        forward=tuple(args.forward),
+        forward_rw=args.forward_rw,
     )
     return console_command(args.mission, options)
+
+
+def _add_forward_flags(parser: argparse.ArgumentParser) -> None:
+    """--forward ENDPOINT (repeatable) and --forward-rw of `run` and `console` (docs/watching-with-qgc.md)."""
+    parser.add_argument(
+        "--forward",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="send every vehicle frame, unchanged, to another ground station at ENDPOINT (a pymavlink "
+        "connection string, e.g. udpout:127.0.0.1:14550 for QGroundControl; repeatable; added to "
+        "run.forward); read-only: it may watch and read parameters",
+    )
+    parser.add_argument(
+        "--forward-rw",
+        action="store_true",
+        help="let the forwards' commands through to the vehicle their target system names (modes, arming, "
+        "parameters...); on a signed fleet only if they carry a valid signature (also run.forward_rw)",
+    )
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -190,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="rehearse a ground-station crash: SIGKILL this process at vehicle time T s (time since the "
         "vehicles booted), as an out-of-memory kill would; the vehicles' failsafes take over",
     )
+    _add_forward_flags(run)
     run.set_defaults(func=_cmd_run)
 
     console = sub.add_parser("console", help="operator console: watch and command the swarm live")
@@ -213,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
         "restoring them on the ground (also run.keep_params)",
     )
+    _add_forward_flags(console)
     console.set_defaults(func=_cmd_console)
 
     check = sub.add_parser("check", help="validate a mission file without flying")

@@ -31,6 +31,8 @@ def run_command(mission_path: str, options: RunOptions) -> int:
         f"cusps {whole.get('cusps_total')}, max tilt-command rate {whole.get('max_tilt_command_rate_rad_s')} "
         f"rad/s, min altitude {whole.get('min_altitude_in_formation_m')} m"
     )
+    for taken in report.get("taken_over", []):
+        say(f"TAKEN OVER: {taken['vehicle']} at t={taken['t_s']} s into {taken['mode']} (by {taken['by']})")
     for event in report.get("safety_events", []):
         say(f"SAFETY EVENT: {event}")
     assert flown.run_dir is not None

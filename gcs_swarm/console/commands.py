@@ -63,6 +63,10 @@ HELP: dict[str, HelpEntry] = {
     "resume": HelpEntry("resume", "back to formation flight from where the vehicles are"),
     "abort": HelpEntry("abort", "stop the mission: every vehicle lands now"),
     "goal": HelpEntry("goal X Y Z", "move the leader's goal to X Y Z (m, ENU) in flight"),
+    "rejoin": HelpEntry(
+        "rejoin VEHICLE", "hand back a vehicle taken over (another GCS, RC, failsafe): GUIDED, to its slot"
+    ),
+    "leader": HelpEntry("leader VEHICLE", "this vehicle leads from now on (the leader was taken over)"),
     "formation": HelpEntry(
         "formation SHAPE [SPACING]",
         f"reshape in flight ({', '.join(SHAPES)}; SPACING m), inter-UAV avoidance stays on",
@@ -221,6 +225,8 @@ def _candidates(before: Sequence[str], vocabulary: Vocabulary) -> list[str]:
         return modes if n == 0 else (targets if n == 1 else [])
     if head == "takeoff":
         return targets if n == 1 else []
+    if head in ("rejoin", "leader"):
+        return list(vocabulary.names) if n == 0 else []
     if head == "formation":
         return list(vocabulary.shapes) if n == 0 else []
     if head == "wait":
@@ -262,6 +268,14 @@ def _targeted(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> 
         raise CommandError(f"usage: {HELP[verb].usage} ({TARGET_HELP})")
     vehicles, every = _target(args[0] if args else None, vocabulary)
     return Request(verb, line, vehicles, every)
+
+
+def _one_vehicle(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> Request:
+    """rejoin VEHICLE, leader VEHICLE: exactly one vehicle, by name or sysid."""
+    if len(args) != 1 or args[0].lower() == "all":
+        raise CommandError(f"usage: {HELP[verb].usage} (one vehicle: a name or a sysid)")
+    vehicles, _ = _target(args[0], vocabulary)
+    return Request(verb, line, vehicles)
 
 
 def _mode(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> Request:
@@ -382,6 +396,8 @@ _PARSERS = {
     "mode": _mode,
     "takeoff": _takeoff,
     "goal": _goal,
+    "rejoin": _one_vehicle,
+    "leader": _one_vehicle,
     "formation": _formation,
     "param": _param,
     "wait": _wait,

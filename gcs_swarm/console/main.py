@@ -23,6 +23,7 @@ from gcs_swarm.flight.fly import (
     mission_fleet,
     signing_key,
     start_embedded_simulator,
+    with_forwards,
     write_flight,
 )
 from gcs_swarm.flight.result import FlightResult
@@ -46,6 +47,8 @@ class ConsoleOptions:
     script: Path | None = None
     yes: bool = False
     keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
+    forward: tuple[str, ...] = ()  # other ground stations watching through this one (added to run.forward)
+    forward_rw: bool = False  # the forwards may command the vehicles (also run.forward_rw)
 
 
 def console_command(mission_path: str, options: ConsoleOptions) -> int:
@@ -57,6 +60,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         return EXIT_USER_ERROR
     if options.keep_params:
         mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
+    mission = with_forwards(mission, options.forward, options.forward_rw)
     script = None
     if options.script is not None:
         try:
@@ -80,6 +84,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     result = FlightResult()
     latencies: list[float] = []
     limited = 0
+    link_stats: dict[str, dict[str, dict[str, int]]] | None = None
     status = EXIT_OK
     if not interactive:
         print(f"run folder {run_dir}", flush=True)
@@ -119,13 +124,15 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
                 result = runner.result
                 latencies = runner.tick_latency_s
                 limited = runner.commands_limited
+                link_stats = {"vehicles": fleet.stats(), "forwards": fleet.forward_stats()}
     except (SimulatorError, MissionError) as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
     finally:
         if sim is not None:
             sim.stop()
-    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies, limited)
+    wall_s = time.monotonic() - wall0
+    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats)
     if result.t_formation_start is not None:
         report = write_report(run_dir, mission)
         print(

@@ -209,11 +209,16 @@ class PlainConsole:
     # ------------------------------------------------------------------ quit
 
     def _quit(self) -> None:
-        """Land airborne vehicles (abort), waiting until every one is down and disarmed."""
+        """Land airborne vehicles (abort), waiting until every one is down and disarmed; vehicles taken over
+        are left to their operator (said so)."""
         snapshot = self.session.snapshot()
-        if snapshot.state != "ready" or not (snapshot.airborne or snapshot.mission.phase in FLYING_PHASES):
+        taken = [r.name for r in snapshot.rows if r.taken and r.airborne]
+        if snapshot.state == "ready" and taken:
+            self.write(f"quit: {', '.join(taken)} taken over: left to their operator")
+        airborne = [r.name for r in snapshot.rows if r.airborne and not r.taken]
+        if snapshot.state != "ready" or not (airborne or snapshot.mission.phase in FLYING_PHASES):
             return
-        names = ", ".join(snapshot.airborne) or "the fleet"
+        names = ", ".join(airborne) or "the fleet"
         self.write(f"quit: {names} still flying: landing before quitting")
         self._submit(Request("abort", "abort"))
         self._wait_until(lambda s: s.settled, "every vehicle landed and disarmed")

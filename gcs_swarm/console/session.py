@@ -101,6 +101,7 @@ class FlightSession:
         self.realtime = realtime
         self.connect_timeout_s = connect_timeout_s
         runner.progress = self._on_progress
+        runner.leader_takeover_timeout_s = None  # a leader taken over: hold until the operator decides
         self.fleet.on_pump = self._refresh
         n = len(self.mission.vehicles)
         self._requests: queue.Queue[Ticket] = queue.Queue()
@@ -331,7 +332,7 @@ class FlightSession:
         centres = np.array([o.center_at(t) for o in mission.obstacles]).reshape(-1, 3)
         clearance = obstacle_clearance(pos, centres, self._obstacle_radii)
         neighbour = nearest_neighbour(pos)
-        leader = mission.leader_index
+        leader = runner.controller.leader  # the lead may have passed on (lost, taken over, `leader`)
         rows = []
         for link in fleet.links:
             i = link.index
@@ -356,9 +357,15 @@ class FlightSession:
                     obstacle=_optional(clearance[i]),
                     neighbour=_optional(neighbour[i]),
                     warnings=vehicle_warnings(
-                        bool(alive[i]), age, int(st.system_status[i]), bool(self._crashed[i]), emergency
+                        bool(alive[i]),
+                        age,
+                        int(st.system_status[i]),
+                        bool(self._crashed[i]),
+                        emergency,
+                        taken=bool(runner.takeover.taken[i]),
                     ),
                     rtt_ms=float(st.rtt_ms[i]),
+                    taken=bool(runner.takeover.taken[i]),
                 )
             )
         goal = runner.controller.waypoints[-1]
@@ -454,7 +461,10 @@ class FlightSession:
             return self._reply("aborting: every vehicle lands now")
         if runner.phase == "land":
             return self._reply("already landing")
-        armed = [link for link in self.fleet.links if self.fleet.state.armed[link.index]]
+        taken = runner.takeover.taken  # left to their operator: never landed by the console's abort
+        armed = [
+            link for link in self.fleet.links if self.fleet.state.armed[link.index] and not taken[link.index]
+        ]
         if not armed:
             return self._reply("nothing to abort: no vehicle is armed")
         return self._vehicle_ops(armed, lambda link: link.commands.op_land(), "landing (mode LAND)")
@@ -476,6 +486,18 @@ class FlightSession:
         spacing = "" if request.value is None else f", spacing {request.value:g} m"
         return self._reply(f"formation {request.name}{spacing}")
 
+    def _rejoin(self, request: Request) -> bool:
+        """rejoin VEHICLE: hand a vehicle taken over back to the formation (GUIDED, then to its slot)."""
+        (row,) = request.vehicles
+        self.runner.rejoin(row)
+        return self._reply("back in GUIDED: flying to its slot", self.fleet.names[row])
+
+    def _leader(self, request: Request) -> bool:
+        """leader VEHICLE: the lead passes to this vehicle (on to the same goal)."""
+        (row,) = request.vehicles
+        self.runner.promote(row)
+        return self._reply(f"{self.fleet.names[row]} leads the formation (phase {self.runner.phase})")
+
     def _manual(self, request: Request) -> bool:
         """arm / disarm / mode / takeoff / land / rtl on the chosen vehicles, straight over their links."""
         verb, runner = request.verb, self.runner
@@ -491,6 +513,8 @@ class FlightSession:
         links = [self.fleet.links[i] for i in request.vehicles]
         mode = {"land": "LAND", "rtl": "RTL", "mode": request.name}.get(verb)
         if mode is not None:
+            for link in links:  # our own mode change, never a takeover; away from GUIDED in flight: released
+                runner.release(link.index, mode)
             return self._vehicle_ops(links, lambda link: link.commands.op_set_mode(mode), f"mode {mode}")
         if verb == "takeoff":
             alt = request.value if request.value is not None else math.nan
@@ -552,6 +576,8 @@ _HANDLERS: dict[str, Callable[[FlightSession, Request], bool]] = {
     "resume": FlightSession._resume,
     "abort": FlightSession._abort,
     "goal": FlightSession._goal,
+    "rejoin": FlightSession._rejoin,
+    "leader": FlightSession._leader,
     "formation": FlightSession._formation,
     "arm": FlightSession._manual,
     "disarm": FlightSession._manual,

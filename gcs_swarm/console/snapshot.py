@@ -40,6 +40,7 @@ class VehicleRow:
     neighbour: float | None  # m to the nearest other vehicle; None when alone
     warnings: tuple[str, ...]
     rtt_ms: float = math.nan  # wall ms of the latest TIMESYNC round trip
+    taken: bool = False  # taken over by another controller: left to its operator (never landed at quit)
 
     @property
     def altitude(self) -> float:
@@ -83,8 +84,11 @@ class Snapshot:
 
     @property
     def settled(self) -> bool:
-        """The mission is not flying and no reachable vehicle is armed (safe to quit)."""
-        return self.mission.phase not in FLYING_PHASES and not any(r.armed and r.alive for r in self.rows)
+        """The mission is not flying and no reachable vehicle is armed (safe to quit); vehicles taken over
+        are their operator's, not waited for."""
+        return self.mission.phase not in FLYING_PHASES and not any(
+            r.armed and r.alive and not r.taken for r in self.rows
+        )
 
 
 def empty_snapshot(names: list[str]) -> Snapshot:
@@ -119,14 +123,17 @@ def obstacle_clearance(
 
 
 def vehicle_warnings(
-    alive: bool, age_s: float, system_status: int, crashed: bool, emergency: bool
+    alive: bool, age_s: float, system_status: int, crashed: bool, emergency: bool, taken: bool = False
 ) -> tuple[str, ...]:
-    """The warning words of one vehicle, most severe first: LOST or STALE, CRASHED, FAILSAFE, EMERGENCY."""
+    """The warning words of one vehicle, most severe first: LOST or STALE, TAKEN (taken over by another
+    controller: not flown by the formation until `rejoin`), CRASHED, FAILSAFE, EMERGENCY."""
     words = []
     if not alive:
         words.append("LOST")
     elif age_s > STALE_AFTER_S:
         words.append("STALE")
+    if taken:
+        words.append("TAKEN")
     if crashed or system_status == MAV_STATE_EMERGENCY:
         words.append("CRASHED")
     if system_status == MAV_STATE_CRITICAL:

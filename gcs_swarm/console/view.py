@@ -21,6 +21,7 @@ WARNING_STYLE = {
     "FAILSAFE": "class:failsafe",
     "EMERGENCY": "class:emergency",
     "STALE": "class:stale",
+    "TAKEN": "class:failsafe",  # taken over by another controller: the formation does not fly it
 }
 LEVEL_STYLE = {"info": "", "warning": "class:warning", "error": "class:error"}
 _COLUMNS = (  # header, width (right-aligned unless the header starts with "<")

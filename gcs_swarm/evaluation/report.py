@@ -194,6 +194,9 @@ def report_from(
         "commands_limited": flight.get("commands_limited"),  # None: a flight.json from before it was kept
         "vehicles": per_vehicle,
         "lost": list(flight.get("lost", [])),
+        # vehicles taken over by another controller (docs/reliability.md "Operator takeover")
+        "taken_over": list(flight.get("taken_over", [])),
+        "left_to_operator": list(flight.get("left_to_operator", [])),
         "events": list(flight.get("events", [])),
         "source": traj.source,
     }

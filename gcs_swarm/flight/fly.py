@@ -27,6 +27,7 @@ from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link import signing
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
+from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.vehicle import VehicleConfig
 from gcs_swarm.mission import Mission, MissionError, load_mission
 from gcs_swarm.mission.geometry import mission_offsets
@@ -50,6 +51,8 @@ class RunOptions:
     keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
     crash_at: float | None = None  # vehicle s at which the ground station SIGKILLs itself (a rehearsal)
     airborne: str | None = None  # vehicles found flying: "finish" the mission or "land" them (None: refuse)
+    forward: tuple[str, ...] = ()  # other ground stations watching through this one (added to run.forward)
+    forward_rw: bool = False  # the forwards may command the vehicles (also run.forward_rw)
 
 
 def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
@@ -71,6 +74,7 @@ def write_flight(
     wall_s: float,
     tick_latency_s: list[float],
     commands_limited: int,
+    link_stats: dict[str, dict[str, dict[str, int]]] | None = None,
 ) -> None:
     """flight.json: what the ground station did (phases, arrival, lost vehicles, events, tick latency, how
     many vehicle-ticks' commands the final guard changed, stale-telemetry figures of docs/reliability.md);
@@ -96,6 +100,8 @@ def write_flight(
         "max_telemetry_age_s": round(result.max_telemetry_age_s, 3),
         "params_changed": result.params_changed,
         "reattached": result.reattached,
+        "taken_over": result.taken_over,
+        "left_to_operator": result.left_to_operator,
         "formation_timeline": [
             {
                 "t": t,
@@ -105,6 +111,7 @@ def write_flight(
             for t, leader, offsets in result.formation_timeline
         ],
         "wall_duration_s": wall_s,
+        "link_stats": link_stats,  # {"vehicles": Fleet.stats(), "forwards": Fleet.forward_stats()}
     }
     (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
 
@@ -125,9 +132,17 @@ def vehicle_configs(mission: Mission, base_port: int | None) -> list[VehicleConf
     ]
 
 
+def with_forwards(mission: Mission, forward: tuple[str, ...], forward_rw: bool) -> Mission:
+    """`mission` with the command line's --forward endpoints added to run.forward (--forward-rw: or-ed)."""
+    run = dataclasses.replace(
+        mission.run, forward=mission.run.forward + forward, forward_rw=mission.run.forward_rw or forward_rw
+    )
+    return dataclasses.replace(mission, run=run)
+
+
 def mission_fleet(mission: Mission, base_port: int | None, run_dir: Path, key: bytes | None) -> Fleet:
     """The (unconnected) Fleet that flies `mission`: its vehicles (see vehicle_configs), the run folder's
-    telemetry.tlog, the signing key, and safety.telemetry.lost_s as the loss timeout."""
+    telemetry.tlog, the signing key, safety.telemetry.lost_s as the loss timeout, and run.forward."""
     return Fleet(
         vehicle_configs(mission, base_port),
         mission.origin,
@@ -135,6 +150,7 @@ def mission_fleet(mission: Mission, base_port: int | None, run_dir: Path, key: b
         signing_key=key,
         loss_timeout_s=mission.safety.telemetry.lost_s,
         stream_rate_hz=mission.run.control_rate_hz,
+        forwards=[ForwardConfig(text, mission.run.forward_rw) for text in mission.run.forward],
     )
 
 
@@ -194,6 +210,7 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
         return Flown(EXIT_USER_ERROR, FlightResult(), error=str(exc))
     if options.keep_params:
         mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
+    mission = with_forwards(mission, options.forward, options.forward_rw)
     try:
         key_file, key = signing_key(mission)
     except signing.SigningKeyError as exc:
@@ -209,9 +226,12 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     runner: MissionRunner | None = None
     status = EXIT_OK
     error: str | None = None
+    link_stats: dict[str, dict[str, dict[str, int]]] | None = None
     say(f"run folder {run_dir}")
     if key is not None:
         say(f"MAVLink 2 signing with the key in {key_file}")
+    for text in mission.run.forward:
+        say(f"forwarding to {text} ({'read-write' if mission.run.forward_rw else 'read-only'})")
     try:
         if embedded:
             assert base_port is not None
@@ -237,6 +257,9 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
                 if runner is not None:
                     runner.restore_params()
                     result = runner.result
+                link_stats = {"vehicles": fleet.stats(), "forwards": fleet.forward_stats()}
+                for line in fleet.link_summary():
+                    say(line)
     except (MissionError, SimulatorError, PreflightError) as exc:
         error, status = str(exc), EXIT_USER_ERROR
     except LinkError as exc:
@@ -256,7 +279,8 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
             (run_dir / "simulator.log").write_text("\n".join(sim.output) + "\n")  # incl. its link counters
     latencies = runner.tick_latency_s if runner is not None else []
     limited = runner.commands_limited if runner is not None else 0
-    write_flight(run_dir, mission, mission_path, result, time.monotonic() - wall0, latencies, limited)
+    wall_s = time.monotonic() - wall0
+    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats)
     flown = Flown(status, result, mission, run_dir, error=error)
     if status == EXIT_OK and result.reattached == "land":
         say("every vehicle landed and disarmed" if result.landed_all else "not every vehicle disarmed")

@@ -66,13 +66,15 @@ def slots_assignable(mission: Mission) -> bool:
     )
 
 
-def assign_slots_by_travel(mission: Mission, controller: FleetController, fleet: Fleet) -> bool:
-    """Give the controller's current slots to the live followers by least total travel
-    (formation.assign_slots) from where they are now, the leader's slot frame as it is now; True if a
-    follower changed slot."""
+def assign_slots_by_travel(
+    mission: Mission, controller: FleetController, fleet: Fleet, flown: np.ndarray
+) -> bool:
+    """Give the controller's current slots to the followers of the (N,) bool mask `flown` (live, not taken
+    over) by least total travel (formation.assign_slots) from where they are now, the leader's slot frame as
+    it is now; True if a follower changed slot."""
     if not slots_assignable(mission):
         return False
-    movable = fleet.alive & np.isfinite(fleet.pos).all(axis=1)
+    movable = flown & np.isfinite(fleet.pos).all(axis=1)
     movable[controller.leader] = False
     assert controller.heading is not None
     offsets = assign_slots(

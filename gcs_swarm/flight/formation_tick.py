@@ -40,15 +40,17 @@ def send_formation_tick(
     obstacles: tuple[np.ndarray, np.ndarray],
     setup: VehicleSetup,
     limits: CommandLimits,
+    flown: np.ndarray,
 ) -> SentTick:
     """Command the fleet at vehicle time t (s) from the measured `state` pos (N, 3) ENU m, vel (N, 3) m/s,
     att (N, 3) rad (roll, pitch, yaw) and the telemetry verdict (the positions predicted to now, which the
     guidance and the guard use, and the held vehicles), around `obstacles`
     ((K, 3) ENU m centres, (K,) m radii at time t). A vehicle whose state is not finite (broken telemetry)
-    gets no command this tick, as if lost; a held one brakes on its own autopilot."""
+    gets no command this tick, as if lost; a held one brakes on its own autopilot. Only vehicles of the
+    (N,) bool mask `flown` (live, not taken over by an operator) are sent anything."""
     pos, vel, att = state
     finite = cast(NDArray[np.bool_], np.isfinite(np.hstack((pos, vel, att))).all(axis=1))  # (N,)
-    active = fleet.alive & finite & ~verdict.held
+    active = flown & finite & ~verdict.held
     centres, radii = obstacles
     cmd = controller.tick(t, verdict.pos, vel, att, centres, radii, active)
     # ArduCopter adds its own 1/cos(tilt) to guided thrust when ATC_ANGLE_BOOST is on: not twice
@@ -66,7 +68,7 @@ def send_formation_tick(
         vel=vel,
     )
     fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
-    for i in np.flatnonzero(verdict.held & fleet.alive):
+    for i in np.flatnonzero(verdict.held & flown):
         fleet.vehicle(int(i)).setpoints.send_velocity_target(
             np.zeros(3), yaw=float(att[i, 2]) if finite[i] else None
         )

@@ -10,21 +10,25 @@ from gcs_swarm.link.fleet import Fleet
 HOLD_LATCH_SPEED = 0.5  # m/s: in hold, a vehicle's position is latched once it has braked below this
 
 
-def command_landing(fleet: Fleet, events: list[str]) -> None:
-    """LAND every reachable vehicle; a refusal goes to `events`."""
+def command_landing(fleet: Fleet, events: list[str], ours: np.ndarray) -> None:
+    """LAND every reachable vehicle of the (N,) bool mask `ours` (vehicles taken over by an operator are
+    left to them); a refusal goes to `events`."""
+    rows = [int(i) for i in np.flatnonzero(ours & fleet.alive)]
+    if not rows:
+        return
     try:
-        fleet.land_all()
+        fleet.land_all(rows)
     except LinkError as exc:
         events.append(f"landing: {exc}")
 
 
-def land_and_wait(fleet: Fleet, timeout_s: float, events: list[str]) -> None:
-    """LAND every reachable vehicle and wait up to timeout_s until they disarm (auto-disarm after
-    touchdown); a timeout goes to `events`."""
-    command_landing(fleet, events)
+def land_and_wait(fleet: Fleet, timeout_s: float, events: list[str], ours: np.ndarray) -> None:
+    """LAND every reachable vehicle of the (N,) bool mask `ours` and wait up to timeout_s until they disarm
+    (auto-disarm after touchdown); a timeout goes to `events`."""
+    command_landing(fleet, events, ours)
     try:
         fleet.wait_until(
-            lambda: not bool((fleet.armed & fleet.alive).any()),
+            lambda: landed(fleet, ours),
             timeout_s=timeout_s,
             what="every vehicle disarmed after landing",
         )
@@ -32,9 +36,9 @@ def land_and_wait(fleet: Fleet, timeout_s: float, events: list[str]) -> None:
         events.append(str(exc))
 
 
-def landed(fleet: Fleet) -> bool:
-    """No live vehicle is armed any more."""
-    return not bool((fleet.armed & fleet.alive).any())
+def landed(fleet: Fleet, ours: np.ndarray) -> bool:
+    """No live vehicle of the (N,) bool mask `ours` is armed any more."""
+    return not bool((fleet.armed & fleet.alive & ours).any())
 
 
 class PositionHold:
@@ -50,10 +54,11 @@ class PositionHold:
         """Forget the latched points (a new hold)."""
         self.points[:] = np.nan
 
-    def tick(self, fleet: Fleet) -> None:
-        """One hold tick: a GUIDED position target to every live vehicle with a finite position."""
+    def tick(self, fleet: Fleet, flown: np.ndarray) -> None:
+        """One hold tick: a GUIDED position target to every vehicle of the (N,) bool mask `flown` (live, not
+        taken over) with a finite position."""
         pos, vel, yaw = fleet.pos, fleet.vel, fleet.att[:, 2]
-        for i in np.flatnonzero(fleet.alive & np.isfinite(pos).all(axis=1)):
+        for i in np.flatnonzero(flown & np.isfinite(pos).all(axis=1)):
             latched = bool(np.isfinite(self.points[i]).all())
             if not latched and np.linalg.norm(vel[i]) < HOLD_LATCH_SPEED:
                 self.points[i], latched = pos[i], True

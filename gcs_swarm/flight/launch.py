@@ -16,11 +16,12 @@ def takeoff_altitudes(mission: Mission) -> np.ndarray:
     return mission.formation.altitude + mission_offsets(mission)[:, 2]
 
 
-def launched(fleet: Fleet, mission: Mission) -> bool:
-    """Every vehicle is within 0.5 m of its takeoff altitude (always, for an airborne start)."""
+def launched(fleet: Fleet, mission: Mission, ours: np.ndarray) -> bool:
+    """Every vehicle of the (N,) bool mask `ours` (those not taken over by an operator) is within 0.5 m of
+    its takeoff altitude (always, for an airborne start)."""
     if mission.run.airborne_start:
         return True
-    return bool((fleet.pos[:, 2] >= takeoff_altitudes(mission) - 0.5).all())
+    return bool((fleet.pos[:, 2] >= takeoff_altitudes(mission) - 0.5)[ours].all())
 
 
 def home_positions(fleet: Fleet, mission: Mission) -> np.ndarray:

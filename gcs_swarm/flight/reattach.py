@@ -10,17 +10,21 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.flight.preflight import PreflightError
+from gcs_swarm.flight.takeover import TakeoverWatch
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
 
 AIRBORNE_CHOICES = ("finish", "land")  # fly the mission on from where they are, or land them there
 
 
-def stop_unflown(fleet: Fleet, events: list[str], progress: Callable[[str], None]) -> None:
+def stop_unflown(
+    fleet: Fleet, events: list[str], progress: Callable[[str], None], modes: TakeoverWatch
+) -> None:
     """Vehicles found armed in GUIDED and not known to be on the ground fly targets nobody sends any more
     (a ground station died and its GCS failsafe has not fired yet, and our heartbeats now keep it from
     firing): ArduCopter levels them and lets them drift on. Put them in BRAKE at once, before the
-    minutes of preflight, and say so; what happens next is the run's `airborne` choice."""
+    minutes of preflight, and say so (the BRAKE recorded in `modes` as the ground station's own); what
+    happens next is the run's `airborne` choice."""
     guided = fleet.in_mode("GUIDED")
     on_ground = fleet.landed_state == mavlink2.MAV_LANDED_STATE_ON_GROUND
     drifting = fleet.armed & fleet.alive & guided & ~on_ground
@@ -29,6 +33,7 @@ def stop_unflown(fleet: Fleet, events: list[str], progress: Callable[[str], None
     names = [fleet.names[i] for i in np.flatnonzero(drifting)]
     progress(f"{', '.join(names)} armed in GUIDED with nobody flying them: BRAKE")
     events.append(f"found armed in GUIDED, stopped in BRAKE: {', '.join(names)}")
+    modes.commanded("BRAKE", [int(i) for i in np.flatnonzero(drifting)])
     try:
         fleet.set_mode_all("BRAKE", names)
     except LinkError as exc:
@@ -70,8 +75,10 @@ def check_airborne_choice(fleet: Fleet, flying: np.ndarray, airborne: str | None
         )
 
 
-def take_back(fleet: Fleet) -> None:
-    """Every vehicle into GUIDED, so that the formation flight commands them from where they are."""
+def take_back(fleet: Fleet, modes: TakeoverWatch) -> None:
+    """Every vehicle into GUIDED (recorded in `modes` as the ground station's own), so that the formation
+    flight commands them from where they are."""
+    modes.commanded("GUIDED")
     try:
         fleet.set_mode_all("GUIDED")
     except LinkError as exc:

@@ -34,3 +34,7 @@ class FlightResult:
     # "land", whether every vehicle was disarmed on the ground at the end
     reattached: str | None = None
     landed_all: bool = False
+    # operator takeover (gcs_swarm.flight.takeover): each vehicle that left the mode we commanded
+    # (Takeover.as_json: t_s, vehicle, mode, by), and those still taken over, left to their operator
+    taken_over: list[dict[str, object]] = field(default_factory=list)
+    left_to_operator: list[str] = field(default_factory=list)

@@ -40,6 +40,7 @@ from gcs_swarm.flight.preflight import VehicleSetup, preflight_fleet
 from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.flight.run_record import RunRecord
 from gcs_swarm.flight.stale_telemetry import StaleTelemetryWatch
+from gcs_swarm.flight.takeover import TakeoverWatch
 from gcs_swarm.guidance.fleet_controller import Command
 from gcs_swarm.link.command_limits import CommandLimits
 from gcs_swarm.link.connection import LinkError
@@ -91,9 +92,19 @@ class MissionRunner:
         self.position_hold = PositionHold(n)
         self._last_progress_wall = 0.0
         self._obstacle_radii = np.array([o.radius for o in mission.obstacles], dtype=float)
-        self.telemetry = StaleTelemetryWatch(mission.safety.telemetry, n, self.result, progress)
+        # the watches look `self.progress` up at each call: the console swaps it after construction
+        self.telemetry = StaleTelemetryWatch(
+            mission.safety.telemetry, n, self.result, lambda text: self.progress(text)
+        )
         self._home = np.full((n, 3), np.nan)  # (N, 3) ENU m where each took off
         self._lost = LostVehicleTracks()
+        # vehicles someone else switched out of GUIDED (flight.takeover); console `rejoin` hands one back
+        self.takeover = TakeoverWatch(fleet, self.result, lambda text: self.progress(text))
+        # vehicle s the others hold after the leader was taken over before they land; None: until the
+        # operator decides (console `leader NAME` or `rejoin NAME`)
+        self.leader_takeover_timeout_s: float | None = mission.run.leader_takeover_timeout_s
+        self._leader_taken_since: float | None = None  # vehicle s since when the leader is taken over
+        self._held_for_leader = False  # the hold was entered because the leader was taken over
         self.tick_latency_s: list[float] = []  # wall s from a complete telemetry tick to its last command out
         self.flight_params = FlightParams(fleet)  # what the run sets on the vehicles, restored at the end
         # vehicle time (s) at which this process kills itself with SIGKILL: rehearses a ground-station crash
@@ -111,7 +122,7 @@ class MissionRunner:
         self.connect()
         expect_flying = self.mission.run.airborne_start  # the simulator starts them in the air on purpose
         if not expect_flying:
-            reattach.stop_unflown(self.fleet, self.result.events, self.progress)
+            reattach.stop_unflown(self.fleet, self.result.events, self.progress, self.takeover)
         self.preflight()
         flying = reattach.flying(self.fleet)
         if flying.any() and not expect_flying:
@@ -139,20 +150,30 @@ class MissionRunner:
         )
 
     def launch(self) -> None:
-        """GUIDED, arm, take off to the formation altitude (each vehicle plus its slot's dz)."""
+        """GUIDED, arm, take off to the formation altitude (each vehicle plus its slot's dz); a vehicle taken
+        over during the climb is not waited for."""
         self.command_launch()
         if self.mission.run.airborne_start:
             return
         self.fleet.wait_until(
-            lambda: launched(self.fleet, self.mission),
+            self._climbed,
             timeout_s=self.mission.run.takeoff_timeout_s,
             what="every vehicle at its takeoff altitude",
         )
+
+    def _climbed(self) -> bool:
+        """Every vehicle not taken over is at its takeoff altitude. Vehicles switched out of GUIDED since the
+        launch commanded it are marked taken over first (flight.takeover): the ground station's GUIDED is
+        confirmed by each HEARTBEAT before command_launch returns, and arming and takeoff change no mode, so
+        only someone else's switch counts."""
+        self.takeover.detect(self.vehicle_time())
+        return launched(self.fleet, self.mission, ~self.takeover.taken)
 
     def command_launch(self) -> None:
         """Phase 'launch': GUIDED, arm and take off (each acknowledged); the climb itself is not awaited."""
         self._set_phase("launch")
         self._home = home_positions(self.fleet, self.mission)
+        self.takeover.commanded("GUIDED")
         command_launch(self.fleet, self.mission)
 
     def _reattach(self, flying: np.ndarray) -> None:
@@ -167,21 +188,26 @@ class MissionRunner:
             self.result.reattached = "land"
             self._home = self.fleet.pos
             self.land()
-            self.result.landed_all = landed(self.fleet)
+            self.result.landed_all = landed(self.fleet, ~self.takeover.taken)
             return
         self.progress(f"vehicles already flying: {found}: finishing the mission from here")
         self.result.reattached = "finish"
         self._set_phase("launch")
         self._home = self.fleet.pos
         self._home[:, 2] = 0.0
-        reattach.take_back(self.fleet)
+        reattach.take_back(self.fleet, self.takeover)
 
     def start_formation(self) -> None:
         """Initialise the guidance at the measured state and enter formation flight."""
         if not self.fleet.wait_tick(timeout_s=10.0):
             raise LinkError("no telemetry tick arrived after launch")
         self._enter_formation()
-        self._formation_tick()  # act on the tick just consumed, then answer it (lockstep rule)
+        # act on the tick just consumed, then answer it (lockstep rule); a leader taken over during the
+        # climb: the others hold
+        if self.phase == "formation":
+            self._formation_tick()
+        else:
+            self.position_hold.tick(self.fleet, self.takeover.flown)
         self.fleet.answer_frame()
 
     def _enter_formation(self) -> None:
@@ -189,8 +215,10 @@ class MissionRunner:
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
         self._assign_slots()
         self.telemetry.reset()
-        self.result.t_formation_start = self.vehicle_time()
+        t = self.vehicle_time()
+        self.result.t_formation_start = t
         self._set_phase("formation")
+        self._fly_without([int(i) for i in np.flatnonzero(self.takeover.taken)], t)  # taken during the climb
 
     def begin(self) -> None:
         """Console `start`: preflight and command the launch; later `step()`s finish the climb (phase
@@ -217,13 +245,16 @@ class MissionRunner:
             )
             os.kill(os.getpid(), signal.SIGKILL)  # rehearsal of a ground-station crash (--crash-at)
         self._note_lost()
+        if self.phase in ("launch", "formation", "hold"):
+            self._note_takeovers()
         if self.phase == "launch":
             self._launch_tick()
         elif self.phase == "formation":
             self._formation_tick()
             self.tick_latency_s.append(time.perf_counter() - tick_in)
         elif self.phase == "hold":
-            self.position_hold.tick(fleet)
+            self.position_hold.tick(fleet, self.takeover.flown)
+            self._wait_for_leader_decision()
         elif self.phase == "land":
             self._landing_tick()
         fleet.answer_frame()  # vehicles not commanded this tick
@@ -240,7 +271,9 @@ class MissionRunner:
         """LAND every reachable vehicle and wait until they disarm (auto-disarm after touchdown)."""
         if self.phase != "land":
             self._set_phase("land")
-        land_and_wait(self.fleet, self.mission.run.land_timeout_s, self.result.events)
+        ours = ~self.takeover.taken  # vehicles taken over are left to their operator
+        self.takeover.commanded_landing(ours & self.fleet.alive)
+        land_and_wait(self.fleet, self.mission.run.land_timeout_s, self.result.events, ours)
         self._set_phase("done")
 
     def restore_params(self) -> None:
@@ -268,8 +301,10 @@ class MissionRunner:
             self._set_phase("hold")
 
     def resume(self) -> None:
-        """Back to formation flight from the current state."""
+        """Back to formation flight from the current state; ValueError while the leader is taken over
+        (promote another with `promote` or hand it back with `rejoin` first)."""
         if self.phase == "hold":
+            self._check_leader_flown()
             fleet = self.fleet
             self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
             self._hold_since = None
@@ -290,8 +325,8 @@ class MissionRunner:
     def set_formation(self, shape: str, spacing: float | None = None) -> None:
         """Reshape in flight (inter-UAV avoidance stays active while vehicles change slots)."""
         self.shape = (shape, spacing)
-        alive = self.fleet.alive
-        self.controller.set_offsets(live_offsets(self.mission, alive, self.controller.leader, shape, spacing))
+        flown = self.takeover.flown
+        self.controller.set_offsets(live_offsets(self.mission, flown, self.controller.leader, shape, spacing))
         if self.phase in ("formation", "hold"):
             self._assign_slots()
         self._hold_since = None
@@ -300,7 +335,7 @@ class MissionRunner:
     # ----- tick-driven launch and landing (console) -----
 
     def _launch_tick(self) -> None:
-        if launched(self.fleet, self.mission):
+        if launched(self.fleet, self.mission, ~self.takeover.taken):
             self._enter_formation()
             return
         t0 = self._launch_since if self._launch_since is not None else self.vehicle_time()
@@ -314,10 +349,12 @@ class MissionRunner:
 
     def _landing_tick(self) -> None:
         t = self.vehicle_time()
+        ours = ~self.takeover.taken  # vehicles taken over are left to their operator
         if self._land_since is None:
             self._land_since = t
-            command_landing(self.fleet, self.result.events)
-        if landed(self.fleet):
+            self.takeover.commanded_landing(ours & self.fleet.alive)
+            command_landing(self.fleet, self.result.events, ours)
+        if landed(self.fleet, ours):
             self._set_phase("done")
         elif t - self._land_since > self.mission.run.land_timeout_s:
             self.result.events.append(
@@ -335,11 +372,17 @@ class MissionRunner:
         pos, vel, att = fleet.pos, fleet.vel, fleet.att
         verdict = self.telemetry.assess(fleet, t, pos, vel, ctl.leader)
         ctl.set_degraded(verdict.speed_scale, verdict.spacing_scale)
-        ghosts, ghost_radii = self._lost.place(t, fleet.alive, ctl, self.mission.safety.telemetry)
+        telemetry = self.mission.safety.telemetry
+        ghosts, ghost_radii = self._lost.place(t, fleet.alive, ctl, telemetry)
+        taken, taken_radii = self.takeover.place(ctl, telemetry.lost_radius)  # moving obstacles, as measured
         centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)
-        obstacles = (np.vstack([centres, ghosts]), np.concatenate([self._obstacle_radii, ghost_radii]))
+        obstacles = (
+            np.vstack([centres, ghosts, taken]),
+            np.concatenate([self._obstacle_radii, ghost_radii, taken_radii]),
+        )
+        flown = self.takeover.flown
         sent = send_formation_tick(
-            fleet, ctl, t, (pos, vel, att), verdict, obstacles, self.setup, self.command_limits
+            fleet, ctl, t, (pos, vel, att), verdict, obstacles, self.setup, self.command_limits, flown
         )
         cmd, active = sent.command, sent.active
         self.commands_limited += sent.limited
@@ -350,7 +393,7 @@ class MissionRunner:
         targets = end_targets(cmd, ctl)
         self.result.final_targets = targets
         self.result.leader, self.result.offsets = ctl.leader, ctl.offsets
-        note_formation(self.result.formation_timeline, t, ctl, fleet.alive)
+        note_formation(self.result.formation_timeline, t, ctl, flown)
         errors = np.linalg.norm(pos - targets, axis=1)
         self.formation_rms = formation_rms(errors, active, ctl.leader)
         last_leg = cmd.waypoint_index == len(ctl.waypoints) - 1
@@ -370,7 +413,7 @@ class MissionRunner:
 
     def _assign_slots(self) -> None:
         """Give the current slots to the live followers by least total travel from where they are now."""
-        if assign_slots_by_travel(self.mission, self.controller, self.fleet):
+        if assign_slots_by_travel(self.mission, self.controller, self.fleet, self.takeover.flown):
             self.result.events.append("slots assigned by least travel")
 
     # ----- helpers -----
@@ -401,28 +444,145 @@ class MissionRunner:
         if newly_lost and self.phase in ("formation", "hold") and self.fleet.alive.any():
             self._reform()
 
-    def _reform(self) -> None:
-        """Close the gaps a lost vehicle leaves (its last known position keeps repelling the others); a lost
-        leader hands the lead to the live vehicle with the lowest index, which flies on to the same goal."""
+    def _reform(self, change: str = "without the lost vehicles") -> None:
+        """Close the gaps a lost vehicle (or one taken over) leaves (its last known position keeps repelling
+        the others), or open one for a vehicle that rejoins; a lost leader hands the lead to the live vehicle
+        with the lowest index, which flies on to the same goal. A leader taken over keeps the lead (the
+        formation holds until the operator decides). `change` completes the event "formation re-formed"."""
         fleet, ctl = self.fleet, self.controller
-        alive = fleet.alive
-        leader = ctl.leader if alive[ctl.leader] else int(np.flatnonzero(alive)[0])
-        shape, spacing = self.shape
-        offsets = live_offsets(self.mission, alive, leader, shape, spacing)
+        alive, flown = fleet.alive, self.takeover.flown
+        leader = ctl.leader if alive[ctl.leader] else int(np.flatnonzero(flown if flown.any() else alive)[0])
         if leader == ctl.leader:
-            ctl.set_offsets(offsets)
+            shape, spacing = self.shape
+            ctl.set_offsets(live_offsets(self.mission, flown, leader, shape, spacing))
             self._assign_slots()
-            self.result.events.append("formation re-formed without the lost vehicles")
+            self.result.events.append(f"formation re-formed {change}")
             return
+        self._pass_lead(leader, f"leader lost: {fleet.names[leader]} takes the lead")
+
+    def _pass_lead(self, leader: int, text: str) -> None:
+        """Vehicle `leader` leads from now on, flying on to the remaining waypoints; the slots are re-formed
+        around it for the vehicles flown; `text` goes to the events and the progress line."""
+        fleet, ctl = self.fleet, self.controller
+        shape, spacing = self.shape
+        offsets = live_offsets(self.mission, self.takeover.flown, leader, shape, spacing)
         remaining = ctl.waypoints[ctl.waypoint_index :]
         self.controller = build_controller(self.mission, leader=leader, offsets=offsets)
         self.controller.set_goal_waypoints(remaining)
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
         self._assign_slots()
         self._hold_since = None
-        text = f"leader lost: {fleet.names[leader]} takes the lead"
         self.result.events.append(text)
         self.progress(f"! {text}")
+
+    # ----- operator takeover (flight.takeover) -----
+
+    def _note_takeovers(self) -> None:
+        """Vehicles switched out of the mode we commanded are no longer flown: the formation re-forms
+        without them (each stays a moving obstacle); a leader taken over makes the others hold. During the
+        climb they are only marked: the formation starts without them (_enter_formation)."""
+        t = self.vehicle_time()
+        taken = self.takeover.detect(t)
+        if self.phase != "launch":
+            self._fly_without(taken, t)
+
+    def _fly_without(self, taken: list[int], t: float) -> None:
+        """Re-form without the vehicles `taken` over (rows) at vehicle time t s; hold if the leader is one."""
+        if not taken or not self.takeover.flown.any():
+            return
+        self._reform("without the vehicles taken over")
+        if self.controller.leader in taken:
+            self._leader_taken(t)
+
+    def _leader_taken(self, t: float) -> None:
+        name = self.fleet.names[self.controller.leader]
+        self._leader_taken_since = t
+        if self.phase == "formation":
+            self._held_for_leader = True
+            self.position_hold.clear()
+            self._set_phase("hold")
+        timeout = self.leader_takeover_timeout_s
+        then = "" if timeout is None else f"; the others land after {timeout:g} s without a decision"
+        decide = f"leader NAME promotes another, rejoin {name} hands it back"
+        text = f"leader {name} taken over: the formation holds ({decide}){then}"
+        self.result.events.append(f"t={t:.2f} s {text}")
+        self.progress(f"! {text}")
+
+    def _wait_for_leader_decision(self) -> None:
+        """In hold with the leader taken over and nobody to decide (`gcs-swarm run`): land the others once
+        leader_takeover_timeout_s has passed."""
+        since, timeout = self._leader_taken_since, self.leader_takeover_timeout_s
+        if since is None or timeout is None or self.vehicle_time() - since < timeout:
+            return
+        text = f"leader taken over and no decision within {timeout:g} s: landing the others"
+        self.result.events.append(f"t={self.vehicle_time():.2f} s {text}")
+        self.progress(f"! {text}")
+        self._set_phase("land")
+
+    def _check_leader_flown(self) -> None:
+        if self._leader_taken_since is not None:
+            name = self.fleet.names[self.controller.leader]
+            raise ValueError(f"the leader {name} is taken over: leader NAME promotes another, rejoin {name}")
+
+    def _decided(self) -> None:
+        """The operator decided about a leader taken over: fly on if that is what the hold was for."""
+        self._leader_taken_since = None
+        if self._held_for_leader and self.phase == "hold":
+            self._held_for_leader = False
+            self.resume()
+        self._held_for_leader = False
+
+    def promote(self, row: int) -> None:
+        """Console `leader NAME`: vehicle `row` (flown: alive, not taken over) leads from now on, on to the
+        remaining waypoints; a formation held for its leader taken over flies on. ValueError (one sentence)
+        when it cannot."""
+        name = self.fleet.names[row]
+        if self.phase not in ("formation", "hold"):
+            raise ValueError(f"leader needs formation flight or hold; the mission is in phase {self.phase}")
+        if row == self.controller.leader:
+            raise ValueError(f"{name} already leads")
+        if not self.takeover.flown[row]:
+            why = "taken over (rejoin it first)" if self.takeover.taken[row] else "not answering"
+            raise ValueError(f"{name} is {why}: it cannot lead")
+        self._pass_lead(row, f"{name} promoted to leader by the operator")
+        self._decided()
+
+    def rejoin(self, row: int) -> None:
+        """Console `rejoin NAME`: the operator hands vehicle `row` back: GUIDED (commanded and confirmed by
+        its HEARTBEAT), then it is flown to its slot again (its guidance rows restart from its measured state
+        at the next tick, FleetController's returning vehicles); a leader back in GUIDED leads again.
+        ValueError (one sentence) when it is not taken over; LinkError when it refuses GUIDED (it stays
+        taken over)."""
+        name = self.fleet.names[row]
+        if self.phase not in ("formation", "hold"):
+            raise ValueError(f"rejoin needs formation flight or hold; the mission is in phase {self.phase}")
+        if not self.takeover.taken[row]:
+            raise ValueError(f"{name} is not taken over")
+        if not self.fleet.alive[row]:
+            raise ValueError(f"{name} is not answering")
+        self.takeover.commanded("GUIDED", [row])
+        self.fleet.set_mode_all("GUIDED", [row])
+        self.takeover.rejoined(row, self.vehicle_time())
+        self._reform(f"with {name} back")
+        if row == self.controller.leader:
+            self._decided()
+
+    def release(self, row: int, mode: str) -> None:
+        """The console is about to put vehicle `row` in `mode` (`mode`, `land`, `rtl` on one vehicle): the
+        ground station's own change, never a takeover; while the mission flies, a mode other than GUIDED
+        hands the vehicle to the operator (no longer flown, as if taken over; `rejoin` hands it back; during
+        the climb the formation then starts without it)."""
+        if self.phase not in ("launch", "formation", "hold"):
+            self.takeover.commanded(mode, [row])
+            return
+        was_taken = bool(self.takeover.taken[row])
+        self.takeover.release(row, mode, self.vehicle_time())
+        if self.phase == "launch":
+            return
+        if self.takeover.taken[row] and not was_taken and self.takeover.flown.any():
+            self._reform("without the vehicles taken over")
+            if row == self.controller.leader:
+                self._leader_taken(self.vehicle_time())
 
     def _set_phase(self, name: str) -> None:
         self.phase = name

@@ -16,7 +16,8 @@ from gcs_swarm.link.tlog import TlogWriter
 
 @dataclass
 class LinkStats:
-    """Packets received / sent; garbage (bad); from other systems or components (ignored); losses; unsent."""
+    """Packets received / sent; garbage (bad); from other systems or components (ignored); losses; unsent;
+    refused by the signature check (unsigned, bad_signature)."""
 
     received: int = 0
     sent: int = 0
@@ -27,6 +28,8 @@ class LinkStats:
     late: int = 0  # stamped telemetry older than what was already received (delayed or reordered): ignored
     invalid: int = 0  # well-formed packets with non-finite or impossible values (hostile or broken): ignored
     stream_requests: int = 0  # times the stream watchdog asked a quiet vehicle for its telemetry again
+    unsigned: int = 0  # with a signing key: unsigned packets refused (never decoded)
+    bad_signature: int = 0  # with a signing key: forged, replayed or too old signed packets refused
 
 
 class Channel:

@@ -13,6 +13,9 @@ Forms (pymavlink / MAVProxy conventions):
 udpout, tcp and serial are opened by `pymavlink.mavutil.mavlink_connection`; the ground station reads and
 writes the opened socket / port itself so that one poll loop serves every vehicle. Parsing uses pymavlink's
 MAVLink 2 ardupilotmega dialect with robust parsing: garbage becomes BAD_DATA messages, counted by callers.
+With a signing key every endpoint checks what it receives (swarm_common.signing, ArduPilot's rule): unsigned,
+forged and replayed packets become BAD_DATA whose reason is SIGNATURE_REJECTED, and a shared udpin endpoint
+learns a vehicle's address only from packets that pass.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from typing import Any, TypeAlias
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from swarm_common.signing import VerifyingParser
 
 MAVLinkMessage: TypeAlias = mavlink2.MAVLink_message
 Address = tuple[str, int]
@@ -82,8 +87,11 @@ def _serial_spec(text: str, device: str, baud: str) -> ConnectionSpec:
     return ConnectionSpec(text=text, kind="serial", device=device, baud=int(baud))
 
 
-def new_parser() -> mavlink2.MAVLink:
-    """A MAVLink 2 (reads MAVLink 1 too) ardupilotmega parser that turns garbage into BAD_DATA messages."""
+def new_parser(key: bytes | None = None) -> mavlink2.MAVLink:
+    """A MAVLink 2 (reads MAVLink 1 too) ardupilotmega parser that turns garbage into BAD_DATA messages; with
+    a signing `key` it also refuses what fails the signature check (swarm_common.signing.VerifyingParser)."""
+    if key is not None:
+        return VerifyingParser(key)
     parser = mavlink2.MAVLink(None, 0, 0)
     parser.robust_parsing = True
     return parser
@@ -111,8 +119,9 @@ class _DatagramParser:
     byte-buffer bookkeeping; from the first thing that is not such a packet on, `parse_buffer` takes the rest.
     """
 
-    def __init__(self) -> None:
-        self._parser = new_parser()
+    def __init__(self, key: bytes | None = None) -> None:
+        self._key = key
+        self._parser = new_parser(key)
 
     def parse(self, data: bytes) -> list[MAVLinkMessage]:
         msgs: list[MAVLinkMessage] = []
@@ -133,7 +142,9 @@ class _DatagramParser:
         if self._parser.buf_len() > 0:
             tail = bytearray(data[-self._parser.buf_len() :])
             msgs.append(mavlink2.MAVLink_bad_data(tail, "truncated packet"))
-            self._parser = new_parser()
+            signing_state = self._parser.signing  # the streams' last timestamps: no replay after garbage
+            self._parser = new_parser(self._key)
+            self._parser.signing = signing_state
         return msgs
 
 
@@ -166,7 +177,7 @@ class UdpRouter(Endpoint):
     address a sysid was heard from so the fleet can refuse two endpoints claiming one sysid.
     """
 
-    def __init__(self, spec: ConnectionSpec) -> None:
+    def __init__(self, spec: ConnectionSpec, key: bytes | None = None) -> None:
         super().__init__(spec)
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
@@ -175,7 +186,7 @@ class UdpRouter(Endpoint):
             self._sock.close()
             raise
         self._sock.setblocking(False)
-        self._parser = _DatagramParser()
+        self._parser = _DatagramParser(key)
         self.addresses: dict[int, list[Address]] = {}
         self.sysid_of: dict[Address, int] = {}
 
@@ -215,6 +226,17 @@ class UdpRouter(Endpoint):
             return False
         return True
 
+    def send_to_all(self, packet: bytes | bytearray) -> bool:
+        """Send one packet to every address heard from (a forward listening for its ground stations)."""
+        sent = False
+        for addr in list(self.sysid_of):
+            try:
+                self._sock.sendto(packet, addr)
+                sent = True
+            except OSError:
+                continue
+        return sent
+
     def close(self) -> None:
         self._sock.close()
 
@@ -222,7 +244,7 @@ class UdpRouter(Endpoint):
 class MavutilEndpoint(Endpoint):
     """udpout / tcp / serial opened with pymavlink's mavlink_connection; one vehicle behind it."""
 
-    def __init__(self, spec: ConnectionSpec, connect_timeout_s: float) -> None:
+    def __init__(self, spec: ConnectionSpec, connect_timeout_s: float, key: bytes | None = None) -> None:
         super().__init__(spec)
         if spec.kind == "serial":
             try:
@@ -231,7 +253,7 @@ class MavutilEndpoint(Endpoint):
                 raise OSError("serial connections need pyserial (pip install pyserial)") from err
             self._conn = mavutil.mavlink_connection(spec.device, baud=spec.baud, source_system=255)
             self._datagrams = False
-            self._stream_parser = new_parser()
+            self._stream_parser = new_parser(key)
             return
         if spec.kind == "tcp":
             previous = socket.getdefaulttimeout()
@@ -241,12 +263,12 @@ class MavutilEndpoint(Endpoint):
             finally:
                 socket.setdefaulttimeout(previous)
             self._datagrams = False
-            self._stream_parser = new_parser()
+            self._stream_parser = new_parser(key)
             return
         self._destination = (socket.gethostbyname(spec.host), spec.port)
         self._conn = mavutil.mavlink_connection(spec.text)
         self._datagrams = True
-        self._udp_parser = _DatagramParser()
+        self._udp_parser = _DatagramParser(key)
 
     def fileno(self) -> int:
         fd = self._conn.fd
@@ -296,12 +318,15 @@ class MavutilEndpoint(Endpoint):
             self._conn.close()
 
 
-def open_endpoint(spec: ConnectionSpec, owner: str, connect_timeout_s: float = 5.0) -> Endpoint:
-    """Open `spec` for the vehicle(s) named in `owner`; LinkError (one sentence) when that fails."""
+def open_endpoint(
+    spec: ConnectionSpec, owner: str, connect_timeout_s: float = 5.0, key: bytes | None = None
+) -> Endpoint:
+    """Open `spec` for the vehicle(s) named in `owner`, checking signatures with `key` when given; LinkError
+    (one sentence) when that fails."""
     try:
         if spec.kind == "udpin":
-            return UdpRouter(spec)
-        return MavutilEndpoint(spec, connect_timeout_s)
+            return UdpRouter(spec, key)
+        return MavutilEndpoint(spec, connect_timeout_s, key)
     except OSError as err:
         reason = err.strerror or str(err)
         raise LinkError(f"cannot open {owner}'s connection {spec.text}: {reason}") from err

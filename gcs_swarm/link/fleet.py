@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm.link import frames
 from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.lockstep import frame_ready
 from gcs_swarm.link.network import Network
 from gcs_swarm.link.operations import Operation, Timeout
@@ -55,7 +56,9 @@ class Fleet:
     origin: mission origin (lat deg, lon deg, alt m AMSL) of the local ENU frame.
     loss_timeout_s: a vehicle is lost after this much fleet vehicle time without a packet, or after
     `loss_wall_timeout_s` of wall time (default: the same value); it is regained at its next packet.
-    signing_key: 32-byte MAVLink 2 signing key; every packet sent is then signed (link.signing).
+    signing_key: 32-byte MAVLink 2 signing key; every packet sent is then signed (link.signing), and every
+    packet received must be signed with it (swarm_common.signing; refusals counted in `stats`).
+    forwards: other ground stations watching (and, read-write, commanding) through this one (link.forward).
     """
 
     def __init__(
@@ -70,6 +73,7 @@ class Fleet:
         loss_wall_timeout_s: float | None = None,
         signing_key: bytes | None = None,
         stream_rate_hz: float = 50.0,
+        forwards: Sequence[ForwardConfig] = (),
     ) -> None:
         """`stream_rate_hz`: the rate of the state telemetry asked for as soon as a vehicle is heard
         (`telemetry_rates`; the control loop's rate)."""
@@ -87,7 +91,7 @@ class Fleet:
             for i, cfg in enumerate(self.configs)
         ]
         self._by_name = {link.name: link for link in self.links}
-        self.network = Network(self.links)
+        self.network = Network(self.links, signing_key, forwards)
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
 
     # ------------------------------------------------------------------ state arrays (copies)
@@ -169,6 +173,29 @@ class Fleet:
     def stats(self) -> dict[str, dict[str, int]]:
         """Per-vehicle packet counters (channel.LinkStats: received, sent, bad, ignored, lost, ...)."""
         return {link.name: asdict(link.channel.stats) for link in self.links}
+
+    def link_summary(self) -> list[str]:
+        """One line per vehicle that refused packets by signature and per forward (what it got and did), for
+        the end of a run."""
+        lines = [
+            f"{link.name}: refused {s.unsigned} unsigned and {s.bad_signature} forged or replayed packets"
+            for link in self.links
+            if (s := link.channel.stats).unsigned or s.bad_signature
+        ]
+        for forward in self.network.forwards:
+            f = forward.stats
+            mode = "read-write" if forward.config.read_write else "read-only"
+            lines.append(
+                f"forward {forward.name} ({mode}): {f.sent} frames sent; of {f.received} received, "
+                f"{f.routed} passed to the vehicles, {f.commands_refused} commands refused, "
+                f"{f.reserved} reserved, {f.unsigned + f.bad_signature} refused by signature"
+            )
+        return lines
+
+    def forward_stats(self) -> dict[str, dict[str, int]]:
+        """Per forward (by connection string): frames sent to it, and of its own frames those routed to the
+        vehicles and those dropped (forward.ForwardStats)."""
+        return {forward.name: asdict(forward.stats) for forward in self.network.forwards}
 
     # ------------------------------------------------------------------ connection
 

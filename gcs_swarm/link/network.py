@@ -5,6 +5,10 @@ is routed to the vehicle configured on its endpoint (by sysid when the endpoint 
 bound to its sysid, component and autopilot dialect at its first HEARTBEAT. Packets from a sysid the mission
 does not give a vehicle are counted (`unrouted` on a shared endpoint, `foreign_heartbeats` on a vehicle's
 own one), and the identity checks refuse two vehicles answering to one sysid.
+
+With a signing key every endpoint checks signatures (connection.py): what fails is counted per vehicle
+(`unsigned`, `bad_signature` in its LinkStats) and never reaches it. Forwards (gcs_swarm.link.forward) get
+every vehicle frame, and their own frames are routed to the vehicles by target system when they may pass.
 """
 
 from __future__ import annotations
@@ -27,17 +31,30 @@ from gcs_swarm.link.connection import (
     open_endpoint,
     parse_connection,
 )
+from gcs_swarm.link.forward import Forward, ForwardConfig
 from gcs_swarm.link.tlog import TlogWriter
 from gcs_swarm.link.vehicle import VehicleLink
+from swarm_common.signing import is_signature_rejection, was_signed
 
 SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before the connection is refused
 
 
 class Network:
-    """Endpoints and routing for `links` (row i = links[i]); every packet in and out goes to the tlog."""
+    """Endpoints and routing for `links` (row i = links[i]) and `forward_configs`; every packet in and out
+    goes to the tlog (a forward's frames when they reach a vehicle). `signing_key`: checked on every frame
+    received (vehicles' and forwards')."""
 
-    def __init__(self, links: Sequence[VehicleLink]) -> None:
+    def __init__(
+        self,
+        links: Sequence[VehicleLink],
+        signing_key: bytes | None = None,
+        forward_configs: Sequence[ForwardConfig] = (),
+    ) -> None:
         self.links = list(links)
+        self.signing_key = signing_key
+        self.forward_configs = list(forward_configs)
+        self.forwards: list[Forward] = []
+        self._outgoing: list[bytearray] = []  # vehicle frames read in this receive, for the forwards
         self._routes: dict[Endpoint, list[VehicleLink]] = {}
         self._selector = selectors.DefaultSelector()
         self._tlog: TlogWriter | None = None
@@ -70,11 +87,21 @@ class Network:
                 raise LinkError(
                     f"{names} share {spec.text}: give each of them its sysid so they can be told apart"
                 )
-            endpoint = open_endpoint(spec, names, connect_timeout_s)
+            endpoint = open_endpoint(spec, names, connect_timeout_s, self.signing_key)
             self._routes[endpoint] = members
             self._selector.register(endpoint.fileno(), selectors.EVENT_READ, endpoint)
             for member in members:
                 member.channel.endpoint = endpoint
+        for config in self.forward_configs:
+            try:
+                spec = parse_connection(config.connection)
+            except ValueError as err:
+                raise LinkError(f"forward: {err}") from None
+            forward = Forward(
+                config, open_endpoint(spec, f"forward {spec.text}", connect_timeout_s, self.signing_key)
+            )
+            self.forwards.append(forward)
+            self._selector.register(forward.endpoint.fileno(), selectors.EVENT_READ, forward)
         if tlog_path is not None:
             self._tlog = TlogWriter(tlog_path)
             for link in self.links:
@@ -85,6 +112,9 @@ class Network:
         for endpoint in self._routes:
             endpoint.close()
         self._routes.clear()
+        for forward in self.forwards:
+            forward.endpoint.close()
+        self.forwards.clear()
         self._selector.close()
         self._selector = selectors.DefaultSelector()
         if self._tlog is not None:
@@ -101,6 +131,11 @@ class Network:
             time.sleep(max(timeout_s, 0.0))
         now = time.monotonic()
         for key, _ in ready:
+            if isinstance(key.data, Forward):
+                self._from_forward(key.data)
+                if key.data.endpoint.closed:
+                    self._selector.unregister(key.fd)
+                continue
             endpoint: Endpoint = key.data
             for msg, peer in endpoint.receive():
                 self._deliver(endpoint, msg, peer, now)
@@ -108,18 +143,45 @@ class Network:
                 self._selector.unregister(key.fd)
                 for link in self._routes[endpoint]:
                     link.add_event(f"connection {endpoint.spec.text} closed by the peer")
+        if self._outgoing:
+            for forward in self.forwards:
+                forward.send_frames(self._outgoing)
+            self._outgoing = []
         return now
+
+    def _from_forward(self, forward: Forward) -> None:
+        """Route what a forward sent to the vehicles its target_system names (0 or none: all), unchanged, when
+        `Forward.admit` lets it through."""
+        gcs = (self.links[0].channel.mav.srcSystem, self.links[0].channel.mav.srcComponent)
+        sysids = {s for link in self.links for s in (link.sysid, link.config.sysid) if s is not None}
+        for msg, _ in forward.endpoint.receive():
+            if not forward.admit(msg, gcs, sysids):
+                continue
+            target = getattr(msg, "target_system", 0)
+            links = [link for link in self.links if link.sysid is not None and target in (0, link.sysid)]
+            if not links:
+                forward.stats.unrouted += 1
+                continue
+            forward.stats.routed += 1
+            packet = msg.get_msgbuf()
+            for link in links:
+                endpoint = link.channel.endpoint
+                if endpoint is not None and endpoint.send(packet, link.sysid) and self._tlog is not None:
+                    self._tlog.write(packet)
 
     def _deliver(self, endpoint: Endpoint, msg: MAVLinkMessage, peer: Any, now: float) -> None:
         bad = msg.get_type() == "BAD_DATA"
-        if self._tlog is not None and not bad:
-            self._tlog.write(msg.get_msgbuf())
+        if not bad:
+            if self._tlog is not None:
+                self._tlog.write(msg.get_msgbuf())
+            if self.forwards:
+                self._outgoing.append(msg.get_msgbuf())
         members = self._routes[endpoint]
         if len(members) == 1:
             self.accept(members[0], msg, now)
             return
         assert isinstance(endpoint, UdpRouter)
-        sysid = endpoint.sysid_of.get(peer) if bad else msg.get_srcSystem()
+        sysid = msg.get_srcSystem() if not bad else endpoint.sysid_of.get(peer, _claimed_sysid(msg))
         for link in members:
             if link.config.sysid == sysid:
                 self.accept(link, msg, now)
@@ -133,7 +195,12 @@ class Network:
         stats.received += 1
         mtype = msg.get_type()
         if mtype == "BAD_DATA":
-            stats.bad += 1
+            if not is_signature_rejection(msg):
+                stats.bad += 1
+            elif was_signed(msg):
+                stats.bad_signature += 1
+            else:
+                stats.unsigned += 1
             return
         sysid = msg.get_srcSystem()
         if sysid != link.sysid and not self._bind(link, msg, mtype, sysid):
@@ -191,3 +258,9 @@ class Network:
                         f"{link.name}'s sysid {wanted} is heard from several addresses on {conn} ({shown}); "
                         "two vehicles share that sysid"
                     )
+
+
+def _claimed_sysid(msg: MAVLinkMessage) -> int | None:
+    """The sysid in the header of a refused MAVLink 2 packet (BAD_DATA), None when it has none."""
+    data = bytes(getattr(msg, "data", b""))
+    return data[5] if len(data) > 5 and data[0] == mavlink2.PROTOCOL_MARKER_V2 else None

@@ -151,8 +151,9 @@ def _vehicle(vehicle: VehicleEntry, name: str, index: int, run: RunSpec) -> Vehi
 
 def _run(run: RunSection, source: str) -> RunSpec:
     return RunSpec(
-        **run.model_dump(exclude={"simulator", "signing_key_file"}),
+        **run.model_dump(exclude={"simulator", "signing_key_file", "forward"}),
         simulator=SimulatorSpec(**run.simulator.model_dump()),
+        forward=tuple(run.forward),
         signing_key_file=_signing_key_file(run.signing_key_file, source),
     )
 

@@ -172,9 +172,13 @@ class RunSpec:
     takeoff_timeout_s: float
     preflight_timeout_s: float  # s to wait for every vehicle's position estimate and pre-arm health
     land_timeout_s: float  # s to wait, after LAND, until every vehicle has disarmed
+    # s the others hold after the leader was taken over, in `gcs-swarm run`, before they land
+    leader_takeover_timeout_s: float
     simulator: SimulatorSpec
     signing_key_file: Path | None = None  # MAVLink 2 signing key (64 hex chars); relative to the mission file
     keep_params: bool = False  # leave the parameters the run set (GUID_OPTIONS, FS_GCS_*, ...) as flown
+    forward: tuple[str, ...] = ()  # connection strings of ground stations watching through this one
+    forward_rw: bool = False  # the forwards may command the vehicles (else read-only)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -373,6 +373,10 @@ class SimulatorSection(Section):
     base_port: Annotated[int, Range(ge=1024, le=65535)] = 14540
 
 
+FORWARD_HINT = "a connection string such as udpout:127.0.0.1:14550"
+FORWARD_PATTERN = r"(udpout|udpin|udp|tcp):[^:\s]+:\d{1,5}|serial:\S+|/dev/\S+"
+
+
 class RunSection(Section):
     control_rate_hz: Annotated[float, Range(gt=0, le=1000, unit="Hz")] = 50.0
     time_limit_s: Annotated[float, Range(gt=0, unit="s")] = 300.0
@@ -382,9 +386,13 @@ class RunSection(Section):
     takeoff_timeout_s: Annotated[float, Range(gt=0, unit="s")] = 60.0
     preflight_timeout_s: Annotated[float, Range(gt=0, unit="s")] = 60.0
     land_timeout_s: Annotated[float, Range(gt=0, unit="s")] = 300.0
+    leader_takeover_timeout_s: Annotated[float, Range(gt=0, unit="s")] = 30.0
     simulator: SimulatorSection = SimulatorSection()
     signing_key_file: Annotated[str, text()] = ""  # "": none
     keep_params: bool = False
+    # other ground stations watching through this one (docs/watching-with-qgc.md); forward_rw: may command
+    forward: list[Annotated[str, text(FORWARD_PATTERN, FORWARD_HINT)]] = []
+    forward_rw: bool = False
 
 
 class PlannerSection(Section):

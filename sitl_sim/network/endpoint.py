@@ -26,6 +26,7 @@ from sitl_sim.network.outbox import Outbox
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.setpoints import SetpointHandlers
 from sitl_sim.network.streams import Framer
+from swarm_common.signing import is_signature_rejection
 
 logger = logging.getLogger(__name__)
 PEER_TIMEOUT_S = 5.0  # wall seconds a silent peer keeps receiving traffic
@@ -189,7 +190,7 @@ class VehicleEndpoint:
     def _handle_message(self, msg: mavlink2.MAVLink_message, addr: tuple[str, int], wall_now: float) -> None:
         msg_id = msg.get_msgId()
         if msg_id < 0:  # MAVLink_bad_data
-            if getattr(msg, "reason", "") == signing.SIGNATURE_REJECTED:
+            if is_signature_rejection(msg):
                 self.counters.unsigned += 1
             else:
                 self.counters.bad_frames += 1

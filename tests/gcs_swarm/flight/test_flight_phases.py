@@ -52,9 +52,9 @@ def test_hold_brakes_on_the_spot_then_holds_the_point_where_it_slowed() -> None:
     )
     assert np.linalg.norm(fleet.vel[1]) < HOLD_LATCH_SPEED < np.linalg.norm(fleet.vel[0])
     hold = PositionHold(3)
-    hold.tick(fleet)  # type: ignore[arg-type]
+    hold.tick(fleet, fleet.alive)  # type: ignore[arg-type]
     fleet.pos = fleet.pos + [1.0, 0.0, 0.0]  # both move on by 1 m; vehicle 0 still fast
-    hold.tick(fleet)  # type: ignore[arg-type]
+    hold.tick(fleet, fleet.alive)  # type: ignore[arg-type]
     np.testing.assert_array_equal([p for p, _ in targets[0].sent], [[0.0, 0.0, 10.0], [1.0, 0.0, 10.0]])
     assert [yaw for _, yaw in targets[0].sent] == [0.5, 0.5]
     np.testing.assert_array_equal([p for p, _ in targets[1].sent], [[5.0, 0.0, 10.0], [5.0, 0.0, 10.0]])

@@ -77,5 +77,5 @@ def test_a_row_of_the_wrong_width_is_refused(tmp_path: Path) -> None:
     record = RunRecord(tmp_path / "record.csv")
     c, short = command(np.random.default_rng(1), 2), np.zeros((2, 2))
     with pytest.raises(ValueError, match="26 numbers"):
-        record.write_tick(1.0, "formation", short, short, short, c, np.zeros(2), [True, True])
+        record.write_tick(1.0, "formation", short, short, short, c, np.zeros(2), np.ones(2, dtype=bool))
     record.close()
