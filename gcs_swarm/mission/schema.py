@@ -36,6 +36,7 @@ from pydantic import (
 from pydantic_core import ErrorDetails, PydanticCustomError, core_schema
 from pydantic_core.core_schema import ValidatorFunctionWrapHandler
 
+from gcs_swarm.guidance.controller import CONTROLLERS
 from gcs_swarm.guidance.params import (
     DeadGcsParams,
     FieldParams,
@@ -344,7 +345,7 @@ class WorldSection(Section):
 
 
 class ControlSection(Section):
-    controller: Annotated[str, one_of("smc", "pid")] = "smc"
+    controller: Annotated[str, one_of(*CONTROLLERS)] = "smc"
     smc: Annotated[SMCParams, Params()] = SMCParams()
     pid: Annotated[PIDParams, Params()] = PIDParams()
 

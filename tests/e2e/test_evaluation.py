@@ -73,6 +73,10 @@ def _montecarlo(mission: Path, ranges: Path, out: Path) -> list[str]:
     ]
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _group_gone(pgid: int) -> bool:
     try:
         os.killpg(pgid, 0)
@@ -88,7 +92,14 @@ def test_montecarlo_interrupted_then_resumed_loses_and_repeats_nothing(
     results = out / RESULTS_FILE
     cmd = _montecarlo(tiny, ranges, out)
     proc = subprocess.Popen(
-        cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True
+        cmd,
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+        # Ctrl-C as at a terminal, even when pytest itself runs in the background (`cmd &` starts it with
+        # SIGINT ignored, and Python then leaves SIGINT ignored in every process it starts)
+        preexec_fn=_default_sigint,
     )
     try:
         deadline = time.monotonic() + 120
