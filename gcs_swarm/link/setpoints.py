@@ -86,12 +86,7 @@ class Setpoints:
         v = np.asarray(vel_enu, dtype=float)
         _require_finite(self.name, "velocity target", v, yaw)
         vn = frames.enu_to_ned(v)
-        mask = _IGNORE_POSITION | _IGNORE_ACCEL
-        yaw_ned = 0.0
-        if yaw is None:
-            mask |= mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-        else:
-            yaw_ned = float(rotations.wrap_pi(0.5 * math.pi - yaw))
+        mask, yaw_ned = _with_yaw(_IGNORE_POSITION | _IGNORE_ACCEL, yaw)
         ch = self.channel
         ch.send(
             ch.mav.set_position_target_local_ned_encode(
@@ -122,12 +117,7 @@ class Setpoints:
         p = np.asarray(pos_enu, dtype=float)
         _require_finite(self.name, "position target", p, yaw)
         lat, lon, alt = frames.enu_to_geodetic(p, self.lockstep.state.origin)
-        mask = _IGNORE_VELOCITY | _IGNORE_ACCEL
-        yaw_ned = 0.0
-        if yaw is None:
-            mask |= mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-        else:
-            yaw_ned = float(rotations.wrap_pi(0.5 * math.pi - yaw))
+        mask, yaw_ned = _with_yaw(_IGNORE_VELOCITY | _IGNORE_ACCEL, yaw)
         ch = self.channel
         ch.send(
             ch.mav.set_position_target_global_int_encode(
@@ -156,3 +146,11 @@ class Setpoints:
         if st.position_count[i] == 0:
             raise LinkError(f"{self.name} cannot hold position: no position received yet")
         self.send_position_target(st.pos[i], yaw=float(st.att[i, 2]) if np.isfinite(st.att[i, 2]) else None)
+
+
+def _with_yaw(mask: int, yaw: float | None) -> tuple[int, float]:
+    """A position-target type mask and its yaw field: ENU yaw (rad, counter-clockwise from East) as NED yaw
+    (clockwise from North) in [-pi, pi), or the yaw ignored (0.0 sent) when None."""
+    if yaw is None:
+        return mask | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE, 0.0
+    return mask, float(rotations.wrap_pi(0.5 * math.pi - yaw))
