@@ -52,11 +52,14 @@ def session(vehicles: SimulatedVehicles, tmp_path: Path) -> Iterator[tuple[Fligh
     ]
     fleet = Fleet(configs, ORIGIN)
     flight = FlightSession(
-        MissionRunner(mission, fleet, None, progress=lambda _: None), tmp_path, connect_timeout_s=5.0
+        # the timeouts only bound a hang: a loaded CI machine once took over 5 s to relay the first HEARTBEAT
+        MissionRunner(mission, fleet, None, progress=lambda _: None),
+        tmp_path,
+        connect_timeout_s=15.0,
     )
     try:
         flight.start()
-        end = time.monotonic() + 10.0
+        end = time.monotonic() + 20.0
         while flight.snapshot().state == "connecting" and time.monotonic() < end:
             time.sleep(0.02)
         assert flight.snapshot().state == "ready", flight.snapshot().error
