@@ -148,6 +148,7 @@ def tick_cost(vehicles: int, ticks: int = 400) -> tuple[float, float]:
     config = SimConfig(
         base_port=free_base_port(vehicles), bind="127.0.0.1", sysid_base=1,
         timing=plan_timing(RATE_HZ, 100.0, None, 50.0), speedup=1.0, lockstep=False, lockstep_timeout=5.0,
+        lockstep_delay=1,
         home=(-35.36, 149.16, 584.0),
         start_pos=np.column_stack((5.0 * np.arange(vehicles), np.zeros((vehicles, 2)))),
         start_vel=np.zeros((vehicles, 3)), start_yaw=np.zeros(vehicles),

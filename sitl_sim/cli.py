@@ -79,6 +79,15 @@ def build_parser() -> OneLineParser:
     )
     add("--lockstep-hz", type=float, default=50.0, metavar="HZ", help="lockstep frame rate (default 50)")
     add("--lockstep-timeout", type=float, default=5.0, metavar="S", help="drop silent lockstep clients (5 s)")
+    add(
+        "--lockstep-delay",
+        type=int,
+        choices=(0, 1),
+        default=1,
+        metavar="FRAMES",
+        help="lockstep frames from telemetry to the commands answering it taking effect: 1 (default) "
+        "pipelines the simulator with its clients, 0 alternates with them",
+    )
     add("--rate-hz", type=float, default=1000.0, metavar="HZ", help="physics rate (default 1000)")
     add("--outer-hz", type=float, default=100.0, metavar="HZ", help="autopilot outer-loop rate (default 100)")
     add("--home", metavar="LAT,LON,ALT", help="geodetic ENU origin (default: mission origin, else CMAC)")
@@ -335,6 +344,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         speedup=args.speedup,
         lockstep=args.lockstep,
         lockstep_timeout=args.lockstep_timeout,
+        lockstep_delay=args.lockstep_delay,
         home=home or DEFAULT_HOME,
         start_pos=start_pos,
         start_vel=start_vel,

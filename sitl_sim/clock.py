@@ -5,7 +5,8 @@ simulator emits the telemetry due, then waits until every lockstep client has an
 (one peer address of one vehicle endpoint) answers by sending that vehicle a SYSTEM_TIME, SET_ATTITUDE_TARGET,
 SET_POSITION_TARGET_LOCAL_NED or SET_POSITION_TARGET_GLOBAL_INT whose time_boot_ms >= the frame's. Sending
 such a message with time_boot_ms > 0 makes a peer a lockstep client; one that stays silent for
---lockstep-timeout wall seconds is dropped until it answers again.
+--lockstep-timeout wall seconds is dropped until it answers again. With --lockstep-delay 1 (pipelined) a
+frame end waits for the answers to the previous frame instead, and holds its own telemetry until then.
 """
 
 from __future__ import annotations

@@ -38,12 +38,14 @@ logger = logging.getLogger(__name__)
 KEEPALIVE_S = 1.0  # wall seconds between HEARTBEATs while paused for lockstep clients
 FLUSH_LOG_S = 1.0  # wall seconds between truth-log flushes
 SPIN_S = 0.002  # wall seconds a lockstep frame end polls for the answers before sleeping in select
-STAMPED_MESSAGES = (  # streams that carry time_boot_ms
-    mavlink2.MAVLINK_MSG_ID_ATTITUDE,
-    mavlink2.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
-    mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
-    mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-    mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,
+STAMPED_MESSAGES = frozenset(  # streams that carry time_boot_ms
+    {
+        mavlink2.MAVLINK_MSG_ID_ATTITUDE,
+        mavlink2.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+        mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+        mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+        mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,
+    }
 )
 
 
@@ -59,6 +61,7 @@ class SimConfig:
     speedup: float
     lockstep: bool
     lockstep_timeout: float
+    lockstep_delay: int  # frames between a lockstep answer and the frame whose commands it carries (0 or 1)
     home: tuple[float, float, float]
     start_pos: np.ndarray
     start_vel: np.ndarray
@@ -119,6 +122,8 @@ class Simulator:
         self.streams = StreamSchedule(n, round(self.timing.tick_s * 1e6))
         self.lockstep = LockstepClients(n, config.lockstep_timeout) if config.lockstep else None
         self.lockstep_started = False
+        self._previous_frame_ms = -1  # time_boot_ms of the last lockstep frame end, once its wait was over
+        self._held_frame = False  # this frame's telemetry is queued until the previous frame is answered
         self.pacer = RealTimePacer(config.speedup)
         self.orphan_speedup = config.orphan_speedup if config.lockstep else config.speedup
         self.orphan_grace_s = config.orphan_grace_s
@@ -174,14 +179,16 @@ class Simulator:
         if wakeup is not None:
             self.selector.register(wakeup, selectors.EVENT_READ)
         self._write_truth()
-        while not (stop() or self._orphan_done()):
+        while not self._orphan_done():
             if self.orphaned_at is None and self.parent_gone():
                 self._become_orphan()
+            if self.lockstep is None and stop():
+                break
             self._tick()
             if self.lockstep is None:
                 self._pace(stop)
-            elif self.ticks % self.timing.ticks_per_frame == 0:
-                self._end_frame(stop)
+            elif self.ticks % self.timing.ticks_per_frame == 0 and not self._end_frame(stop):
+                break  # stopped while waiting for the clients
 
     def parent_gone(self) -> bool:
         """Whether the ground station that started the simulator has died (mark_parent_gone, called by the
@@ -248,6 +255,10 @@ class Simulator:
             )
         if self.lockstep is None or self.ticks % timing.ticks_per_frame == 0:  # lockstep: frame ends only
             self._emit_telemetry()
+            if self._pipelined():
+                self._held_frame = True
+            else:
+                self._flush_frame()
 
     def _fence_tick(self) -> None:
         """Fence uploads' timers; a new breach sends FENCE_STATUS at once and goes to the log."""
@@ -273,25 +284,36 @@ class Simulator:
         self.params.set(i, "FENCE_TOTAL", total)  # AC_PolyFence_loader::write_fence: _total.set_and_save
 
     def _emit_telemetry(self) -> None:
-        stamped = np.zeros(len(self.endpoints), dtype=bool)
+        """Queue the streams due now on every endpoint with a peer (vehicle, then STREAM_IDS order); in
+        lockstep, an endpoint none of whose due streams carries time_boot_ms gets a SYSTEM_TIME."""
+        view = self.telemetry_view()
+        endpoints = self.endpoints
+        stamped: set[int] = set()
         for i, msg_id in self.streams.due(self.time_us):
-            endpoint = self.endpoints[i]
+            endpoint = endpoints[i]
             if endpoint.peers:
-                data = self.telemetry_view().encode(endpoint.outbox.framer, msg_id, i)
+                data = view.encode(endpoint.outbox.framer, msg_id, i)
                 if data is not None:
                     endpoint.outbox.append(data)
-                    stamped[i] |= msg_id in STAMPED_MESSAGES
+                    if msg_id in STAMPED_MESSAGES:
+                        stamped.add(i)
         if self.lockstep is not None:
-            for silent in np.flatnonzero(~stamped):  # every frame end carries a time_boot_ms to answer
-                if self.endpoints[silent].peers:
-                    self._send_now(int(silent), (mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,))
+            for endpoint in endpoints:  # every frame end carries a time_boot_ms to answer
+                if endpoint.peers and endpoint.index not in stamped:
+                    self._send_now(endpoint.index, (mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,))
+        wall = time.monotonic()
+        if self.truth is not None and wall - self._last_log_flush > FLUSH_LOG_S:
+            self.truth.flush()
+            self._last_log_flush = wall
+
+    def _flush_frame(self) -> None:
+        """Send every endpoint's queued telemetry and replies (in lockstep ending with the frame's clock
+        tick)."""
         wall = time.monotonic()
         clock_ms = self.time_us // 1000 if self.lockstep is not None else None
         for endpoint in self.endpoints:
             endpoint.flush(wall, clock_ms)
-        if self.truth is not None and wall - self._last_log_flush > FLUSH_LOG_S:
-            self.truth.flush()
-            self._last_log_flush = wall
+        self._held_frame = False
 
     def _pace(self, stop: Callable[[], bool]) -> None:
         """Serve the network until the current simulated time is due on the (sped-up) wall clock."""
@@ -301,11 +323,34 @@ class Simulator:
             if time.monotonic() >= deadline or stop():
                 return
 
-    def _end_frame(self, stop: Callable[[], bool]) -> None:
-        """Lockstep frame end: wait for every lockstep client's answer (see sitl_sim.clock)."""
+    def _pipelined(self) -> bool:
+        """Lockstep with --lockstep-delay 1, once started: a frame end sends its telemetry only when the
+        clients have answered the previous frame, and their answers steer the frame that starts now
+        (sitl_sim.clock)."""
+        return self.lockstep is not None and self.lockstep_started and self.config.lockstep_delay > 0
+
+    def _end_frame(self, stop: Callable[[], bool]) -> bool:
+        """Lockstep frame end: wait for every lockstep client's answer (see sitl_sim.clock), then send the
+        frame's telemetry if it was held (pipelined). False when stop() ended the wait.
+
+        A lockstep run stops only here, at the wait: where that is depends on the clients' answers alone,
+        never on when the signal came, so the truth log of a stopped run is reproducible too."""
         assert self.lockstep is not None
-        clients = self.lockstep
         frame_ms = self.time_us // 1000
+        awaited_ms = self._previous_frame_ms if self._pipelined() else frame_ms
+        answered = self._wait_for_answers(stop, awaited_ms)
+        if self._held_frame:
+            self._flush_frame()
+        self._previous_frame_ms = frame_ms
+        return answered
+
+    def _wait_for_answers(self, stop: Callable[[], bool], frame_ms: int) -> bool:
+        """Serve the network until every active lockstep client has answered frame_ms (or is dropped, or the
+        parent is gone); False when stop() ended the wait. While a frame is held, nothing is sent: not even a
+        keepalive, which would show the clients the state of a frame they must not see before they answered
+        the previous one."""
+        clients = self.lockstep
+        assert clients is not None
         frame_wall = keepalive = time.monotonic()
         while not (stop() or self.parent_gone()):
             now = time.monotonic()
@@ -318,15 +363,17 @@ class Simulator:
                     clients.drop(clients.pending(frame_ms))
                     self.lockstep_started = True
                     self.pacer.restart(self.t, now)
-                    return
+                    return True
             elif not clients.any_active():
+                if self._held_frame:
+                    self._flush_frame()
                 self._pace(stop)  # nobody to wait for: real-time pace
-                return
+                return True
             else:
                 pending = clients.pending(frame_ms)
                 if not pending:
                     self.pacer.restart(self.t, now)
-                    return
+                    return True
                 if now - frame_wall > clients.timeout_s:
                     clients.drop(pending)
                     for vehicle, addr in pending:
@@ -335,7 +382,7 @@ class Simulator:
                             "lockstep client %s dropped (no answer for %g s)", client, clients.timeout_s
                         )
                     continue
-            if now - keepalive >= KEEPALIVE_S:
+            if now - keepalive >= KEEPALIVE_S and not self._held_frame:
                 keepalive = now
                 for i in range(len(self.endpoints)):
                     self._send_now(
@@ -343,6 +390,7 @@ class Simulator:
                     )
             spinning = now - frame_wall < SPIN_S  # poll first: a wake-up costs more than a short busy wait
             self._serve(0.0 if spinning else min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
+        return not stop()
 
     def _serve(self, timeout: float, frame_ms: int | None = None) -> None:
         """Wait up to timeout s for input, handle it, send replies (frame_ms: paused at that frame end)."""
@@ -361,6 +409,8 @@ class Simulator:
                     key.fileobj.recv(4096)  # type: ignore[union-attr]
                 except OSError:
                     pass
+        if self._held_frame:  # replies leave with the held frame's telemetry, after it
+            return
         texts = self.autopilot.texts
         for endpoint in self.endpoints:
             if endpoint.outbox.packets or texts[endpoint.index]:

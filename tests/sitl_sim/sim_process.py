@@ -46,6 +46,7 @@ def in_process_config(start_pos: list[list[float]], **overrides: object) -> SimC
         speedup=1.0,
         lockstep=False,
         lockstep_timeout=5.0,
+        lockstep_delay=1,
         home=(-35.0, 149.0, 500.0),
         start_pos=pos,
         start_vel=np.zeros((n, 3)),

@@ -95,3 +95,84 @@ def test_timing_plan():
         plan_timing(1000.0, 3000.0, None, 50.0)
     with pytest.raises(ValueError, match="--truth-rate-hz"):
         plan_timing(1000.0, 100.0, None, 200.0)
+
+
+HOVER_UNTIL_S = 0.5  # s of vehicle time with no attitude target (GUIDED holds)
+FRAME_S = 0.02  # the default 50 Hz lockstep frame
+
+
+def airborne_mission(path) -> None:
+    """One vehicle spawned at 10 m (GUIDED, armed), turbulent wind."""
+    path.write_text(
+        "mission: {name: delay}\n"
+        "vehicles:\n"
+        "  - {name: a, role: leader, start: {position: [0, 0, 10]}}\n"
+        "goal: [50, 0, 10]\n"
+        "world: {wind: {speed: 3, direction_deg: 40, turbulence: 1}}\n"
+        "run: {airborne_start: true}\n"
+    )
+
+
+def weave_flight(sitl, pilot_for, tmp_path, delay: int, lead_s: float) -> bytes:
+    """Fly airborne_mission with `--lockstep-delay delay`; the pilot answers the frame at time t with the
+    attitude target of time t + lead_s. Returns the truth log once the pilot has seen t >= 3 s."""
+    mission, log = tmp_path / "delay.yaml", tmp_path / f"truth{delay}.csv"
+    airborne_mission(mission)
+    sim = sitl(
+        "--mission", str(mission), "--lockstep", "--lockstep-delay", str(delay), "--ready-delay", "0",
+        "--truth-log", str(log),
+    )  # fmt: skip
+    pilot = pilot_for(sim)
+
+    def weave(vehicle: Vehicle) -> None:
+        t = vehicle.t + lead_s
+        if t >= HOVER_UNTIL_S:
+            vehicle.attitude(0.2 * math.sin(2 * t), 0.1 * math.cos(3 * t), 0.4 * t, 0.5 + 0.1 * math.sin(t))
+
+    pilot.spin(lambda: pilot[0].t >= 3.0, 5.0, each_frame=weave)
+    assert sim.stop()[0] == 0
+    return log.read_bytes()
+
+
+def test_pipelined_lockstep_acts_exactly_one_frame_later(sitl, pilot_for, tmp_path):
+    # With --lockstep-delay 1 the answer to frame k steers the frame after the next one, so a pilot that
+    # answers every frame one frame ahead of time (t + 20 ms) must fly exactly the physics of a pilot that
+    # answers on time with --lockstep-delay 0: the same truth log, row for row. The pipelined simulator
+    # stops one frame further (it integrated the frame after the pilot's last unanswered one).
+    strict = weave_flight(sitl, pilot_for, tmp_path, 0, 0.0)
+    pipelined = weave_flight(sitl, pilot_for, tmp_path, 1, FRAME_S)
+    assert len(strict.splitlines()) > 100  # 50 Hz x 3 s
+    assert pipelined.startswith(strict)
+    assert len(pipelined.splitlines()) == len(strict.splitlines()) + 1
+    # and the delay is real: answering on time with the pipelined clock flies a different path
+    late = weave_flight(sitl, pilot_for, tmp_path, 1, 0.0)
+    assert not late.startswith(strict)
+
+
+def test_pipelined_lockstep_never_shows_a_frame_before_the_previous_one_is_answered(sitl):
+    # the simulator computes the next frame while the client thinks, but holds its telemetry until the
+    # answer: a slow client sees frame after frame, never two at once
+    sim = sitl("--lockstep", "--lockstep-delay", "1", "--ready-delay", "0")
+    vehicle = Vehicle(sim.port(0), 1)
+    try:
+        vehicle.heartbeat()
+        vehicle.request_streams(50)
+        seen = []
+        deadline = time.monotonic() + 20.0
+        while len(seen) < 15 and time.monotonic() < deadline:
+            select.select([vehicle.conn.port], [], [], 0.05)
+            vehicle.drain()
+            if vehicle.time_boot_ms <= vehicle.answered_ms:
+                continue
+            frame = vehicle.time_boot_ms
+            time.sleep(0.03)  # think longer than the simulator takes for a frame
+            vehicle.drain()
+            seen.append((frame, vehicle.time_boot_ms))
+            vehicle.mav.system_time_send(0, frame)
+            vehicle.answered_ms = frame
+        assert len(seen) == 15
+        assert all(after == frame for frame, after in seen)  # nothing newer arrived while thinking
+        frames = [frame for frame, _ in seen[1:]]
+        assert all(b - a == 20 for a, b in zip(frames, frames[1:], strict=False))  # one frame per answer
+    finally:
+        vehicle.close()
