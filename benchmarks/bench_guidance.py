@@ -1,16 +1,20 @@
 """Cost of one FleetController.tick (formation targets, obstacle + inter-UAV field, reference generator, SMC,
-inversion) for the whole fleet, N = 9, 100, 1000 vehicles with K = 10 and 100 obstacles.
+inversion) for the whole fleet, and of the command guard after it (ArduPilot thrust + guard_attitude_commands,
+as gcs_swarm.flight.formation_tick runs them): small fleets N = 3, 6, 9 with K = 0 and 10 obstacles, and
+N = 9, 100, 1000 with K = 10 and 100.
 
 The fleet flies a grid formation with 9 m spacing (inside D_max = 10 m, so the inter-UAV term is active);
-obstacles are spread over the fleet's area, so many vehicle-obstacle pairs are inside l0 = 20 m. Prints a
-Markdown table: median per tick over repeats, with the spread (min..max of the repeat medians).
+obstacles are spread over the fleet's area, so many vehicle-obstacle pairs are inside l0 = 20 m. The
+controller is configured as the bundled missions fly it: an altitude floor and the dead-GCS speed scheduling
+on. Prints a Markdown table: median per tick over repeats, with the spread (min..max of the repeat medians).
 
-    python benchmarks/bench_guidance.py [--repeats 7] [--ticks 50] [--quick]
+    python benchmarks/bench_guidance.py [--repeats 7] [--ticks 50] [--quick] [--max-n 1000]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import time
 
@@ -18,7 +22,9 @@ import numpy as np
 
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
-from gcs_swarm.guidance.params import FieldParams
+from gcs_swarm.guidance.params import DeadGcsParams, FieldParams, G
+from gcs_swarm.link.autopilots import ardupilot
+from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 
 SPACING = 9.0  # m
 DT = 0.02  # s, 50 Hz
@@ -29,7 +35,10 @@ def scenario(n: int, k: int, seed: int = 0):
     rng = np.random.default_rng(seed)
     offsets = np.zeros((n, 3))
     offsets[1:] = formation_offsets("grid", n - 1, SPACING)
-    ctl = FleetController(n, 0, offsets, np.array([[5000.0, 0.0, 50.0]]), control_dt=DT)
+    ctl = FleetController(
+        n, 0, offsets, np.array([[5000.0, 0.0, 50.0]]), control_dt=DT, z_min=5.0,
+        dead_gcs=DeadGcsParams(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0),
+    )  # fmt: skip
     pos = offsets + np.array([0.0, 0.0, 50.0]) + rng.normal(0.0, 0.5, (n, 3))
     vel = np.tile([8.0, 0.0, 0.0], (n, 1)) + rng.normal(0.0, 0.3, (n, 3))
     att = np.zeros((n, 3))
@@ -68,11 +77,43 @@ def time_ticks(n: int, k: int, repeats: int, ticks: int) -> list[float]:
     return out
 
 
+GUARD = CommandLimits(math.radians(35.0), 2.0, 5.0, 7000.0, 400.0)
+
+
+def time_guard(n: int, k: int, repeats: int, ticks: int) -> list[float]:
+    """Per-tick seconds of the command guard for one tick's command (formation_tick: unboosted thrust,
+    normalised thrust, guard_attitude_commands), one median per repeat."""
+    ctl, pos, vel, att, centres, radii = scenario(n, k)
+    cmd = ctl.tick(0.0, pos, vel, att, centres, radii, np.ones(n, dtype=bool))
+    hover, boost = np.full(n, 0.45), np.arange(n) % 2 == 0
+    out = []
+    for _ in range(repeats):
+        samples = []
+        for _ in range(ticks):
+            start = time.perf_counter()
+            acc = ardupilot.unboosted_thrust(cmd.thrust_acc, att[:, 0], att[:, 1], boost)
+            thrust = ardupilot.thrust_from_acc(np.nan_to_num(acc), hover, G)
+            guard_attitude_commands(
+                cmd.roll_d, cmd.pitch_d, cmd.yaw_d, thrust, pos, att[:, 2], hover, GUARD, vel=vel
+            )
+            samples.append(time.perf_counter() - start)
+        out.append(statistics.median(samples))
+    return out
+
+
+def spread(seconds: list[float]) -> tuple[float, str]:
+    """Median in ms and "median (min..max)" of per-repeat medians in seconds."""
+    ms = [x * 1e3 for x in seconds]
+    med = statistics.median(ms)
+    return med, f"{med:.3f} ({min(ms):.3f}..{max(ms):.3f})"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7, help="repeats per case (median and spread)")
     parser.add_argument("--ticks", type=int, default=50, help="ticks timed per repeat")
     parser.add_argument("--quick", action="store_true", help="3 repeats of 20 ticks")
+    parser.add_argument("--max-n", type=int, default=1000, help="skip fleets larger than this")
     args = parser.parse_args()
     repeats, ticks = (3, 20) if args.quick else (args.repeats, args.ticks)
     fp = FieldParams()
@@ -81,17 +122,17 @@ def main() -> None:
     )
     print()
     columns = ("N", "K", "obstacle pairs < l0", "UAV pairs < D_max", "ms / tick (min..max)", "us / vehicle")
-    print("| " + " | ".join(columns) + " | 50 Hz load |")
-    print("|---|---|---|---|---|---|---|")
-    for n in (9, 100, 1000):
-        for k in (10, 100):
-            ctl, pos, _, _, centres, radii = scenario(n, k)
-            n_obs, n_uav = close_pairs(pos, centres, radii, fp.l0, ctl.d_max)
-            per_tick = [x * 1e3 for x in time_ticks(n, k, repeats, ticks)]
-            med = statistics.median(per_tick)
-            cost = f"{med:.3f} ({min(per_tick):.3f}..{max(per_tick):.3f})"
-            load = med / (DT * 1e3) * 100
-            print(f"| {n} | {k} | {n_obs} | {n_uav} | {cost} | {med / n * 1e3:.1f} | {load:.1f} % |")
+    print("| " + " | ".join(columns) + " | 50 Hz load | guard ms / tick (min..max) |")
+    print("|---|---|---|---|---|---|---|---|")
+    small = [(n, k) for n in (3, 6, 9) for k in (0, 10)]
+    large = [(n, k) for n in (9, 100, 1000) for k in (10, 100) if (n, k) not in small]
+    for n, k in [case for case in small + large if case[0] <= args.max_n]:
+        ctl, pos, _, _, centres, radii = scenario(n, k)
+        n_obs, n_uav = close_pairs(pos, centres, radii, fp.l0, ctl.d_max)
+        med, cost = spread(time_ticks(n, k, repeats, ticks))
+        _, guard = spread(time_guard(n, k, repeats, ticks))
+        load = med / (DT * 1e3) * 100
+        print(f"| {n} | {k} | {n_obs} | {n_uav} | {cost} | {med / n * 1e3:.1f} | {load:.1f} % | {guard} |")
 
 
 if __name__ == "__main__":

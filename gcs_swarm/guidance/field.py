@@ -12,6 +12,7 @@ import numpy as np
 from gcs_swarm.guidance import apf, iaapf
 from gcs_swarm.guidance.obstacles import squared_distances
 from gcs_swarm.guidance.params import FieldParams
+from gcs_swarm.guidance.vector_ops import row_norms
 
 HEAD_ON_BIAS = 0.05  # share of the right-hand side mixed into the way round, so a dead-ahead obstacle has one
 
@@ -60,7 +61,7 @@ def obstacle_repulsion(
         at = q[i]
     else:
         # candidates: obstacles within reach of the segment's bounding sphere, then the exact nearest point
-        middle, half = 0.5 * (q + ahead), 0.5 * np.linalg.norm(ahead - q, axis=1)
+        middle, half = 0.5 * (q + ahead), 0.5 * row_norms(ahead - q)
         bound = reach[None, :] + half[:, None]
         i, k = np.nonzero(squared_distances(middle, centres) <= bound * bound)
         at = nearest_on_segments(q, ahead, i, centres[k])
@@ -77,7 +78,7 @@ def obstacle_repulsion(
     on_centre = d == 0.0
     n_o = diff / np.where(on_centre, 1.0, d)[:, None]
     n_o[on_centre, -1] = 1.0
-    rho, n_g = iaapf.goal_distance(at[near], np.broadcast_to(dest, q.shape)[i])
+    rho, n_g = iaapf.goal_distance(at[near], dest[i] if dest.ndim == 2 else dest)
     if fp.method == "apf":
         f1 = apf.repulsion_scale(l, fp.k_rep, fp.l0)
         pair = f1[:, None] * n_o
@@ -105,7 +106,7 @@ def circulation(f1: np.ndarray, n_o: np.ndarray, n_g: np.ndarray, gain: float) -
     toward_goal = n_g - np.einsum("pd,pd->p", n_g, n_o)[:, None] * n_o
     toward_goal[:, 2] = 0.0
     side = toward_goal + HEAD_ON_BIAS * np.einsum("pd,pd->p", across, across)[:, None] * across
-    length = np.linalg.norm(side, axis=1)
+    length = row_norms(side)
     unit = np.divide(side, length[:, None], out=np.zeros_like(side), where=length[:, None] > 0.0)
     blocking = np.maximum(-np.einsum("pd,pd->p", n_o, n_g), 0.0)
     return (gain * f1 * blocking)[:, None] * unit

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_swarm.guidance.obstacles import surface_geometry
+from gcs_swarm.guidance.vector_ops import row_norms
 
 
 def segmented_attraction_potential(q: np.ndarray, goal: np.ndarray, k_att: float, d_g: float) -> np.ndarray:
@@ -29,7 +30,7 @@ def segmented_attraction_force(q: np.ndarray, goal: np.ndarray, k_att: float, d_
 def goal_distance(q: np.ndarray, dest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """rho (N,) = |q - g| and n_g (N, D) unit vector toward g (zero at the goal)."""
     d = dest - q
-    rho = np.linalg.norm(d, axis=-1)
+    rho = row_norms(d)
     n_g = d / np.where(rho > 0.0, rho, 1.0)[:, None]
     return rho, n_g
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_swarm.guidance.params import G, Limits
+from gcs_swarm.guidance.vector_ops import row_norms
 
 THRUST_MODES = ("measured", "norm")
 
@@ -60,7 +61,7 @@ def invert(
     """
     ul = limit_thrust_vector(u, limits, g)
     cy, sy = np.cos(yaw), np.sin(yaw)
-    norm = np.linalg.norm(ul, axis=1)
+    norm = row_norms(ul)
     pitch = np.arctan2(ul[:, 0] * cy + ul[:, 1] * sy, ul[:, 2])
     roll = np.arcsin(np.clip((ul[:, 0] * sy - ul[:, 1] * cy) / norm, -1.0, 1.0))
     if measured_roll is None or measured_pitch is None:

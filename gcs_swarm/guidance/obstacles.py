@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gcs_swarm.guidance.vector_ops import column_mean
+
 
 @dataclass(frozen=True)
 class SurfaceGeometry:
@@ -46,7 +48,7 @@ def squared_distances(q: np.ndarray, points: np.ndarray) -> np.ndarray:
     """|q_i - points_k|^2 (N, K) by one matrix product about the points' centroid, so the cancellation error
     stays near 1e-16 * (extent of the scene)^2; callers recompute exact differences for the pairs that matter.
     NaN rows of q give NaN rows."""
-    origin = points.mean(axis=0) if len(points) else 0.0
+    origin = column_mean(points) if len(points) else 0.0
     a = q - origin
     b = points - origin
     d2 = np.einsum("nd,nd->n", a, a)[:, None] + np.einsum("kd,kd->k", b, b)[None, :] - 2.0 * (a @ b.T)

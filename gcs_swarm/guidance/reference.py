@@ -13,6 +13,7 @@ import numpy as np
 
 from gcs_swarm.guidance.params import FieldParams, G, Limits, ReferenceParams
 from gcs_swarm.guidance.shaping import shape_vel_accel, shape_vel_accel_xy, sqrt_controller
+from gcs_swarm.guidance.vector_ops import row_norms
 
 
 def default_d_g(field: FieldParams, v_max: float, k_v: float) -> float:
@@ -24,9 +25,10 @@ def saturate_split(vec: np.ndarray, xy_max: np.ndarray | float, z_max: float) ->
     """Scale the horizontal part of vec (N, 3) to norm <= xy_max (N,) or scalar; clip z to +-z_max."""
     out = np.array(vec, dtype=float)
     xy = np.hypot(out[:, 0], out[:, 1])
-    cap = np.broadcast_to(xy_max, xy.shape)
-    over = xy > cap
-    out[over, :2] *= (cap[over] / xy[over])[:, None]
+    over = xy > xy_max
+    if over.any():
+        cap = xy_max[over] if isinstance(xy_max, np.ndarray) and xy_max.ndim else xy_max
+        out[over, :2] *= (cap / xy[over])[:, None]
     out[:, 2] = np.clip(out[:, 2], -z_max, z_max)
     return out
 
@@ -37,7 +39,7 @@ def paper_literal_reference(
     """Spec 8 option `paper_literal` (Eq 53 as printed): x_d = s_i + K_f sum F_rep with K_f = 1/k_att and
     |K_f sum F_rep| <= l0, xd_dot = v_i^s, xd_ddot = 0. Returns (x_d, xd_dot, xd_ddot), each (N, 3)."""
     shift = f_rep / k_att
-    size = np.linalg.norm(shift, axis=1)
+    size = row_norms(shift)
     over = size > l0
     shift[over] *= (l0 / size[over])[:, None]
     return slots + shift, np.array(slot_vel, dtype=float), np.zeros_like(slots)
@@ -78,7 +80,7 @@ class ReferenceGenerator:
         """Step 6: put references farther than `leash` m from their vehicle (N, 3) back on that sphere
         (only the (N,) bool-selected rows)."""
         gap = self.p - pos
-        dist = np.linalg.norm(gap, axis=1)
+        dist = row_norms(gap)
         over = rows & (dist > self.params.leash)
         self.p[over] = pos[over] + gap[over] * (self.params.leash / dist[over])[:, None]
 
@@ -112,7 +114,7 @@ class ReferenceGenerator:
         the reference can stop at the target. d is the distance less what the reference covers, at its
         present approach speed (from v_now_rel (N, 3)), while its deceleration ramps up to stop_accel at
         jerk_max. Near the target this is spec 8 step 3 (v = K_v (T - p)); the field itself is unchanged."""
-        dist = np.linalg.norm(to_target, axis=1)
+        dist = row_norms(to_target)
         unit = np.divide(to_target, dist[:, None], out=np.zeros_like(to_target), where=dist[:, None] > 0.0)
         if self.params.jerk_max > 0.0:
             approach = np.maximum(np.einsum("nd,nd->n", v_now_rel, unit), 0.0)
@@ -129,7 +131,7 @@ class ReferenceGenerator:
         a_b = self.params.brake_accel
         if a_b <= 0.0:
             return self.p
-        speed = np.linalg.norm(self.v, axis=1)
+        speed = row_norms(self.v)
         return self.p + self.v * (speed / (2.0 * a_b))[:, None]
 
     def step(

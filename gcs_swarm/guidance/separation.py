@@ -11,6 +11,7 @@ import numpy as np
 
 from gcs_swarm.guidance.obstacles import squared_distances
 from gcs_swarm.guidance.params import SeparationParams
+from gcs_swarm.guidance.vector_ops import row_norms
 
 DENSE_PAIRS_MAX = 40_000  # above this many (i, j) candidates, use the hash grid instead of a dense product
 
@@ -168,7 +169,7 @@ def uav_repulsion(
     sweep = at_vel is not None and brake_accel > 0.0
     if sweep:
         assert at_vel is not None
-        rel_speed_max = np.nanmax(np.linalg.norm(at_vel, axis=1)) + np.nanmax(np.linalg.norm(vel, axis=1))
+        rel_speed_max = np.nanmax(row_norms(at_vel)) + np.nanmax(row_norms(vel))
         reach = d_max + rel_speed_max * rel_speed_max / (4.0 * brake_accel)
     else:
         reach = d_max
@@ -203,7 +204,7 @@ def uav_repulsion(
     if sep.mode == "constant":
         d_emg = np.full(len(i), min(sep.d_emg, d_max))
     else:
-        v_re = np.linalg.norm(vel[i] - vel[j], axis=-1)
+        v_re = row_norms(vel[i] - vel[j])
         d_emg = np.minimum(d_emg_formula(v_re, sep.a_e, sep.s_s), d_max)
     in_emg = l <= d_emg
     if dim == 3:

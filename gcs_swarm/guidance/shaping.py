@@ -25,19 +25,24 @@ def sqrt_controller(
     `L / p^2` (L = second_order_limit), never more than |error| / dt (control.cpp `sqrt_controller`).
     `p` and `L` are scalars or (N,) arrays; L <= 0 means no second-order limit (linear)."""
     error = np.asarray(error, dtype=float)
-    p = np.broadcast_to(np.asarray(p, dtype=float), error.shape)
-    limit = np.broadcast_to(np.asarray(second_order_limit, dtype=float), error.shape)
+    p = np.asarray(p, dtype=float)
+    limit = np.asarray(second_order_limit, dtype=float)
     size = np.abs(error)
-    root_only = np.sign(error) * np.sqrt(2.0 * np.maximum(limit, 0.0) * size)
+    linear = error * p
+    two_limit = 2.0 * np.maximum(limit, 0.0)  # 2 L, no second-order limit below 0
     p_sq = p * p
-    linear_dist = np.divide(limit, p_sq, out=np.full_like(size, np.inf), where=p_sq > 0.0)
+    linear_dist = np.divide(limit, p_sq, out=np.full(size.shape, np.inf), where=p_sq > 0.0)
     beyond = np.maximum(size - 0.5 * linear_dist, 0.0)
-    hybrid_root = np.sign(error) * np.sqrt(2.0 * np.maximum(limit, 0.0) * beyond)
-    rate = np.where(size > linear_dist, hybrid_root, error * p)
-    rate = np.where(p == 0.0, root_only, rate)
-    rate = np.where(limit <= 0.0, error * p, rate)
+    direction = np.sign(error)
+    rate = np.where(size > linear_dist, direction * np.sqrt(two_limit * beyond), linear)
+    no_gain = p == 0.0
+    if no_gain.any():
+        rate = np.where(no_gain, direction * np.sqrt(two_limit * size), rate)
+    no_limit = limit <= 0.0
+    if no_limit.any():
+        rate = np.where(no_limit, linear, rate)
     if dt > 0.0:
-        bound = np.abs(error) / dt
+        bound = size / dt
         rate = np.clip(rate, -bound, bound)
     return rate
 
@@ -55,8 +60,7 @@ def sqrt_controller_xy(
 def limit_length(vec: np.ndarray, limit: np.ndarray | float) -> np.ndarray:
     """Vectors (N, 2) shortened to at most `limit` (N,) or scalar, keeping their direction."""
     length = np.hypot(vec[:, 0], vec[:, 1])
-    cap = np.broadcast_to(np.asarray(limit, dtype=float), length.shape)
-    scale = np.divide(cap, length, out=np.ones_like(length), where=length > cap)
+    scale = np.divide(limit, length, out=np.ones_like(length), where=length > limit)
     return vec * scale[:, None]
 
 
@@ -76,8 +80,8 @@ def shape_vel_accel_xy(
     When the demand has a direction, up to 1/sqrt(2) of `accel_max` is reserved for the cross-track part,
     so that a turn is not starved by the along-track acceleration (ArduPilot's corner rule). Limits are
     scalars or (N,) arrays (per vehicle)."""
-    accel_max = np.broadcast_to(np.asarray(accel_max, dtype=float), vel.shape[:1])
-    jerk_max = np.broadcast_to(np.asarray(jerk_max, dtype=float), vel.shape[:1])
+    accel_max = np.asarray(accel_max, dtype=float)
+    jerk_max = np.asarray(jerk_max, dtype=float)
     kpa = jerk_max / accel_max
     target = sqrt_controller_xy(vel_input - vel, kpa, jerk_max, dt)
     speed_in = np.hypot(vel_input[:, 0], vel_input[:, 1])
@@ -106,9 +110,10 @@ def shape_vel_accel(
     """One axis (N,): next acceleration toward `vel_input`, total within +-accel_max and changing at most
     `jerk_max * dt` per step (control.cpp `shape_vel_accel` with symmetric limits and limit_total_accel).
     Limits are scalars or (N,) arrays."""
-    accel_max = np.broadcast_to(np.asarray(accel_max, dtype=float), vel.shape)
-    jerk_max = np.broadcast_to(np.asarray(jerk_max, dtype=float), vel.shape)
+    accel_max = np.asarray(accel_max, dtype=float)
+    jerk_max = np.asarray(jerk_max, dtype=float)
     kpa = jerk_max / accel_max
     target = np.clip(sqrt_controller(vel_input - vel, kpa, jerk_max, dt), -accel_max, accel_max)
     target = np.clip(target + accel_input, -accel_max, accel_max)
-    return accel + np.clip(target - accel, -jerk_max * dt, jerk_max * dt)
+    jerk_step = jerk_max * dt
+    return accel + np.clip(target - accel, -jerk_step, jerk_step)

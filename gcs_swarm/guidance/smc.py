@@ -29,6 +29,7 @@ import numpy as np
 
 from gcs_swarm.guidance.inversion import limit_thrust_vector
 from gcs_swarm.guidance.params import G, Limits, SMCAxisGains, SMCParams
+from gcs_swarm.guidance.vector_ops import row_norms
 
 
 def _per_axis(params: SMCParams, name: str) -> np.ndarray:
@@ -93,7 +94,7 @@ def winding(u: np.ndarray, step: np.ndarray, limits: Limits, g: float = G) -> np
     |U| <= thrust_max_g g); z below the U_z floor (limit 1) or above the thrust cap [add]."""
     floor = limits.uz_min_g * g
     tilted = np.hypot(u[:, 0], u[:, 1]) > np.maximum(u[:, 2], floor) * np.tan(limits.tilt_max)
-    capped = np.linalg.norm(limit_thrust_vector(u, limits, g), axis=1) > limits.thrust_max_g * g
+    capped = row_norms(limit_thrust_vector(u, limits, g)) > limits.thrust_max_g * g
     out = np.empty(u.shape, dtype=bool)
     out[:, :2] = (tilted | capped)[:, None] & (step[:, :2] * u[:, :2] > 0)
     out[:, 2] = ((u[:, 2] < floor) & (step[:, 2] < 0)) | (capped & (step[:, 2] > 0))

@@ -53,7 +53,7 @@ def guard_attitude_commands(
     vel: (N,3) ENU m/s, lets a vehicle outside the fence brake (None, or a NaN row: no outward tilt at all).
     """
     r, p, y, t = (np.array(a, dtype=float) for a in (roll, pitch, yaw, thrust))
-    hover = np.broadcast_to(np.asarray(hover, dtype=float), r.shape)
+    hover = np.asarray(hover, dtype=float)
     bad = ~(np.isfinite(r) & np.isfinite(p) & np.isfinite(y) & np.isfinite(t))
     r[bad], p[bad], t[bad] = 0.0, 0.0, hover[bad]
     y[bad] = np.nan_to_num(np.asarray(measured_yaw, dtype=float)[bad])

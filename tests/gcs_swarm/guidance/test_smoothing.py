@@ -38,6 +38,20 @@ def test_sqrt_controller_is_linear_near_zero_and_a_braking_curve_beyond():
     np.testing.assert_allclose(sqrt_controller(np.array([4.5]), 0.0, 8.0, 0.0), [math.sqrt(72.0)])
 
 
+def test_sqrt_controller_takes_gains_and_limits_per_row():
+    """(N,) gains and limits: each row follows its own branch, as the scalar calls above (p = 2, L = 8:
+    linear 2 e to e = 2 then sqrt(16 (e - 1)); p = 0: sqrt(2 L e); L = 0 or below: linear), and the |e| / dt
+    cap acts per row (p = 100 gives 0.1 for e = 0.001, capped at 0.001 / 0.02 = 0.05)."""
+    e = np.array([0.5, 5.0, 4.5, -3.0, -3.0, 0.001])
+    p = np.array([2.0, 2.0, 0.0, 1.5, 1.5, 100.0])
+    limit = np.array([8.0, 8.0, 8.0, 0.0, -1.0, 8.0])
+    rate = sqrt_controller(e, p, limit, 0.02)
+    np.testing.assert_allclose(rate, [1.0, 8.0, math.sqrt(72.0), -4.5, -4.5, 0.05])
+    for row in range(len(e)):  # bit for bit the same as the row on its own, with scalar gains
+        alone = sqrt_controller(e[row : row + 1], float(p[row]), float(limit[row]), 0.02)
+        assert alone.tobytes() == rate[row : row + 1].tobytes()
+
+
 def test_a_velocity_step_is_shaped_within_accel_and_jerk_without_overshoot():
     """From rest to 10 m/s with A = 4 m/s^2, J = 5 m/s^3: |a| <= A, |da| <= J dt each step, the velocity never
     passes 10 m/s, and it reaches 99 % no sooner than the time-optimal profile dv / A + A / J = 2.5 + 0.8 =
