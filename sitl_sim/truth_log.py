@@ -34,6 +34,11 @@ class TruthLog:
     def __init__(self, path: Path, sysids: np.ndarray) -> None:
         self.path = path
         self.sysids = np.asarray(sysids, dtype=float)
+        n = len(self.sysids)
+        self._table = np.empty((n, 24))  # one sample, the columns of VEHICLE_HEADER (filled in place)
+        self._table[:, 1] = np.arange(n)
+        self._table[:, 2] = self.sysids
+        self._rows = VEHICLE_ROW * n
         self.vehicles = open(path, "w", encoding="ascii", newline="")  # noqa: SIM115 - closed in close()
         self.obstacles = open(obstacles_path(path), "w", encoding="ascii", newline="")  # noqa: SIM115
         self.vehicles.write(VEHICLE_HEADER + "\n")
@@ -53,11 +58,15 @@ class TruthLog:
     ) -> None:
         """One sample at t (s): pos, vel, euler (N,3), quat (N,4), motor (N,4), flags (N,4) = mode, armed,
         crashed, landed; obstacle centres (K,3) and radii (K,)."""
-        n = len(pos)
-        table = np.column_stack(
-            (np.full(n, t), np.arange(n), self.sysids, pos, vel, quat, euler, motor, flags.astype(float))
-        )
-        self.vehicles.write((VEHICLE_ROW * n) % tuple(table.ravel().tolist()))
+        table = self._table
+        table[:, 0] = t
+        table[:, 3:6] = pos
+        table[:, 6:9] = vel
+        table[:, 9:13] = quat
+        table[:, 13:16] = euler
+        table[:, 16:20] = motor
+        table[:, 20:24] = flags
+        self.vehicles.write(self._rows % tuple(table.ravel().tolist()))
         k = len(obstacle_radii)
         if k:
             rows = np.column_stack((np.full(k, t), np.arange(k), obstacle_centers, obstacle_radii))

@@ -384,7 +384,11 @@ class Autopilot:
         return True
 
     def set_attitude_target(
-        self, i: int, quat: np.ndarray | None, rates: np.ndarray | None, thrust: float
+        self,
+        i: int,
+        quat: tuple[float, float, float, float] | None,
+        rates: tuple[float, float, float] | None,
+        thrust: float,
     ) -> bool:
         """GUIDED/GUIDED_NOGPS attitude target: quat (4,) FLU->ENU or None (rates only), rates (3,) FLU
         rad/s or None, thrust 0..1 (a climb-rate demand, 0.5 = hold, unless GUID_OPTIONS bit 3); False if
@@ -439,16 +443,8 @@ class Autopilot:
         """One outer tick at simulated time t (s) covering dt (s): modes, control, targets to the physics."""
         self.t = t
         self.ready = t >= self.ready_at
-        # AP_Arming::update: a vehicle that cannot arm says why every PREARM_DISPLAY_PERIOD (30 s) by itself
-        due = (
-            ~self.ready
-            & ~self.armed
-            & (t - self.prearm_said >= PREARM_DISPLAY_PERIOD_S)
-            & (t >= self.boot_end)
-        )
-        for i in np.flatnonzero(due):
-            self.say(int(i), mavlink2.MAV_SEVERITY_CRITICAL, "PreArm: Need Position Estimate")
-            self.prearm_said[i] = t
+        if not self.ready.all():  # AP_Arming::update: a vehicle that cannot arm says why every
+            self._prearm_reports(t)  # PREARM_DISPLAY_PERIOD (30 s) by itself
         outer_loop(t, dt, self.dyn.params.g, self.params.values, self._columns, *self._loop_arrays)
         self.dyn.set_targets(
             self._quat_sp,
@@ -464,6 +460,19 @@ class Autopilot:
             self._handle_event(int(i), int(self._events[i]))
         if t - self.fence.last_check >= fences.CHECK_PERIOD_S - 1e-9:
             self._fence_check(t)
+
+    def _prearm_reports(self, t: float) -> None:
+        """Unprompted "PreArm: Need Position Estimate" of the vehicles without a position estimate, disarmed,
+        booted, whose last report is PREARM_DISPLAY_PERIOD_S old (simulated s)."""
+        due = (
+            ~self.ready
+            & ~self.armed
+            & (t - self.prearm_said >= PREARM_DISPLAY_PERIOD_S)
+            & (t >= self.boot_end)
+        )
+        for i in np.flatnonzero(due):
+            self.say(int(i), mavlink2.MAV_SEVERITY_CRITICAL, "PreArm: Need Position Estimate")
+            self.prearm_said[i] = t
 
     def _fence_check(self, t: float) -> None:
         """ArduCopter/fence.cpp at 25 Hz: AC_Fence::check for every vehicle (sitl_sim.autopilot.fence), then

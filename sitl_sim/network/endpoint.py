@@ -26,6 +26,7 @@ from sitl_sim.network.outbox import Outbox
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.setpoints import SetpointHandlers
 from sitl_sim.network.streams import Framer
+from swarm_common.mavlink_datagrams import decode_leading_packets
 from swarm_common.signing import is_signature_rejection
 
 logger = logging.getLogger(__name__)
@@ -37,6 +38,15 @@ LOCKSTEP_ANSWERS = (
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED,
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT,
 )
+LINK_PARAMS = (  # the order of link_rates and of FaultChannel's rates
+    "SIM_LINK_LOSS",
+    "SIM_LINK_DUP",
+    "SIM_LINK_CORRUPT",
+    "SIM_LINK_REORDER",
+    "SIM_LINK_DELAY",
+    "SIM_LINK_JITTER",
+)
+NO_LINK_FAULTS = (0.0,) * len(LINK_PARAMS)
 Handler = Callable[[mavlink2.MAVLink_message, tuple[str, int]], None]
 
 
@@ -74,6 +84,7 @@ class VehicleEndpoint:
         self.clock_rx = signing.new_parser(signing_key)  # reads lockstep answers before the faulty link
         self.signer = None if signing_key is None else signing.FrameSigner(signing_key)
         self.channel = FaultChannel(seed, index, outages)
+        self._link_columns = [sim.params.column_index(name) for name in LINK_PARAMS]
         self.outbox = Outbox(Framer(sysid, 1))
         self.peers: dict[tuple[str, int], float] = {}
         self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
@@ -138,20 +149,10 @@ class VehicleEndpoint:
         """This vehicle's SIM_LINK_* values: loss, dup, corrupt, reorder, delay_ms, jitter_ms (all zero while
         a lockstep simulator waits at boot for its clients, as delays in simulated time could not elapse, and
         before --link-from)."""
-        if self.sim.lockstep is not None and not self.sim.lockstep_started or self.sim.t < self.link_from_s:
-            return (0.0,) * 6
-        p, i = self.sim.params, self.index
-        return tuple(
-            p.value(i, name)
-            for name in (
-                "SIM_LINK_LOSS",
-                "SIM_LINK_DUP",
-                "SIM_LINK_CORRUPT",
-                "SIM_LINK_REORDER",
-                "SIM_LINK_DELAY",
-                "SIM_LINK_JITTER",
-            )
-        )
+        sim = self.sim
+        if sim.lockstep is not None and not sim.lockstep_started or sim.t < self.link_from_s:
+            return NO_LINK_FAULTS
+        return tuple(sim.params.values[self.index, self._link_columns].tolist())
 
     def _deliver_due(self, wall_now: float) -> int:
         """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""
@@ -167,7 +168,7 @@ class VehicleEndpoint:
         if self.sim.lockstep is None:
             return
         try:
-            messages = self.clock_rx.parse_buffer(data) or []
+            messages = parse_datagram(self.clock_rx, data)
         except Exception:  # noqa: BLE001 - hostile bytes: the radio path counts them
             messages = []
         _reset_parser(self.clock_rx)
@@ -177,7 +178,7 @@ class VehicleEndpoint:
 
     def handle_datagram(self, data: bytes, addr: tuple[str, int], wall_now: float) -> None:
         try:
-            messages = self.rx.parse_buffer(data) or []
+            messages = parse_datagram(self.rx, data)
         except Exception:  # noqa: BLE001 - a parser failure on hostile bytes must not stop the vehicle
             messages = []
             self.counters.bad_frames += 1
@@ -237,14 +238,7 @@ class VehicleEndpoint:
                 packets.append(tick if self.signer is None else self.signer.sign(tick))
         if not packets:
             return
-        datagrams: list[bytes] = []
-        chunk = bytearray()
-        for packet in packets:
-            if chunk and len(chunk) + len(packet) > MAX_DATAGRAM:
-                datagrams.append(bytes(chunk))
-                chunk = bytearray()
-            chunk += packet
-        datagrams.append(bytes(chunk))
+        datagrams = _batched(packets)
         for addr, heard in list(self.peers.items()):
             if wall_now - heard > PEER_TIMEOUT_S:
                 del self.peers[addr]
@@ -254,6 +248,32 @@ class VehicleEndpoint:
                     self.sock.sendto(datagram, addr)
                 except OSError:  # peer gone or buffer full: UDP is lossy, the next stream sample follows
                     break
+
+
+def _batched(packets: list[bytes]) -> list[bytes]:
+    """Packets in order, joined into datagrams of at most MAX_DATAGRAM bytes (a longer packet alone)."""
+    if sum(map(len, packets)) <= MAX_DATAGRAM:
+        return [b"".join(packets)]
+    datagrams: list[bytes] = []
+    chunk = bytearray()
+    for packet in packets:
+        if chunk and len(chunk) + len(packet) > MAX_DATAGRAM:
+            datagrams.append(bytes(chunk))
+            chunk = bytearray()
+        chunk += packet
+    datagrams.append(bytes(chunk))
+    return datagrams
+
+
+def parse_datagram(parser: mavlink2.MAVLink, data: bytes) -> list[mavlink2.MAVLink_message]:
+    """The messages `parser.parse_buffer(data)` returns for one whole datagram (its buffer empty before): the
+    whole MAVLink 2 packets it starts with straight through pymavlink's decode
+    (swarm_common.mavlink_datagrams), the rest through parse_buffer, which leaves a truncated packet ending
+    the datagram in the parser's buffer; raises what parse_buffer raises."""
+    messages, start = decode_leading_packets(parser, data)
+    if start < len(data):
+        messages += parser.parse_buffer(data[start:]) or []
+    return messages
 
 
 def _reset_parser(parser: mavlink2.MAVLink) -> None:

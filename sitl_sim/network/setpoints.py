@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot import modes
@@ -166,17 +165,15 @@ class SetpointHandlers:
             return
         quat = None
         if not mask & ATTITUDE_IGNORE:
-            q = np.array(msg.q, dtype=float)
-            if abs(float(q @ q) - 1.0) >= 1e-3:  # ArduPilot Quaternion::is_unit_length
+            w, x, y, z = msg.q
+            if abs(w * w + x * x + y * y + z * z - 1.0) >= 1e-3:  # ArduPilot Quaternion::is_unit_length
                 self.counters.refused += 1
                 return
-            quat = swap_quat_enu_ned(q)
+            quat = swap_quat_enu_ned(msg.q)
         rate_bits = mask & RATES_IGNORE
         if rate_bits not in (0, RATES_IGNORE):  # some but not all rates ignored: ill-defined, stop
             self.counters.refused += 1
             autopilot.guided_stop(self.index)
             return
-        rates = (
-            None if rate_bits else np.array([msg.body_roll_rate, -msg.body_pitch_rate, -msg.body_yaw_rate])
-        )
+        rates = None if rate_bits else (msg.body_roll_rate, -msg.body_pitch_rate, -msg.body_yaw_rate)
         autopilot.set_attitude_target(self.index, quat, rates, msg.thrust)

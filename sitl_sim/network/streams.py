@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pymap3d
+from fastcrc.crc16 import mcrf4xx as _mcrf4xx  # pymavlink's x25crc: CRC-16/MCRF4XX from 0xFFFF
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.vehicle_model.jit import njit
@@ -68,13 +70,14 @@ DATA_STREAM_GROUPS[mavlink2.MAV_DATA_STREAM_ALL] = tuple(
 SQRT_HALF = math.sqrt(0.5)
 
 
-def swap_quat_enu_ned(q: np.ndarray) -> np.ndarray:
-    """Body FLU->ENU quaternions (..., 4) [w,x,y,z] <-> body FRD->NED ones (the map is its own inverse).
+def swap_quat_enu_ned(q: Sequence[float]) -> tuple[float, float, float, float]:
+    """One body FLU->ENU quaternion (4,) [w,x,y,z] <-> the body FRD->NED one (the map is its own inverse).
 
     q_ned = q(ENU->NED) * q * q(FRD->FLU), both fixed rotations being half turns (about (1,1,0)/sqrt 2 and x).
+    Scalar arithmetic (one setpoint at a time): the same float64 operations as ned_telemetry's.
     """
-    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
-    return SQRT_HALF * np.stack((w + z, x + y, x - y, w - z), axis=-1)
+    w, x, y, z = (float(c) for c in q)
+    return SQRT_HALF * (w + z), SQRT_HALF * (x + y), SQRT_HALF * (x - y), SQRT_HALF * (w - z)
 
 
 @njit(cache=True)
@@ -215,7 +218,7 @@ class StreamSchedule:
         rows, cols = np.nonzero(mask)
         interval = self.interval_us[rows, cols]
         self.next_due_us[rows, cols] = (now_us // interval + 1) * interval
-        return [(int(r), STREAM_IDS[c]) for r, c in zip(rows, cols, strict=True)]
+        return [(r, STREAM_IDS[c]) for r, c in zip(rows.tolist(), cols.tolist(), strict=True)]
 
 
 class Framer:
@@ -246,8 +249,7 @@ class Framer:
         )
         mav.seq = (mav.seq + 1) % 256
         body = header + payload
-        crc = mavlink2.x25crc(body[1:] + bytes((cls.crc_extra,)))
-        return body + self.CRC.pack(crc.crc)
+        return body + self.CRC.pack(_mcrf4xx(body[1:] + bytes((cls.crc_extra,)), 0xFFFF))
 
 
 class TelemetryView:

@@ -200,7 +200,7 @@ class FleetDynamics:
         tilt = np.asarray(tilt_max, dtype=float)
         if tilt.shape not in ((), (n,)):
             raise ValueError(f"tilt_max must be a scalar or have shape ({n},), not {tilt.shape}")
-        tilt = np.ascontiguousarray(np.broadcast_to(tilt, (n,)))
+        tilt = np.full(n, tilt) if tilt.shape == () else np.ascontiguousarray(tilt)
         hover = self.params.mass * self.params.g
         if self.backend == "numba":
             self._store_targets(
