@@ -5,6 +5,7 @@ and its packet statistics."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
@@ -12,6 +13,7 @@ from gcs_swarm.link import signing
 from gcs_swarm.link.autopilots import DEFAULT_DIALECT, AutopilotDialect
 from gcs_swarm.link.connection import Endpoint, LinkError, MAVLinkMessage
 from gcs_swarm.link.tlog import TlogWriter
+from swarm_common.mavlink_codec import Packer
 
 
 @dataclass
@@ -70,9 +72,19 @@ class Channel:
         """Pack (GCS sysid/compid, this link's sequence) and send one message; it goes to the tlog too."""
         if self.endpoint is None:
             raise LinkError(f"{self.name} is not connected")
-        packet = msg.pack(self.mav)
+        self._transmit(self.endpoint, msg.pack(self.mav))
+
+    def send_packed(self, packer: Packer, *values: Any) -> None:
+        """`send` of a message of `packer`'s class with field `values` in wire order (ordered_fieldnames,
+        arrays flattened): the same bytes and encoder state, packed at a fraction of pymavlink's cost."""
+        if self.endpoint is None:
+            raise LinkError(f"{self.name} is not connected")
+        self._transmit(self.endpoint, packer.pack(self.mav, *values))
+
+    def _transmit(self, endpoint: Endpoint, packet: bytes) -> None:
+        """Advance the sequence past `packet` and send it (to the tlog too), counting it sent or unsent."""
         self.mav.seq = (self.mav.seq + 1) % 256
-        if self.endpoint.send(packet, self.sysid if self.sysid is not None else self.expected_sysid):
+        if endpoint.send(packet, self.sysid if self.sysid is not None else self.expected_sysid):
             self.stats.sent += 1
             if self.tlog is not None:
                 self.tlog.write(packet)

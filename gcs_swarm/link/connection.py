@@ -29,6 +29,8 @@ from typing import Any, TypeAlias
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from swarm_common import mavlink_codec
+from swarm_common.mavlink_datagrams import v2_packet_end
 from swarm_common.signing import VerifyingParser
 
 MAVLinkMessage: TypeAlias = mavlink2.MAVLink_message
@@ -97,41 +99,34 @@ def new_parser(key: bytes | None = None) -> mavlink2.MAVLink:
     return parser
 
 
-def _v2_packet_end(data: bytes, start: int) -> int | None:
-    """End offset of the MAVLink 2 packet at data[start:] when it is whole (length from its own header) and
-    has no incompatibility flag but signing, i.e. a packet pymavlink's parse_buffer would cut out unchanged
-    and hand to its `decode`; None for anything else (garbage, MAVLink 1, a truncated packet)."""
-    if len(data) - start < 3 or data[start] != mavlink2.PROTOCOL_MARKER_V2:
-        return None
-    flags = data[start + 2]
-    if flags & ~mavlink2.MAVLINK_IFLAG_SIGNED:
-        return None
-    signature = mavlink2.MAVLINK_SIGNATURE_BLOCK_LEN if flags else 0
-    end = start + mavlink2.HEADER_LEN_V2 + data[start + 1] + 2 + signature
-    return end if end <= len(data) else None
-
-
 class _DatagramParser:
     """Parses whole UDP datagrams: a truncated packet ending a datagram is garbage, not joined to the next.
 
     The whole MAVLink 2 packets a datagram starts with (usually all of it) go straight to pymavlink's
     `decode`, which checks each (CRC, signature, payload) exactly as `parse_buffer` would, without its
     byte-buffer bookkeeping; from the first thing that is not such a packet on, `parse_buffer` takes the rest.
+    Without a signing key, swarm_common.mavlink_codec.decode builds the streamed telemetry's messages first
+    (the same objects, cheaper); what it does not take, pymavlink decodes.
     """
 
     def __init__(self, key: bytes | None = None) -> None:
         self._key = key
         self._parser = new_parser(key)
+        self._lean = key is None  # with a key every packet takes pymavlink's decode and signature check
 
     def parse(self, data: bytes) -> list[MAVLinkMessage]:
         msgs: list[MAVLinkMessage] = []
         start = 0
-        while (end := _v2_packet_end(data, start)) is not None:
+        lean = self._lean
+        while (end := v2_packet_end(data, start)) is not None:
             packet = bytearray(data[start:end])
-            try:
-                msgs.append(self._parser.decode(packet))
-            except mavlink2.MAVError as err:
-                msgs.append(mavlink2.MAVLink_bad_data(packet, err.message))
+            msg = mavlink_codec.decode(packet) if lean else None
+            if msg is None:
+                try:
+                    msg = self._parser.decode(packet)
+                except mavlink2.MAVError as err:
+                    msg = mavlink2.MAVLink_bad_data(packet, err.message)
+            msgs.append(msg)
             start = end
         if start < len(data):
             msgs += self._parse_buffer(data[start:])

@@ -11,9 +11,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
 from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import MAVLinkMessage
 from gcs_swarm.link.telemetry import TelemetryState, VehicleTelemetry
+from swarm_common.mavlink_codec import Packer
+
+_SYSTEM_TIME = Packer(mavlink2.MAVLink_system_time_message)
 
 
 def is_clock_tick(msg: MAVLinkMessage) -> bool:
@@ -55,7 +60,7 @@ class LockstepAnswer:
         """Answer the latest frame with SYSTEM_TIME(time_unix_usec=0, time_boot_ms=frame) unless answered."""
         if not self.needs_answer:
             return False
-        self.channel.send(self.channel.mav.system_time_encode(0, self.answer_time_ms()))
+        self.channel.send_packed(_SYSTEM_TIME, 0, self.answer_time_ms())  # time_unix_usec, time_boot_ms
         return True
 
 

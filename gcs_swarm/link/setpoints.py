@@ -15,8 +15,10 @@ from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.lockstep import LockstepAnswer
 from swarm_common import rotations
+from swarm_common.mavlink_codec import Packer
 
 ATTITUDE_TARGET_IGNORE_RATES = 0b00000111  # SET_ATTITUDE_TARGET.type_mask: use quaternion + thrust only
+_SET_ATTITUDE_TARGET = Packer(mavlink2.MAVLink_set_attitude_target_message)
 
 _IGNORE_ACCEL = (
     mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
@@ -67,18 +69,17 @@ class Setpoints:
         q = np.asarray(q_ned_frd, dtype=float).tolist()
         thrust = min(max(float(thrust), 0.0), 1.0)
         ch = self.channel
-        ch.send(
-            ch.mav.set_attitude_target_encode(
-                self.lockstep.answer_time_ms(),
-                ch.target_sysid,
-                ch.compid,
-                ATTITUDE_TARGET_IGNORE_RATES,
-                q,
-                0.0,
-                0.0,
-                0.0,
-                thrust,
-            )
+        ch.send_packed(  # wire order: time_boot_ms, q, body rates, thrust, target, type_mask
+            _SET_ATTITUDE_TARGET,
+            self.lockstep.answer_time_ms(),
+            *q,
+            0.0,
+            0.0,
+            0.0,
+            thrust,
+            ch.target_sysid,
+            ch.compid,
+            ATTITUDE_TARGET_IGNORE_RATES,
         )
 
     def send_velocity_target(self, vel_enu: ArrayLike, yaw: float | None = None) -> None:
