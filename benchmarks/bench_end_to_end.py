@@ -1,21 +1,28 @@
-"""End to end: ground station + simulator over real MAVLink/UDP in lockstep.
+"""End to end: ground station + simulator over real MAVLink/UDP in lockstep, `--repeats` flights per scenario.
 
-Prints, per scenario, the real-time factor (simulated s / wall s of the whole run, power-on to disarm) and the
-ground station's per-tick latency (wall time from a complete telemetry tick to its last SET_ATTITUDE_TARGET
-out: median and p99). Scenarios: the bundled paper missions with their goals shortened (the full legs take
-10-20 simulated minutes; the per-tick work is the same), and a generated 100-vehicle grid.
+Prints, per scenario, the median and the range (min-max) over the flights of the real-time factor (simulated s
+/ wall s of the whole run, power-on to disarm: report.json `sim_duration_s` / flight.json `wall_duration_s`)
+and of the ground station's tick latency (wall time from a complete telemetry tick to its last
+SET_ATTITUDE_TARGET out: median and p99 of each flight), and the worst flight (the lowest real-time factor)
+with its worst tick (flight.json `worst_tick`: the tick with the most work, and what it was spent on).
+Scenarios: the bundled paper missions with their goals shortened (the full legs take 10-20 simulated minutes;
+the per-tick work is the same), and a generated 100-vehicle grid (not with --quick); or one given mission
+(`--mission FILE`, flown as it is, e.g. the full missions/paper_static_6.yaml). The flights are interleaved
+(every scenario once, then again) so that a change in the machine's load spreads over the scenarios.
 
-Usage: python benchmarks/bench_end_to_end.py [--quick]
+Usage: python benchmarks/bench_end_to_end.py [--quick] [--repeats 3] [--mission FILE] [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -68,65 +75,115 @@ def grid_mission(n: int, out: Path) -> Path:
 
 
 def fly(mission: Path, n: int, run_dir: Path) -> dict[str, Any]:
+    """One `gcs-swarm run` of `mission` (n vehicles): exit status, real-time factor, tick figures."""
     cmd = [sys.executable, "-m", "gcs_swarm", "run", str(mission), "--out", str(run_dir), "--quiet"]
     cmd += ["--base-port", str(free_udp_base(n))]
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=3600)
-    flight = json.loads((run_dir / "flight.json").read_text())
-    report = json.loads((run_dir / "report.json").read_text()) if (run_dir / "report.json").exists() else {}
-    return {"status": proc.returncode, "flight": flight, "report": report}
+    flight_path, report_path = run_dir / "flight.json", run_dir / "report.json"
+    flight = json.loads(flight_path.read_text()) if flight_path.exists() else {}
+    report = json.loads(report_path.read_text()) if report_path.exists() else {}
+    sim_s, wall_s = report.get("sim_duration_s", math.nan), flight.get("wall_duration_s", math.nan)
+    latency = flight.get("tick_latency_ms") or {}
+    return {
+        "status": proc.returncode,
+        "sim_s": sim_s,
+        "wall_s": wall_s,
+        "real_time_factor": sim_s / wall_s if sim_s is not None and wall_s else math.nan,
+        "latency_median_ms": latency.get("median", math.nan),
+        "latency_p99_ms": latency.get("p99", math.nan),
+        "worst_tick": flight.get("worst_tick"),
+    }
+
+
+def spread(values: list[float], fmt: str, unit: str = "") -> str:
+    """`median (min-max)` of the finite values ("-" without any)."""
+    finite = [v for v in values if v is not None and math.isfinite(v)]
+    if not finite:
+        return "-"
+    med = f"{statistics.median(finite):{fmt}}{unit}"
+    return med if len(finite) == 1 else f"{med} ({min(finite):{fmt}}-{max(finite):{fmt}})"
+
+
+def worst_run(runs: list[dict[str, Any]]) -> str:
+    """The flight with the lowest real-time factor (a failed flight first), and its worst tick."""
+    worst = min(runs, key=lambda r: (r["status"] == 0, nan_low(r["real_time_factor"])))
+    text = f"exit {worst['status']}, {worst['real_time_factor']:.1f}x, p99 {worst['latency_p99_ms']:.2f} ms"
+    tick = worst["worst_tick"]
+    if tick:
+        top = max(tick["phases_ms"].items(), key=lambda kv: kv[1])
+        text += f"; worst tick {tick['work_ms']:.1f} ms at t={tick['t_s']:.1f} s ({top[0]} {top[1]:.1f})"
+    return text
+
+
+def nan_low(x: float) -> float:
+    return -math.inf if x is None or math.isnan(x) else x
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="one repeat, no 100-vehicle case")
+    parser.add_argument("--quick", action="store_true", help="no 100-vehicle case")
+    parser.add_argument("--repeats", type=int, default=3, help="flights per scenario (default 3)")
+    parser.add_argument("--mission", help="time this one mission file instead of the scenarios")
+    parser.add_argument("--json", help="also write every flight's figures to this file")
     args = parser.parse_args()
-    repeats = 1 if args.quick else 3
+    started = time.time()
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        cases = [
-            ("quickstart (3)", ROOT / "missions" / "quickstart.yaml", 3),
-            (
-                "paper_static_6, goal (600,600,200)",
-                derived("paper_static_6.yaml", "s6", out, [600, 600, 200], 300),
-                6,
-            ),
-            (
-                "paper_nine_9, goal (-300,600,200)",
-                derived("paper_nine_9.yaml", "n9", out, [-300, 600, 200], 400),
-                9,
-            ),
-        ]
-        if not args.quick:
-            cases.append(("grid of 100, 150 m leg", grid_mission(100, out), 100))
-        print(
-            "| scenario | vehicles | exit | sim s | wall s | real-time factor | tick latency median ms "
-            "| p99 ms |"
-        )
-        print("|---|---|---|---|---|---|---|---|")
-        for label, mission, n in cases:
-            reps = 1 if n >= 100 else repeats  # the 100-vehicle flight alone takes several wall minutes
-            runs = [fly(mission, n, out / f"{mission.stem}-{k}") for k in range(reps)]
-            rtf = [
-                r["report"]["sim_duration_s"] / r["flight"]["wall_duration_s"] for r in runs if r["report"]
+        if args.mission:
+            path = Path(args.mission).resolve()
+            n = len(yaml.safe_load(path.read_text())["vehicles"])
+            cases = [(f"{args.mission} (as it is)", path, n)]
+        else:
+            cases = [
+                ("quickstart (3)", ROOT / "missions" / "quickstart.yaml", 3),
+                (
+                    "paper_static_6, goal (600,600,200)",
+                    derived("paper_static_6.yaml", "s6", out, [600, 600, 200], 300),
+                    6,
+                ),
+                (
+                    "paper_nine_9, goal (-300,600,200)",
+                    derived("paper_nine_9.yaml", "n9", out, [-300, 600, 200], 400),
+                    9,
+                ),
             ]
-            lat = [r["flight"]["tick_latency_ms"] for r in runs if r["flight"].get("tick_latency_ms")]
-            sim_s = runs[0]["report"].get("sim_duration_s", float("nan"))
-            wall = statistics.median(r["flight"]["wall_duration_s"] for r in runs)
-            med = statistics.median(x["median"] for x in lat) if lat else float("nan")
-            p99 = statistics.median(x["p99"] for x in lat) if lat else float("nan")
-            spread = f" ({min(rtf):.1f}-{max(rtf):.1f})" if len(rtf) > 1 else ""
-            status = ",".join(str(r["status"]) for r in runs)
-            rtf_med = statistics.median(rtf) if rtf else float("nan")
-            print(
-                f"| {label} | {n} | {status} | {sim_s:.1f} | {wall:.1f} | {rtf_med:.1f}x{spread} | "
-                f"{med:.2f} | {p99:.2f} |"
-            )
+            if not args.quick:
+                cases.append(("grid of 100, 150 m leg", grid_mission(100, out), 100))
+        runs: dict[str, list[dict[str, Any]]] = {label: [] for label, _, _ in cases}
+        for k in range(args.repeats):
+            for label, mission, n in cases:
+                print(f"flight {k + 1}/{args.repeats}: {label}", file=sys.stderr, flush=True)
+                runs[label].append(fly(mission, n, out / f"{mission.stem}-{k}"))
     print(
-        f"\nMedian of {repeats} run(s) each (one for 100 vehicles). Real-time factor = simulated seconds "
-        "of the whole run (power-on to disarm) per wall second. Tick latency = wall time from a complete "
-        "telemetry tick (every vehicle's GLOBAL_POSITION_INT of the frame in) to the last "
-        "SET_ATTITUDE_TARGET out."
+        "| scenario | vehicles | exit | sim s | real-time factor | tick latency median ms | p99 ms "
+        "| worst flight |"
     )
+    print("|---|---|---|---|---|---|---|---|")
+    for label, _, n in cases:
+        rs = runs[label]
+        print(
+            f"| {label} | {n} | {','.join(str(r['status']) for r in rs)} "
+            f"| {spread([r['sim_s'] for r in rs], '.1f')} "
+            f"| {spread([r['real_time_factor'] for r in rs], '.1f', 'x')} "
+            f"| {spread([r['latency_median_ms'] for r in rs], '.2f')} "
+            f"| {spread([r['latency_p99_ms'] for r in rs], '.2f')} | {worst_run(rs)} |"
+        )
+    print(
+        f"\nMedian (min-max) of {args.repeats} flight(s) each, interleaved. Real-time factor = simulated "
+        "seconds of the whole run (power-on to disarm) per wall second. Tick latency = wall time from a "
+        "complete telemetry tick (every vehicle's GLOBAL_POSITION_INT of the frame in) to the last "
+        "SET_ATTITUDE_TARGET out, each flight's median and p99. Worst flight: the lowest real-time factor, "
+        "with its worst tick (the most work) and the phase that took most of it."
+    )
+    if args.json:
+        summary = {
+            "benchmark": "end_to_end",
+            "started_unix_s": started,
+            "repeats": args.repeats,
+            "mission": args.mission,
+            "scenarios": [{"label": label, "vehicles": n, "flights": runs[label]} for label, _, n in cases],
+        }
+        Path(args.json).write_text(json.dumps(summary, indent=2) + "\n")
     return 0
 
 

@@ -63,7 +63,7 @@ class Watcher:
 
 def fly(n: int, out: Path, forward: bool, repeat: int) -> dict[str, Any]:
     """One real-time flight of n vehicles, with or without one read-only forward."""
-    mission = grid_mission(n, out)
+    mission = grid_mission(n, out, 60.0)
     run_dir = out / f"run{n}-{'fw' if forward else 'plain'}-{repeat}"
     cmd = [sys.executable, "-m", "gcs_swarm", "run", str(mission), "--out", str(run_dir), "--quiet"]
     cmd += ["--time-mode", "realtime", "--base-port", str(free_udp_base(n))]

@@ -75,10 +75,12 @@ def write_flight(
     tick_latency_s: list[float],
     commands_limited: int,
     link_stats: dict[str, dict[str, dict[str, int]]] | None = None,
+    tick_timing: dict[str, object] | None = None,
 ) -> None:
     """flight.json: what the ground station did (phases, arrival, lost vehicles, events, tick latency, how
     many vehicle-ticks' commands the final guard changed, stale-telemetry figures of docs/reliability.md);
-    with the mission path it lets `gcs-swarm report` rebuild the report of a run folder."""
+    with the mission path it lets `gcs-swarm report` rebuild the report of a run folder. `tick_timing`: the
+    worst formation tick, the time per phase and the frames missed (flight.tick_timing), written as given."""
     flight = {
         "mission": mission.name,
         "mission_path": str(Path(mission_path).resolve()),
@@ -94,6 +96,7 @@ def write_flight(
         "events": result.events,
         "ticks": result.ticks,
         "tick_latency_ms": latency_summary(tick_latency_s),
+        **(tick_timing or {}),
         "commands_limited": commands_limited,
         "degraded_s": round(result.degraded_s, 3),
         "holds": result.holds,
@@ -280,7 +283,12 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     latencies = runner.tick_latency_s if runner is not None else []
     limited = runner.commands_limited if runner is not None else 0
     wall_s = time.monotonic() - wall0
-    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats)
+    timing = (
+        {**runner.tick_timing.summary(), "frames_missed": runner.frames_missed.summary()}
+        if runner is not None
+        else None
+    )
+    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing)
     flown = Flown(status, result, mission, run_dir, error=error)
     if status == EXIT_OK and result.reattached == "land":
         say("every vehicle landed and disarmed" if result.landed_all else "not every vehicle disarmed")

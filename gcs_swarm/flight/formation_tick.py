@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gcs_swarm.flight.preflight import VehicleSetup
+from gcs_swarm.flight.tick_timing import GUIDANCE, TickTiming
 from gcs_swarm.guidance.degradation import TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.params import G
@@ -41,18 +42,22 @@ def send_formation_tick(
     setup: VehicleSetup,
     limits: CommandLimits,
     flown: np.ndarray,
+    timing: TickTiming | None = None,
 ) -> SentTick:
     """Command the fleet at vehicle time t (s) from the measured `state` pos (N, 3) ENU m, vel (N, 3) m/s,
     att (N, 3) rad (roll, pitch, yaw) and the telemetry verdict (the positions predicted to now, which the
     guidance and the guard use, and the held vehicles), around `obstacles`
     ((K, 3) ENU m centres, (K,) m radii at time t). A vehicle whose state is not finite (broken telemetry)
     gets no command this tick, as if lost; a held one brakes on its own autopilot. Only vehicles of the
-    (N,) bool mask `flown` (live, not taken over by an operator) are sent anything."""
+    (N,) bool mask `flown` (live, not taken over by an operator) are sent anything. `timing`, if given, marks
+    the end of the guidance (flight.tick_timing)."""
     pos, vel, att = state
     finite = cast(NDArray[np.bool_], np.isfinite(np.hstack((pos, vel, att))).all(axis=1))  # (N,)
     active = flown & finite & ~verdict.held
     centres, radii = obstacles
     cmd = controller.tick(t, verdict.pos, vel, att, centres, radii, active)
+    if timing is not None:
+        timing.mark(GUIDANCE)
     # ArduCopter adds its own 1/cos(tilt) to guided thrust when ATC_ANGLE_BOOST is on: not twice
     acc = ardupilot.unboosted_thrust(cmd.thrust_acc, att[:, 0], att[:, 1], setup.angle_boost)
     thrust = ardupilot.thrust_from_acc(np.nan_to_num(acc), setup.hover, G)

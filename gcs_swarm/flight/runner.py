@@ -41,6 +41,7 @@ from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.flight.run_record import RunRecord
 from gcs_swarm.flight.stale_telemetry import StaleTelemetryWatch
 from gcs_swarm.flight.takeover import TakeoverWatch
+from gcs_swarm.flight.tick_timing import ASSESS, RECORD, SEND, MissedFramesByPhase, TickTiming
 from gcs_swarm.guidance.fleet_controller import Command
 from gcs_swarm.link.command_limits import CommandLimits
 from gcs_swarm.link.connection import LinkError
@@ -106,6 +107,8 @@ class MissionRunner:
         self._leader_taken_since: float | None = None  # vehicle s since when the leader is taken over
         self._held_for_leader = False  # the hold was entered because the leader was taken over
         self.tick_latency_s: list[float] = []  # wall s from a complete telemetry tick to its last command out
+        self.tick_timing = TickTiming()  # where each formation tick's wall time went (flight.tick_timing)
+        self.frames_missed = MissedFramesByPhase(fleet.names, fleet.state.frames_missed)
         self.flight_params = FlightParams(fleet)  # what the run sets on the vehicles, restored at the end
         # vehicle time (s) at which this process kills itself with SIGKILL: rehearses a ground-station crash
         # at an exact moment (`gcs-swarm run --crash-at`, docs/reliability.md); None: never
@@ -199,6 +202,7 @@ class MissionRunner:
 
     def start_formation(self) -> None:
         """Initialise the guidance at the measured state and enter formation flight."""
+        self.tick_timing.begin(self.fleet)
         if not self.fleet.wait_tick(timeout_s=10.0):
             raise LinkError("no telemetry tick arrived after launch")
         self._enter_formation()
@@ -209,6 +213,7 @@ class MissionRunner:
         else:
             self.position_hold.tick(self.fleet, self.takeover.flown)
         self.fleet.answer_frame()
+        self.tick_timing.end(self.fleet)
 
     def _enter_formation(self) -> None:
         fleet = self.fleet
@@ -231,6 +236,7 @@ class MissionRunner:
     def step(self, timeout_s: float = 5.0) -> bool:
         """Handle one telemetry tick in the current phase; False if no tick arrived within timeout_s."""
         fleet = self.fleet
+        self.tick_timing.begin(fleet)
         if not fleet.wait_tick(timeout_s=timeout_s):
             fleet.answer_frame()  # a silent vehicle must not stall the others' lockstep frames
             self._note_lost()
@@ -258,6 +264,7 @@ class MissionRunner:
         elif self.phase == "land":
             self._landing_tick()
         fleet.answer_frame()  # vehicles not commanded this tick
+        self.tick_timing.end(fleet)
         return True
 
     def idle(self, timeout_s: float = 0.02) -> None:
@@ -366,8 +373,9 @@ class MissionRunner:
     # ----- formation tick -----
 
     def _formation_tick(self) -> None:
-        fleet, run, ctl = self.fleet, self.mission.run, self.controller
+        fleet, run, ctl, timing = self.fleet, self.mission.run, self.controller, self.tick_timing
         t = self.vehicle_time()
+        timing.at(t)
         self.result.t_formation_end = t
         pos, vel, att = fleet.pos, fleet.vel, fleet.att
         verdict = self.telemetry.assess(fleet, t, pos, vel, ctl.leader)
@@ -381,15 +389,18 @@ class MissionRunner:
             np.concatenate([self._obstacle_radii, ghost_radii, taken_radii]),
         )
         flown = self.takeover.flown
+        timing.mark(ASSESS)
         sent = send_formation_tick(
-            fleet, ctl, t, (pos, vel, att), verdict, obstacles, self.setup, self.command_limits, flown
+            fleet, ctl, t, (pos, vel, att), verdict, obstacles, self.setup, self.command_limits, flown, timing
         )
+        timing.mark(SEND)
         cmd, active = sent.command, sent.active
         self.commands_limited += sent.limited
         self.last_command = cmd
         self.result.ticks += 1
         if self.record is not None:
             self.record.write_tick(t, self.phase, pos, vel, att, cmd, sent.thrust, active)
+        timing.mark(RECORD)
         targets = end_targets(cmd, ctl)
         self.result.final_targets = targets
         self.result.leader, self.result.offsets = ctl.leader, ctl.offsets
@@ -585,6 +596,7 @@ class MissionRunner:
                 self._leader_taken(self.vehicle_time())
 
     def _set_phase(self, name: str) -> None:
+        self.frames_missed.enter(name)
         self.phase = name
         self.result.phase_reached = name
         self.progress(f"phase {name}")

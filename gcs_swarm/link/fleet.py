@@ -93,6 +93,10 @@ class Fleet:
         self._by_name = {link.name: link for link in self.links}
         self.network = Network(self.links, signing_key, forwards)
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
+        # wall s every pump so far spent blocked in select for packets, and the rest of its time (decoding
+        # what arrived, heartbeats, loss checks, on_pump): read as differences (flight.tick_timing)
+        self.pump_wait_s = 0.0
+        self.pump_work_s = 0.0
 
     # ------------------------------------------------------------------ state arrays (copies)
 
@@ -260,7 +264,8 @@ class Fleet:
         """
         if not self.network.connected:
             raise RuntimeError("the fleet is not connected")
-        now = self.network.receive(timeout_s)
+        start = time.monotonic()
+        now = self.network.receive(timeout_s)  # time.monotonic() once select returned
         for link in self.links:
             if link.channel.endpoint is not None:
                 link.heartbeat.send_if_due(now)
@@ -268,6 +273,8 @@ class Fleet:
                 link.streams.check()
         if self.on_pump is not None:
             self.on_pump()
+        self.pump_wait_s += now - start
+        self.pump_work_s += time.monotonic() - now
 
     def _frame_ready(self) -> bool:
         """Every alive vehicle has a telemetry frame no answer has covered yet (lockstep.frame_ready)."""

@@ -76,6 +76,8 @@ class TelemetryState:
         self.position_count = np.zeros(n, dtype=np.int64)  # GLOBAL_POSITION_INT messages received
         self.position_ms = np.full(n, -1, dtype=np.int64)  # time_boot_ms of the latest GLOBAL_POSITION_INT
         self.tick_ms = np.full(n, -1, dtype=np.int64)  # latest frame consumed by a tick or a lockstep answer
+        # GLOBAL_POSITION_INT frames replaced by a newer one before a tick or lockstep answer consumed them
+        self.frames_missed = np.zeros(n, dtype=np.int64)
         self.frame_ms = np.full(n, -1, dtype=np.int64)  # latest lockstep clock tick (link.lockstep)
         self.clock_ms = 0  # fleet vehicle clock: the largest time progress of any vehicle since connect
         self.clock_wall = -math.inf  # time.monotonic() at which clock_ms last advanced
@@ -229,6 +231,8 @@ class VehicleTelemetry:
         st.vel[i] = (m.vy * 0.01, m.vx * 0.01, -m.vz * 0.01)  # cm/s NED -> m/s ENU (spec 1.1)
         st.pos_stale = True
         st.position_count[i] += 1
+        if m.time_boot_ms > st.position_ms[i] > st.tick_ms[i]:  # a new frame; the one in hand was never used
+            st.frames_missed[i] += 1
         st.position_ms[i] = m.time_boot_ms
 
     def _on_attitude(self, m: MAVLinkMessage) -> None:

@@ -46,6 +46,8 @@ class ScriptedFleet:
     yaw: float = 0.0
     sent: list[Sent] = field(default_factory=list)
     on_tick: Callable[[], None] | None = None  # called after each tick's clock step: the test's script
+    pump_wait_s: float = 0.0  # Fleet's pump clock (flight.tick_timing): no time passes here
+    pump_work_s: float = 0.0
 
     def __post_init__(self) -> None:
         n = len(self.names)
@@ -60,6 +62,7 @@ class ScriptedFleet:
             alive=np.ones(n, dtype=bool),
             time_ms=np.full(n, 100_000, dtype=np.int64),
             position_ms=np.full(n, 100_000, dtype=np.int64),
+            frames_missed=np.zeros(n, dtype=np.int64),
         )
         self._links = [self._link(i) for i in range(n)]
 
