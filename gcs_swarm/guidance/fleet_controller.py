@@ -16,7 +16,7 @@ import numpy as np
 from gcs_swarm.guidance import field as fieldmod
 from gcs_swarm.guidance.attitude_slew import TiltSlew
 from gcs_swarm.guidance.controller import PositionController
-from gcs_swarm.guidance.failsafe_speed import failsafe_speed_caps
+from gcs_swarm.guidance.failsafe_speed import brake_distance, failsafe_speed_caps
 from gcs_swarm.guidance.formation import (
     LeaderHeading,
     check_offsets,
@@ -156,6 +156,9 @@ class FleetController:
         ):
             raise ValueError("dead_gcs timeout and stop limits must be set (the mission loader sets them)")
         self.dead_gcs = dead_gcs
+        if dead_gcs is not None and dead_gcs.speed_scheduling:  # build the stopping-distance table now (about
+            # 1 s, cached), not in the first formation tick, where it stalled the control loop
+            brake_distance(0.0, float(dead_gcs.brake_accel or 0.0), float(dead_gcs.brake_jerk or 0.0))
 
     # ----- live changes (operator console) -----
 
