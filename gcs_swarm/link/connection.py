@@ -29,8 +29,7 @@ from typing import Any, TypeAlias
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from swarm_common import mavlink_codec
-from swarm_common.mavlink_datagrams import v2_packet_end
+from swarm_common.mavlink_datagrams import decode_leading_packets
 from swarm_common.signing import VerifyingParser
 
 MAVLinkMessage: TypeAlias = mavlink2.MAVLink_message
@@ -102,32 +101,18 @@ def new_parser(key: bytes | None = None) -> mavlink2.MAVLink:
 class _DatagramParser:
     """Parses whole UDP datagrams: a truncated packet ending a datagram is garbage, not joined to the next.
 
-    The whole MAVLink 2 packets a datagram starts with (usually all of it) go straight to pymavlink's
-    `decode`, which checks each (CRC, signature, payload) exactly as `parse_buffer` would, without its
-    byte-buffer bookkeeping; from the first thing that is not such a packet on, `parse_buffer` takes the rest.
-    Without a signing key, swarm_common.mavlink_codec.decode builds the streamed telemetry's messages first
-    (the same objects, cheaper); what it does not take, pymavlink decodes.
+    The whole MAVLink 2 packets a datagram starts with (usually all of it) are decoded one by one
+    (swarm_common.mavlink_datagrams: the checks of `parse_buffer` without its byte-buffer bookkeeping, the
+    streamed telemetry built cheaper without a signing key); from the first thing that is not such a packet
+    on, `parse_buffer` takes the rest.
     """
 
     def __init__(self, key: bytes | None = None) -> None:
         self._key = key
         self._parser = new_parser(key)
-        self._lean = key is None  # with a key every packet takes pymavlink's decode and signature check
 
     def parse(self, data: bytes) -> list[MAVLinkMessage]:
-        msgs: list[MAVLinkMessage] = []
-        start = 0
-        lean = self._lean
-        while (end := v2_packet_end(data, start)) is not None:
-            packet = bytearray(data[start:end])
-            msg = mavlink_codec.decode(packet) if lean else None
-            if msg is None:
-                try:
-                    msg = self._parser.decode(packet)
-                except mavlink2.MAVError as err:
-                    msg = mavlink2.MAVLink_bad_data(packet, err.message)
-            msgs.append(msg)
-            start = end
+        msgs, start = decode_leading_packets(self._parser, data)
         if start < len(data):
             msgs += self._parse_buffer(data[start:])
         return msgs

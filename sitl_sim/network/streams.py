@@ -170,15 +170,33 @@ class Geodesy:
         return np.array([float(e), float(n), float(u)])
 
 
+SPREAD_FROM_US = 100_000  # us: streams this slow or slower are spread over the ticks by vehicle
+
+
 class StreamSchedule:
-    """Per-vehicle stream intervals (N, M) us (0 = off) and next due times, M = len(STREAM_IDS)."""
+    """Per-vehicle stream intervals (N, M) us (0 = off) and next due times, M = len(STREAM_IDS).
+
+    A stream of interval P is due at k P + phase from boot. The phase is 0 for fast streams (the 50 Hz control
+    telemetry of every vehicle lands on the same tick, one lockstep frame) and, for streams of P >=
+    SPREAD_FROM_US (the 1 Hz HEARTBEAT, status streams), vehicle i's (i x tick) mod P: a fleet's slow streams
+    are spread over the ticks instead of leaving in one burst every second (at 200 vehicles: 2 per tick, not
+    200 at once), as the autopilots of a real fleet are not phase-locked either.
+    """
 
     def __init__(self, n: int, tick_us: int) -> None:
         self.tick_us = tick_us
         self.column = {msg_id: j for j, msg_id in enumerate(STREAM_IDS)}
         default = np.array([self.default_interval(m) for m in STREAM_IDS], dtype=np.int64)
         self.interval_us = np.tile(default, (n, 1))
-        self.next_due_us = np.zeros((n, len(STREAM_IDS)), dtype=np.int64)
+        self.vehicle_offset_us = np.arange(n, dtype=np.int64)[:, None] * tick_us  # (N, 1)
+        self.phase_us = self._phase(self.vehicle_offset_us, self.interval_us)
+        self.next_due_us = self.phase_us.copy()
+
+    @staticmethod
+    def _phase(offset_us: np.ndarray, interval_us: np.ndarray) -> np.ndarray:
+        """Phase (us) of streams of `interval_us` for vehicles `offset_us` (= index x tick), broadcast."""
+        slow = interval_us >= SPREAD_FROM_US
+        return np.where(slow, offset_us % np.maximum(interval_us, 1), 0)
 
     def default_interval(self, msg_id: int) -> int:
         """Default interval of a stream in us (0 = off)."""
@@ -198,7 +216,9 @@ class StreamSchedule:
             value = max(self.tick_us, round(interval_us))
         self.interval_us[i, j] = value
         if value:
-            self.next_due_us[i, j] = -(-now_us // value) * value  # next multiple of the interval from boot
+            phase = int(self._phase(self.vehicle_offset_us[i], np.int64(value))[0])
+            self.phase_us[i, j] = phase
+            self.next_due_us[i, j] = -(-(now_us - phase) // value) * value + phase  # next k P + phase >= now
         return True
 
     def interval(self, i: int, msg_id: int) -> int | None:
@@ -216,8 +236,8 @@ class StreamSchedule:
         if not mask.any():
             return []
         rows, cols = np.nonzero(mask)
-        interval = self.interval_us[rows, cols]
-        self.next_due_us[rows, cols] = (now_us // interval + 1) * interval
+        interval, phase = self.interval_us[rows, cols], self.phase_us[rows, cols]
+        self.next_due_us[rows, cols] = ((now_us - phase) // interval + 1) * interval + phase
         return [(r, STREAM_IDS[c]) for r, c in zip(rows.tolist(), cols.tolist(), strict=True)]
 
 

@@ -64,6 +64,35 @@ def test_schedule_at_multiples_of_the_interval_from_boot():
     assert schedule.interval(0, M.MAVLINK_MSG_ID_VFR_HUD) is None
 
 
+def test_slow_streams_are_spread_over_the_ticks_by_vehicle():
+    # 200 vehicles, 10 ms ticks: each 1 Hz HEARTBEAT is due at i x 10 ms mod 1 s, so no tick of the second
+    # carries more than 2 of them (vehicles i and i + 100), while a 50 Hz stream of every vehicle is due on
+    # the same ticks (multiples of 20 ms from boot)
+    n, tick = 200, 10_000
+    schedule = StreamSchedule(n, tick_us=tick)
+    heartbeat, position = M.MAVLINK_MSG_ID_HEARTBEAT, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT
+    for i in range(n):
+        schedule.set_interval(i, position, 20_000, now_us=0)
+    per_tick: dict[int, int] = {}
+    beats: dict[int, list[int]] = {i: [] for i in range(n)}
+    for t in range(0, 2_000_000, tick):
+        due = schedule.due(t)
+        for i, m in due:
+            if m == heartbeat:
+                beats[i].append(t)
+        per_tick[t] = sum(1 for _, m in due if m == heartbeat)
+        fast = [i for i, m in due if m == position]
+        assert fast == (list(range(n)) if t % 20_000 == 0 else [])
+    assert max(per_tick.values()) == 2
+    assert beats[0] == [0, 1_000_000]
+    assert beats[37] == beats[137] == [370_000, 1_370_000]  # 1370 ms mod 1 s = 370 ms
+    assert beats[199] == [990_000, 1_990_000]
+    # a new interval keeps the vehicle's phase: set at 1.5 s, vehicle 37's next heartbeat is at 2.37 s
+    schedule.set_interval(37, heartbeat, 1e6, now_us=1_500_000)
+    assert (37, heartbeat) not in schedule.due(2_360_000)
+    assert (37, heartbeat) in schedule.due(2_370_000)
+
+
 def test_requests_of_a_connecting_ground_station(sitl, pilot_for):
     sim = sitl("--lockstep", "--ready-delay", "0.5", "--home", "47.0,8.0,400", vehicles=2)
     pilot = pilot_for(sim)
