@@ -37,7 +37,6 @@ from sitl_sim.world import Obstacles, find_collisions
 logger = logging.getLogger(__name__)
 KEEPALIVE_S = 1.0  # wall seconds between HEARTBEATs while paused for lockstep clients
 FLUSH_LOG_S = 1.0  # wall seconds between truth-log flushes
-SPIN_S = 0.002  # wall seconds a lockstep frame end polls for the answers before sleeping in select
 STAMPED_MESSAGES = frozenset(  # streams that carry time_boot_ms
     {
         mavlink2.MAVLINK_MSG_ID_ATTITUDE,
@@ -388,8 +387,9 @@ class Simulator:
                     self._send_now(
                         i, (mavlink2.MAVLINK_MSG_ID_HEARTBEAT, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME)
                     )
-            spinning = now - frame_wall < SPIN_S  # poll first: a wake-up costs more than a short busy wait
-            self._serve(0.0 if spinning else min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
+            # block in select: polling first made one flight 10 % faster but two at once (Monte Carlo --jobs
+            # 2 on 2 cores) 25 % slower (BENCHMARKS.md)
+            self._serve(min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
         return not stop()
 
     def _serve(self, timeout: float, frame_ms: int | None = None) -> None:
