@@ -9,6 +9,10 @@ controller is configured as the bundled missions fly it: an altitude floor and t
 on. Prints a Markdown table: median per tick over repeats, with the spread (min..max of the repeat medians).
 
     python benchmarks/bench_guidance.py [--repeats 7] [--ticks 50] [--quick] [--max-n 1000]
+
+With --compiled-ab: the tick with the reference generator's shaping compiled (numba, the default when
+installed) against the numpy reference (gcs_swarm.guidance.reference.compiled_shaping = None), interleaved
+repeat by repeat, N = 3, 6, 9, 25, 100 with K = 10.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import time
 
 import numpy as np
 
+from gcs_swarm.guidance import reference
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import DeadGcsParams, FieldParams, G
@@ -77,6 +82,48 @@ def time_ticks(n: int, k: int, repeats: int, ticks: int) -> list[float]:
     return out
 
 
+def time_compiled_ab(n: int, k: int, repeats: int, ticks: int) -> tuple[list[float], list[float]]:
+    """Per-tick seconds with the compiled shaping and with the numpy one, one median per repeat each; the
+    two run alternately (compiled, numpy, compiled...) on two controllers of the same scenario."""
+    compiled = reference.compiled_shaping
+    runs = {path: scenario(n, k) for path in ("compiled", "numpy")}
+    active = np.ones(n, dtype=bool)
+    times: dict[str, list[float]] = {"compiled": [], "numpy": []}
+    t = 0.0
+    try:
+        for repeat in range(repeats + 1):  # the first round is a warm-up
+            for path, (ctl, pos, vel, att, centres, radii) in runs.items():
+                reference.compiled_shaping = compiled if path == "compiled" else None
+                samples = []
+                for tick in range(ticks):
+                    start = time.perf_counter()
+                    ctl.tick(t + tick * DT, pos, vel, att, centres, radii, active)
+                    samples.append(time.perf_counter() - start)
+                if repeat:
+                    times[path].append(statistics.median(samples))
+            t += ticks * DT
+    finally:
+        reference.compiled_shaping = compiled
+    return times["compiled"], times["numpy"]
+
+
+def compiled_ab(repeats: int, ticks: int) -> None:
+    """Print the A/B table of the compiled shaping (time_compiled_ab)."""
+    if reference.compiled_shaping is None:
+        raise SystemExit("numba is not installed: no compiled path to compare")
+    print(
+        f"FleetController.tick, compiled vs numpy step-4 shaping, K = 10, median of {repeats} x {ticks} ticks"
+    )
+    print()
+    print("| N | compiled ms / tick (min..max) | numpy ms / tick (min..max) | saved ms / tick | saved % |")
+    print("|---|---|---|---|---|")
+    for n in (3, 6, 9, 25, 100):
+        fast, slow = time_compiled_ab(n, 10, repeats, ticks)
+        (fast_med, fast_txt), (slow_med, slow_txt) = spread(fast), spread(slow)
+        saved = slow_med - fast_med
+        print(f"| {n} | {fast_txt} | {slow_txt} | {saved:.3f} | {saved / slow_med * 100:.1f} % |")
+
+
 GUARD = CommandLimits(math.radians(35.0), 2.0, 5.0, 7000.0, 400.0)
 
 
@@ -114,8 +161,12 @@ def main() -> None:
     parser.add_argument("--ticks", type=int, default=50, help="ticks timed per repeat")
     parser.add_argument("--quick", action="store_true", help="3 repeats of 20 ticks")
     parser.add_argument("--max-n", type=int, default=1000, help="skip fleets larger than this")
+    parser.add_argument("--compiled-ab", action="store_true", help="compiled vs numpy shaping, N = 3..100")
     args = parser.parse_args()
     repeats, ticks = (3, 20) if args.quick else (args.repeats, args.ticks)
+    if args.compiled_ab:
+        compiled_ab(repeats, ticks)
+        return
     fp = FieldParams()
     print(
         f"FleetController.tick, SMC + IAAPF, grid spacing {SPACING:g} m, median of {repeats} x {ticks} ticks"

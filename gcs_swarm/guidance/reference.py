@@ -8,12 +8,23 @@ saturated; (p_r, v_r, a_r) go to the SMC; integrate to the next tick. Shapes (N,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
 from gcs_swarm.guidance.params import FieldParams, G, Limits, ReferenceParams
 from gcs_swarm.guidance.shaping import shape_vel_accel, shape_vel_accel_xy, sqrt_controller
 from gcs_swarm.guidance.vector_ops import row_norms
+
+# The shaped step 4 runs compiled when numba is there (extra "fast"; the same bits, tests/gcs_swarm/guidance/
+# test_shaping_kernels.py); None selects the numpy reference (tests and benchmarks switch it to compare).
+compiled_shaping: Callable[..., np.ndarray] | None
+try:
+    from gcs_swarm.guidance.shaping_kernels import shape_reference_acceleration
+
+    compiled_shaping = shape_reference_acceleration
+except ImportError:  # pragma: no cover - numba is optional
+    compiled_shaping = None
 
 
 def default_d_g(field: FieldParams, v_max: float, k_v: float) -> float:
@@ -95,9 +106,17 @@ class ReferenceGenerator:
         params = self.params
         if params.jerk_max <= 0.0:
             return saturate_split((v_cmd - self.v) / params.tau_v, self.a_xy_max, self.limits.a_z)
-        accel_xy = np.where(evasive, self.a_xy_evasive, self.a_xy_max)
-        jerk_xy = np.where(evasive, max(params.evasive_jerk_max, params.jerk_max), params.jerk_max)
-        jerk_z = np.where(evasive, max(params.evasive_jerk_max, params.jerk_max_z), params.jerk_max_z)
+        accel_xy = np.where(evasive, float(self.a_xy_evasive), float(self.a_xy_max))
+        jerk_xy = np.where(
+            evasive, float(max(params.evasive_jerk_max, params.jerk_max)), float(params.jerk_max)
+        )
+        jerk_z = np.where(
+            evasive, float(max(params.evasive_jerk_max, params.jerk_max_z)), float(params.jerk_max_z)
+        )
+        if compiled_shaping is not None:
+            return compiled_shaping(
+                v_cmd, a_ff, self.v, self.a, accel_xy, jerk_xy, float(self.limits.a_z), jerk_z, dt
+            )
         a = np.empty_like(v_cmd)
         a[:, :2] = shape_vel_accel_xy(
             v_cmd[:, :2], a_ff[:, :2], self.v[:, :2], self.a[:, :2], accel_xy, jerk_xy, dt

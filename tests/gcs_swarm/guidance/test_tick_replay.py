@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+from gcs_swarm.guidance import reference
 from tests.gcs_swarm.guidance.tick_replay import SCENARIOS, replay
 
 TICKS = 120
@@ -44,3 +45,24 @@ def test_every_tick_sends_only_what_the_rules_allow(name: str) -> None:
         assert (tilt <= math.radians(35.0) + 1e-9).all()
         assert ((record["guard_thrust"] >= 0.0) & (record["guard_thrust"] <= 1.0)).all()
         assert np.isfinite(record["guard_yaw"]).all()
+
+
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_the_compiled_shaping_flies_the_numpy_bits(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The replay with step 4 compiled (shaping_kernels) and with the numpy reference gives the same bytes
+    in every output and internal state, tick by tick (the numba path is used when numba is installed)."""
+    kernel = pytest.importorskip("gcs_swarm.guidance.shaping_kernels").shape_reference_acceleration
+    calls = []
+
+    def counted(*args: object) -> np.ndarray:
+        calls.append(1)
+        return kernel(*args)
+
+    monkeypatch.setattr(reference, "compiled_shaping", counted)
+    compiled = list(replay(name, TICKS))
+    monkeypatch.setattr(reference, "compiled_shaping", None)
+    for first, second in zip(compiled, replay(name, TICKS), strict=True):
+        assert first.keys() == second.keys()
+        for key in first:
+            assert first[key].tobytes() == second[key].tobytes(), key
+    assert len(calls) == (0 if name == "grid_3_plain" else TICKS)  # "plain": jerk_max 0, first-order step 4
