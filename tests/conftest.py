@@ -12,6 +12,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import settings
+
+# no time limit per example: a first call that loads or compiles a numba kernel (a fresh checkout has no
+# kernel cache) takes longer than hypothesis' default 200 ms deadline, which is a timed assertion
+settings.register_profile("untimed", deadline=None)
+settings.load_profile("untimed")
 
 # fixtures that start sitl-sim processes (tests/gcs_swarm/link/conftest.py, tests/sitl_sim/conftest.py, and in
 # test modules: console/test_session.py, link/test_fence_link.py, test_forward.py, test_signing_inbound.py);

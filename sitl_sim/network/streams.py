@@ -216,7 +216,7 @@ class StreamSchedule:
             value = max(self.tick_us, round(interval_us))
         self.interval_us[i, j] = value
         if value:
-            phase = int(self._phase(self.vehicle_offset_us[i], np.int64(value))[0])
+            phase = int(self._phase(self.vehicle_offset_us[i], np.array([value]))[0])
             self.phase_us[i, j] = phase
             self.next_due_us[i, j] = -(-(now_us - phase) // value) * value + phase  # next k P + phase >= now
         return True
