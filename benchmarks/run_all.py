@@ -1,5 +1,5 @@
-"""Run every benchmark of the project and write BENCHMARKS.md: machine, load, date, commit, issue 16's table
-of required and aimed figures (benchmarks/aims.py), then each benchmark's own section.
+"""Run every benchmark of the project and print a report for BENCHMARKS.md: machine, load, date, commit,
+issue 16's table of required and aimed figures (benchmarks/aims.py), then each benchmark's own section.
 
 Usage: python benchmarks/run_all.py [--only NAME ...] [--quick] [--args NAME "ARGS"] [--output FILE]
 
@@ -94,7 +94,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--args", nargs=2, action="append", default=[], metavar=("NAME", "ARGS"), help="NAME's arguments"
     )
-    parser.add_argument("--output", default=str(ROOT / "BENCHMARKS.md"))
+    parser.add_argument(
+        "--output",
+        default="-",
+        help="file to write (default: standard output; BENCHMARKS.md keeps dated sections, so paste, do not "
+        "overwrite)",
+    )
     args = parser.parse_args(argv)
     override = {name: shlex.split(text) for name, text in args.args}
     code = commit()
@@ -141,8 +146,12 @@ def main(argv: list[str] | None = None) -> int:
             "Each figure: median (min-max) over the flights and the worst flight; a bound is met only when "
             "the worst flight meets it.\n\n" + table + "\n"
         )
-    Path(args.output).write_text(header + "\n".join(sections))
-    print(f"wrote {args.output}", file=sys.stderr)
+    report = header + "\n".join(sections)
+    if args.output == "-":
+        print(report)
+    else:
+        Path(args.output).write_text(report)
+        print(f"wrote {args.output}", file=sys.stderr)
     return 0
 
 
