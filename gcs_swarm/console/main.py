@@ -124,6 +124,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
                 result = runner.result
                 latencies = runner.tick_latency_s
                 limited = runner.commands_limited
+                timing = runner.timing_summary()
                 link_stats = {"vehicles": fleet.stats(), "forwards": fleet.forward_stats()}
     except (SimulatorError, MissionError) as exc:
         print(f"error: {exc}")
@@ -132,7 +133,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         if sim is not None:
             sim.stop()
     wall_s = time.monotonic() - wall0
-    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats)
+    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing)
     if result.t_formation_start is not None:
         report = write_report(run_dir, mission)
         print(

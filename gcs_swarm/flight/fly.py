@@ -283,11 +283,7 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     latencies = runner.tick_latency_s if runner is not None else []
     limited = runner.commands_limited if runner is not None else 0
     wall_s = time.monotonic() - wall0
-    timing = (
-        {**runner.tick_timing.summary(), "frames_missed": runner.frames_missed.summary()}
-        if runner is not None
-        else None
-    )
+    timing = runner.timing_summary() if runner is not None else None
     write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing)
     flown = Flown(status, result, mission, run_dir, error=error)
     if status == EXIT_OK and result.reattached == "land":

@@ -267,6 +267,11 @@ class MissionRunner:
         self.tick_timing.end(fleet)
         return True
 
+    def timing_summary(self) -> dict[str, object]:
+        """flight.json's tick timing: the worst formation tick, the time per phase and the frames missed
+        (flight.tick_timing)."""
+        return {**self.tick_timing.summary(), "frames_missed": self.frames_missed.summary()}
+
     def idle(self, timeout_s: float = 0.02) -> None:
         """Keep the links served while the mission is not flying (before `begin`, after 'done'): receive for
         up to timeout_s, note lost vehicles, answer every new lockstep frame."""
