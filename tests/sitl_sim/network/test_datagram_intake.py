@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v10 import ardupilotmega as mavlink1
@@ -18,8 +17,6 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_sim.network import endpoint as endpoint_module
 from sitl_sim.network import signing
 from sitl_sim.network.endpoint import parse_datagram
-from sitl_sim.simulator import Simulator
-from tests.sitl_sim.sim_process import in_process_config
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))
@@ -144,14 +141,6 @@ def test_same_messages_as_parse_buffer_unsigned(data: st.DataObject) -> None:
 @given(datagrams=st.lists(st.binary(min_size=1, max_size=300), min_size=1, max_size=4))
 def test_same_messages_as_parse_buffer_random_bytes(datagrams: list[bytes]) -> None:
     assert_same_as_parse_buffer(None, datagrams)
-
-
-@pytest.fixture(scope="module")
-def sim():
-    config = in_process_config([[0.0, 0.0, 10.0]])  # airborne in GUIDED
-    simulator = Simulator(config)
-    yield simulator
-    simulator.close()
 
 
 def reference_counts(datagrams: list[bytes]) -> tuple[int, int]:

@@ -10,7 +10,6 @@ import logging
 import math
 
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as M
@@ -22,14 +21,6 @@ from tests.sitl_sim.sim_process import in_process_config
 FUZZ = settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 EXTREME = st.sampled_from([math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 1e9, 0.0])
 GCS = ("127.0.0.1", 1)
-
-
-@pytest.fixture(scope="module")
-def sim():
-    config = in_process_config([[0.0, 0.0, 10.0]])  # airborne in GUIDED
-    simulator = Simulator(config)
-    yield simulator
-    simulator.close()
 
 
 def gcs(sysid: int = 255) -> M.MAVLink:
