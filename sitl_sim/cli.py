@@ -6,7 +6,7 @@
              --truth-rate-hz, --ready-delay)
              [--link-loss P] [--link-delay-ms MS] [--link-jitter-ms MS] [--link-dup P] [--link-corrupt P]
              [--link-reorder P] [--link-from S] [--link-outage [I@]START:DURATION ...]
-             [--signing-key FILE]
+             [--signing-key FILE] [--autopilot ardupilot|px4[,...]]
 
 Prints one line per vehicle (index, sysid, UDP address), then READY, and runs until SIGINT/SIGTERM.
 Bad arguments: one line "sitl-sim: error: ..." and exit status 2; a port that cannot be bound: exit 1.
@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, NoReturn
 import numpy as np
 
 from sitl_sim.autopilot.params import PARAM_NAME_RELEASES
+from sitl_sim.autopilot.persona import parse_autopilots
 from sitl_sim.clock import plan_timing
 from sitl_sim.network.link_faults import LinkFaults, Outage, parse_outage
 from sitl_sim.orphan import ParentWatch, detach_output
@@ -56,7 +57,8 @@ def build_parser() -> OneLineParser:
     """The argument parser (all options documented in --help and docs/sitl.md)."""
     parser = OneLineParser(
         prog="sitl-sim",
-        description="Simulated ArduCopter-like quadrotors speaking MAVLink 2 over UDP, one port per vehicle.",
+        description="Simulated quadrotors speaking MAVLink 2 over UDP, one port per vehicle, each behaving "
+        "on the wire as ArduCopter or as PX4 (--autopilot).",
         epilog="Reference: docs/sitl.md (modes, parameters, MAVLink surface, lockstep rule, truth log).",
     )
     add = parser.add_argument
@@ -109,6 +111,13 @@ def build_parser() -> OneLineParser:
         metavar="S",
         help="simulated s from boot until the EKF has a position and pre-arm checks pass (default 40, as a "
         "real ArduCopter 4.7 SITL: GPS 3D fix at 10 s, EKF using GPS at 42 s)",
+    )
+    add(
+        "--autopilot",
+        metavar="NAME[,NAME...]",
+        help="the autopilot each vehicle behaves as on the wire: ardupilot (ArduCopter 4.7) or px4 (PX4 "
+        "v1.14+ multicopter); one name for all vehicles or a comma list, one per vehicle (default: the "
+        "mission's vehicles[i].autopilot / run.simulator.autopilot, else ardupilot; docs/sitl.md)",
     )
     add(
         "--param-names",
@@ -253,6 +262,7 @@ def parse_home(parser: OneLineParser, text: str) -> tuple[float, float, float]:
 def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
     """Validate the arguments (one-line errors, exit 2) and load the mission's world."""
     home = None
+    autopilots: tuple[str, ...] = ()
     obstacles = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
     wind = (0.0, 0.0, 0.0)
     link = LinkFaults()
@@ -284,6 +294,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         lat, lon, alt = world.origin
         home = (float(lat), float(lon), float(alt))
         link = mission_link(world)
+        autopilots = tuple(world.autopilots)
     else:
         _check(parser, args.vehicles is not None, "--vehicles N is required without --mission")
         n = args.vehicles
@@ -293,6 +304,11 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         start_yaw = np.full(n, math.pi / 2)  # facing north, like ArduPilot SITL
     if args.home is not None:
         home = parse_home(parser, args.home)
+    if args.autopilot is not None:
+        try:
+            autopilots = parse_autopilots(args.autopilot, n)
+        except ValueError as exc:
+            parser.error(str(exc))
     _check(parser, 1 <= args.sysid_base <= 255, f"--sysid-base must be in 1..255, not {args.sysid_base}")
     _check(
         parser, args.sysid_base + n - 1 <= 255, f"{n} vehicles from sysid {args.sysid_base} exceed sysid 255"
@@ -359,6 +375,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         param_names=args.param_names,
         orphan_speedup=args.orphan_speedup,
         orphan_grace_s=args.orphan_grace,
+        autopilots=autopilots,
     )
 
 

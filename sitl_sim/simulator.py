@@ -21,13 +21,22 @@ from pathlib import Path
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from sitl_sim.autopilot import px4
 from sitl_sim.autopilot.copter import Autopilot
 from sitl_sim.autopilot.fence import FenceItem
 from sitl_sim.autopilot.params import ParamTable, param_specs
+from sitl_sim.autopilot.persona import ARDUPILOT, PX4
 from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
 from sitl_sim.network.endpoint import VehicleEndpoint
 from sitl_sim.network.link_faults import UP, LinkFaults
-from sitl_sim.network.streams import Geodesy, StreamSchedule, TelemetryView, ned_telemetry
+from sitl_sim.network.streams import (
+    DEFAULT_RATES_HZ,
+    STREAM_IDS,
+    Geodesy,
+    StreamSchedule,
+    TelemetryView,
+    ned_telemetry,
+)
 from sitl_sim.truth_log import TruthLog
 from sitl_sim.vehicle_model.airframe import QuadParams
 from sitl_sim.vehicle_model.dynamics import FleetDynamics, FleetState
@@ -77,6 +86,7 @@ class SimConfig:
     param_names: str = "4.7"  # ArduCopter release of the parameter names (autopilot/params.py)
     orphan_speedup: float = math.inf  # x real time once the parent is gone (sitl_sim.orphan); inf = at once
     orphan_grace_s: float = 300.0  # simulated s an orphan flies at most before it exits
+    autopilots: tuple[str, ...] = ()  # "ardupilot"/"px4" per vehicle (autopilot.persona); (): all ArduPilot
 
     @property
     def vehicles(self) -> int:
@@ -96,29 +106,31 @@ class Simulator:
         self.sysids = config.sysid_base + np.arange(n)
         speed, direction, turbulence = config.wind
         direction = wind_from_degrees(direction)
-        self.params = ParamTable(
-            n,
-            param_specs(quad.hover_fraction, config.param_names),
-            {
-                "MAV_SYSID": self.sysids,
-                "SIM_WIND_SPD": speed,
-                "SIM_WIND_DIR": direction,
-                "SIM_WIND_TURB": turbulence,
-                **config.link.params(),
-            },
-        )
+        px4_mask = np.array([name == PX4 for name in config.autopilots or (ARDUPILOT,) * n], dtype=bool)
+        self.params = fleet_params(quad.hover_fraction, config.param_names, px4_mask)
+        p = self.params
+        p.values[:, p.column_index("MAV_SYSID")] = self.sysids
+        p.values[:, p.column_index("MAV_SYS_ID")] = self.sysids
+        for name, value in {
+            "SIM_WIND_SPD": speed, "SIM_WIND_DIR": direction, "SIM_WIND_TURB": turbulence,
+            **config.link.params(),
+        }.items():  # fmt: skip
+            p.values[:, p.column_index(name)] = value
         state = FleetState.at_rest(config.start_pos, config.start_yaw, config.start_vel, quad)
         self.dyn = FleetDynamics(n, quad, self.timing.rate_hz, state=state)
         origin = state.pos.copy()
         home = origin * np.array([1.0, 1.0, 0.0])
         airborne = ~state.landed
         self.autopilot = Autopilot(
-            self.dyn, self.params, origin, home, airborne, config.start_vel, config.ready_delay
+            self.dyn, self.params, origin, home, airborne, config.start_vel, config.ready_delay, px4_mask
         )
         self.wind = Wind(n, config.seed, speed, direction, turbulence)
         self.obstacles = config.obstacles
         self.geodesy = Geodesy(config.home)
-        self.streams = StreamSchedule(n, round(self.timing.tick_s * 1e6))
+        rates = [px4.DEFAULT_RATES_HZ if is_px4 else DEFAULT_RATES_HZ for is_px4 in px4_mask]
+        self.streams = StreamSchedule(
+            n, round(self.timing.tick_s * 1e6), np.array([[r.get(m, 0.0) for m in STREAM_IDS] for r in rates])
+        )
         self.lockstep = LockstepClients(n, config.lockstep_timeout) if config.lockstep else None
         self.lockstep_started = False
         self._previous_frame_ms = -1  # time_boot_ms of the last lockstep frame end, once its wait was over
@@ -440,7 +452,10 @@ class Simulator:
         """Store a checked parameter value set on vehicle i; world parameters change the world at once."""
         j = self.params.index[name]
         for row in self.params.set(i, name, value):
-            self.endpoints[row].outbox.send_param(self.params, row, j)
+            self.endpoints[row].outbox.send_param(self.params, row, j, bytewise=self.autopilot.is_px4(row))
+        if name in px4.MIRRORS:  # a PX4 parameter drives a column of the shared outer loop
+            column, scale = px4.MIRRORS[name]
+            self.params.values[i, self.params.column_index(column)] = self.params.value(i, name) * scale
         if name.startswith("SIM_WIND_"):
             p = self.params
             self.wind.set(p.value(i, "SIM_WIND_SPD"), p.value(i, "SIM_WIND_DIR"), p.value(i, "SIM_WIND_TURB"))
@@ -487,13 +502,32 @@ def warm_up_kernels() -> None:
     fleet, so that the first frames after READY are not late by the JIT time."""
     quad = QuadParams()
     dyn = FleetDynamics(1, quad)
-    params = ParamTable(1, param_specs(quad.hover_fraction), {})
+    params = fleet_params(quad.hover_fraction, "4.7", np.zeros(1, dtype=bool))
     zeros = np.zeros((1, 3))
     Autopilot(dyn, params, zeros, zeros, np.zeros(1, dtype=bool), zeros, 0.0).update(0.0, 0.01)
     dyn.step(zeros, 1)
     Geodesy((0.0, 0.0, 0.0)).to_geodetic(zeros)
     ned_telemetry(zeros, zeros, np.array([[1.0, 0.0, 0.0, 0.0]]), zeros, zeros)
     find_collisions(zeros, zeros, Obstacles(zeros, np.ones(1), zeros), 0.0, 0.01, np.zeros(1, dtype=bool))
+
+
+def fleet_params(hover_fraction: float, param_names: str, px4_mask: np.ndarray) -> ParamTable:
+    """The parameters of a fleet whose vehicles `px4_mask` (N,) are PX4: one table of ArduCopter's and PX4's
+    columns; an ArduPilot vehicle shows ArduCopter's names, a PX4 vehicle PX4's (both show the simulator's
+    SIM_*); a PX4 vehicle's hidden ArduCopter columns follow its PX4 values (px4.MIRRORS, HIDDEN_FIXED)."""
+    ardupilot = param_specs(hover_fraction, param_names)
+    own = px4.param_specs(hover_fraction)
+    specs = tuple(sorted(ardupilot + own, key=lambda spec: spec.name))
+    shared = np.array([spec.name.startswith("SIM_") for spec in specs])
+    is_own = np.array([spec in own for spec in specs])
+    mask = np.asarray(px4_mask, dtype=bool)[:, None]
+    table = ParamTable(len(mask), specs, {}, np.where(mask, is_own | shared, ~is_own))
+    rows = np.flatnonzero(mask[:, 0])
+    for name, (column, scale) in px4.MIRRORS.items():
+        table.values[rows, table.column_index(column)] = table.values[rows, table.column_index(name)] * scale
+    for name, value in px4.HIDDEN_FIXED.items():
+        table.values[rows, table.column_index(name)] = value
+    return table
 
 
 def wind_from_degrees(direction_deg: float) -> float:

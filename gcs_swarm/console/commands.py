@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from gcs_swarm.console.snapshot import Snapshot
 from gcs_swarm.guidance.formation import SHAPES
-from gcs_swarm.link.autopilots.ardupilot import ARDUCOPTER_MODES
+from gcs_swarm.link.autopilots import MODE_NAMES
 from gcs_swarm.mission import Mission
 
 PHASE_NAMES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")
@@ -169,7 +169,7 @@ def parse(line: str, vocabulary: Vocabulary) -> Request | None:
     text = line.strip()
     if head in _PARSERS:
         return _PARSERS[head](head, args, text, vocabulary)
-    if head.upper() in ARDUCOPTER_MODES:  # MAVProxy: a mode name alone sets that mode
+    if head.upper() in MODE_NAMES:  # MAVProxy: a mode name alone sets that mode
         return _mode_request(head.upper(), args, text, vocabulary)
     hint = _closest(head, COMMANDS)
     raise CommandError(f"unknown command {words[0]!r}{hint}; type help for the list")
@@ -189,7 +189,7 @@ def help_lines(topic: str | None = None) -> list[str]:
     if "TARGET" in entry.usage:
         lines.append(TARGET_HELP)
     if key == "mode":
-        lines.append(f"modes: {', '.join(ARDUCOPTER_MODES)}")
+        lines.append(f"modes: {', '.join(MODE_NAMES)}")
     if key == "wait":
         lines.append(f"phases: {', '.join(PHASE_NAMES)}")
     return lines
@@ -210,14 +210,14 @@ def complete(text: str, vocabulary: Vocabulary) -> list[str]:
 
 def _candidates(before: Sequence[str], vocabulary: Vocabulary) -> list[str]:
     targets = ["all", *vocabulary.names, *(str(s) for s in vocabulary.sysids if s is not None)]
-    modes = list(ARDUCOPTER_MODES)
+    modes = list(MODE_NAMES)
     if not before:
         return [*COMMANDS, *(m.lower() for m in modes if m.lower() not in COMMANDS)]
     head = ALIASES.get(before[0].lower(), before[0].lower())
     n = len(before) - 1  # index of the argument being typed
     if head == "help":
         return list(COMMANDS) if n == 0 else []
-    if head in ("disarm", "land", "rtl") or head.upper() in ARDUCOPTER_MODES:
+    if head in ("disarm", "land", "rtl") or head.upper() in MODE_NAMES:
         return targets if n == 0 else []
     if head == "arm":
         return (["throttle", *targets] if n == 0 else targets) if n <= 1 else []
@@ -280,11 +280,11 @@ def _one_vehicle(verb: str, args: list[str], line: str, vocabulary: Vocabulary) 
 
 def _mode(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> Request:
     if not args or len(args) > 2:
-        raise CommandError(f"usage: mode NAME [TARGET], NAME one of {', '.join(ARDUCOPTER_MODES)}")
+        raise CommandError(f"usage: mode NAME [TARGET], NAME one of {', '.join(MODE_NAMES)}")
     name = args[0].upper()
-    if name not in ARDUCOPTER_MODES:
-        hint = _closest(name, tuple(ARDUCOPTER_MODES))
-        raise CommandError(f"unknown flight mode {args[0]!r}{hint} (modes: {', '.join(ARDUCOPTER_MODES)})")
+    if name not in MODE_NAMES:
+        hint = _closest(name, tuple(MODE_NAMES))
+        raise CommandError(f"unknown flight mode {args[0]!r}{hint} (modes: {', '.join(MODE_NAMES)})")
     return _mode_request(name, args[1:], line, vocabulary)
 
 

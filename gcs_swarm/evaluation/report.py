@@ -119,6 +119,8 @@ def report_from(
         per_vehicle.append(
             {
                 "name": name,
+                # the autopilot the ground station spoke to (flight.json "autopilots"; None in older runs)
+                "autopilot": flight.get("autopilots", {}).get(name),
                 "reached": reach[i] is not None,
                 "time_to_goal_s": _finite(None if reach[i] is None or t0 is None else reach[i] - t0),
                 "final_error_m": _finite(float(np.linalg.norm(pw[-1, i] - goals[i]))),
@@ -278,13 +280,14 @@ def render_markdown(report: dict[str, Any]) -> str:
         lines += [f"| {key} | {_list(whole.get(key))} |" for key in WHOLE_FLIGHT_KEYS if key in whole]
     lines += [
         "",
-        "| vehicle | reached | time to goal s | final error m | min sep m | min clearance m | "
+        "| vehicle | autopilot | reached | time to goal s | final error m | min sep m | min clearance m | "
         "relative angle deg (slot) | crashed |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for v in report["vehicles"]:
         lines.append(
-            f"| {v['name']} | {v['reached']} | {_fmt(v['time_to_goal_s'])} | {_fmt(v['final_error_m'])} | "
+            f"| {v['name']} | {v.get('autopilot') or '?'} | {v['reached']} | {_fmt(v['time_to_goal_s'])} | "
+            f"{_fmt(v['final_error_m'])} | "
             f"{_fmt(v['min_separation_m'])} | {_fmt(v['min_obstacle_clearance_m'])} | "
             f"{_fmt(v.get('relative_angle_deg'))} ({_fmt(v.get('relative_angle_desired_deg'))}) | "
             f"{v['crashed']} |"

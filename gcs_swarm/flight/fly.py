@@ -105,6 +105,7 @@ def write_flight(
         "reattached": result.reattached,
         "taken_over": result.taken_over,
         "left_to_operator": result.left_to_operator,
+        "autopilots": result.autopilots,
         "formation_timeline": [
             {
                 "t": t,
@@ -130,6 +131,7 @@ def vehicle_configs(mission: Mission, base_port: int | None) -> list[VehicleConf
             name=v.name,
             connection=v.connection if base_port is None else f"udpout:127.0.0.1:{base_port + i}",
             sysid=v.sysid,
+            autopilot=v.autopilot,
         )
         for i, v in enumerate(mission.vehicles)
     ]

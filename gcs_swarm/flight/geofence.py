@@ -413,7 +413,15 @@ def install_fence(
     if not circles:
         return None
     items = circle_items(circles, mission.origin)
-    links = fleet.select()
+    links = [link for link in fleet.select() if link.channel.autopilot.geofence]
+    unfenced = [link.name for link in fleet.select() if not link.channel.autopilot.geofence]
+    if unfenced:
+        note = f"not installed on {', '.join(unfenced)} (the ground station cannot fence that autopilot yet)"
+        events.append(f"fence: {note}")
+        progress(f"fence: {note}")
+    if not links:
+        return None
+    rows = [link.index for link in links]
     old = fleet.run(op_download_fence(link) for link in links)
     before = {link.name: items_before for link, items_before in zip(links, old, strict=True)}
     fleet.run(op_put_fence(link, items) for link in links)
@@ -424,10 +432,11 @@ def install_fence(
             flight.changes.append(
                 ParamChange(link.name, FENCE_ITEMS, float(len(before[link.name])), float(len(items)))
             )
-    flight.set_all("FENCE_TYPE", FENCE_TYPE_POLYGON)
-    flight.set_all("FENCE_ACTION", FENCE_ACTION[params.action])
-    flight.set_all("FENCE_ENABLE", 1)
-    for link in fleet.links:  # one reporter per vehicle, even if preflight runs again
+    flight.set_all("FENCE_TYPE", FENCE_TYPE_POLYGON, rows)
+    flight.set_all("FENCE_ACTION", FENCE_ACTION[params.action], rows)
+    flight.set_all("FENCE_ENABLE", 1, rows)
+    for link in (link for link in fleet.links if link.channel.autopilot.geofence):  # one reporter each,
+        # even if preflight runs again
         link.statustext_hooks[:] = [
             hook
             for hook in link.statustext_hooks

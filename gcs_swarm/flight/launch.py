@@ -1,10 +1,12 @@
-"""Launch: GUIDED, arm and take off to the formation altitude (each vehicle plus its slot's dz)."""
+"""Launch: each autopilot's launch mode (ArduCopter GUIDED, PX4 LOITER), arm and take off to the formation
+altitude (each vehicle plus its slot's dz)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from gcs_swarm.flight.preflight import PreflightError
+from gcs_swarm.link.autopilots import launch_mode
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.mission import Mission
@@ -34,12 +36,13 @@ def home_positions(fleet: Fleet, mission: Mission) -> np.ndarray:
 
 
 def command_launch(fleet: Fleet, mission: Mission) -> None:
-    """GUIDED, arm and take off (each acknowledged; only GUIDED for an airborne start); the climb itself is
-    not awaited. PreflightError if a vehicle refuses."""
+    """Launch mode, arm and take off (each acknowledged); for an airborne start only the formation mode
+    (Fleet.take_control_all). The climb itself is not awaited. PreflightError if a vehicle refuses."""
     try:
-        fleet.set_mode_all("GUIDED")
         if mission.run.airborne_start:
+            fleet.take_control_all()
             return
+        fleet.set_mode_all(launch_mode)
         fleet.arm_all()
         fleet.takeoff_all(takeoff_altitudes(mission))
     except LinkError as exc:

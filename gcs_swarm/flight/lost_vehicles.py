@@ -19,13 +19,13 @@ class LostVehicleTracks:
 
     def start(self, fleet: Fleet, i: int, home: np.ndarray, failsafe: np.ndarray, action: str) -> None:
         """Start predicting lost vehicle i from its last report; `home` (3,) ENU m where it took off (NaN:
-        unknown, its last position stands in), `failsafe` (3,) its FS_GCS_TIMEOUT s, WPNAV_SPEED cm/s,
-        RTL_ALT cm, `action` the mission's safety.gcs_failsafe."""
+        unknown, its last position stands in), `failsafe` (3,) its failsafe timeout s, Return speed m/s and
+        Return altitude m (VehicleSetup.failsafe_params), `action` the mission's safety.gcs_failsafe."""
         st = fleet.state
         pos, vel = fleet.pos[i], fleet.vel[i]
         if st.position_ms[i] < 0 or not (np.isfinite(pos).all() and np.isfinite(vel).all()):
             return  # never reported a position: nothing to predict from
-        timeout_s, speed_cm_s, rtl_alt_cm = failsafe
+        timeout_s, speed, rtl_alt = failsafe
         self.tracks[i] = LostTrack(
             t_last=float(st.position_ms[i]) / 1000.0,
             pos=pos,
@@ -33,8 +33,8 @@ class LostVehicleTracks:
             home=home if np.isfinite(home).all() else pos,
             action=action,
             failsafe_s=float(timeout_s),
-            speed=max(float(speed_cm_s) / 100.0, 0.1),
-            rtl_alt=max(float(rtl_alt_cm) / 100.0, 0.0),
+            speed=max(float(speed), 0.1),
+            rtl_alt=max(float(rtl_alt), 0.0),
         )
 
     def place(

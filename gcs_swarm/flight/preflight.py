@@ -1,25 +1,22 @@
-"""Preflight: wait until every vehicle is ready, set the parameters the flight needs (attitude-target thrust,
-GCS failsafe, guided timeout), install the geofence, and read back what the guidance must know of each
-vehicle (hover thrust, angle boost, how a lost vehicle flies home)."""
+"""Preflight: wait until every vehicle is ready, set the parameters the flight needs (each autopilot's own:
+attitude-target thrust, GCS failsafe, command timeout), install the geofence, and read back what the guidance
+must know of each vehicle (hover thrust, angle boost, how a lost vehicle flies home)."""
 
 from __future__ import annotations
 
+from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from gcs_swarm.flight.geofence import install_fence
-from gcs_swarm.link.autopilots import ardupilot
+from gcs_swarm.link.autopilots import AutopilotDialect
+from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams
 from gcs_swarm.mission import Mission
-
-# ArduCopter FS_GCS_ENABLE values (events.cpp failsafe_gcs_on_event): 1 RTL, 5 Land, 7 Brake or Land
-FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5, "brake": 7}
-GUID_OPTIONS_THRUST = 8  # bit 3: SET_ATTITUDE_TARGET thrust is normalised collective thrust (not climb rate)
-FAILSAFE_PARAMS = ("FS_GCS_TIMEOUT", "WPNAV_SPEED", "RTL_ALT")  # s, cm/s, cm: how a lost vehicle flies home
 
 
 class PreflightError(Exception):
@@ -30,9 +27,13 @@ class PreflightError(Exception):
 class VehicleSetup:
     """What preflight read from each vehicle, one row per vehicle (N)."""
 
-    hover: np.ndarray  # (N,) MOT_THST_HOVER, normalised thrust that holds a hover
-    angle_boost: np.ndarray  # (N,) bool, ATC_ANGLE_BOOST on (the autopilot adds 1/cos(tilt) to thrust)
-    failsafe_params: np.ndarray  # (N, 3) FAILSAFE_PARAMS as read: s, cm/s, cm
+    hover: np.ndarray  # (N,) normalised thrust that holds a hover (MOT_THST_HOVER, MPC_THR_HOVER)
+    angle_boost: (
+        np.ndarray
+    )  # (N,) bool, the autopilot adds 1/cos(tilt) to thrust (ArduCopter ATC_ANGLE_BOOST)
+    # (N, 3) how a vehicle that lost its ground station flies: failsafe timeout s, Return speed m/s, Return
+    # altitude m (each dialect's `failsafe_params`, converted to SI)
+    failsafe_params: np.ndarray
 
     @classmethod
     def assumed(cls, n: int) -> VehicleSetup:
@@ -40,8 +41,17 @@ class VehicleSetup:
         return cls(
             hover=np.full(n, 0.5),
             angle_boost=np.zeros(n, dtype=bool),
-            failsafe_params=np.tile([5.0, 1000.0, 1500.0], (n, 1)),
+            failsafe_params=np.tile([5.0, 10.0, 15.0], (n, 1)),
         )
+
+
+def by_dialect(fleet: Fleet) -> dict[AutopilotDialect, list[int]]:
+    """The live vehicles' rows grouped by autopilot dialect (a mixed fleet has several groups)."""
+    groups: dict[AutopilotDialect, list[int]] = defaultdict(list)
+    for i, dialect in enumerate(fleet.dialects):
+        if fleet.alive[i]:
+            groups[dialect].append(i)
+    return dict(groups)
 
 
 def preflight_fleet(
@@ -51,26 +61,43 @@ def preflight_fleet(
     events: list[str],
     progress: Callable[[str], None],
 ) -> VehicleSetup:
-    """Wait for position estimates and pre-arm health; set and verify the flight's parameters (through
-    `flight_params`, which restores them at the end); install the fence (notes to `events` and `progress`);
-    read hover thrust, angle boost and failsafe parameters. PreflightError (one sentence) if the fleet cannot
-    fly."""
-    run = mission.run
+    """Wait for position estimates and pre-arm health; set and verify each autopilot's flight parameters
+    (through `flight_params`, which restores them at the end); install the fence (notes to `events` and
+    `progress`); read hover thrust, angle boost and failsafe parameters. PreflightError (one sentence) if the
+    fleet cannot fly."""
+    run, safety = mission.run, mission.safety
+    n = len(fleet.names)
+    setup = VehicleSetup.assumed(n)
+    hover, boost, lost_flight = setup.hover.copy(), setup.angle_boost.copy(), setup.failsafe_params.copy()
     try:
         fleet.wait_ready(timeout_s=run.preflight_timeout_s, progress=progress)
-        safety = mission.safety
-        flight_params.set_all("GUID_OPTIONS", GUID_OPTIONS_THRUST)
-        flight_params.set_all("FS_GCS_ENABLE", FS_GCS_ENABLE[safety.gcs_failsafe])
-        flight_params.set_all("FS_GCS_TIMEOUT", float(safety.dead_gcs.failsafe_timeout_s or 0.0))
-        flight_params.set_all("GUID_TIMEOUT", safety.dead_gcs.guided_timeout_s)
+        groups = by_dialect(fleet)
+        dead_gcs = safety.dead_gcs
+        failsafe = FailsafeSettings(
+            action=safety.gcs_failsafe,
+            gcs_loss_s=float(dead_gcs.failsafe_timeout_s or 0.0),
+            guided_timeout_s=dead_gcs.guided_timeout_s,
+            offboard_loss_s=dead_gcs.offboard_loss_timeout_s,
+        )
+        for dialect, rows in groups.items():
+            for name, value in dialect.flight_params(failsafe):
+                flight_params.set_all(name, value, rows)
         # the autopilots' own geofence around the obstacles (flight.geofence, docs/reliability.md)
         install_fence(fleet, flight_params, mission, events, progress)
-        hover = fleet.param_get_all("MOT_THST_HOVER")
-        angle_boost = np.array([ardupilot.is_boost_on(v) for v in fleet.param_get_all("ATC_ANGLE_BOOST")])
-        failsafe = np.column_stack([fleet.param_get_all(name) for name in FAILSAFE_PARAMS])
+        for dialect, rows in groups.items():
+            hover[rows] = fleet.param_get_all(dialect.hover_param, rows)
+            if dialect.angle_boost_param is not None:
+                read = fleet.param_get_all(dialect.angle_boost_param, rows)
+                boost[rows] = [dialect.is_angle_boost_on(v) for v in read]
+            for k, (name, to_si) in enumerate(dialect.failsafe_params):
+                lost_flight[rows, k] = fleet.param_get_all(name, rows) * to_si
     except LinkError as exc:
         raise PreflightError(f"preflight failed: {exc}") from exc
-    bad = [name for name, h in zip(fleet.names, hover, strict=True) if not 0.05 < h < 0.95]
+    bad = [
+        f"{fleet.dialects[i].hover_param} of {name}"
+        for i, (name, h) in enumerate(zip(fleet.names, hover, strict=True))
+        if not 0.05 < h < 0.95
+    ]
     if bad:
-        raise PreflightError(f"MOT_THST_HOVER of {', '.join(bad)} is outside 0.05..0.95")
-    return VehicleSetup(hover=hover, angle_boost=angle_boost, failsafe_params=failsafe)
+        raise PreflightError(f"{', '.join(bad)} outside 0.05..0.95")
+    return VehicleSetup(hover=hover, angle_boost=boost, failsafe_params=lost_flight)

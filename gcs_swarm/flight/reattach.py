@@ -1,6 +1,6 @@
 """Vehicles found armed or flying when the run starts (a ground station that crashed left them in the air):
-stop the drifting ones at once, describe what was found, and take them back into GUIDED (`gcs-swarm run
---airborne`, docs/reliability.md)."""
+stop the drifting ones at once, describe what was found, and take them back into their formation mode
+(`gcs-swarm run --airborne`, docs/reliability.md)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.flight.preflight import PreflightError
 from gcs_swarm.flight.takeover import TakeoverWatch
+from gcs_swarm.link.autopilots import formation_mode, hold_mode
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
 
@@ -20,22 +21,22 @@ AIRBORNE_CHOICES = ("finish", "land")  # fly the mission on from where they are,
 def stop_unflown(
     fleet: Fleet, events: list[str], progress: Callable[[str], None], modes: TakeoverWatch
 ) -> None:
-    """Vehicles found armed in GUIDED and not known to be on the ground fly targets nobody sends any more
-    (a ground station died and its GCS failsafe has not fired yet, and our heartbeats now keep it from
-    firing): ArduCopter levels them and lets them drift on. Put them in BRAKE at once, before the
-    minutes of preflight, and say so (the BRAKE recorded in `modes` as the ground station's own); what
-    happens next is the run's `airborne` choice."""
-    guided = fleet.in_mode("GUIDED")
+    """Vehicles found armed in their formation mode (GUIDED, OFFBOARD) and not known to be on the ground fly
+    targets nobody sends any more (a ground station died and its GCS failsafe has not fired yet, and our
+    heartbeats now keep it from firing): ArduCopter levels them and lets them drift on. Put them in their
+    hold mode (BRAKE, LOITER) at once, before the minutes of preflight, and say so (recorded in `modes` as
+    the ground station's own); what happens next is the run's `airborne` choice."""
+    guided = fleet.in_mode(formation_mode)
     on_ground = fleet.landed_state == mavlink2.MAV_LANDED_STATE_ON_GROUND
     drifting = fleet.armed & fleet.alive & guided & ~on_ground
     if not drifting.any():
         return
     names = [fleet.names[i] for i in np.flatnonzero(drifting)]
-    progress(f"{', '.join(names)} armed in GUIDED with nobody flying them: BRAKE")
-    events.append(f"found armed in GUIDED, stopped in BRAKE: {', '.join(names)}")
-    modes.commanded("BRAKE", [int(i) for i in np.flatnonzero(drifting)])
+    progress(f"{', '.join(names)} armed in their formation mode with nobody flying them: stopping them")
+    events.append(f"found armed in their formation mode, stopped in their hold mode: {', '.join(names)}")
+    modes.commanded(hold_mode, [int(i) for i in np.flatnonzero(drifting)])
     try:
-        fleet.set_mode_all("BRAKE", names)
+        fleet.set_mode_all(hold_mode, names)
     except LinkError as exc:
         raise PreflightError(f"cannot stop the drifting vehicles: {exc}") from exc
 
@@ -76,10 +77,10 @@ def check_airborne_choice(fleet: Fleet, flying: np.ndarray, airborne: str | None
 
 
 def take_back(fleet: Fleet, modes: TakeoverWatch) -> None:
-    """Every vehicle into GUIDED (recorded in `modes` as the ground station's own), so that the formation
-    flight commands them from where they are."""
-    modes.commanded("GUIDED")
+    """Every vehicle into its formation mode (recorded in `modes` as the ground station's own), so that the
+    formation flight commands them from where they are."""
+    modes.commanded(formation_mode)
     try:
-        fleet.set_mode_all("GUIDED")
+        fleet.take_control_all()
     except LinkError as exc:
         raise PreflightError(f"cannot take the vehicles back: {exc}") from exc

@@ -38,3 +38,5 @@ class FlightResult:
     # (Takeover.as_json: t_s, vehicle, mode, by), and those still taken over, left to their operator
     taken_over: list[dict[str, object]] = field(default_factory=list)
     left_to_operator: list[str] = field(default_factory=list)
+    # vehicle name -> the autopilot the ground station speaks to ("ArduCopter", "PX4"), bound at connect
+    autopilots: dict[str, str] = field(default_factory=dict)

@@ -43,6 +43,7 @@ from gcs_swarm.flight.stale_telemetry import StaleTelemetryWatch
 from gcs_swarm.flight.takeover import TakeoverWatch
 from gcs_swarm.flight.tick_timing import ASSESS, RECORD, SEND, MissedFramesByPhase, TickTiming
 from gcs_swarm.guidance.fleet_controller import Command
+from gcs_swarm.link.autopilots import formation_mode, launch_mode, takeoff_mode
 from gcs_swarm.link.command_limits import CommandLimits
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
@@ -144,6 +145,7 @@ class MissionRunner:
         """Wait up to timeout_s for every vehicle's HEARTBEAT (LinkError naming the silent ones)."""
         self._set_phase("connect")
         self.fleet.connect(timeout_s=timeout_s)
+        self.result.autopilots = {link.name: link.channel.autopilot.name for link in self.fleet.links}
 
     def preflight(self) -> None:
         """Wait for position estimates and pre-arm health; set and verify params; hover thrust; streams."""
@@ -173,10 +175,14 @@ class MissionRunner:
         return launched(self.fleet, self.mission, ~self.takeover.taken)
 
     def command_launch(self) -> None:
-        """Phase 'launch': GUIDED, arm and take off (each acknowledged); the climb itself is not awaited."""
+        """Phase 'launch': each autopilot's launch mode, arm and take off (each acknowledged; the modes the
+        takeoff passes through on its own are ours too); the climb itself is not awaited."""
         self._set_phase("launch")
         self._home = home_positions(self.fleet, self.mission)
-        self.takeover.commanded("GUIDED")
+        if self.mission.run.airborne_start:
+            self.takeover.commanded(formation_mode)
+        else:
+            self.takeover.commanded(launch_mode, passing=takeoff_mode)
         command_launch(self.fleet, self.mission)
 
     def _reattach(self, flying: np.ndarray) -> None:
@@ -215,8 +221,29 @@ class MissionRunner:
         self.fleet.answer_frame()
         self.tick_timing.end(self.fleet)
 
+    def _take_control(self) -> None:
+        """Vehicles that launch in another mode than their formation mode (PX4 holds in LOITER after its
+        takeoff) enter it now (Fleet.take_control_all: OFFBOARD after a setpoint stream); an ArduCopter
+        launched in GUIDED already flies in it (one that left it was taken over). A refusal lands the
+        fleet."""
+        fleet = self.fleet
+        separate = np.array([d.launch_mode != d.formation_mode for d in fleet.dialects], dtype=bool)
+        waiting = self.takeover.flown & separate & ~fleet.in_mode(formation_mode)
+        rows = [int(i) for i in np.flatnonzero(waiting)]
+        if not rows:
+            return
+        self.takeover.commanded(formation_mode, rows)
+        fleet.take_control_all(rows)
+
     def _enter_formation(self) -> None:
         fleet = self.fleet
+        try:
+            self._take_control()
+        except LinkError as exc:
+            self.result.events.append(f"formation not started: {exc}")
+            self.progress(f"! formation not started: {exc}")
+            self._set_phase("land")
+            return
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
         self._assign_slots()
         self.telemetry.reset()
@@ -576,8 +603,8 @@ class MissionRunner:
             raise ValueError(f"{name} is not taken over")
         if not self.fleet.alive[row]:
             raise ValueError(f"{name} is not answering")
-        self.takeover.commanded("GUIDED", [row])
-        self.fleet.set_mode_all("GUIDED", [row])
+        self.takeover.commanded(formation_mode, [row])
+        self.fleet.take_control_all([row])
         self.takeover.rejoined(row, self.vehicle_time())
         self._reform(f"with {name} back")
         if row == self.controller.leader:

@@ -6,10 +6,11 @@ back by itself (no mode fight), and flies the others around it as a moving obsta
 `rejoin NAME` hands it back (docs/console.md, docs/reliability.md "Operator takeover").
 
 The rule (`newly_taken`): a live vehicle whose HEARTBEAT shows a mode other than the one the ground station
-last commanded for it is taken over. The ground station's own mode changes (GUIDED at launch and when it
-takes vehicles back, BRAKE for vehicles found drifting, LAND at the end, the console's `mode`/`land`/`rtl`)
-are recorded with `TakeoverWatch.commanded` *before* they are sent, so they never count as a takeover; a
-vehicle whose commanded mode is unknown (never commanded) is never taken.
+last commanded for it, or than the one that command passes through on its own (PX4's NAV_TAKEOFF: TAKEOFF,
+then back in LOITER), is taken over. The ground station's own mode changes (each autopilot's launch mode
+and formation mode (GUIDED; LOITER, OFFBOARD), its hold mode for vehicles found drifting, LAND at the end,
+the console's `mode`/`land`/`rtl`) are recorded with `TakeoverWatch.commanded` *before* they are sent, so
+they never count as a takeover; a vehicle whose commanded mode is unknown (never commanded) is never taken.
 """
 
 from __future__ import annotations
@@ -22,19 +23,28 @@ from numpy.typing import NDArray
 
 from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.guidance.fleet_controller import FleetController
+from gcs_swarm.link.autopilots import ModeChoice, formation_mode
 from gcs_swarm.link.fleet import Fleet
 
 UNKNOWN_MODE = -1  # custom_mode before a HEARTBEAT, or a vehicle the ground station never commanded
 
 
 def newly_taken(
-    mode: NDArray[np.int64], commanded: NDArray[np.int64], alive: NDArray[np.bool_], taken: NDArray[np.bool_]
+    mode: NDArray[np.int64],
+    commanded: NDArray[np.int64],
+    alive: NDArray[np.bool_],
+    taken: NDArray[np.bool_],
+    passing: NDArray[np.int64] | None = None,
 ) -> NDArray[np.bool_]:
     """(N,) bool: vehicles taken over now. `mode` (N,) each vehicle's custom_mode from its latest HEARTBEAT
     (UNKNOWN_MODE before one), `commanded` (N,) the custom_mode the ground station last commanded
-    (UNKNOWN_MODE: never), `alive` (N,) heard recently, `taken` (N,) already taken over."""
+    (UNKNOWN_MODE: never), `alive` (N,) heard recently, `taken` (N,) already taken over, `passing` (N,) a
+    mode the last command passes through on its own (UNKNOWN_MODE: none; None: none for any vehicle)."""
     known = (mode != UNKNOWN_MODE) & (commanded != UNKNOWN_MODE)
-    return alive & known & (mode != commanded) & ~taken
+    ours = mode == commanded
+    if passing is not None:
+        ours |= mode == passing
+    return alive & known & ~ours & ~taken
 
 
 @dataclass(frozen=True)
@@ -65,14 +75,21 @@ class TakeoverWatch:
         self.events = result.events
         self.progress = progress
         self.commanded_mode = np.full(n, UNKNOWN_MODE, dtype=np.int64)  # (N,) custom_mode we last commanded
+        self.passing_mode = np.full(n, UNKNOWN_MODE, dtype=np.int64)  # (N,) one it passes through on its own
         self.taken = np.zeros(n, dtype=bool)  # (N,) taken over: not commanded by the ground station
         self.mode_seen = np.full(n, UNKNOWN_MODE, dtype=np.int64)  # (N,) of taken vehicles, last reported
 
-    def commanded(self, mode: str, rows: Iterable[int] | None = None) -> None:
-        """The ground station is about to command `mode` (named in each vehicle's dialect) to `rows`
-        (default every vehicle): from now on that mode is its own."""
+    def commanded(
+        self, mode: ModeChoice, rows: Iterable[int] | None = None, passing: ModeChoice | None = None
+    ) -> None:
+        """The ground station is about to command `mode` (named in each vehicle's dialect, or a ModeChoice
+        function of it) to `rows` (default every vehicle): from now on that mode is its own, and so is
+        `passing`, a mode the vehicle switches to by itself on the way (PX4's TAKEOFF after NAV_TAKEOFF)."""
         for i in range(len(self.taken)) if rows is None else rows:
-            self.commanded_mode[i] = self.fleet.vehicle(int(i)).channel.autopilot.mode_number(mode)
+            self.commanded_mode[i] = self.fleet.mode_number(int(i), mode)
+            self.passing_mode[i] = (
+                UNKNOWN_MODE if passing is None else self.fleet.mode_number(int(i), passing)
+            )
 
     def commanded_landing(self, rows: NDArray[np.bool_]) -> None:
         """The ground station is about to land the vehicles of the (N,) bool mask `rows` (each dialect's
@@ -80,6 +97,7 @@ class TakeoverWatch:
         for i in np.flatnonzero(rows):
             dialect = self.fleet.vehicle(int(i)).channel.autopilot
             self.commanded_mode[i] = dialect.mode_number(dialect.land_mode)
+            self.passing_mode[i] = UNKNOWN_MODE
 
     @property
     def flown(self) -> NDArray[np.bool_]:
@@ -91,7 +109,7 @@ class TakeoverWatch:
         `progress`. A taken vehicle switched on to yet another mode is told too (still taken)."""
         fleet = self.fleet
         mode = fleet.mode
-        taken_now = newly_taken(mode, self.commanded_mode, fleet.alive, self.taken)
+        taken_now = newly_taken(mode, self.commanded_mode, fleet.alive, self.taken, self.passing_mode)
         rows = [int(i) for i in np.flatnonzero(taken_now)]
         for i in rows:
             self._take(i, t, fleet.vehicle(i).mode_name(), "someone else")
@@ -105,18 +123,21 @@ class TakeoverWatch:
 
     def release(self, i: int, mode: str, t: float) -> None:
         """The operator put vehicle i in `mode` through our console while the mission flies: ours to record
-        (no takeover by someone else), but no longer flown by the formation unless `mode` is GUIDED."""
+        (no takeover by someone else), but no longer flown by the formation unless `mode` is its formation
+        mode (GUIDED, OFFBOARD)."""
         self.commanded(mode, [i])
-        if mode.strip().upper() != "GUIDED" and not self.taken[i]:
+        if self.commanded_mode[i] != self.fleet.mode_number(i, formation_mode) and not self.taken[i]:
             self._take(i, t, mode.strip().upper(), "console")
             self.mode_seen[i] = self.commanded_mode[i]  # the mode the console asked for is not news
 
     def rejoined(self, i: int, t: float) -> None:
-        """Vehicle i is back in GUIDED on the operator's request (`rejoin`): flown again."""
+        """Vehicle i is back in its formation mode on the operator's request (`rejoin`): flown again."""
         self.taken[i] = False
         self.mode_seen[i] = UNKNOWN_MODE
         self.result.left_to_operator = self.left_to_operator()
-        text = f"{self.fleet.names[i]} rejoined: back in GUIDED, flying to its slot"
+        text = (
+            f"{self.fleet.names[i]} rejoined: back in {self.fleet.vehicle(i).mode_name()}, flying to its slot"
+        )
         self.events.append(f"t={t:.2f} s {text}")
         self.progress(f"! {text}")
 

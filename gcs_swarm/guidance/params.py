@@ -293,6 +293,10 @@ class DeadGcsParams:
 
     guided_timeout_s: float = 0.5  # s, GUID_TIMEOUT set for the flight: the last attitude target is flown
     # this long, then the vehicle levels and holds its altitude (ArduCopter mode_guided.cpp angle_control_run)
+    # s, COM_OF_LOSS_T set on PX4 vehicles: the last OFFBOARD target is flown this long, then the failsafe
+    # (safety.gcs_failsafe through COM_OBL_RC_ACT) switches the vehicle out of OFFBOARD for good; PX4's
+    # default 1 s, so that a stall of the ground station shorter than that does not end the flight
+    offboard_loss_timeout_s: float = 1.0
     # s, FS_GCS_TIMEOUT set for the flight (2..120), >= telemetry.lost_s so that an outage the fleet rides out
     # fires no failsafe; None: telemetry.lost_s (the mission loader fills it in)
     failsafe_timeout_s: float | None = None
@@ -307,6 +311,8 @@ class DeadGcsParams:
     def __post_init__(self) -> None:
         if not 0.1 <= self.guided_timeout_s <= 5.0:
             raise ValueError("guided_timeout_s must lie in 0.1..5 s (ArduCopter's GUID_TIMEOUT range)")
+        if not 0.1 <= self.offboard_loss_timeout_s <= 60.0:
+            raise ValueError("offboard_loss_timeout_s must lie in 0.1..60 s (PX4's COM_OF_LOSS_T range)")
         if self.failsafe_timeout_s is not None and not 2.0 <= self.failsafe_timeout_s <= 120.0:
             raise ValueError("failsafe_timeout_s must lie in 2..120 s (ArduCopter's FS_GCS_TIMEOUT range)")
         if self.brake_accel is not None and not self.brake_accel > 0:

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm.link import frames
+from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.lockstep import frame_ready
@@ -137,13 +138,23 @@ class Fleet:
         """(N,) the autopilots' custom_mode from HEARTBEAT (-1 unknown); names via VehicleLink.mode_name."""
         return self.state.mode.copy()
 
-    def in_mode(self, mode: str) -> NDArray[np.bool_]:
-        """(N,) each vehicle's HEARTBEAT shows flight mode `mode`, named in its autopilot's dialect
-        (ValueError if a dialect has no such mode)."""
+    def in_mode(self, mode: ModeChoice) -> NDArray[np.bool_]:
+        """(N,) each vehicle's HEARTBEAT shows flight mode `mode`, named in its autopilot's dialect or a
+        ModeChoice function of it (ValueError if a dialect has no such mode)."""
         return np.array(
-            [self.state.mode[link.index] == link.channel.autopilot.mode_number(mode) for link in self.links],
+            [self.state.mode[link.index] == self.mode_number(link.index, mode) for link in self.links],
             dtype=bool,
         )
+
+    def mode_number(self, i: int, mode: ModeChoice) -> int:
+        """custom_mode of `mode` for vehicle i, in its dialect (ValueError if it has no such mode)."""
+        dialect = self.links[i].channel.autopilot
+        return dialect.mode_number(mode_name_in(dialect, mode))
+
+    @property
+    def dialects(self) -> list[AutopilotDialect]:
+        """Each vehicle's autopilot dialect (from its HEARTBEAT or the mission; ArduPilot until heard)."""
+        return [link.channel.autopilot for link in self.links]
 
     @property
     def ready(self) -> NDArray[np.bool_]:
@@ -470,9 +481,15 @@ class Fleet:
         rates = telemetry_rates(control_hz, status_hz, local_position)
         self.run(link.streams.op_request_streams(rates) for link in self.select(vehicles))
 
-    def set_mode_all(self, mode: str | int, vehicles: Iterable[int | str] | None = None) -> None:
-        """Set a flight mode (named in each vehicle's autopilot dialect), confirmed by HEARTBEAT."""
+    def set_mode_all(self, mode: ModeChoice, vehicles: Iterable[int | str] | None = None) -> None:
+        """Set a flight mode (named in each vehicle's autopilot dialect, or a ModeChoice function of it),
+        confirmed by HEARTBEAT."""
         self.run(link.commands.op_set_mode(mode) for link in self.select(vehicles))
+
+    def take_control_all(self, vehicles: Iterable[int | str] | None = None) -> None:
+        """Each vehicle into its formation mode (GUIDED; PX4's OFFBOARD after the setpoint stream it needs:
+        VehicleLink.op_take_control), confirmed by HEARTBEAT."""
+        self.run(link.op_take_control() for link in self.select(vehicles))
 
     def arm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
         self.run(link.commands.op_arm(force) for link in self.select(vehicles))
@@ -512,6 +529,11 @@ def _validate(vehicles: Sequence[VehicleConfig], gcs_sysid: int, gcs_compid: int
         if not cfg.name or cfg.name in names:
             raise LinkError(f"vehicle name {cfg.name!r} is empty or used twice")
         names.add(cfg.name)
+        if cfg.autopilot != "auto":
+            try:
+                dialect_named(cfg.autopilot)
+            except ValueError as err:
+                raise LinkError(f"{cfg.name}: {err}") from None
         if cfg.sysid is not None:
             if not 1 <= cfg.sysid <= 254 or cfg.sysid == gcs_sysid:
                 raise LinkError(

@@ -8,7 +8,7 @@ changed, and whether it was put back, goes to flight.json (`params_changed`) and
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -44,10 +44,11 @@ class FlightParams:
         # that puts the original back on a vehicle
         self.restorers: dict[str, Callable[[VehicleLink, ParamChange], Operation[Any]]] = {}
 
-    def set_all(self, name: str, value: float) -> None:
-        """Read `name` on every live vehicle, then set it to `value` (read back); LinkError as the fleet's."""
+    def set_all(self, name: str, value: float, vehicles: Iterable[int] | None = None) -> None:
+        """Read `name` on every live vehicle (of the rows `vehicles`, default all), then set it to `value`
+        (read back); LinkError as the fleet's."""
         fleet = self.fleet
-        links = fleet.select()
+        links = fleet.select(vehicles)
         originals = fleet.param_get_all(name, [link.index for link in links])
         fleet.param_set_all(name, value, [link.index for link in links])
         for link, original in zip(links, originals, strict=True):

@@ -21,7 +21,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link.autopilots import dialect_for
+from gcs_swarm.link.autopilots import dialect_for, dialect_named
 from gcs_swarm.link.connection import (
     ConnectionSpec,
     Endpoint,
@@ -218,7 +218,15 @@ class Network:
         channel = link.channel
         if channel.sysid is None and link.config.sysid in (None, sysid):
             channel.sysid, channel.compid = sysid, msg.get_srcComponent()
-            channel.autopilot = dialect_for(msg.autopilot)
+            heard = dialect_for(msg.autopilot)
+            named = link.config.autopilot
+            channel.autopilot = heard if named == "auto" else dialect_named(named)
+            if channel.autopilot is not heard:
+                link.add_event(
+                    f"its HEARTBEAT says autopilot {msg.autopilot}; spoken to as {channel.autopilot.name}, "
+                    "as the mission says"
+                )
+            link.state.ekf_required[link.index] = channel.autopilot.needs_ekf_report
             return True
         foreign = self.foreign_heartbeats[link.index]
         foreign[sysid] = foreign.get(sysid, 0) + 1

@@ -22,6 +22,7 @@ from typing import TypeVar
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.link.autopilots import ModeChoice, mode_name_in
 from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import LinkError, MAVLinkMessage
 from gcs_swarm.link.telemetry import VehicleTelemetry
@@ -151,7 +152,7 @@ class Commands:
             raise RuntimeError(f"{command_name(command)} is already pending on {self.name}")
         require_alive(self.channel, self.telemetry)
         values = [float(p) for p in params] + [0.0] * (7 - len(params))
-        if not all(math.isfinite(v) for v in values):
+        if any(math.isinf(v) for v in values):  # NaN is MAVLink's "unchanged / default" (PX4 takeoff)
             raise ValueError(f"non-finite parameter in {command_name(command)} for {self.name}: {values}")
         self._acks.pop(command, None)
         self._pending.add(command)
@@ -202,20 +203,19 @@ class Commands:
                 raise LinkError(failure())
             yield
 
-    def op_set_mode(self, mode: str | int, timeout_s: float = CONFIRM_TIMEOUT_S) -> Operation[None]:
-        """MAV_CMD_DO_SET_MODE (the autopilot's custom mode, named in its dialect); done once a HEARTBEAT
-        shows the new mode, which must happen within `timeout_s` of vehicle time after the ACK."""
+    def op_set_mode(self, mode: ModeChoice, timeout_s: float = CONFIRM_TIMEOUT_S) -> Operation[None]:
+        """MAV_CMD_DO_SET_MODE (the autopilot's custom mode, named in its dialect, or a ModeChoice function
+        of the dialect); done once a HEARTBEAT shows the new mode, which must happen within `timeout_s` of
+        vehicle time after the ACK."""
         dialect = self.channel.autopilot
         try:
-            number = dialect.mode_number(mode)
+            number = dialect.mode_number(mode_name_in(dialect, mode))
         except ValueError as err:
             raise LinkError(f"{self.name}: {err}") from None
         st, i = self.telemetry.state, self.telemetry.index
         if st.mode[i] == number:
             return
-        yield from self.op_command(
-            mavlink2.MAV_CMD_DO_SET_MODE, mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, float(number)
-        )
+        yield from self.op_command(mavlink2.MAV_CMD_DO_SET_MODE, *dialect.set_mode_params(number))
         yield from self._op_wait(
             lambda: bool(st.mode[i] == number),
             timeout_s,
@@ -262,7 +262,8 @@ class Commands:
     def op_takeoff(
         self, alt_m: float, retries: int = COMMAND_RETRIES, timeout_s: float = 1.0
     ) -> Operation[int]:
-        """MAV_CMD_NAV_TAKEOFF to `alt_m` above the vehicle's home (ArduCopter: GUIDED and armed).
+        """MAV_CMD_NAV_TAKEOFF to `alt_m` above the ground the vehicle stands on (ArduCopter: GUIDED and
+        armed; PX4: armed; the parameters are the dialect's `takeoff_params`: PX4's param7 is AMSL).
 
         ArduCopter refuses a takeoff once the vehicle has left the ground (Mode::do_user_takeoff, "can't
         takeoff again"). So when the first command's ACK was lost and a repeat is refused, the takeoff counts
@@ -277,8 +278,11 @@ class Commands:
             mavlink2.MAV_LANDED_STATE_ON_GROUND,
         )
         command, texts_before = mavlink2.MAV_CMD_NAV_TAKEOFF, self.telemetry.statustexts
+        params = self.channel.autopilot.takeoff_params(float(alt_m), alt0)
+        if not math.isfinite(params[6]):
+            raise LinkError(f"{self.name} cannot take off: its altitude is not known yet")
         result, attempts = yield from self._op_exchange(
-            command, (0, 0, 0, 0, 0, 0, float(alt_m)), retries, timeout_s, in_progress_timeout_s=10.0
+            command, params, retries, timeout_s, in_progress_timeout_s=10.0
         )
         if result == mavlink2.MAV_RESULT_ACCEPTED:
             return result

@@ -31,12 +31,14 @@ class Parameters:
         self._received = 0  # PARAM_VALUE messages received
 
     def on_param_value(self, m: MAVLinkMessage) -> None:
-        """A PARAM_VALUE: remember the value (a non-finite one is counted invalid and ignored)."""
-        if not math.isfinite(m.param_value):
+        """A PARAM_VALUE: remember the value, decoded in the autopilot's dialect (PX4 sends integers as their
+        bytes); a non-finite value is counted invalid and ignored."""
+        value = self.channel.autopilot.decode_param(m.param_value, m.param_type)
+        if not math.isfinite(value):
             self.channel.stats.invalid += 1
             return
         name = m.param_id
-        self.values[name] = float(m.param_value)
+        self.values[name] = value
         self.types[name] = m.param_type
         self.count = m.param_count
         self._updates[name] = self._updates.get(name, 0) + 1
@@ -91,9 +93,11 @@ class Parameters:
     ) -> Operation[float]:
         """PARAM_SET, verified by the PARAM_VALUE echo (float32 equality); resent up to `retries` times, after
         each silent `timeout_s` of vehicle time (a repeat is harmless: the same value is set again). A
-        renamed parameter is read first, so that it is set under the vehicle's own spelling."""
-        renamed = self.channel.autopilot.other_param_name(name) is not None
-        if renamed and self.spelling(name) not in self.values:
+        renamed parameter is read first, so that it is set under the vehicle's own spelling; so is any
+        parameter of an autopilot that encodes by type (PX4 ignores a PARAM_SET of the wrong type)."""
+        dialect = self.channel.autopilot
+        renamed = dialect.other_param_name(name) is not None
+        if (renamed or dialect.typed_params) and self.spelling(name) not in self.values:
             yield from self.op_get(name, retries, timeout_s)
         name = self.spelling(name)
         param_id = self._param_id(name)
@@ -107,7 +111,11 @@ class Parameters:
         for _ in range(retries + 1):
             seen = self._updates.get(name, 0)
             param_type = self.types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
-            ch.send(ch.mav.param_set_encode(ch.target_sysid, ch.compid, param_id, float(value), param_type))
+            try:
+                wire = dialect.encode_param(value, param_type)
+            except ValueError as err:
+                raise LinkError(f"{self.name}: parameter {name}: {err}") from None
+            ch.send(ch.mav.param_set_encode(ch.target_sysid, ch.compid, param_id, wire, param_type))
             timeout.restart()
             while not timeout.expired():
                 yield

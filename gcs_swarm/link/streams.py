@@ -65,9 +65,12 @@ class Streams:
         """Ask for each message at its rate (Hz): SET_MESSAGE_INTERVAL, acknowledged, one after the other; a
         message the vehicle refuses (COMMAND_ACK other than ACCEPTED) is asked for by REQUEST_DATA_STREAM of
         its stream group in the autopilot's dialect instead (no ACK exists for that; the stream watchdog,
-        `check`, asks again if the telemetry does not come). The rates are remembered for `check`."""
-        self.rates = {message: float(hz) for message, hz in rates.items()}
-        for message, hz in rates.items():
+        `check`, asks again if the telemetry does not come). Messages the autopilot does not have (its
+        dialect's `unsupported_streams`, e.g. PX4's EKF_STATUS_REPORT) are not asked for. The rates are
+        remembered for `check`."""
+        missing = self.channel.autopilot.unsupported_streams
+        self.rates = {message: float(hz) for message, hz in rates.items() if message not in missing}
+        for message, hz in self.rates.items():
             try:
                 yield from self.op_set_message_interval(message, hz)
             except LinkError as err:

@@ -70,6 +70,8 @@ class TelemetryState:
         self.system_status = np.full(n, -1, dtype=np.int64)  # MAV_STATE
         self.landed_state = np.zeros(n, dtype=np.int64)  # MAV_LANDED_STATE (0 = undefined)
         self.ekf_flags = np.full(n, -1, dtype=np.int64)  # EKF_STATUS_REPORT.flags (-1 = none yet)
+        # (N,) readiness waits for EKF_STATUS_REPORT (the autopilot's dialect: ArduPilot yes, PX4 no)
+        self.ekf_required = np.ones(n, dtype=bool)
         self.prearm = np.full(n, -1, dtype=np.int8)  # SYS_STATUS pre-arm check: -1 unknown, 0 failing, 1 ok
         self.gps_fix = np.full(n, -1, dtype=np.int64)  # GPS_RAW_INT.fix_type (-1 = none received)
         self.rtt_ms = np.full(n, np.nan)  # round trip of the latest TIMESYNC exchange, wall ms
@@ -110,7 +112,9 @@ class TelemetryState:
     @property
     def ready(self) -> NDArray[np.bool_]:
         """(N,) usable position estimate, pre-arm checks passing, position received, link alive."""
-        return self.alive & (self.position_count > 0) & self.ekf_ok & (self.prearm == 1)
+        return (
+            self.alive & (self.position_count > 0) & (self.ekf_ok | ~self.ekf_required) & (self.prearm == 1)
+        )
 
 
 class VehicleTelemetry:
@@ -311,9 +315,9 @@ class VehicleTelemetry:
         if st.position_count[i] == 0:
             asked = "asked for" if streams_asked else "not yet asked for"
             return f"no GLOBAL_POSITION_INT received (telemetry {asked}){gps}{said}"
-        if st.ekf_flags[i] < 0:
+        if st.ekf_required[i] and st.ekf_flags[i] < 0:
             return f"no EKF_STATUS_REPORT received{gps}{said}"
-        if not st.ekf_ok[i]:
+        if st.ekf_required[i] and not st.ekf_ok[i]:
             flags = int(st.ekf_flags[i])
             why = dialect.ekf_missing(flags, EKF_REQUIRED, EKF_HORIZONTAL, EKF_FORBIDDEN)
             return f"no usable position estimate (EKF: {why}; flags 0x{flags:04x}){gps}{said}"

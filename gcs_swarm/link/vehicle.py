@@ -11,13 +11,15 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.link.autopilots import formation_mode
 from gcs_swarm.link.channel import Channel
-from gcs_swarm.link.connection import MAVLinkMessage
+from gcs_swarm.link.connection import LinkError, MAVLinkMessage
 from gcs_swarm.link.heartbeat import GcsHeartbeat
 from gcs_swarm.link.lockstep import LockstepAnswer, is_clock_tick
-from gcs_swarm.link.operations import Commands
+from gcs_swarm.link.operations import Commands, Operation, Timeout
 from gcs_swarm.link.parameters import Parameters
 from gcs_swarm.link.setpoints import Setpoints
 from gcs_swarm.link.streams import Streams
@@ -31,6 +33,7 @@ class VehicleConfig:
     name: str
     connection: str
     sysid: int | None = None
+    autopilot: str = "auto"  # "auto": the dialect of its HEARTBEAT.autopilot; "ardupilot" | "px4": that one
 
 
 class VehicleLink:
@@ -119,6 +122,39 @@ class VehicleLink:
     def mode_name(self) -> str:
         """The vehicle's flight mode, named in its autopilot's dialect ("UNKNOWN" before a HEARTBEAT)."""
         return self.channel.autopilot.mode_name(int(self.state.mode[self.index]))
+
+    def op_take_control(self) -> Operation[None]:
+        """Into the dialect's formation mode, confirmed by HEARTBEAT. An autopilot that accepts it only over a
+        flowing setpoint stream (PX4's OFFBOARD: `setpoint_proof_s`) first gets position holds where the
+        vehicle is, one per new frame of its clock, for that long, and on until the mode shows."""
+        dialect = self.channel.autopilot
+        st, i = self.state, self.index
+        if dialect.setpoint_proof_s <= 0 or st.mode[i] == dialect.mode_number(dialect.formation_mode):
+            return (yield from self.commands.op_set_mode(formation_mode))
+        if st.position_count[i] == 0:
+            raise LinkError(f"{self.name} cannot enter {dialect.formation_mode}: no position received yet")
+        point = st.pos[i].copy()
+        yaw = float(st.att[i, 2]) if np.isfinite(st.att[i, 2]) else None
+        sent_ms = -1
+
+        def stream() -> None:
+            nonlocal sent_ms
+            if st.time_ms[i] != sent_ms:
+                sent_ms = int(st.time_ms[i])
+                self.setpoints.send_position_target(point, yaw)
+
+        proof = Timeout(dialect.setpoint_proof_s, self.telemetry.vehicle_clock)
+        while not proof.expired():
+            stream()
+            yield
+        switch = self.commands.op_set_mode(formation_mode)
+        while True:
+            stream()
+            try:
+                next(switch)
+            except StopIteration:
+                return
+            yield
 
     def not_ready_reason(self) -> str | None:
         """Why the vehicle is not ready to arm (None when it is), as a clause for an error sentence."""

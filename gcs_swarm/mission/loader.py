@@ -146,6 +146,7 @@ def _vehicle(vehicle: VehicleEntry, name: str, index: int, run: RunSpec) -> Vehi
         slot=None if vehicle.slot is None else frozen_vector(vehicle.slot),
         start=StartState(frozen_vector(start.position), frozen_vector(start.velocity), start.yaw_deg),
         target=None if vehicle.target is None else frozen_vector(vehicle.target),
+        autopilot=vehicle.autopilot,
     )
 
 

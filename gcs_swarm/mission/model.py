@@ -116,6 +116,9 @@ class World(_ValueEquality):
     obstacles: tuple[Obstacle, ...]
     wind: WindSpec
     link: LinkSpec = LinkSpec()
+    # in vehicle order, the autopilot each simulated vehicle behaves as: "ardupilot" | "px4" (empty: all
+    # "ardupilot")
+    autopilots: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -131,6 +134,7 @@ class VehicleSpec(_ValueEquality):
     )  # (3,) m, explicit offset in the leader's heading frame (FLU); None: from the shape
     start: StartState
     target: np.ndarray | None  # (3,) m ENU, a follower's own final destination g_i (spec 8 step 1)
+    autopilot: str = "auto"  # "auto" (HEARTBEAT.autopilot decides) | "ardupilot" | "px4"
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -159,6 +163,7 @@ class SimulatorSpec:
     seed: int
     rate_hz: float  # physics rate
     base_port: int  # vehicle i listens on base_port + i
+    autopilot: str  # "ardupilot" | "px4": the persona of vehicles whose own `autopilot` is "auto"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -248,6 +253,9 @@ class Mission(_ValueEquality):
             obstacles=self.obstacles,
             wind=self.wind,
             link=self.link,
+            autopilots=tuple(
+                self.run.simulator.autopilot if v.autopilot == "auto" else v.autopilot for v in self.vehicles
+            ),
         )
 
 

@@ -293,6 +293,8 @@ class VehicleEntry(Entry):
     slot: OptionalVec = None
     start: StartEntry
     target: OptionalVec = None
+    # auto: from the vehicle's HEARTBEAT.autopilot; ardupilot | px4: speak that dialect whatever it says
+    autopilot: Annotated[str, one_of("auto", "ardupilot", "px4")] = "auto"
 
 
 class FormationSection(Section):
@@ -373,6 +375,8 @@ class SimulatorSection(Section):
     seed: Annotated[int, Range(ge=0, le=2**32 - 1)] = 0
     rate_hz: Annotated[float, Range(le=100000, unit="Hz")] = 1000.0  # >= run.control_rate_hz (checks.py)
     base_port: Annotated[int, Range(ge=1024, le=65535)] = 14540
+    # the persona of vehicles whose `autopilot` is auto (a vehicle's explicit autopilot wins)
+    autopilot: Annotated[str, one_of("ardupilot", "px4")] = "ardupilot"
 
 
 FORWARD_HINT = "a connection string such as udpout:127.0.0.1:14550"

@@ -59,6 +59,7 @@ from sitl_sim.autopilot.outer_loop import (
     outer_loop,
 )
 from sitl_sim.autopilot.params import ParamTable
+from sitl_sim.autopilot.px4 import Px4Autopilot
 from sitl_sim.vehicle_model.attitude_control import level_quat, yaw_from_quat
 from sitl_sim.vehicle_model.dynamics import FleetDynamics
 
@@ -84,7 +85,9 @@ class Autopilot:
         airborne: np.ndarray,
         start_vel: np.ndarray,
         ready_delay: float,
+        px4: np.ndarray | None = None,
     ) -> None:
+        """px4 (N,) bool: the vehicles that behave as PX4 (sitl_sim.autopilot.px4), default none."""
         n = dyn.n
         self.n = n
         self.dyn = dyn
@@ -153,6 +156,31 @@ class Autopilot:
         )  # fmt: skip
         for i in np.flatnonzero(~self.armed):
             self._enter_mode(int(i), STABILIZE)
+        self.px4 = Px4Autopilot(self, np.zeros(n, dtype=bool) if px4 is None else px4)
+
+    def is_px4(self, i: int) -> bool:
+        """Vehicle i speaks as PX4 (its rules are self.px4's); otherwise as ArduCopter."""
+        return bool(self.px4.mask[i])
+
+    def heartbeat(self, i: int) -> tuple[int, int, int, int]:
+        """(autopilot, base_mode, custom_mode, system_status) of vehicle i's HEARTBEAT."""
+        if self.is_px4(i):
+            return self.px4.heartbeat(i)
+        autopilot = mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA
+        return autopilot, self.base_mode(i), int(self.mode[i]), self.system_status(i)
+
+    def enter_mode(self, i: int, mode: int) -> None:
+        """Run the shared control law of internal (ArduCopter-numbered) `mode` on vehicle i from its state."""
+        self._enter_mode(i, mode)
+
+    def climb_to(self, i: int, z: float) -> None:
+        """Take off vertically to world height z (m) under position control (the shared takeoff law)."""
+        pos = self.state.pos[i]
+        self._set_position_control(i, KIND_POS)
+        self.nav_pos[i] = (pos[0], pos[1], z)
+        self.takeoff_active[i] = True
+        self.land_complete[i] = False
+        self.land_timer[i] = 0.0
 
     # --- status as MAVLink reports it -----------------------------------------------------------------------
 
@@ -222,8 +250,8 @@ class Autopilot:
             health |= mavlink2.MAV_SYS_STATUS_AHRS
         if self.ready[i]:
             health |= mavlink2.MAV_SYS_STATUS_SENSOR_GPS
-        if self.prearm_ok(i):
-            health |= mavlink2.MAV_SYS_STATUS_PREARM_CHECK
+        if self.px4.arming_problem(i, int(self.px4.nav[i])) is None if self.is_px4(i) else self.prearm_ok(i):
+            health |= mavlink2.MAV_SYS_STATUS_PREARM_CHECK  # PX4: pre_flight_checks_pass (Commander::run)
         present = SENSORS_PRESENT
         # AC_Fence::sys_status_present/_enabled/_failed: the geofence bit
         configured = int(self.params.value(i, "FENCE_TYPE"))
@@ -330,12 +358,7 @@ class Autopilot:
             return mavlink2.MAV_RESULT_FAILED
         if not (math.isfinite(altitude) and self.state.pos[i, 2] - self.home[i, 2] < altitude <= 10000.0):
             return mavlink2.MAV_RESULT_FAILED
-        pos = self.state.pos[i]
-        self._set_position_control(i, KIND_POS)
-        self.nav_pos[i] = (pos[0], pos[1], self.home[i, 2] + altitude)
-        self.takeoff_active[i] = True
-        self.land_complete[i] = False
-        self.land_timer[i] = 0.0
+        self.climb_to(i, self.home[i, 2] + altitude)
         return mavlink2.MAV_RESULT_ACCEPTED
 
     def set_position_target(
@@ -443,8 +466,8 @@ class Autopilot:
         """One outer tick at simulated time t (s) covering dt (s): modes, control, targets to the physics."""
         self.t = t
         self.ready = t >= self.ready_at
-        if not self.ready.all():  # AP_Arming::update: a vehicle that cannot arm says why every
-            self._prearm_reports(t)  # PREARM_DISPLAY_PERIOD (30 s) by itself
+        if not (self.ready | self.px4.mask).all():  # AP_Arming::update: an ArduCopter that cannot arm says
+            self._prearm_reports(t)  # why every PREARM_DISPLAY_PERIOD (30 s) by itself
         outer_loop(t, dt, self.dyn.params.g, self.params.values, self._columns, *self._loop_arrays)
         self.dyn.set_targets(
             self._quat_sp,
@@ -456,8 +479,11 @@ class Autopilot:
         if self._rate_mask.any() or self._rate_control:  # rate-only control started, continues or ends
             self.dyn.set_rate_targets(self._rate_mask, self.angle_rates)
             self._rate_control = bool(self._rate_mask.any())
-        for i in np.flatnonzero(self._events):
+        # PX4 vehicles disarm and failsafe by their own rules (self.px4.update)
+        for i in np.flatnonzero((self._events != 0) & ~self.px4.mask):
             self._handle_event(int(i), int(self._events[i]))
+        if self.px4.mask.any():
+            self.px4.update(t)
         if t - self.fence.last_check >= fences.CHECK_PERIOD_S - 1e-9:
             self._fence_check(t)
 
@@ -466,6 +492,7 @@ class Autopilot:
         booted, whose last report is PREARM_DISPLAY_PERIOD_S old (simulated s)."""
         due = (
             ~self.ready
+            & ~self.px4.mask
             & ~self.armed
             & (t - self.prearm_said >= PREARM_DISPLAY_PERIOD_S)
             & (t >= self.boot_end)

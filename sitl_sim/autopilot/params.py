@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import struct
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +24,16 @@ REAL32 = mavlink2.MAV_PARAM_TYPE_REAL32
 INT8 = mavlink2.MAV_PARAM_TYPE_INT8
 INT16 = mavlink2.MAV_PARAM_TYPE_INT16
 INT32 = mavlink2.MAV_PARAM_TYPE_INT32
+
+
+def int32_as_float(value: int) -> float:
+    """The float whose 4 bytes are the int32 `value` (MAVLink's bytewise parameter encoding)."""
+    return float(struct.unpack("<f", struct.pack("<i", value))[0])
+
+
+def float_as_int32(value: float) -> int:
+    """The int32 held bytewise in the float `value` (inverse of int32_as_float)."""
+    return int(struct.unpack("<i", struct.pack("<f", value))[0])
 
 
 @dataclass(frozen=True)
@@ -106,13 +117,23 @@ def param_specs(hover_fraction: float, names: str = "4.7") -> tuple[ParamSpec, .
 
 
 class ParamTable:
-    """Parameter values of N vehicles: `values` (N, P) float64, column j belongs to specs[j]."""
+    """Parameter values of N vehicles: `values` (N, P) float64, column j belongs to specs[j].
+
+    visible (N, P) bool, default all: the parameters each vehicle shows on the wire (a PX4 vehicle shows PX4
+    names, an ArduPilot one ArduCopter names; the hidden columns still drive the shared autopilot code).
+    """
 
     def __init__(
-        self, n: int, specs: tuple[ParamSpec, ...], overrides: dict[str, np.ndarray | float]
+        self,
+        n: int,
+        specs: tuple[ParamSpec, ...],
+        overrides: dict[str, np.ndarray | float],
+        visible: np.ndarray | None = None,
     ) -> None:
         self.specs = specs
-        self.index = {spec.name: j for j, spec in enumerate(specs)}  # the names the vehicle shows
+        self.index = {spec.name: j for j, spec in enumerate(specs)}  # every column by its name
+        self.visible = np.ones((n, len(specs)), dtype=bool) if visible is None else np.asarray(visible, bool)
+        self._listings = [tuple(np.flatnonzero(row).tolist()) for row in self.visible]
         # the simulator's own code reads renamed parameters by their 4.7 names, whatever the vehicle shows
         self._internal = dict(self.index)
         for new_name, old_name in RENAMED_IN_4_7.items():
@@ -124,6 +145,15 @@ class ParamTable:
 
     def __len__(self) -> int:
         return len(self.specs)
+
+    def listing(self, i: int) -> tuple[int, ...]:
+        """Columns vehicle i shows, in its PARAM_REQUEST_LIST order (param_index = position here)."""
+        return self._listings[i]
+
+    def lookup(self, i: int, name: str) -> int | None:
+        """Column of `name` if vehicle i shows it, else None (an unknown parameter on that vehicle)."""
+        j = self.index.get(name)
+        return j if j is not None and self.visible[i, j] else None
 
     def column(self, name: str) -> np.ndarray:
         """(N,) current values of parameter `name` (a view; renamed ones also by their 4.7 name)."""

@@ -203,17 +203,18 @@ class CommandHandlers:
             self.sim.streams.set_interval(self.index, msg_id, interval, self.sim.time_us)
 
     def _on_param_request_list(self, msg: mavlink2.MAVLink_message, addr: tuple[str, int]) -> None:
-        for j in range(len(self.sim.params)):
+        for j in self.sim.params.listing(self.index):
             self.outbox.send_param(self.sim.params, self.index, j)
 
     def _on_param_request_read(
         self, msg: mavlink2.MAVLink_param_request_read_message, addr: tuple[str, int]
     ) -> None:
         params = self.sim.params
+        listing = params.listing(self.index)
         if msg.param_index >= 0:
-            j = msg.param_index if msg.param_index < len(params) else None
+            j = listing[msg.param_index] if msg.param_index < len(listing) else None
         else:
-            j = params.index.get(param_name(msg.param_id))
+            j = params.lookup(self.index, param_name(msg.param_id))
         if j is None:
             self.counters.invalid += 1
             return
@@ -223,13 +224,12 @@ class CommandHandlers:
         name = param_name(msg.param_id)
         params = self.sim.params
         value = float(msg.param_value)
-        problem = params.check(name, value)
+        j = params.lookup(self.index, name)
+        problem = params.check(name, value) if j is not None else f"unknown parameter {name}"
         if problem is not None:
             self.counters.refused += 1
             self.sim.autopilot.say(self.index, mavlink2.MAV_SEVERITY_WARNING, f"Param denied: {problem}")
-            if name in params.index:
-                self.outbox.send_param(
-                    self.sim.params, self.index, params.index[name]
-                )  # echo the unchanged value, as ArduPilot does
+            if j is not None:
+                self.outbox.send_param(self.sim.params, self.index, j)  # the unchanged value, as ArduPilot
             return
         self.sim.set_param(self.index, name, value)

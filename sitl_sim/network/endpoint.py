@@ -23,6 +23,7 @@ from sitl_sim.network.counters import LinkCounters
 from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, Outage
 from sitl_sim.network.mission_protocol import FenceProtocol
 from sitl_sim.network.outbox import Outbox
+from sitl_sim.network.px4_commands import Px4CommandHandlers, Px4SetpointHandlers
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.setpoints import SetpointHandlers
 from sitl_sim.network.streams import Framer
@@ -90,9 +91,12 @@ class VehicleEndpoint:
         self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
         self.counters = LinkCounters()
         self.missions = FenceProtocol(index, self.counters, self.outbox, sim)  # MISSION_* of the fence
+        px4 = sim.autopilot.is_px4(index)  # the one place an endpoint picks its autopilot's MAVLink surface
+        commands = Px4CommandHandlers if px4 else CommandHandlers
+        setpoints = Px4SetpointHandlers if px4 else SetpointHandlers
         self.handlers: dict[int, Handler] = {
-            **CommandHandlers(index, sysid, self.counters, self.outbox, sim).handlers(),
-            **SetpointHandlers(index, self.counters, sim).handlers(),
+            **commands(index, sysid, self.counters, self.outbox, sim).handlers(),
+            **setpoints(index, self.counters, sim).handlers(),
         }
         for msg_id in self.missions.handlers:
             self.handlers[msg_id] = lambda msg, addr: self.missions.handle(msg)

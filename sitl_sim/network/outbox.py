@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from sitl_sim.autopilot.params import ParamTable
+from sitl_sim.autopilot.params import INT_TYPES, ParamTable, int32_as_float
 from sitl_sim.network.streams import Framer
 
 
@@ -35,8 +35,15 @@ class Outbox:
             self.tx.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         )
 
-    def send_param(self, params: ParamTable, vehicle: int, j: int) -> None:
-        """PARAM_VALUE of parameter index j of `vehicle`."""
+    def send_param(self, params: ParamTable, vehicle: int, j: int, bytewise: bool = False) -> None:
+        """PARAM_VALUE of column j of `vehicle`, param_index/param_count counted over what it shows.
+
+        bytewise: integer parameters travel as their int32 bytes reinterpreted as the float (PX4,
+        mavlink_parameters.cpp); otherwise integers are sent as float values (ArduPilot, PARAM_FLOAT)."""
         spec = params.specs[j]
         value = float(params.values[vehicle, j])
-        self.send(self.tx.param_value_encode(spec.name.encode(), value, spec.type, len(params), j))
+        if bytewise and spec.type in INT_TYPES:
+            value = int32_as_float(int(value))
+        listing = params.listing(vehicle)
+        index = listing.index(j) if j in listing else 65535
+        self.send(self.tx.param_value_encode(spec.name.encode(), value, spec.type, len(listing), index))

@@ -183,11 +183,16 @@ class StreamSchedule:
     200 at once), as the autopilots of a real fleet are not phase-locked either.
     """
 
-    def __init__(self, n: int, tick_us: int) -> None:
+    def __init__(self, n: int, tick_us: int, default_rates_hz: np.ndarray | None = None) -> None:
+        """default_rates_hz (N, M) Hz per vehicle and stream (0 = off), default DEFAULT_RATES_HZ for all."""
         self.tick_us = tick_us
         self.column = {msg_id: j for j, msg_id in enumerate(STREAM_IDS)}
-        default = np.array([self.default_interval(m) for m in STREAM_IDS], dtype=np.int64)
-        self.interval_us = np.tile(default, (n, 1))
+        if default_rates_hz is None:
+            default_rates_hz = np.tile([DEFAULT_RATES_HZ[m] for m in STREAM_IDS], (n, 1))
+        rates = np.asarray(default_rates_hz, dtype=float)
+        safe = np.where(rates > 0, rates, 1.0)
+        self.default_us = np.where(rates > 0, np.maximum(tick_us, np.round(1e6 / safe)), 0).astype(np.int64)
+        self.interval_us = self.default_us.copy()
         self.vehicle_offset_us = np.arange(n, dtype=np.int64)[:, None] * tick_us  # (N, 1)
         self.phase_us = self._phase(self.vehicle_offset_us, self.interval_us)
         self.next_due_us = self.phase_us.copy()
@@ -198,11 +203,6 @@ class StreamSchedule:
         slow = interval_us >= SPREAD_FROM_US
         return np.where(slow, offset_us % np.maximum(interval_us, 1), 0)
 
-    def default_interval(self, msg_id: int) -> int:
-        """Default interval of a stream in us (0 = off)."""
-        rate = DEFAULT_RATES_HZ[msg_id]
-        return 0 if rate <= 0 else max(self.tick_us, round(1e6 / rate))
-
     def set_interval(self, i: int, msg_id: int, interval_us: float, now_us: int) -> bool:
         """SET_MESSAGE_INTERVAL semantics: us > 0 period, 0 default, -1 off; False if msg_id is no stream."""
         j = self.column.get(msg_id)
@@ -211,7 +211,7 @@ class StreamSchedule:
         if interval_us < 0:
             value = 0
         elif interval_us == 0:
-            value = self.default_interval(msg_id)
+            value = int(self.default_us[i, j])
         else:
             value = max(self.tick_us, round(interval_us))
         self.interval_us[i, j] = value
@@ -303,15 +303,10 @@ class TelemetryView:
 
 
 def _heartbeat(v: TelemetryView, f: Framer, i: int) -> bytes:
-    ap = v.ap
+    autopilot, base_mode, custom_mode, system_status = v.ap.heartbeat(i)
     return f.pack(
         f.mav.heartbeat_encode(
-            mavlink2.MAV_TYPE_QUADROTOR,
-            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
-            ap.base_mode(i),
-            int(ap.mode[i]),
-            ap.system_status(i),
-            3,
+            mavlink2.MAV_TYPE_QUADROTOR, autopilot, base_mode, custom_mode, system_status, 3
         )
     )
 
@@ -321,7 +316,9 @@ def _sys_status(v: TelemetryView, f: Framer, i: int) -> bytes:
     return f.pack(f.mav.sys_status_encode(present, enabled, health, 120, 12600, 100, 100, 0, 0, 0, 0, 0, 0))
 
 
-def _ekf_status(v: TelemetryView, f: Framer, i: int) -> bytes:
+def _ekf_status(v: TelemetryView, f: Framer, i: int) -> bytes | None:
+    if v.ap.is_px4(i):
+        return None  # an ardupilotmega message: PX4 has no such stream (ESTIMATOR_STATUS instead)
     return f.pack(f.mav.ekf_status_report_encode(v.ap.ekf_flags(i), 0.02, 0.02, 0.02, 0.02, 0.0, 0.0))
 
 

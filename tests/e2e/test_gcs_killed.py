@@ -38,6 +38,13 @@ def quickstart_moments(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, 
 
 
 @pytest.fixture(scope="module")
+def mixed_moments(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, float]]:
+    folder = tmp_path_factory.mktemp("mixed_killed")
+    mission = derived_mission(folder, "mixed_fleet.yaml", "mixed_killed")
+    return mission, _reference(mission, folder)
+
+
+@pytest.fixture(scope="module")
 def static6_moments(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, float]]:
     folder = tmp_path_factory.mktemp("static6_killed")
     mission = static6_short(folder, "static6_killed")
@@ -64,6 +71,16 @@ def test_quickstart_killed_at_the_worst_moments(
 ) -> None:
     mission, moments = quickstart_moments
     _killed_at(mission, tmp_path / "run", moments[moment], 3)
+
+
+@pytest.mark.parametrize("moment", ["heading_at_obstacle", "mid_avoidance", "assembling"])
+def test_mixed_ardupilot_px4_fleet_killed_at_the_worst_moments(
+    moment: str, mixed_moments: tuple[Path, dict[str, float]], tmp_path: Path
+) -> None:
+    """PX4 vehicles fly their last OFFBOARD target for COM_OF_LOSS_T, then Land (COM_OBL_RC_ACT); the
+    ArduCopters level after GUID_TIMEOUT, then Land on FS_GCS_TIMEOUT: none touches anything."""
+    mission, moments = mixed_moments
+    _killed_at(mission, tmp_path / "run", moments[moment], 4)
 
 
 @pytest.mark.parametrize("moment", ["mid_avoidance", "assembling"])

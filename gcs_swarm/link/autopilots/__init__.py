@@ -1,29 +1,72 @@
 """Autopilot dialects: what differs between autopilots on the wire, behind one interface and a registry.
 
 The link picks a vehicle's dialect from its first HEARTBEAT (`HEARTBEAT.autopilot`, MAV_AUTOPILOT) with
-`dialect_for`; until then, and for an autopilot with no dialect of its own, it speaks ArduPilot (the only
-dialect today; PX4 joins the registry in a later issue). Nothing else in gcs_swarm.link names an autopilot's
-modes or parameters.
+`dialect_for` (ArduPilot or PX4), unless the mission names the vehicle's autopilot (`vehicles[i].autopilot`,
+`dialect_named`); until then, and for an autopilot with no dialect of its own, it speaks ArduPilot. Nothing
+outside gcs_swarm.link.autopilots names an autopilot's modes or parameters: the flight layer asks the
+vehicle's dialect (its formation mode, the parameters a flight sets, how it takes off).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.autopilots.ardupilot import ARDUPILOT
+from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
+from gcs_swarm.link.autopilots.px4 import PX4
 
 
 class AutopilotDialect(Protocol):
     """The autopilot-specific facts the link needs (modes, parameter spellings, stream groups, health)."""
 
-    name: str
+    key: str  # "ardupilot" | "px4": the mission's `vehicles[i].autopilot` spelling
+    name: str  # for people: "ArduCopter", "PX4"
     modes: Mapping[str, int]  # flight mode name -> HEARTBEAT.custom_mode number
     force_arm_param2: float  # MAV_CMD_COMPONENT_ARM_DISARM param2 that arms skipping the pre-arm checks
     force_disarm_param2: float  # ... that disarms even in flight
     land_mode: str  # the mode that lands the vehicle where it is
+    hold_mode: str  # the mode that stops the vehicle and holds where it is, with no ground station
+    formation_mode: str  # the mode in which it flies SET_ATTITUDE_TARGET (and position targets)
+    launch_mode: str  # the mode to arm and take off in
+    takeoff_mode: str  # the mode NAV_TAKEOFF puts the vehicle in by itself (launch_mode if none)
+    # s of vehicle time a setpoint stream must already flow before formation_mode is accepted (0: none)
+    setpoint_proof_s: float
+    hover_param: str  # the parameter holding the normalised thrust that hovers
+    angle_boost_param: str | None  # the parameter that makes the autopilot add 1/cos(tilt) to thrust, if any
+    failsafe_params: tuple[tuple[str, float], ...]  # (name, factor to SI) of: failsafe timeout s, Return
+    # speed m/s, Return altitude m (how a vehicle that lost its ground station flies)
+    needs_ekf_report: bool  # readiness needs EKF_STATUS_REPORT (else SYS_STATUS's pre-arm bit alone)
+    geofence: bool  # the ground station can install its obstacle fence (gcs_swarm.flight.geofence) on it
+    typed_params: bool  # PARAM_SET must carry the parameter's own MAV_PARAM_TYPE (read it first)
+    unsupported_streams: frozenset[str]  # telemetry messages this autopilot does not have
+
+    def set_mode_params(self, number: int) -> tuple[float, float, float]:
+        """MAV_CMD_DO_SET_MODE param1..3 that select custom_mode `number`."""
+        ...
+
+    def decode_param(self, wire_value: float, param_type: int) -> float:
+        """PARAM_VALUE.param_value of MAV_PARAM_TYPE `param_type` -> the parameter's value."""
+        ...
+
+    def encode_param(self, value: float, param_type: int) -> float:
+        """A value -> PARAM_SET.param_value for a parameter of MAV_PARAM_TYPE `param_type`."""
+        ...
+
+    def takeoff_params(self, alt_m: float, ground_amsl_m: float) -> tuple[float, ...]:
+        """MAV_CMD_NAV_TAKEOFF param1..7 for a climb to `alt_m` above the ground at `ground_amsl_m` m AMSL."""
+        ...
+
+    def flight_params(self, failsafe: FailsafeSettings) -> list[tuple[str, float]]:
+        """(name, value) the flight sets: what the vehicle does when the ground station goes silent, and
+        whatever else flying its attitude targets needs."""
+        ...
+
+    def is_angle_boost_on(self, value: float) -> bool:
+        """`angle_boost_param`'s value as read -> whether the boost is on."""
+        ...
 
     def mode_number(self, mode: str | int) -> int:
         """Mode name (case-insensitive) or number -> custom_mode number; ValueError if unknown."""
@@ -57,9 +100,56 @@ class AutopilotDialect(Protocol):
 DEFAULT_DIALECT: AutopilotDialect = ARDUPILOT
 """The dialect of a vehicle not heard yet, or of an autopilot the registry does not know."""
 
-_REGISTRY: dict[int, AutopilotDialect] = {mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA: ARDUPILOT}
+_REGISTRY: dict[int, AutopilotDialect] = {
+    mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA: ARDUPILOT,
+    mavlink2.MAV_AUTOPILOT_PX4: PX4,
+}
+_BY_KEY: dict[str, AutopilotDialect] = {dialect.key: dialect for dialect in _REGISTRY.values()}
+
+MODE_NAMES: tuple[str, ...] = tuple(dict.fromkeys(name for d in _REGISTRY.values() for name in d.modes))
+"""Every flight mode name some dialect knows (ArduCopter's, then PX4's not already listed), for the console;
+a vehicle whose own dialect lacks the name refuses it."""
 
 
 def dialect_for(autopilot: int) -> AutopilotDialect:
     """The dialect of HEARTBEAT.autopilot `autopilot` (MAV_AUTOPILOT); DEFAULT_DIALECT if none registered."""
     return _REGISTRY.get(autopilot, DEFAULT_DIALECT)
+
+
+def dialect_named(key: str) -> AutopilotDialect:
+    """The dialect a mission names: "ardupilot" or "px4"; ValueError for anything else."""
+    try:
+        return _BY_KEY[key]
+    except KeyError:
+        raise ValueError(f"unknown autopilot {key!r} (known: {', '.join(_BY_KEY)})") from None
+
+
+ModeChoice = str | int | Callable[[AutopilotDialect], str]
+"""A flight mode for a vehicle: its name or custom_mode in the vehicle's dialect, or a function of the dialect
+that names it (FORMATION_MODE, ...), for fleets of several autopilots."""
+
+
+def formation_mode(dialect: AutopilotDialect) -> str:
+    """The mode in which the vehicle flies the formation's attitude targets (GUIDED, OFFBOARD)."""
+    return dialect.formation_mode
+
+
+def launch_mode(dialect: AutopilotDialect) -> str:
+    """The mode to arm and take off in (GUIDED, LOITER)."""
+    return dialect.launch_mode
+
+
+def takeoff_mode(dialect: AutopilotDialect) -> str:
+    """The mode NAV_TAKEOFF switches the vehicle to by itself (ArduCopter: none, it stays GUIDED; PX4:
+    TAKEOFF, then back to LOITER at the top)."""
+    return dialect.takeoff_mode
+
+
+def hold_mode(dialect: AutopilotDialect) -> str:
+    """The mode that stops and holds with no ground station (BRAKE, LOITER)."""
+    return dialect.hold_mode
+
+
+def mode_name_in(dialect: AutopilotDialect, mode: ModeChoice) -> str | int:
+    """`mode` as a name or number in `dialect` (a ModeChoice function is applied)."""
+    return mode(dialect) if callable(mode) else mode

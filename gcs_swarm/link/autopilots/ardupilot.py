@@ -18,6 +18,8 @@ from numpy.typing import ArrayLike, NDArray
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
+
 ARDUCOPTER_MODES: Mapping[str, int] = MappingProxyType(
     {name: number for number, name in mavutil.mode_mapping_acm.items()}
 )
@@ -79,14 +81,71 @@ _GPS_FIX_NAMES = {
 }
 
 
+# FS_GCS_ENABLE values (ArduCopter/events.cpp failsafe_gcs_on_event): 1 RTL, 5 Land, 7 Brake or Land
+FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5, "brake": 7}
+GUID_OPTIONS_THRUST = 8  # bit 3: SET_ATTITUDE_TARGET thrust is normalised collective thrust (not climb rate)
+
+
 class ArduPilotDialect:
     """ArduCopter as the link speaks to it (gcs_swarm.link.autopilots.AutopilotDialect)."""
 
+    key = "ardupilot"
     name = "ArduCopter"
     modes = ARDUCOPTER_MODES
     force_arm_param2 = float(FORCE_ARM_MAGIC)
     force_disarm_param2 = float(FORCE_DISARM_MAGIC)
     land_mode = "LAND"
+    hold_mode = "BRAKE"
+    formation_mode = "GUIDED"  # SET_ATTITUDE_TARGET is flown in GUIDED (mode_guided.cpp angle_control_run)
+    launch_mode = "GUIDED"  # NAV_TAKEOFF is accepted in GUIDED (Mode::do_user_takeoff)
+    takeoff_mode = "GUIDED"  # and the climb stays in GUIDED
+    setpoint_proof_s = 0.0  # GUIDED is accepted without setpoints
+    hover_param = "MOT_THST_HOVER"
+    angle_boost_param: str | None = "ATC_ANGLE_BOOST"
+    # how a vehicle that lost its ground station flies (gcs_swarm.guidance.lost_vehicles): parameter and the
+    # factor to SI: FS_GCS_TIMEOUT s, WPNAV_SPEED cm/s -> m/s, RTL_ALT cm -> m
+    failsafe_params: tuple[tuple[str, float], ...] = (
+        ("FS_GCS_TIMEOUT", 1.0),
+        ("WPNAV_SPEED", 0.01),
+        ("RTL_ALT", 0.01),
+    )
+    needs_ekf_report = True
+    geofence = True
+    typed_params = False  # PARAM_SET must carry the parameter's own MAV_PARAM_TYPE
+    unsupported_streams: frozenset[str] = frozenset()
+
+    def set_mode_params(self, number: int) -> tuple[float, float, float]:
+        """MAV_CMD_DO_SET_MODE param1..3: CUSTOM_MODE_ENABLED and the custom mode (GCS_Common.cpp
+        handle_command_do_set_mode)."""
+        return float(mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(number), 0.0
+
+    def decode_param(self, wire_value: float, param_type: int) -> float:
+        """ArduPilot sends every parameter as its value in a float (AP_Param: cast, not bytes)."""
+        return float(wire_value)
+
+    def encode_param(self, value: float, param_type: int) -> float:
+        """ArduPilot takes every PARAM_SET value as a float, whatever its type."""
+        return float(value)
+
+    def takeoff_params(self, alt_m: float, ground_amsl_m: float) -> tuple[float, ...]:
+        """MAV_CMD_NAV_TAKEOFF param1..7: ArduCopter reads param7 only, metres above home
+        (GCS_MAVLink_Copter.cpp handle_MAV_CMD_NAV_TAKEOFF); the vehicle takes off from its home."""
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, float(alt_m))
+
+    def flight_params(self, failsafe: FailsafeSettings) -> list[tuple[str, float]]:
+        """Parameters a formation flight sets (restored after it): attitude-target thrust as normalised
+        collective, the GCS failsafe and its timeout, and GUID_TIMEOUT (the last attitude target is flown
+        this long, then the vehicle levels and holds its altitude)."""
+        return [
+            ("GUID_OPTIONS", float(GUID_OPTIONS_THRUST)),
+            ("FS_GCS_ENABLE", float(FS_GCS_ENABLE[failsafe.action])),
+            ("FS_GCS_TIMEOUT", float(failsafe.gcs_loss_s)),
+            ("GUID_TIMEOUT", float(failsafe.guided_timeout_s)),
+        ]
+
+    def is_angle_boost_on(self, value: float) -> bool:
+        """ATC_ANGLE_BOOST as read (is_boost_on)."""
+        return is_boost_on(value)
 
     def mode_number(self, mode: str | int) -> int:
         """ArduCopter mode name (case-insensitive) or number -> custom_mode number; ValueError if unknown."""

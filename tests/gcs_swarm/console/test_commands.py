@@ -182,7 +182,7 @@ def test_command_words_with_any_arguments_parse_or_refuse(verb: str, args: list[
 
 def test_completion_of_commands_and_arguments() -> None:
     assert complete("", VOCAB)[: len(COMMANDS)] == list(COMMANDS)
-    assert complete("st", VOCAB) == ["start", "status", "stabilize"]
+    assert complete("st", VOCAB) == ["start", "status", "stabilize", "stabilized"]  # ArduCopter, PX4
     assert complete("arm ", VOCAB) == ["throttle", "all", "lead", "right", "left", "1", "2", "3"]
     assert complete("arm throttle l", VOCAB) == ["lead", "left"]
     assert complete("mode gu", VOCAB) == ["GUIDED", "GUIDED_NOGPS"]

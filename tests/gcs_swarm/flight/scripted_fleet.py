@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from gcs_swarm.link.autopilots import DEFAULT_DIALECT
+from gcs_swarm.link.autopilots import DEFAULT_DIALECT, AutopilotDialect, ModeChoice, mode_name_in
 from gcs_swarm.link.connection import LinkError
 
 TICK_MS = 20  # one control period at run.control_rate_hz 50
@@ -114,8 +114,15 @@ class ScriptedFleet:
     def time_ms(self) -> np.ndarray:
         return self.state.time_ms.copy()
 
-    def in_mode(self, mode: str) -> np.ndarray:
-        return self.state.mode == DEFAULT_DIALECT.mode_number(mode)
+    @property
+    def dialects(self) -> list[AutopilotDialect]:
+        return [DEFAULT_DIALECT] * len(self.names)
+
+    def mode_number(self, i: int, mode: ModeChoice) -> int:
+        return DEFAULT_DIALECT.mode_number(mode_name_in(DEFAULT_DIALECT, mode))
+
+    def in_mode(self, mode: ModeChoice) -> np.ndarray:
+        return self.state.mode == self.mode_number(0, mode)
 
     def vehicle(self, i: int) -> SimpleNamespace:
         return self._links[i]
@@ -147,10 +154,15 @@ class ScriptedFleet:
         for i in np.flatnonzero(mask):
             self.sent.append(Sent(self.now_ms, int(i), "attitude"))
 
-    def set_mode_all(self, mode: str, vehicles: Iterable[int] | None = None) -> None:
+    def set_mode_all(self, mode: ModeChoice, vehicles: Iterable[int] | None = None) -> None:
+        name = mode_name_in(DEFAULT_DIALECT, mode)
         for i in self._rows(vehicles):
-            self.sent.append(Sent(self.now_ms, i, "mode", mode))
-            self.state.mode[i] = DEFAULT_DIALECT.mode_number(mode)
+            self.sent.append(Sent(self.now_ms, i, "mode", name))
+            self.state.mode[i] = DEFAULT_DIALECT.mode_number(name)
+
+    def take_control_all(self, vehicles: Iterable[int] | None = None) -> None:
+        """ArduCopter: GUIDED (no setpoint stream needed)."""
+        self.set_mode_all(DEFAULT_DIALECT.formation_mode, vehicles)
 
     def arm_all(self, force: bool = False, vehicles: Iterable[int] | None = None) -> None:
         for i in self._rows(vehicles):

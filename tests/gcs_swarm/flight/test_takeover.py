@@ -10,7 +10,7 @@ import numpy as np
 
 from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.flight.takeover import UNKNOWN_MODE, TakeoverWatch, newly_taken
-from gcs_swarm.link.autopilots import DEFAULT_DIALECT
+from gcs_swarm.link.autopilots import DEFAULT_DIALECT, ModeChoice, mode_name_in
 
 # ArduCopter custom_mode numbers (ArduCopter/mode.h), written out rather than taken from the code under test
 GUIDED, LOITER, RTL, LAND, BRAKE = 4, 5, 6, 9, 17
@@ -27,6 +27,9 @@ class FakeFleet:
         self.alive = np.ones(3, dtype=bool)
         self.pos = np.array([[0.0, 0.0, 10.0], [-7.0, -7.0, 10.0], [-7.0, 7.0, 10.0]])
         self.vel = np.array([[5.0, 0.0, 0.0], [0.5, 0.0, 0.0], [np.nan, 0.0, 0.0]])
+
+    def mode_number(self, i: int, mode: ModeChoice) -> int:
+        return DEFAULT_DIALECT.mode_number(mode_name_in(DEFAULT_DIALECT, mode))
 
     def vehicle(self, i: int) -> SimpleNamespace:
         return SimpleNamespace(

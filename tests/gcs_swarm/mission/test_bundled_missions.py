@@ -33,8 +33,12 @@ DOCUMENTED = {
     "paper_nine_9": (9, 0, "v"),
     "paper_table1_2d": (1, 0, "v"),
     "ardupilot_sitl_3": (3, 0, "v"),
+    "mixed_fleet": (4, 0, "v"),
+    "px4_sitl_3": (3, 0, "v"),
 }
-REAL_VEHICLES = {"ardupilot_sitl_3"}  # flown against running vehicles (udpin), not the embedded simulator
+# flown against running vehicles (udpin), not the embedded simulator: the port vehicle 0 sends to (ArduCopter
+# SITL --serial0 udpclient:127.0.0.1:14550+K, docs/ardupilot-sitl.md; PX4 SITL's API link 14540+K)
+REAL_VEHICLES = {"ardupilot_sitl_3": 14550, "px4_sitl_3": 14540}
 BUNDLED = sorted(MISSIONS.glob("*.yaml"))
 
 TABLE2_XY = [(0, 40), (0, 20), (20, 40), (0, 0), (20, 20), (20, 0)]
@@ -87,7 +91,7 @@ def test_bundled_mission_loads_with_its_documented_fleet(path: Path) -> None:
     base = mission.run.simulator.base_port
     for index, vehicle in enumerate(mission.vehicles):
         if path.stem in REAL_VEHICLES:
-            assert vehicle.connection == f"udpin:127.0.0.1:{14550 + index}"  # docs/ardupilot-sitl.md
+            assert vehicle.connection == f"udpin:127.0.0.1:{REAL_VEHICLES[path.stem] + index}"
         else:
             assert vehicle.connection == f"udpout:127.0.0.1:{base + index}"
         assert vehicle.sysid == index + 1

@@ -1,0 +1,432 @@
+"""PX4 v1.14+/main multicopter persona of the simulated autopilot: its modes, arming rules, failsafes,
+parameters and default telemetry, over the shared outer loop of sitl_sim.autopilot.copter.
+
+A PX4 vehicle keeps PX4's own state here (its navigation state as custom_mode, the last offboard setpoint,
+the GCS link, the auto-disarm timers) and drives the shared control laws through an internal ArduCopter-like
+mode (OFFBOARD -> GUIDED, AUTO.TAKEOFF -> GUIDED climb, AUTO.LOITER and the stick modes -> LOITER, AUTO.LAND
+-> LAND, AUTO.RTL -> RTL). Every rule cites the PX4 source it comes from (PX4/PX4-Autopilot, main, 2025); the
+facts are also listed in docs/sitl.md (PX4 persona). Times are simulated seconds, positions world ENU metres.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from sitl_sim.autopilot import modes as internal
+from sitl_sim.autopilot.params import INT32, REAL32, ParamSpec
+
+if TYPE_CHECKING:
+    from sitl_sim.autopilot.copter import Autopilot
+
+M = mavlink2
+ACCEPTED, REJECTED = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_TEMPORARILY_REJECTED
+
+# src/modules/commander/px4_custom_mode.h: main modes and AUTO sub modes
+MANUAL, ALTCTL, POSCTL, AUTO, ACRO, OFFBOARD_MAIN, STABILIZED = 1, 2, 3, 4, 5, 6, 7
+READY, TAKEOFF_SUB, LOITER_SUB, MISSION_SUB, RTL_SUB, LAND_SUB = 1, 2, 3, 4, 5, 6
+
+
+def custom_mode(main: int, sub: int = 0) -> int:
+    """HEARTBEAT.custom_mode of a PX4 mode: union px4_custom_mode {uint16 reserved; uint8 main; uint8 sub}."""
+    return (main << 16) | (sub << 24)
+
+
+MODE_MANUAL = custom_mode(MANUAL)
+MODE_ALTCTL = custom_mode(ALTCTL)
+MODE_POSCTL = custom_mode(POSCTL)
+MODE_ACRO = custom_mode(ACRO)
+MODE_OFFBOARD = custom_mode(OFFBOARD_MAIN)
+MODE_STABILIZED = custom_mode(STABILIZED)
+MODE_MISSION = custom_mode(AUTO, MISSION_SUB)
+MODE_TAKEOFF = custom_mode(AUTO, TAKEOFF_SUB)
+MODE_LOITER = custom_mode(AUTO, LOITER_SUB)
+MODE_RTL = custom_mode(AUTO, RTL_SUB)
+MODE_LAND = custom_mode(AUTO, LAND_SUB)
+# commander ModeUtil nav_state_names (what "Switching to %s is currently not available" prints)
+MODE_NAMES = {
+    MODE_MANUAL: "Manual", MODE_ALTCTL: "Altitude", MODE_POSCTL: "Position", MODE_ACRO: "Acro",
+    MODE_OFFBOARD: "Offboard", MODE_STABILIZED: "Stabilized", MODE_MISSION: "Mission",
+    MODE_TAKEOFF: "Takeoff", MODE_LOITER: "Hold", MODE_RTL: "Return", MODE_LAND: "Land",
+}  # fmt: skip
+# ModeUtil/mode_requirements.cpp: mode_req_manual_control, mode_req_prevent_arming, mode_req_offboard_signal
+NEEDS_STICKS = (MODE_MANUAL, MODE_ALTCTL, MODE_POSCTL, MODE_ACRO, MODE_STABILIZED)
+PREVENTS_ARMING = (MODE_RTL, MODE_LAND)
+NEEDS_POSITION = (MODE_MISSION, MODE_TAKEOFF, MODE_LOITER, MODE_RTL, MODE_LAND)
+# the shared control law each PX4 mode runs on (stick modes: centred sticks hold position, see docs/sitl.md)
+INTERNAL_MODE = {
+    MODE_OFFBOARD: internal.GUIDED, MODE_TAKEOFF: internal.GUIDED, MODE_LAND: internal.LAND,
+    MODE_RTL: internal.RTL,
+}  # fmt: skip
+FORCE_MAGIC = 21196  # Commander.cpp VEHICLE_CMD_COMPONENT_ARM_DISARM: param2 that forces (disarm in flight)
+MISSIONPLANNER_COMPID = 190  # Commander.cpp: printRejectMode only for MAV_COMP_ID_MISSIONPLANNER commands
+FALLBACK_TO_RTL = (0, 1, 2)  # failsafe.cpp fromOffboardLossActParam: Position/Altitude/Stabilized need sticks
+
+
+def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
+    """The PX4 parameters a PX4 vehicle shows, with PX4's names, types and defaults (sources in the docs)."""
+    return (
+        # src/modules/commander/commander_params.yaml
+        ParamSpec("COM_DISARM_LAND", REAL32, 2.0, -1.0, 20.0, "s", "auto-disarm this long after landing"),
+        ParamSpec("COM_DISARM_PRFLT", REAL32, 10.0, -1.0, 20.0, "s", "auto-disarm: no takeoff after arming"),
+        ParamSpec("COM_DL_LOSS_T", INT32, 10, 5, 300, "s", "GCS heartbeat loss before NAV_DLL_ACT"),
+        ParamSpec("COM_FAIL_ACT_T", REAL32, 5.0, 0.0, 25.0, "s", "Hold this long before a failsafe action"),
+        ParamSpec("COM_OBL_RC_ACT", INT32, 0, 0, 7, "", "offboard loss: 0 Pos 1 Alt 2 Stab 3 RTL 4 Land"),
+        ParamSpec("COM_OF_LOSS_T", REAL32, 1.0, 0.0, 60.0, "s", "offboard setpoint loss timeout"),
+        ParamSpec("COM_RC_IN_MODE", INT32, 3, 0, 8, "", "manual control source (no RC is simulated)"),
+        ParamSpec("NAV_DLL_ACT", INT32, 0, 0, 6, "", "GCS loss: 0 off 1 Hold 2 RTL 3 Land 5 Term 6 Disarm"),
+        # src/modules/mavlink/mavlink_params.yaml (MAV_SYS_ID), navigator/mission_params (MIS_TAKEOFF_ALT),
+        # mc_pos_control/multicopter_*_params (MPC_*), navigator/rtl_params (RTL_RETURN_ALT)
+        ParamSpec("MAV_SYS_ID", INT32, 1, 1, 250, "", "this vehicle's sysid (takes effect on restart)"),
+        ParamSpec("MIS_TAKEOFF_ALT", REAL32, 2.5, 0.0, 1000.0, "m", "takeoff altitude above home"),
+        ParamSpec("MPC_ACC_HOR", REAL32, 3.0, 2.0, 15.0, "m/s^2", "horizontal acceleration (auto modes)"),
+        ParamSpec("MPC_JERK_AUTO", REAL32, 4.0, 1.0, 80.0, "m/s^3", "jerk limit (auto modes)"),
+        ParamSpec("MPC_LAND_SPEED", REAL32, 0.7, 0.6, 3.0, "m/s", "landing descent speed"),
+        ParamSpec("MPC_THR_HOVER", REAL32, hover_fraction, 0.1, 0.8, "", "hover thrust"),
+        ParamSpec("MPC_TILTMAX_AIR", REAL32, 45.0, 20.0, 89.0, "deg", "tilt limit (position control)"),
+        ParamSpec("MPC_XY_CRUISE", REAL32, 5.0, 3.0, 20.0, "m/s", "horizontal cruise speed (auto modes)"),
+        ParamSpec("MPC_Z_VEL_MAX_DN", REAL32, 1.5, 0.5, 4.0, "m/s", "maximum descent speed"),
+        ParamSpec("MPC_Z_VEL_MAX_UP", REAL32, 3.0, 0.5, 8.0, "m/s", "maximum climb speed"),
+        ParamSpec("RTL_RETURN_ALT", REAL32, 60.0, 0.0, 150.0, "m", "return altitude above home"),
+    )
+
+
+# Default rates (Hz) on the link a PX4 SITL instance opens on UDP 14540+i, in mavlink mode "onboard"
+# (ROMFS/px4fmu_common/init.d-posix/px4-rc.mavlink): mavlink_main.cpp configure_streams_to_default,
+# MAVLINK_MODE_ONBOARD. "unlimited" streams (GPS_RAW_INT) go out when their topic updates: 10 Hz here (the
+# simulated GPS rate). HEARTBEAT is 1 Hz on every link. Streams of ours PX4 does not send (EKF_STATUS_REPORT,
+# FENCE_STATUS) are 0.
+DEFAULT_RATES_HZ = {
+    M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
+    M.MAVLINK_MSG_ID_SYS_STATUS: 5.0,
+    M.MAVLINK_MSG_ID_ATTITUDE: 100.0,
+    M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 50.0,
+    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 30.0,
+    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 50.0,
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: 10.0,
+    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 5.0,
+    M.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
+    M.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
+    M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 1.0,
+}
+
+# PX4 parameter -> (the shared outer loop's column it drives, scale): the shared code reads ArduCopter units
+MIRRORS = {
+    "MPC_THR_HOVER": ("MOT_THST_HOVER", 1.0),
+    "MPC_XY_CRUISE": ("WPNAV_SPEED", 100.0),
+    "MPC_ACC_HOR": ("WPNAV_ACCEL", 100.0),
+    "MPC_Z_VEL_MAX_UP": ("WPNAV_SPEED_UP", 100.0),
+    "MPC_Z_VEL_MAX_DN": ("WPNAV_SPEED_DN", 100.0),
+    "MPC_LAND_SPEED": ("LAND_SPEED", 100.0),
+    "MPC_TILTMAX_AIR": ("ANGLE_MAX", 100.0),
+    "RTL_RETURN_ALT": ("RTL_ALT", 100.0),
+}
+# hidden ArduCopter columns on a PX4 vehicle: PX4 handles these rules itself (here), or has none of them
+HIDDEN_FIXED = {
+    "FS_GCS_ENABLE": 0.0,  # GCS loss is NAV_DLL_ACT (below)
+    "DISARM_DELAY": 0.0,  # auto-disarm is COM_DISARM_LAND / COM_DISARM_PRFLT (below)
+    "GUID_OPTIONS": 8.0,  # SET_ATTITUDE_TARGET thrust is collective thrust (fill_thrust: thrust_body[2])
+    "ATC_ANGLE_BOOST": 0.0,  # mc_att_control flies thrust_body as given: no tilt compensation
+    "GUID_TIMEOUT": 1e9,  # PX4 has no guided timeout: offboard loss is COM_OF_LOSS_T (below)
+}
+
+
+class Px4Autopilot:
+    """The PX4 rules of the vehicles `mask` (N,) bool of the shared Autopilot `ap`; arrays (N,)."""
+
+    def __init__(self, ap: Autopilot, mask: np.ndarray) -> None:
+        n = ap.n
+        self.ap = ap
+        self.mask = np.asarray(mask, dtype=bool)
+        # UserModeIntention.hpp: the user intended nav state starts as AUTO_LOITER (Hold)
+        self.nav = np.full(n, MODE_LOITER, dtype=np.int64)
+        self.nav_after_disarm = np.full(n, MODE_LOITER, dtype=np.int64)
+        self.last_setpoint = np.full(n, -math.inf)  # simulated s of the last offboard setpoint
+        self.last_gcs = np.full(n, -math.inf)  # simulated s of the last HEARTBEAT of type GCS
+        self.gcs_lost = np.zeros(n, dtype=bool)
+        self.failsafe = np.zeros(n, dtype=bool)
+        self.failsafe_action_at = np.full(n, math.inf)  # Hold until then (COM_FAIL_ACT_T), then act
+        self.pending_action = np.zeros(n, dtype=np.int64)
+        self.takeoff_z = np.full(n, np.nan)
+        self.taken_off = np.zeros(n, dtype=bool)
+        self.landed_since = np.full(n, math.inf)
+        self.armed_at = np.zeros(n)
+        self.last_reject_text = np.full(n, -math.inf)
+        for i in np.flatnonzero(self.mask & ap.armed):  # airborne starts fly OFFBOARD with a fresh setpoint
+            self.nav[i] = MODE_OFFBOARD
+            self.last_setpoint[i] = 0.0
+            self.taken_off[i] = True
+        for i in np.flatnonzero(self.mask & ~ap.armed):
+            ap.enter_mode(int(i), internal.LOITER)
+
+    # --- what HEARTBEAT and SYS_STATUS say ------------------------------------------------------------------
+
+    def heartbeat(self, i: int) -> tuple[int, int, int, int]:
+        """(autopilot, base_mode, custom_mode, system_status) of vehicle i's HEARTBEAT."""
+        base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        if self.ap.armed[i]:
+            base |= M.MAV_MODE_FLAG_SAFETY_ARMED
+        if self.ap.state.crashed[i]:
+            status = M.MAV_STATE_EMERGENCY
+        elif self.failsafe[i]:
+            status = M.MAV_STATE_CRITICAL
+        elif self.ap.t < self.ap.boot_end[i]:
+            status = M.MAV_STATE_BOOT
+        else:
+            status = M.MAV_STATE_ACTIVE if self.ap.armed[i] else M.MAV_STATE_STANDBY
+        return M.MAV_AUTOPILOT_PX4, base, int(self.nav[i]), status
+
+    def arming_problem(self, i: int, mode: int) -> str | None:
+        """Why vehicle i cannot arm in `mode` (HealthAndArmingChecks modeCheck.cpp messages), or None."""
+        if mode in PREVENTS_ARMING:
+            return "Mode not suitable for arming"
+        return self.run_problem(i, mode)
+
+    def run_problem(self, i: int, mode: int) -> str | None:
+        """Why `mode` cannot run on vehicle i (modeCheck.cpp clearCanRunBits), or None."""
+        if self.ap.state.crashed[i]:
+            return "Vehicle crashed"
+        if mode in NEEDS_STICKS:  # no RC or MANUAL_CONTROL is simulated: manual_control_signal_lost
+            return "No manual control input"
+        if not self.ap.position_ok(i) and (mode in NEEDS_POSITION or mode == MODE_OFFBOARD):
+            return "No valid global position estimate"
+        if mode == MODE_OFFBOARD and not self.offboard_signal(i):
+            return "No offboard signal"
+        if mode == MODE_MISSION:
+            return "No valid mission available"  # this simulator stores no PX4 mission
+        return None
+
+    def offboard_signal(self, i: int) -> bool:
+        """offboardCheck.cpp: a setpoint (any offboard_control_mode) younger than COM_OF_LOSS_T."""
+        return bool(self.ap.t < self.last_setpoint[i] + self.ap.params.value(i, "COM_OF_LOSS_T"))
+
+    # --- commands -------------------------------------------------------------------------------------------
+
+    def set_mode(self, i: int, base_mode: int, main: int, sub: int, source_compid: int) -> int:
+        """Commander.cpp VEHICLE_CMD_DO_SET_MODE: the MAV_RESULT."""
+        if not base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return ACCEPTED  # base-mode-only requests: not simulated, acknowledged as PX4 without a change
+        if main == AUTO:
+            if sub == 0:
+                wanted = MODE_MISSION  # "custom_sub_mode > 0" else AUTO_MISSION
+            elif sub in (LOITER_SUB, MISSION_SUB, RTL_SUB, TAKEOFF_SUB, LAND_SUB):
+                wanted = custom_mode(AUTO, sub)
+            else:
+                self.ap.say(i, M.MAV_SEVERITY_CRITICAL, "Unsupported auto mode")
+                return REJECTED
+        elif main == POSCTL:
+            wanted = MODE_POSCTL  # sub mode POSCTL_SLOW is simulated as Position
+        elif main in (MANUAL, ALTCTL, ACRO, OFFBOARD_MAIN, STABILIZED):
+            wanted = custom_mode(main)
+        else:
+            return ACCEPTED  # desired_nav_state stays NAVIGATION_STATE_MAX: NOT_CHANGED -> ACCEPTED
+        return self.change_mode(i, wanted, source_compid)
+
+    def change_mode(self, i: int, wanted: int, source_compid: int = MISSIONPLANNER_COMPID) -> int:
+        """UserModeIntention::change: always allowed disarmed, else only if the mode can run."""
+        if self.ap.armed[i]:
+            problem = self.run_problem(i, wanted)
+            if problem is not None:
+                if source_compid == MISSIONPLANNER_COMPID and self.ap.t - self.last_reject_text[i] > 1.0:
+                    text = f"Switching to {MODE_NAMES[wanted]} is currently not available"
+                    self.ap.say(i, M.MAV_SEVERITY_CRITICAL, text)
+                    self.last_reject_text[i] = self.ap.t
+                return REJECTED
+        self.failsafe[i] = False  # failsafe.cpp: RTL/Land failsafes clear OnModeChangeOrDisarm
+        self.failsafe_action_at[i] = math.inf
+        if wanted != MODE_TAKEOFF:
+            self.takeoff_z[i] = np.nan
+        self._enter(i, wanted)
+        if wanted not in PREVENTS_ARMING:
+            self.nav_after_disarm[i] = wanted
+        return ACCEPTED
+
+    def arm(self, i: int, arm: float, force: float) -> int:
+        """Commander::handle_command COMPONENT_ARM_DISARM: external commands always run the checks."""
+        action = round(arm) if math.isfinite(arm) else -1
+        if action not in (0, 1):
+            self.ap.say(i, M.MAV_SEVERITY_CRITICAL, f"Unsupported ARM_DISARM param: {arm:.3f}")
+            return M.MAV_RESULT_UNSUPPORTED
+        if action == 0:
+            if not self.ap.armed[i]:
+                return ACCEPTED
+            forced = math.isfinite(force) and round(force) == FORCE_MAGIC
+            if not forced and not self.ap.land_complete[i]:
+                self.ap.say(i, M.MAV_SEVERITY_CRITICAL, "Disarming denied: not landed")
+                return REJECTED
+            self.disarm(i, "external command")
+            return ACCEPTED
+        if self.ap.armed[i]:
+            return ACCEPTED
+        problem = self.arming_problem(i, int(self.nav[i]))
+        if problem is not None:
+            self.ap.say(i, M.MAV_SEVERITY_CRITICAL, f"Preflight Fail: {problem}")
+            self.ap.say(i, M.MAV_SEVERITY_CRITICAL, "Arming denied: Resolve system health failures first")
+            return REJECTED
+        ap = self.ap
+        ap.armed[i] = True
+        ap.disarm_timer[i] = 0.0
+        self.armed_at[i] = ap.t
+        self.taken_off[i] = False
+        self.landed_since[i] = math.inf
+        ap.say(i, M.MAV_SEVERITY_INFO, "Armed by external command")
+        self._enter(i, int(self.nav[i]))
+        return ACCEPTED
+
+    def disarm(self, i: int, reason: str) -> None:
+        """Commander::disarm: "Disarmed by <reason>", the user intention returns to the last armable mode."""
+        ap = self.ap
+        ap.armed[i] = False
+        ap.takeoff_active[i] = False
+        ap.say(i, M.MAV_SEVERITY_INFO, f"Disarmed by {reason}")
+        self.failsafe[i] = False
+        self.failsafe_action_at[i] = math.inf
+        self._enter(i, int(self.nav_after_disarm[i]))
+
+    def takeoff(self, i: int, altitude_amsl: float, home_amsl: float) -> int:
+        """VEHICLE_CMD_NAV_TAKEOFF: switch to AUTO.TAKEOFF (navigator takeoff: param7 altitude AMSL, NaN ->
+        MIS_TAKEOFF_ALT above home); the climb starts once armed."""
+        home_z = self.ap.home[i, 2]
+        if math.isfinite(altitude_amsl):
+            target = home_z + (altitude_amsl - home_amsl)
+        else:
+            target = home_z + self.ap.params.value(i, "MIS_TAKEOFF_ALT")
+        previous = self.takeoff_z[i]
+        self.takeoff_z[i] = max(target, self.ap.state.pos[i, 2])
+        result = self.change_mode(i, MODE_TAKEOFF)
+        if result != ACCEPTED:
+            self.takeoff_z[i] = previous
+        return result
+
+    def setpoint(self, i: int) -> bool:
+        """An offboard setpoint arrived (mavlink_receiver publishes offboard_control_mode): proof of life;
+        True when vehicle i flies it (only in OFFBOARD)."""
+        self.last_setpoint[i] = self.ap.t
+        return bool(self.nav[i] == MODE_OFFBOARD)
+
+    def gcs_heartbeat(self, i: int, mav_type: int) -> None:
+        """mavlink_receiver handle_message_heartbeat: any sysid's HEARTBEAT of type MAV_TYPE_GCS counts."""
+        if mav_type != M.MAV_TYPE_GCS:
+            return
+        if self.gcs_lost[i]:
+            self.gcs_lost[i] = False
+            self.ap.say(i, M.MAV_SEVERITY_INFO, "GCS connection regained")
+            if self.failsafe[i] and self.pending_action[i] == 1:  # Hold clears with its condition
+                self._clear_failsafe(i)
+        self.last_gcs[i] = self.ap.t
+
+    # --- every tick -----------------------------------------------------------------------------------------
+
+    def update(self, t: float) -> None:
+        """Takeoff completion, offboard loss, GCS loss, auto-disarm of the PX4 vehicles."""
+        ap = self.ap
+        for i in np.flatnonzero(self.mask & ap.armed).tolist():
+            if not ap.land_complete[i]:
+                self.taken_off[i] = True
+            nav = int(self.nav[i])
+            # Commander::checkForMissionUpdate: takeoff finished -> AUTO.LOITER (COM_TAKEOFF_ACT 0)
+            if nav == MODE_TAKEOFF and self.taken_off[i] and not ap.takeoff_active[i]:
+                self.change_mode(i, MODE_LOITER)
+            if nav == MODE_OFFBOARD and not self.offboard_signal(i) and not self.failsafe[i]:
+                self._offboard_lost(i)
+            self._gcs_check(i, t)
+            if self.failsafe[i] and t >= self.failsafe_action_at[i]:
+                self.failsafe_action_at[i] = math.inf
+                self._act(i, int(self.pending_action[i]))
+            self._auto_disarm(i, t)
+
+    def _offboard_lost(self, i: int) -> None:
+        """failsafe.cpp checkModeFallback + getSelectedAction: COM_OBL_RC_ACT; the stick modes it names
+        cannot run without manual control, so they fall through to RTL; no COM_FAIL_ACT_T delay (mode
+        fallbacks allow user takeover Always, not Auto)."""
+        act = int(self.ap.params.value(i, "COM_OBL_RC_ACT"))
+        self.failsafe[i] = True
+        self.ap.say(i, M.MAV_SEVERITY_CRITICAL, "Failsafe activated")
+        if act in FALLBACK_TO_RTL or act == 3:
+            self._failsafe_mode(i, MODE_RTL)
+        elif act == 4:
+            self._failsafe_mode(i, MODE_LAND)
+        elif act == 5:
+            self._failsafe_mode(i, MODE_LOITER)
+        else:  # 6 Terminate, 7 Disarm: motors off
+            self.disarm(i, "failsafe")
+
+    def _gcs_check(self, i: int, t: float) -> None:
+        """Commander::dataLinkCheck (COM_DL_LOSS_T after a GCS heartbeat was seen) and failsafe.cpp
+        (NAV_DLL_ACT, ignored in AUTO.LAND; the action follows a COM_FAIL_ACT_T Hold)."""
+        p = self.ap.params
+        if not self.gcs_lost[i] and math.isfinite(self.last_gcs[i]):
+            if t - self.last_gcs[i] > p.value(i, "COM_DL_LOSS_T"):
+                self.gcs_lost[i] = True
+                self.ap.say(i, M.MAV_SEVERITY_INFO, "Connection to ground station lost")
+                action = int(p.value(i, "NAV_DLL_ACT"))
+                if action in (1, 2, 3, 5, 6) and self.nav[i] != MODE_LAND and not self.failsafe[i]:
+                    self._start_failsafe(i, action, t)
+
+    def _start_failsafe(self, i: int, action: int, t: float) -> None:
+        self.failsafe[i] = True
+        self.pending_action[i] = action
+        delay = self.ap.params.value(i, "COM_FAIL_ACT_T")
+        if action in (5, 6) or delay <= 0.1:  # Terminate, Disarm: UserTakeoverAllowed::Never, no delay
+            self.ap.say(i, M.MAV_SEVERITY_CRITICAL, "Failsafe activated")
+            self._act(i, action)
+            return
+        text = f"Failsafe activated: entering Hold for {round(delay)} seconds"
+        self.ap.say(i, M.MAV_SEVERITY_CRITICAL, text)
+        self._failsafe_mode(i, MODE_LOITER)
+        self.failsafe_action_at[i] = t + delay
+
+    def _act(self, i: int, action: int) -> None:
+        """failsafe.cpp fromNavDllOrRclActParam: 1 Hold, 2 RTL, 3 Land, 5 Terminate, 6 Disarm."""
+        if action == 1:
+            self._failsafe_mode(i, MODE_LOITER)
+        elif action == 2:
+            self._failsafe_mode(i, MODE_RTL)
+        elif action == 3:
+            self._failsafe_mode(i, MODE_LAND)
+        else:
+            self.disarm(i, "failsafe")
+
+    def _failsafe_mode(self, i: int, mode: int) -> None:
+        self._enter(i, mode)
+
+    def _clear_failsafe(self, i: int) -> None:
+        self.failsafe[i] = False
+        self.failsafe_action_at[i] = math.inf
+        self._enter(i, int(self.nav_after_disarm[i]))
+
+    def _auto_disarm(self, i: int, t: float) -> None:
+        """Commander::handleAutoDisarm: landed COM_DISARM_LAND s after a takeoff, or COM_DISARM_PRFLT s after
+        arming without one (values <= 0 disable)."""
+        ap, p = self.ap, self.ap.params
+        landed = bool(ap.land_complete[i])
+        if not landed:
+            self.landed_since[i] = math.inf
+            return
+        self.landed_since[i] = min(self.landed_since[i], t)
+        if self.taken_off[i]:
+            delay = p.value(i, "COM_DISARM_LAND")
+            if delay > 0 and t - self.landed_since[i] >= delay:
+                self.disarm(i, "landing")
+        else:
+            delay = p.value(i, "COM_DISARM_PRFLT")
+            if delay > 0 and t - self.armed_at[i] >= delay and self.nav[i] != MODE_TAKEOFF:
+                self.disarm(i, "auto preflight disarming")
+
+    # --- internals ------------------------------------------------------------------------------------------
+
+    def _enter(self, i: int, mode: int) -> None:
+        """Vehicle i is in PX4 mode `mode`: run its shared control law from the current state."""
+        self.nav[i] = mode
+        self.ap.enter_mode(i, INTERNAL_MODE.get(mode, internal.LOITER))
+        if mode == MODE_TAKEOFF:
+            if not math.isfinite(self.takeoff_z[i]):
+                self.takeoff_z[i] = self.ap.home[i, 2] + self.ap.params.value(i, "MIS_TAKEOFF_ALT")
+            self._start_takeoff(i)
+
+    def _start_takeoff(self, i: int) -> None:
+        if self.ap.armed[i] and self.nav[i] == MODE_TAKEOFF:
+            self.ap.climb_to(i, float(self.takeoff_z[i]))
