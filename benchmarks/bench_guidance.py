@@ -10,21 +10,34 @@ on. Prints a Markdown table: median per tick over repeats, with the spread (min.
 
     python benchmarks/bench_guidance.py [--repeats 7] [--ticks 50] [--quick] [--max-n 1000]
 
-With --compiled-ab: the tick with the reference generator's shaping compiled (numba, the default when
-installed) against the numpy reference (gcs_swarm.guidance.reference.compiled_shaping = None), interleaved
-repeat by repeat, N = 3, 6, 9, 25, 100 with K = 10.
+With --compiled-ab: the tick compiled (numba, the default when installed: fleet_controller.compiled_steps)
+against the numpy steps (compiled_steps = None, the step-4 shaping still compiled), interleaved repeat by
+repeat, N = --sizes with K = 10.
+
+With --baseline DIR: the tick of this tree against the tick of the gcs_swarm/guidance package of another tree
+(DIR, e.g. an export of an older commit: `git archive <commit> gcs_swarm | tar -x -C DIR`), loaded side by
+side in this process, interleaved repeat by repeat, N = --sizes with K = 10; `uptime` is printed alongside.
+
+    python benchmarks/bench_guidance.py --baseline /tmp/old --sizes 3,6,9,50,100,200 --repeats 7
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import importlib.util
 import math
+import os
 import statistics
+import sys
 import time
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
-from gcs_swarm.guidance import reference
+import gcs_swarm
+from gcs_swarm.guidance import fleet_controller
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import DeadGcsParams, FieldParams, G
@@ -35,14 +48,17 @@ SPACING = 9.0  # m
 DT = 0.02  # s, 50 Hz
 
 
-def scenario(n: int, k: int, seed: int = 0):
-    """A controller, the fleet state and obstacles; deterministic."""
+def scenario(n: int, k: int, seed: int = 0, guidance: dict[str, ModuleType] | None = None):
+    """A controller, the fleet state and obstacles; deterministic. `guidance`: the modules fleet_controller
+    and params to build it from (default this tree's)."""
     rng = np.random.default_rng(seed)
     offsets = np.zeros((n, 3))
     offsets[1:] = formation_offsets("grid", n - 1, SPACING)
-    ctl = FleetController(
+    controller_class = FleetController if guidance is None else guidance["fleet_controller"].FleetController
+    dead_gcs_class = DeadGcsParams if guidance is None else guidance["params"].DeadGcsParams
+    ctl = controller_class(
         n, 0, offsets, np.array([[5000.0, 0.0, 50.0]]), control_dt=DT, z_min=5.0,
-        dead_gcs=DeadGcsParams(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0),
+        dead_gcs=dead_gcs_class(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0),
     )  # fmt: skip
     pos = offsets + np.array([0.0, 0.0, 50.0]) + rng.normal(0.0, 0.5, (n, 3))
     vel = np.tile([8.0, 0.0, 0.0], (n, 1)) + rng.normal(0.0, 0.3, (n, 3))
@@ -82,46 +98,118 @@ def time_ticks(n: int, k: int, repeats: int, ticks: int) -> list[float]:
     return out
 
 
-def time_compiled_ab(n: int, k: int, repeats: int, ticks: int) -> tuple[list[float], list[float]]:
-    """Per-tick seconds with the compiled shaping and with the numpy one, one median per repeat each; the
-    two run alternately (compiled, numpy, compiled...) on two controllers of the same scenario."""
-    compiled = reference.compiled_shaping
-    runs = {path: scenario(n, k) for path in ("compiled", "numpy")}
+def time_ab(
+    n: int, k: int, repeats: int, ticks: int, runs: dict[str, tuple], before_each: dict[str, object]
+) -> dict[str, list[float]]:
+    """Per-tick seconds of two or more controllers of the same scenario (`runs`: name -> scenario() tuple),
+    one median per repeat each, run alternately (the order swapped every repeat); `before_each[name]()` is
+    called before that name's ticks (to select a code path). The first round is a warm-up."""
     active = np.ones(n, dtype=bool)
-    times: dict[str, list[float]] = {"compiled": [], "numpy": []}
+    times: dict[str, list[float]] = {name: [] for name in runs}
     t = 0.0
-    try:
-        for repeat in range(repeats + 1):  # the first round is a warm-up
-            for path, (ctl, pos, vel, att, centres, radii) in runs.items():
-                reference.compiled_shaping = compiled if path == "compiled" else None
-                samples = []
-                for tick in range(ticks):
-                    start = time.perf_counter()
-                    ctl.tick(t + tick * DT, pos, vel, att, centres, radii, active)
-                    samples.append(time.perf_counter() - start)
-                if repeat:
-                    times[path].append(statistics.median(samples))
-            t += ticks * DT
-    finally:
-        reference.compiled_shaping = compiled
-    return times["compiled"], times["numpy"]
+    names = list(runs)
+    for repeat in range(repeats + 1):
+        for name in names if repeat % 2 else names[::-1]:
+            ctl, pos, vel, att, centres, radii = runs[name]
+            before_each[name]()  # type: ignore[operator]
+            samples = []
+            for tick in range(ticks):
+                start = time.perf_counter()
+                ctl.tick(t + tick * DT, pos, vel, att, centres, radii, active)
+                samples.append(time.perf_counter() - start)
+            if repeat:
+                times[name].append(statistics.median(samples))
+        t += ticks * DT
+    return times
 
 
-def compiled_ab(repeats: int, ticks: int) -> None:
-    """Print the A/B table of the compiled shaping (time_compiled_ab)."""
-    if reference.compiled_shaping is None:
-        raise SystemExit("numba is not installed: no compiled path to compare")
-    print(
-        f"FleetController.tick, compiled vs numpy step-4 shaping, K = 10, median of {repeats} x {ticks} ticks"
-    )
+def print_ab(title: str, names: tuple[str, str], sizes: list[int], repeats: int, ticks: int, setup) -> None:
+    """One A/B table: per N, each path's median ms per tick (min..max over repeats) and the ratio."""
+    print(f"{title}, K = 10, median of {repeats} x {ticks} ticks per repeat, interleaved")
+    print(f"uptime: {os.popen('uptime').read().strip()}")
     print()
-    print("| N | compiled ms / tick (min..max) | numpy ms / tick (min..max) | saved ms / tick | saved % |")
-    print("|---|---|---|---|---|")
-    for n in (3, 6, 9, 25, 100):
-        fast, slow = time_compiled_ab(n, 10, repeats, ticks)
-        (fast_med, fast_txt), (slow_med, slow_txt) = spread(fast), spread(slow)
-        saved = slow_med - fast_med
-        print(f"| {n} | {fast_txt} | {slow_txt} | {saved:.3f} | {saved / slow_med * 100:.1f} % |")
+    print(
+        f"| N | {names[0]} ms / tick (min..max) | {names[1]} ms / tick (min..max) | {names[0]} / {names[1]} |"
+    )
+    print("|---|---|---|---|")
+    for n in sizes:
+        runs, before_each = setup(n)
+        times = time_ab(n, 10, repeats, ticks, runs, before_each)
+        (a_med, a_txt), (b_med, b_txt) = spread(times[names[0]]), spread(times[names[1]])
+        print(f"| {n} | {a_txt} | {b_txt} | {a_med / b_med:.2f} |")
+    print(f"uptime: {os.popen('uptime').read().strip()}")
+
+
+def compiled_ab(sizes: list[int], repeats: int, ticks: int) -> None:
+    """The compiled steps against the numpy steps of this tree (fleet_controller.compiled_steps)."""
+    compiled = fleet_controller.compiled_steps
+    if compiled is None:
+        raise SystemExit("numba is not installed: no compiled path to compare")
+
+    def select(path: object):
+        return lambda: setattr(fleet_controller, "compiled_steps", path)
+
+    def setup(n: int):
+        return {"numpy": scenario(n, 10), "compiled": scenario(n, 10)}, {
+            "numpy": select(None),
+            "compiled": select(compiled),
+        }
+
+    try:
+        print_ab(
+            "FleetController.tick, numpy vs compiled steps",
+            ("numpy", "compiled"),
+            sizes,
+            repeats,
+            ticks,
+            setup,
+        )
+    finally:
+        fleet_controller.compiled_steps = compiled
+
+
+def load_guidance(root: Path) -> dict[str, ModuleType]:
+    """The modules fleet_controller and params of the gcs_swarm/guidance package under `root`, imported
+    beside this tree's (sys.modules is restored afterwards, so both stay usable)."""
+    ours = {
+        name: mod for name, mod in sys.modules.items() if name.split(".")[:2] == ["gcs_swarm", "guidance"]
+    }
+    for name in ours:
+        del sys.modules[name]
+    package = root / "gcs_swarm" / "guidance"
+    spec = importlib.util.spec_from_file_location(
+        "gcs_swarm.guidance", package / "__init__.py", submodule_search_locations=[str(package)]
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["gcs_swarm.guidance"] = module
+    try:
+        spec.loader.exec_module(module)
+        loaded = {
+            name: importlib.import_module(f"gcs_swarm.guidance.{name}")
+            for name in ("fleet_controller", "params")
+        }
+    finally:
+        for name in [name for name in sys.modules if name.split(".")[:2] == ["gcs_swarm", "guidance"]]:
+            del sys.modules[name]
+        sys.modules.update(ours)
+        gcs_swarm.guidance = ours["gcs_swarm.guidance"]  # type: ignore[attr-defined]
+    return loaded
+
+
+def baseline_ab(root: Path, sizes: list[int], repeats: int, ticks: int) -> None:
+    """This tree's tick against the guidance package under `root`."""
+    old = load_guidance(root)
+
+    def setup(n: int):
+        return {"baseline": scenario(n, 10, guidance=old), "this tree": scenario(n, 10)}, {
+            "baseline": lambda: None,
+            "this tree": lambda: None,
+        }
+
+    print_ab(
+        f"FleetController.tick, {root} vs this tree", ("baseline", "this tree"), sizes, repeats, ticks, setup
+    )
 
 
 GUARD = CommandLimits(math.radians(35.0), 2.0, 5.0, 7000.0, 400.0)
@@ -161,11 +249,17 @@ def main() -> None:
     parser.add_argument("--ticks", type=int, default=50, help="ticks timed per repeat")
     parser.add_argument("--quick", action="store_true", help="3 repeats of 20 ticks")
     parser.add_argument("--max-n", type=int, default=1000, help="skip fleets larger than this")
-    parser.add_argument("--compiled-ab", action="store_true", help="compiled vs numpy shaping, N = 3..100")
+    parser.add_argument("--compiled-ab", action="store_true", help="compiled vs numpy steps, N = --sizes")
+    parser.add_argument("--baseline", type=Path, help="A/B against the guidance package of this tree root")
+    parser.add_argument("--sizes", default="3,6,9,50,100,200", help="fleet sizes of the A/B tables")
     args = parser.parse_args()
     repeats, ticks = (3, 20) if args.quick else (args.repeats, args.ticks)
+    sizes = [int(x) for x in args.sizes.split(",")]
+    if args.baseline is not None:
+        baseline_ab(args.baseline, sizes, repeats, ticks)
+        return
     if args.compiled_ab:
-        compiled_ab(repeats, ticks)
+        compiled_ab(sizes, repeats, ticks)
         return
     fp = FieldParams()
     print(

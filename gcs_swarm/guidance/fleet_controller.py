@@ -39,6 +39,17 @@ from gcs_swarm.guidance.separation import closing_speed_caps, repulsion_range, u
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
 
+# Steps 1-7 run compiled when numba is there (extra "fast"; the same bits, tests/gcs_swarm/guidance/
+# test_tick_replay.py); None selects the numpy steps below (tests and benchmarks switch it to compare).
+compiled_steps: type[CompiledTick] | None
+try:
+    from gcs_swarm.guidance.compiled_tick import CompiledTick, warm_up
+
+    compiled_steps = CompiledTick
+except ImportError:  # pragma: no cover - numba is optional
+    compiled_steps = None
+_warmed_up = False  # the kernels were called once in this process (compiled_tick.warm_up)
+
 
 @dataclass(frozen=True)
 class Command:
@@ -159,6 +170,11 @@ class FleetController:
         if dead_gcs is not None and dead_gcs.speed_scheduling:  # build the stopping-distance table now (about
             # 1 s, cached), not in the first formation tick, where it stalled the control loop
             brake_distance(0.0, float(dead_gcs.brake_accel or 0.0), float(dead_gcs.brake_jerk or 0.0))
+        self._compiled = None if compiled_steps is None else compiled_steps()
+        global _warmed_up
+        if self._compiled is not None and not _warmed_up:  # load the kernels now, not in the first tick
+            _warmed_up = True
+            warm_up()
 
     # ----- live changes (operator console) -----
 
@@ -314,6 +330,15 @@ class FleetController:
         # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
         self.relay.push(self._leader_state())
         heard = self.relay.read()
+        if compiled_steps is not None and self._compiled is not None:
+            out = self._compiled(self, heard, goal, dt, pos, vel, att, obs_c, obs_r, active)
+            return Command(
+                active=active, roll_d=out.roll_d, pitch_d=out.pitch_d, yaw_d=out.yaw_d,
+                thrust_acc=out.thrust_acc, ref_pos=out.ref_pos, ref_vel=out.ref_vel, ref_acc=out.ref_acc,
+                field_force=out.field_force, slots=out.slots, u=out.u, emergency=out.emergency,
+                collision=out.collision, clearance=out.clearance, psi_leader=self.heading.psi,
+                waypoint_index=self.waypoint_index, leader_goal_distance=goal_dist,
+            )  # fmt: skip
         p_l, v_l, psi_l, rate_l, a_l = heard[:, 0:3], heard[:, 3:6], heard[:, 6], heard[:, 7], heard[:, 8:11]
         world_off = rotate_z(self.offsets * self.spacing_scale, psi_l)
         targets = p_l + world_off

@@ -3,8 +3,10 @@ rules every tick, in every situation of the replay (inactive and NaN rows, vehic
 degraded scales, a tick gap, new goals and offsets, the guard's fence and altitude rules).
 
 The same replay, run against the code before the overhead rewrite of issue 16, gave byte-identical records
-(every output and internal state, 12 scenarios x 400 ticks); that comparison needs the old tree and lives
-outside the repository.
+(every output and internal state, 12 scenarios x 400 ticks); so did the compiled tick against the code before
+it (the numpy steps of commit 88c7f1a: 16 scenarios x 400 ticks, the 7 bundled missions x 2500 ticks); those
+comparisons need the old tree and live outside the repository. Here the compiled steps are compared with the
+numpy steps of this tree, which stay the reference.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm.guidance import reference
+from gcs_swarm.guidance import fleet_controller, reference
 from tests.gcs_swarm.guidance.tick_replay import SCENARIOS, replay
 
 TICKS = 120
@@ -58,6 +60,7 @@ def test_the_compiled_shaping_flies_the_numpy_bits(name: str, monkeypatch: pytes
         calls.append(1)
         return kernel(*args)
 
+    monkeypatch.setattr(fleet_controller, "compiled_steps", None)  # the numpy steps, which call step 4
     monkeypatch.setattr(reference, "compiled_shaping", counted)
     compiled = list(replay(name, TICKS))
     monkeypatch.setattr(reference, "compiled_shaping", None)
@@ -66,3 +69,28 @@ def test_the_compiled_shaping_flies_the_numpy_bits(name: str, monkeypatch: pytes
         for key in first:
             assert first[key].tobytes() == second[key].tobytes(), key
     assert len(calls) == (0 if name == "grid_3_plain" else TICKS)  # "plain": jerk_max 0, first-order step 4
+
+
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_the_compiled_tick_flies_the_numpy_bits(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The replay with steps 1-7 compiled (compiled_tick) and with the numpy steps gives the same bytes in
+    every output and internal state, tick by tick: every bundled mission, grid fleets of 1 to 230 (the hash
+    grid above 200), obstacles, emergencies, the dead-GCS speed caps, relay topology, PID, paper_literal,
+    degraded scales, inactive and returning vehicles."""
+    compiled = pytest.importorskip("gcs_swarm.guidance.compiled_tick").CompiledTick
+    assert fleet_controller.compiled_steps is compiled
+    calls = []
+    original = compiled.__call__
+
+    def counted(self: object, *args: object) -> object:
+        calls.append(1)
+        return original(self, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(compiled, "__call__", counted)
+    fast = list(replay(name, TICKS))
+    monkeypatch.setattr(fleet_controller, "compiled_steps", None)
+    for first, second in zip(fast, replay(name, TICKS), strict=True):
+        assert first.keys() == second.keys()
+        for key in first:
+            assert first[key].tobytes() == second[key].tobytes(), key
+    assert len(calls) == TICKS

@@ -5,7 +5,7 @@ deterministic situations, recording every output and the controller's internal s
 Used by test_tick_replay.py, and by a throwaway script that runs the same replay against an older tree of the
 code and compares the records byte for byte (so it imports only the public API that both trees share).
 
-Situations: bundled missions (their controllers, obstacles, limits) and synthetic grid fleets of N = 1..100
+Situations: bundled missions (their controllers, obstacles, limits) and synthetic grid fleets of N = 1..230
 with obstacles inside the influence range, vehicles pushed close to each other, vehicles going inactive (some
 with NaN state rows) and coming back, degraded speed/spacing scales, a tick gap, new goals and offsets,
 geofence and altitude rules of the guard in play, and the [add] options switched between their modes.
@@ -136,6 +136,9 @@ SCENARIOS = {
     "paper_nine_9": lambda: _mission_setup("paper_nine_9"),
     "paper_dynamic_6": lambda: _mission_setup("paper_dynamic_6"),
     "quickstart": lambda: _mission_setup("quickstart"),
+    "quickstart_faulty": lambda: _mission_setup("quickstart_faulty"),
+    "paper_dense_6": lambda: _mission_setup("paper_dense_6"),
+    "ardupilot_sitl_3": lambda: _mission_setup("ardupilot_sitl_3"),
     "grid_1": lambda: _grid_setup(1, 3, 1, "default"),
     "grid_3": lambda: _grid_setup(3, 10, 2, "default"),
     "grid_3_plain": lambda: _grid_setup(3, 4, 3, "plain"),
@@ -144,6 +147,7 @@ SCENARIOS = {
     "grid_12": lambda: _grid_setup(12, 10, 6, "default"),
     "grid_25": lambda: _grid_setup(25, 8, 7, "default"),
     "grid_100": lambda: _grid_setup(100, 20, 8, "default"),
+    "grid_230": lambda: _grid_setup(230, 12, 9, "default"),  # above 200 vehicles: the hash-grid pair search
 }
 
 
