@@ -214,9 +214,10 @@ def _grid_order(p_at: np.ndarray, rows: np.ndarray, p_src: np.ndarray, cell: flo
 
 
 @_kernel
-def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float) -> np.ndarray:
-    """separation.neighbour_pairs: index pairs (P, 2) (i, j), i != j (j indexes p_src), with
-    |p_at[i] - p_src[j]| < radius, in the numpy function's order. Rows of p_src must be finite."""
+def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float, same_rows: bool) -> np.ndarray:
+    """separation.neighbour_pairs: index pairs (P, 2) (i, j) (j indexes p_src), with |p_at[i] - p_src[j]| <
+    radius, in the numpy function's order; `same_rows`: i == j is one vehicle, left out. Rows of p_src must
+    be finite."""
     n_at, n_src = p_at.shape[0], p_src.shape[0]
     if n_at * n_src <= DENSE_PAIRS_MAX:
         candidates = np.empty((n_at * n_src, 2), dtype=np.intp)
@@ -240,7 +241,7 @@ def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float) -> np.nd
     p = 0
     for m in range(candidates.shape[0]):
         i, j = candidates[m, 0], candidates[m, 1]
-        if i == j:
+        if same_rows and i == j:
             continue
         d0, d1, d2 = p_at[i, 0] - p_src[j, 0], p_at[i, 1] - p_src[j, 1], p_at[i, 2] - p_src[j, 2]
         if _dot3(d0, d1, d2, d0, d1, d2) < r_sq:
@@ -271,7 +272,7 @@ def uav_pairs(
     for m in range(src_index.shape[0]):
         src[m] = p_src[src_index[m]]
     candidates = (
-        neighbour_pairs(p_at, src, reach) if n > 0 and src.shape[0] > 0 else np.empty((0, 2), np.intp)
+        neighbour_pairs(p_at, src, reach, False) if n > 0 and src.shape[0] > 0 else np.empty((0, 2), np.intp)
     )
     pairs = np.empty_like(candidates)
     e_ji = np.empty((candidates.shape[0], 3))
@@ -356,7 +357,7 @@ def closing_speed_caps(
     sub = np.empty((m, 3))
     for r in range(m):
         sub[r] = pos[rows[r]]
-    pairs = neighbour_pairs(sub, sub, radius)
+    pairs = neighbour_pairs(sub, sub, radius, True)
     for p in range(pairs.shape[0]):
         i, j = rows[pairs[p, 0]], rows[pairs[p, 1]]
         r0, r1, r2 = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]

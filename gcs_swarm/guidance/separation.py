@@ -66,9 +66,12 @@ def _grid_candidates(p_at: np.ndarray, p_src: np.ndarray, cell: float) -> tuple[
     return i, order[np.arange(len(i)) + first]
 
 
-def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Index pairs (i, j), i != j, with |p_at[i] - p_src[j]| < radius. Rows of p_src must be finite; NaN
-    rows of p_at match nothing.
+def neighbour_pairs(
+    p_at: np.ndarray, p_src: np.ndarray, radius: float, same_rows: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i, j) with |p_at[i] - p_src[j]| < radius; `same_rows`: row i of p_at and row i of p_src
+    are the same vehicle, so pairs i == j are left out (when p_src is a subset of the vehicles, the caller
+    drops self-pairs by vehicle). Rows of p_src must be finite; NaN rows of p_at match nothing.
 
     Small fleets: one dense matrix product. Large ones: a horizontal hash grid with cells of `radius`, so
     the cost grows with N times the neighbours per cell instead of N^2.
@@ -83,8 +86,9 @@ def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float) -> tuple
         finite = np.flatnonzero(np.isfinite(p_at).all(axis=1))
         i, j = _grid_candidates(p_at[finite], p_src, radius)
         i = finite[i]
-    keep = i != j
-    i, j = i[keep], j[keep]
+    if same_rows:
+        keep = i != j
+        i, j = i[keep], j[keep]
     d = p_at[i] - p_src[j]
     near = np.einsum("pd,pd->p", d, d) < radius * radius
     return i[near], j[near]
@@ -109,7 +113,7 @@ def closing_speed_caps(
         return caps
     reach = d_emg + CLOSING_MARGIN_M + (2.0 * speed_max) ** 2 / (2.0 * accel)
     rows = np.flatnonzero(valid & np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1))
-    i, j = neighbour_pairs(pos[rows], pos[rows], min(reach, CLOSING_RANGE_MAX_M))
+    i, j = neighbour_pairs(pos[rows], pos[rows], min(reach, CLOSING_RANGE_MAX_M), same_rows=True)
     if not len(i):
         return caps
     i, j = rows[i], rows[j]
@@ -173,7 +177,8 @@ def uav_repulsion(
         reach = d_max + rel_speed_max * rel_speed_max / (4.0 * brake_accel)
     else:
         reach = d_max
-    i, jj = neighbour_pairs(p_at, p_src[src_index], reach)
+    # src_index maps the valid sources back to vehicles; a self-pair is one whose vehicles are equal
+    i, jj = neighbour_pairs(p_at, p_src[src_index], reach, same_rows=False)
     j = src_index[jj]
     keep = i != j
     i, j = i[keep], j[keep]

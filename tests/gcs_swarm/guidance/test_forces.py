@@ -214,3 +214,19 @@ def test_formula_mode_emergency_range_grows_with_closing_speed_and_is_clamped():
     apart = np.array([[-2.0, 0.0, 0.0], [16.0, 0.0, 0.0]])  # each 16 m from the other's source
     force, emg = uav_repulsion(apart, far, fast, 1.0, 0.8, 15.0, sep, 0.05)
     assert not emg.any() and not force.any()  # beyond D_max nothing at all
+
+
+def test_an_unknown_vehicle_takes_no_pair_away_from_the_others() -> None:
+    """Vehicle 2 never reported (src_valid False, far away): vehicles 3 and 4, 5 m apart, still repel each
+    other with equal and opposite forces, exactly as when vehicle 2 is known. (A pair whose vehicle index
+    equalled its neighbour's place among the known vehicles used to be dropped: 3 did not feel 4.)"""
+    p = np.array(
+        [[0.0, 0.0, 10.0], [0.0, 100.0, 10.0], [500.0, 500.0, 10.0], [50.0, 0.0, 10.0], [55.0, 0.0, 10.0]]
+    )
+    sep = SeparationParams()
+    known = np.array([True, True, False, True, True])
+    force, _ = uav_repulsion(p, p, np.zeros_like(p), 5e4, 0.8, 10.0, sep, 0.05, src_valid=known)
+    all_known, _ = uav_repulsion(p, p, np.zeros_like(p), 5e4, 0.8, 10.0, sep, 0.05)
+    assert force[3, 0] < 0.0 < force[4, 0]  # 3 pushed west, away from 4; 4 pushed east
+    np.testing.assert_array_equal(force[3], -force[4])  # 5 m: outside D_Emg, no vertical term
+    np.testing.assert_array_equal(force[[0, 1, 3, 4]], all_known[[0, 1, 3, 4]])
