@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_swarm.flight.geofence import install_fence
-from gcs_swarm.link.autopilots import AutopilotDialect
+from gcs_swarm.link.autopilots import AutopilotDialect, launch_mode
 from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
@@ -54,6 +54,24 @@ def by_dialect(fleet: Fleet) -> dict[AutopilotDialect, list[int]]:
     return dict(groups)
 
 
+def _into_launch_mode(fleet: Fleet, events: list[str]) -> None:
+    """Disarmed vehicles whose pre-arm checks judge the selected mode (PX4) and that sit in another mode than
+    their launch mode (PX4 after a previous flight: OFFBOARD, whose checks never pass without setpoints) are
+    put in their launch mode first, so that their checks can pass."""
+    rows = [
+        i
+        for i, dialect in enumerate(fleet.dialects)
+        if dialect.arm_checks_follow_mode
+        and fleet.alive[i]
+        and not fleet.armed[i]
+        and fleet.mode[i] >= 0
+        and fleet.mode[i] != fleet.mode_number(i, launch_mode)
+    ]
+    if rows:
+        events.append(f"preflight: {', '.join(fleet.names[i] for i in rows)} put in their launch mode first")
+        fleet.set_mode_all(launch_mode, rows)
+
+
 def preflight_fleet(
     fleet: Fleet,
     mission: Mission,
@@ -70,6 +88,7 @@ def preflight_fleet(
     setup = VehicleSetup.assumed(n)
     hover, boost, lost_flight = setup.hover.copy(), setup.angle_boost.copy(), setup.failsafe_params.copy()
     try:
+        _into_launch_mode(fleet, events)
         fleet.wait_ready(timeout_s=run.preflight_timeout_s, progress=progress)
         groups = by_dialect(fleet)
         dead_gcs = safety.dead_gcs

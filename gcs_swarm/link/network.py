@@ -227,6 +227,7 @@ class Network:
                     "as the mission says"
                 )
             link.state.ekf_required[link.index] = channel.autopilot.needs_ekf_report
+            link.state.prearm_gated[link.index] = channel.autopilot.prearm_bit_in_enabled
             return True
         foreign = self.foreign_heartbeats[link.index]
         foreign[sysid] = foreign.get(sysid, 0) + 1

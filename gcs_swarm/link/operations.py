@@ -206,7 +206,9 @@ class Commands:
     def op_set_mode(self, mode: ModeChoice, timeout_s: float = CONFIRM_TIMEOUT_S) -> Operation[None]:
         """MAV_CMD_DO_SET_MODE (the autopilot's custom mode, named in its dialect, or a ModeChoice function
         of the dialect); done once a HEARTBEAT shows the new mode, which must happen within `timeout_s` of
-        vehicle time after the ACK."""
+        vehicle time after the ACK. PX4 (since 2025, mavlink_receiver.cpp) ACKs the command ACCEPTED at once
+        and its commander answers again with the real result: a second ACK that refuses, while the HEARTBEAT
+        is awaited, is the answer."""
         dialect = self.channel.autopilot
         try:
             number = dialect.mode_number(mode_name_in(dialect, mode))
@@ -215,15 +217,22 @@ class Commands:
         st, i = self.telemetry.state, self.telemetry.index
         if st.mode[i] == number:
             return
-        yield from self.op_command(mavlink2.MAV_CMD_DO_SET_MODE, *dialect.set_mode_params(number))
-        yield from self._op_wait(
-            lambda: bool(st.mode[i] == number),
-            timeout_s,
-            lambda: (
-                f"{self.name} accepted mode {dialect.mode_name(number)} but its HEARTBEAT still shows "
-                f"{dialect.mode_name(int(st.mode[i]))} after {timeout_s:g} s"
-            ),
-        )
+        command, texts_before = mavlink2.MAV_CMD_DO_SET_MODE, self.telemetry.statustexts
+        yield from self.op_command(command, *dialect.set_mode_params(number))
+        timeout = Timeout(timeout_s, self.telemetry.vehicle_clock)
+        while st.mode[i] != number:
+            late = self._acks.pop(command, None)
+            if late is not None and late.result not in (
+                mavlink2.MAV_RESULT_ACCEPTED,
+                mavlink2.MAV_RESULT_IN_PROGRESS,
+            ):
+                raise (yield from self._op_refusal(command, int(late.result), texts_before))
+            if timeout.expired():
+                raise LinkError(
+                    f"{self.name} accepted mode {dialect.mode_name(number)} but its HEARTBEAT still shows "
+                    f"{dialect.mode_name(int(st.mode[i]))} after {timeout_s:g} s"
+                )
+            yield
 
     def op_land(self, timeout_s: float = CONFIRM_TIMEOUT_S) -> Operation[None]:
         """Land where the vehicle is: its dialect's `land_mode` (`op_set_mode`)."""

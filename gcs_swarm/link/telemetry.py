@@ -72,6 +72,9 @@ class TelemetryState:
         self.ekf_flags = np.full(n, -1, dtype=np.int64)  # EKF_STATUS_REPORT.flags (-1 = none yet)
         # (N,) readiness waits for EKF_STATUS_REPORT (the autopilot's dialect: ArduPilot yes, PX4 no)
         self.ekf_required = np.ones(n, dtype=bool)
+        # (N,) SYS_STATUS PREARM_CHECK counts only when also in `enabled` (ArduPilot: checks switched on); PX4
+        # sets it in `health` alone (dialect's prearm_bit_in_enabled)
+        self.prearm_gated = np.ones(n, dtype=bool)
         self.prearm = np.full(n, -1, dtype=np.int8)  # SYS_STATUS pre-arm check: -1 unknown, 0 failing, 1 ok
         self.gps_fix = np.full(n, -1, dtype=np.int64)  # GPS_RAW_INT.fix_type (-1 = none received)
         self.rtt_ms = np.full(n, np.nan)  # round trip of the latest TIMESYNC exchange, wall ms
@@ -260,9 +263,11 @@ class VehicleTelemetry:
         self.on_time(m.time_boot_ms)
 
     def _on_sys_status(self, m: MAVLinkMessage) -> None:
-        # ArduPilot: PREARM_CHECK enabled when arming checks are on; healthy when armed or checks pass.
-        checked = bool(m.onboard_control_sensors_enabled & _PREARM)
-        self.state.prearm[self.index] = 1 if not checked or m.onboard_control_sensors_health & _PREARM else 0
+        # ArduPilot: PREARM_CHECK enabled when arming checks are on; healthy when armed or checks pass. PX4:
+        # healthy when the checks pass, never in present or enabled (seen on PX4 SITL 1.17-dev).
+        st, i = self.state, self.index
+        checked = not st.prearm_gated[i] or bool(m.onboard_control_sensors_enabled & _PREARM)
+        st.prearm[i] = 1 if not checked or m.onboard_control_sensors_health & _PREARM else 0
 
     def _on_gps_raw_int(self, m: MAVLinkMessage) -> None:
         self.state.gps_fix[self.index] = m.fix_type

@@ -38,6 +38,9 @@ class AutopilotDialect(Protocol):
     angle_boost_param: str | None  # the parameter that makes the autopilot add 1/cos(tilt) to thrust, if any
     failsafe_params: tuple[tuple[str, float], ...]  # (name, factor to SI) of: failsafe timeout s, Return
     # speed m/s, Return altitude m (how a vehicle that lost its ground station flies)
+    arm_checks_follow_mode: bool  # its pre-arm checks judge the current mode (PX4: none pass in OFFBOARD
+    # without setpoints, where it is left after landing), so it is put in launch_mode before they are awaited
+    prearm_bit_in_enabled: bool  # SYS_STATUS's PREARM_CHECK counts only when also in `enabled`
     needs_ekf_report: bool  # readiness needs EKF_STATUS_REPORT (else SYS_STATUS's pre-arm bit alone)
     geofence: bool  # the ground station can install its obstacle fence (gcs_swarm.flight.geofence) on it
     typed_params: bool  # PARAM_SET must carry the parameter's own MAV_PARAM_TYPE (read it first)

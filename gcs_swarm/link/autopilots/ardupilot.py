@@ -109,6 +109,8 @@ class ArduPilotDialect:
         ("WPNAV_SPEED", 0.01),
         ("RTL_ALT", 0.01),
     )
+    arm_checks_follow_mode = False
+    prearm_bit_in_enabled = True  # enabled when arming checks are on (GCS_Common.cpp send_sys_status)
     needs_ekf_report = True
     geofence = True
     typed_params = False  # PARAM_SET must carry the parameter's own MAV_PARAM_TYPE

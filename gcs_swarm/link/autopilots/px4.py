@@ -102,6 +102,12 @@ class PX4Dialect:
         ("MPC_XY_CRUISE", 1.0),
         ("RTL_RETURN_ALT", 1.0),
     )
+    # PREARM_CHECK is set in SYS_STATUS.health alone once the checks pass (HealthAndArmingChecks; seen on PX4
+    # SITL: present 0x0300402f, enabled 0x0301402f, health 0x1320c83f)
+    # HealthAndArmingChecks judge the selected mode; after "Disarmed by landing" PX4 is back in the last mode
+    # it can arm in, OFFBOARD after a formation flight, whose checks fail with no setpoints (seen on PX4 SITL)
+    arm_checks_follow_mode = True
+    prearm_bit_in_enabled = False
     needs_ekf_report = False  # PX4 sends no EKF_STATUS_REPORT: readiness is SYS_STATUS's pre-arm bit
     geofence = False  # [add] not yet: PX4 takes fence items too, but its GF_* parameters differ
     typed_params = True  # PARAM_SET must carry the parameter's own MAV_PARAM_TYPE

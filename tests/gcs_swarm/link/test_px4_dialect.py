@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections import deque
 
 import pytest
 from hypothesis import given
@@ -14,6 +15,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from gcs_swarm.link.autopilots import ARDUPILOT, PX4, dialect_for, dialect_named
 from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
 from gcs_swarm.link.autopilots.px4 import float_bits_as_int32, int32_bits_as_float
+from gcs_swarm.link.channel import LinkStats
+from gcs_swarm.link.telemetry import TelemetryState, VehicleTelemetry
 
 # px4_custom_mode.h: PX4_CUSTOM_MAIN_MODE_AUTO 4, _OFFBOARD 6, _POSCTL 3; AUTO sub modes TAKEOFF 2, LOITER 3,
 # RTL 5, LAND 6; custom_mode = main << 16 | sub << 24
@@ -119,3 +122,22 @@ def test_failsafe_parameters(failsafe: str, offboard_loss: int, gcs_loss: int) -
     # COM_DL_LOSS_T is an INT32 on PX4 (commander_params.c; read off a real PX4 1.17 SITL): whole seconds, up
     fractional = FailsafeSettings(failsafe, gcs_loss_s=6.2, guided_timeout_s=0.5, offboard_loss_s=1.0)
     assert dict(PX4.flight_params(fractional))["COM_DL_LOSS_T"] == 7.0
+
+
+def _sys_status(present: int, enabled: int, health: int) -> mavlink2.MAVLink_sys_status_message:
+    return mavlink2.MAVLink_sys_status_message(present, enabled, health, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+
+
+@pytest.mark.parametrize(("gated", "health", "prearm"), [(False, 0x1320C83F, 1), (False, 0x0321C83F, 0)])
+def test_px4_pre_arm_bit_is_read_from_health_alone(gated: bool, health: int, prearm: int) -> None:
+    """Real PX4 SITL (1.17-dev) never sets PREARM_CHECK (0x10000000) in present or enabled (0x0300402f,
+    0x0301402f), only in health once its checks pass: 0x1320c83f ready, 0x0321c83f (at boot) not. Read as
+    ArduPilot reads it (bit counted only when enabled), the second would count as ready."""
+    state = TelemetryState(1, (47.397742, 8.545594, 489.4))
+    state.prearm_gated[0] = gated
+    telemetry = VehicleTelemetry(0, "lead", state, deque(), LinkStats(), lambda *_: None, lambda: None)
+    telemetry.handlers["SYS_STATUS"](_sys_status(0x0300402F, 0x0301402F, health))
+    assert state.prearm[0] == prearm
+    state.prearm_gated[0] = True  # ArduPilot's reading of the same words: not enabled, so never checked
+    telemetry.handlers["SYS_STATUS"](_sys_status(0x0300402F, 0x0301402F, 0x0321C83F))
+    assert state.prearm[0] == 1

@@ -49,6 +49,20 @@ def test_mode_counts_once_heartbeat_shows_it(lead) -> None:
         fleet.run([link.commands.op_set_mode("HOVER")])
 
 
+def test_a_second_ack_that_refuses_a_mode_is_the_answer(lead) -> None:
+    """PX4 (mavlink_receiver.cpp since 2025, seen on PX4 SITL) ACKs DO_SET_MODE ACCEPTED at once and its
+    commander answers again with the real result: a refusal that follows is reported as the refusal, not as a
+    HEARTBEAT that never showed the mode."""
+    fleet, link, wire = lead()
+    wire.answer_instead(
+        mavlink2.MAV_CMD_DO_SET_MODE,
+        [(mavlink2.MAV_RESULT_ACCEPTED, 0), (mavlink2.MAV_RESULT_TEMPORARILY_REJECTED, 2)],
+    )
+    with pytest.raises(LinkError, match="^lead refused MAV_CMD_DO_SET_MODE: TEMPORARILY_REJECTED"):
+        fleet.run([link.commands.op_set_mode("LAND", timeout_s=5.0)])
+    assert fleet.mode[0] != 9  # still not in LAND
+
+
 def test_command_retries_with_confirmation_and_times_out(lead) -> None:
     fleet, link, wire = lead()
     wire.drop_uplink("COMMAND_LONG", 2, lambda m: m.command == INTERVAL)
