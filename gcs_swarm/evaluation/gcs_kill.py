@@ -19,7 +19,7 @@ import numpy as np
 from gcs_swarm.evaluation.run_data import load_truth
 from gcs_swarm.guidance.failsafe_speed import distance_along_course
 
-BRAKE = 17  # ArduCopter custom_mode
+HOLDING_SPEED = 0.3  # m/s: a vehicle slower than this in the air, at the end, holds (BRAKE, PX4's Hold, ...)
 EXIT_WALL_S = 120.0  # wall s the orphaned simulator may take to land or hold its vehicles and exit
 
 
@@ -27,7 +27,8 @@ EXIT_WALL_S = 120.0  # wall s the orphaned simulator may take to land or hold it
 class KillOutcome:
     """What happened after a kill at `killed_at` (simulated s), from truth.csv: vehicles crashed, the
     smallest obstacle clearance (m) and pair separation (m) from the kill on, how each vehicle ended
-    ("landed", "holding" (BRAKE, at rest), "crashed", or its mode number and speed), the simulator's exit
+    ("landed", "holding" (in the air at rest: ArduCopter BRAKE, PX4 Hold), "crashed", or its mode number and
+    speed), the simulator's exit
     (wall s after the kill; None if it had to be killed), whether record.csv runs up to the kill."""
 
     killed_at: float
@@ -121,7 +122,7 @@ def outcome_after(run_dir: Path, killed_at: float, exit_s: float | None) -> Kill
             ends.append("crashed")
         elif last["landed"] and not last["armed"]:
             ends.append("landed")
-        elif int(last["mode"]) == BRAKE and speed < 0.3:
+        elif float(np.hypot(speed, last["vz"])) < HOLDING_SPEED:
             ends.append("holding")
         else:
             ends.append(f"mode {int(last['mode'])} at {speed:.1f} m/s")

@@ -54,7 +54,7 @@ def by_dialect(fleet: Fleet) -> dict[AutopilotDialect, list[int]]:
     return dict(groups)
 
 
-def _into_launch_mode(fleet: Fleet, events: list[str]) -> None:
+def into_launch_mode(fleet: Fleet, events: list[str]) -> None:
     """Disarmed vehicles whose pre-arm checks judge the selected mode (PX4) and that sit in another mode than
     their launch mode (PX4 after a previous flight: OFFBOARD, whose checks never pass without setpoints) are
     put in their launch mode first, so that their checks can pass."""
@@ -88,7 +88,7 @@ def preflight_fleet(
     setup = VehicleSetup.assumed(n)
     hover, boost, lost_flight = setup.hover.copy(), setup.angle_boost.copy(), setup.failsafe_params.copy()
     try:
-        _into_launch_mode(fleet, events)
+        into_launch_mode(fleet, events)
         fleet.wait_ready(timeout_s=run.preflight_timeout_s, progress=progress)
         groups = by_dialect(fleet)
         dead_gcs = safety.dead_gcs
