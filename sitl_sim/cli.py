@@ -107,10 +107,10 @@ def build_parser() -> OneLineParser:
     add(
         "--ready-delay",
         type=float,
-        default=40.0,
         metavar="S",
-        help="simulated s from boot until the EKF has a position and pre-arm checks pass (default 40, as a "
-        "real ArduCopter 4.7 SITL: GPS 3D fix at 10 s, EKF using GPS at 42 s)",
+        help="simulated s from boot until the EKF has a position and pre-arm checks pass, for every vehicle "
+        "(default per autopilot: 40 for ArduCopter, as a real ArduCopter 4.7 SITL: GPS 3D fix at 10 s, EKF "
+        "using GPS at 42 s; 5 for PX4, whose real SIH SITL is ready for takeoff 4.4-4.6 s after boot)",
     )
     add(
         "--autopilot",
@@ -340,7 +340,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
     _check(parser, args.seed >= 0, f"--seed must be >= 0, not {args.seed}")
     _check(
         parser,
-        math.isfinite(args.ready_delay) and 0 <= args.ready_delay <= 600,
+        args.ready_delay is None or (math.isfinite(args.ready_delay) and 0 <= args.ready_delay <= 600),
         "--ready-delay must be 0..600 s",
     )
     if args.truth_log is not None:

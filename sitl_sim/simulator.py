@@ -22,6 +22,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot import px4
+from sitl_sim.autopilot.copter import READY_DELAY_S as ARDUCOPTER_READY_DELAY_S
 from sitl_sim.autopilot.copter import Autopilot
 from sitl_sim.autopilot.fence import FenceItem
 from sitl_sim.autopilot.params import ParamTable, param_specs
@@ -78,7 +79,9 @@ class SimConfig:
     wind: tuple[float, float, float]  # speed m/s, from-direction deg, turbulence m/s
     truth_log: Path | None
     seed: int
-    ready_delay: float
+    # simulated s from boot to the position estimate, all vehicles; None: each its autopilot's default
+    # (copter.READY_DELAY_S for ArduCopter, px4.READY_DELAY_S for PX4)
+    ready_delay: float | None
     link: LinkFaults = LinkFaults()  # link faults of every vehicle (SIM_LINK_* param defaults, outages)
     signing_key: bytes | None = field(
         default=None, repr=False
@@ -122,7 +125,14 @@ class Simulator:
         home = origin * np.array([1.0, 1.0, 0.0])
         airborne = ~state.landed
         self.autopilot = Autopilot(
-            self.dyn, self.params, origin, home, airborne, config.start_vel, config.ready_delay, px4_mask
+            self.dyn,
+            self.params,
+            origin,
+            home,
+            airborne,
+            config.start_vel,
+            ready_delays(config, px4_mask),
+            px4_mask,
         )
         self.wind = Wind(n, config.seed, speed, direction, turbulence)
         self.obstacles = config.obstacles
@@ -509,6 +519,14 @@ def warm_up_kernels() -> None:
     Geodesy((0.0, 0.0, 0.0)).to_geodetic(zeros)
     ned_telemetry(zeros, zeros, np.array([[1.0, 0.0, 0.0, 0.0]]), zeros, zeros)
     find_collisions(zeros, zeros, Obstacles(zeros, np.ones(1), zeros), 0.0, 0.01, np.zeros(1, dtype=bool))
+
+
+def ready_delays(config: SimConfig, px4_mask: np.ndarray) -> np.ndarray:
+    """(N,) simulated s from boot to each vehicle's position estimate: config.ready_delay for all when given,
+    else the default of each vehicle's autopilot (ArduCopter copter.READY_DELAY_S, PX4 px4.READY_DELAY_S)."""
+    if config.ready_delay is not None:
+        return np.full(len(px4_mask), float(config.ready_delay))
+    return np.where(px4_mask, px4.READY_DELAY_S, ARDUCOPTER_READY_DELAY_S)
 
 
 def fleet_params(hover_fraction: float, param_names: str, px4_mask: np.ndarray) -> ParamTable:

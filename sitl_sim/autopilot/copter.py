@@ -65,6 +65,9 @@ from sitl_sim.vehicle_model.dynamics import FleetDynamics
 
 PREARM_DISPLAY_PERIOD_S = 30.0  # AP_Arming.cpp PREARM_DISPLAY_PERIOD: unprompted pre-arm failure reports
 GPS_FIX_S = 10.0  # simulated s from boot to the GPS 3D fix (real SITL: 10 s), at most half the ready delay
+# default ready delay of an ArduCopter vehicle (`sitl-sim --ready-delay` not given): a real ArduCopter 4.7
+# SITL's EKF uses GPS 42 s after boot; a PX4 vehicle's default is sitl_sim.autopilot.px4.READY_DELAY_S
+READY_DELAY_S = 40.0
 
 
 class Autopilot:
@@ -73,7 +76,8 @@ class Autopilot:
     origin (N,3): each vehicle's EKF origin (its start point); home (N,3): its start point on the ground.
     airborne (N,) bool: vehicles that start flying (armed, GUIDED, holding start_vel (N,3) until
     GUID_TIMEOUT).
-    ready_delay: simulated seconds until a vehicle on the ground has a position estimate.
+    ready_delay: simulated seconds until a vehicle on the ground has a position estimate, one for all or (N,)
+    one per vehicle.
     """
 
     def __init__(
@@ -84,7 +88,7 @@ class Autopilot:
         home: np.ndarray,
         airborne: np.ndarray,
         start_vel: np.ndarray,
-        ready_delay: float,
+        ready_delay: float | np.ndarray,
         px4: np.ndarray | None = None,
     ) -> None:
         """px4 (N,) bool: the vehicles that behave as PX4 (sitl_sim.autopilot.px4), default none."""
@@ -96,10 +100,11 @@ class Autopilot:
         self.origin = np.array(origin, dtype=float)
         self.home = np.array(home, dtype=float)
         self.t = 0.0
-        self.ready_at = np.where(airborne, 0.0, ready_delay)
-        self.boot_end = np.where(airborne, 0.0, min(1.0, 0.5 * ready_delay))
+        delay = np.asarray(ready_delay, dtype=float)
+        self.ready_at = np.where(airborne, 0.0, delay)
+        self.boot_end = np.where(airborne, 0.0, np.minimum(1.0, 0.5 * delay))
         # the GPS has its 3D fix well before the EKF uses it (real ArduCopter SITL: a few seconds vs 20-40 s)
-        self.gps_fix_at = np.where(airborne, 0.0, min(GPS_FIX_S, 0.5 * ready_delay))
+        self.gps_fix_at = np.where(airborne, 0.0, np.minimum(GPS_FIX_S, 0.5 * delay))
         self.ready = self.ready_at <= 0.0
         self.prearm_said = np.zeros(n)  # simulated s of the last periodic "PreArm:" report (first at 30 s)
         self.mode = np.where(airborne, GUIDED, STABILIZE)
@@ -131,6 +136,10 @@ class Autopilot:
         self.use_thrust = np.zeros(n, dtype=bool)
         self.angle_timed_out = np.ones(n, dtype=bool)
         self.integrator = np.zeros((n, 3))
+        # upward velocity limit (m/s) on top of the position controller's own, +inf = none: the PX4 persona's
+        # takeoff (spool-up, ramp, takeoff speed; sitl_sim.autopilot.px4); never set on an ArduCopter vehicle
+        self.climb_cap = np.full(n, np.inf)
+        self.px4_mask = np.zeros(n, dtype=bool) if px4 is None else np.array(px4, dtype=bool)
         self.texts: list[list[tuple[int, str]]] = [[] for _ in range(n)]
         self.fence = fences.Fences(n)  # geofences and their breach state (sitl_sim.autopilot.fence)
         self.fence_log: list[str] = []  # breaches and their actions, for the simulator's log (stderr)
@@ -151,12 +160,12 @@ class Autopilot:
             self.land_complete, self.land_timer, self.disarm_timer, self.thrust_demand,
             self.angle_quat, self.angle_rates, self.angle_rate_ff, self.rates_only, self.climb_rate,
             self.collective, self.use_thrust, self.angle_timed_out, self.integrator,
-            self.last_gcs_heartbeat, self.failsafe_gcs,
+            self.last_gcs_heartbeat, self.failsafe_gcs, self.climb_cap, self.px4_mask,
             self._quat_sp, self._rate_ff, self._motors_on, self._tilt, self._rate_mask, self._events,
         )  # fmt: skip
         for i in np.flatnonzero(~self.armed):
             self._enter_mode(int(i), STABILIZE)
-        self.px4 = Px4Autopilot(self, np.zeros(n, dtype=bool) if px4 is None else px4)
+        self.px4 = Px4Autopilot(self, self.px4_mask)
 
     def is_px4(self, i: int) -> bool:
         """Vehicle i speaks as PX4 (its rules are self.px4's); otherwise as ArduCopter."""
@@ -468,6 +477,8 @@ class Autopilot:
         self.ready = t >= self.ready_at
         if not (self.ready | self.px4.mask).all():  # AP_Arming::update: an ArduCopter that cannot arm says
             self._prearm_reports(t)  # why every PREARM_DISPLAY_PERIOD (30 s) by itself
+        if self.px4.mask.any():
+            self.px4.before_loop(t, dt)  # PX4's own limits on this tick's shared control law (takeoff)
         outer_loop(t, dt, self.dyn.params.g, self.params.values, self._columns, *self._loop_arrays)
         self.dyn.set_targets(
             self._quat_sp,

@@ -2,7 +2,8 @@
 navigation targets (takeoff, RTL stages, LAND descent, BRAKE), land detector, the position or angle control
 law, and the disarm / GCS-failsafe events Python then handles (sitl_sim.autopilot.copter.Autopilot.update).
 
-World ENU, body FLU, SI units; parameters in ArduCopter's units (cm, cdeg) as the parameter table holds them.
+World ENU, body FLU, SI units; parameters in ArduCopter's units (cm, cdeg) as the parameter table holds them,
+the PX4 persona's own (MPC_*, read for PX4 vehicles only) in PX4's (m, m/s).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from sitl_sim.vehicle_model.position_control import (
     MIN_UP_ACCEL,
     attitude_from_accel,
     brake_shaping_step,
+    sqrt_controller,
     velocity_demand,
     velocity_pi,
 )
@@ -34,6 +36,18 @@ LAND_ALT_LOW = 10.0  # m, LAND descends at WPNAV_SPEED_DN above, LAND_SPEED belo
 SPIN_ARMED = 0.05  # fraction of full thrust while armed on the ground (MOT_SPIN_ARM-like)
 RTL_REACHED_M = 1.0  # m, horizontal distance at which RTL starts its descent
 TAKEOFF_REACHED_M = 0.1  # m below the takeoff altitude at which the takeoff is complete
+# PX4 persona (sitl_sim.autopilot.px4): MPC_ACC_DOWN_MAX default (mc_pos_control
+# multicopter_position_control_limits_params: 3 m/s^2), the descent acceleration of FlightTaskAuto's
+# PositionSmoothing (FlightTaskAuto::_updateTrajConstraints, "down"); not a parameter of the persona
+PX4_ACC_DOWN_MAX = 3.0
+# SIH's downward distance sensor (simulator_sih sih.cpp send_dist_snsr, published while |SIH_DISTSNSR_OVR| <
+# 10000, default -1): valid up to SIH_DISTSNSR_MAX (default 100 m), so PX4's FlightTask has _dist_to_bottom
+PX4_RANGE_MAX_M = 100.0
+# PX4's jerk-limited vertical trajectories (_smooth_vertical, px4.jerk_limited_step): the acceleration aimed
+# at is sqrt_controller(velocity error, SMOOTH_P, jerk), i.e. the time-optimal sqrt(2 jerk |error|) (brought
+# to 0 at the jerk limit as the error closes, as VelocitySmoothing plans) except within jerk / SMOOTH_P^2
+# (0.04 m/s at 4 m/s^3), where it is linear: it lags a moving target by ~ rate^2 / (2 jerk), as PX4 does
+SMOOTH_P = 10.0
 
 EVENT_DISARM, EVENT_GCS_FAILSAFE = 1, 2
 LOOP_PARAMS = (
@@ -41,11 +55,15 @@ LOOP_PARAMS = (
     "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
     "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "ATC_ANGLE_BOOST", "PSC_JERK_XY",
     "LOIT_BRK_ACCEL", "LOIT_BRK_JERK",
+    "MPC_LAND_ALT1", "MPC_LAND_ALT2", "MPC_LAND_ALT3", "MPC_LAND_CRWL", "MPC_LAND_SPEED", "MPC_Z_VEL_MAX_DN",
+    "MPC_Z_V_AUTO_DN", "MPC_JERK_AUTO",
 )  # fmt: skip
 (
     P_HOVER, P_ANGLE_MAX, P_GUID_TIMEOUT, P_POSXY_P, P_POSZ_P, P_VELXY_P, P_VELXY_I, P_VELZ_P, P_VELZ_I,
     P_SPEED, P_SPEED_UP, P_SPEED_DN, P_ACCEL, P_LAND_SPEED, P_DISARM_DELAY, P_FS_ENABLE, P_FS_TIMEOUT,
     P_ANGLE_BOOST, P_JERK_XY, P_LOIT_BRK_ACCEL, P_LOIT_BRK_JERK,
+    P_PX4_LAND_ALT1, P_PX4_LAND_ALT2, P_PX4_LAND_ALT3, P_PX4_LAND_CRWL, P_PX4_LAND_SPEED, P_PX4_Z_VEL_MAX_DN,
+    P_PX4_Z_V_AUTO_DN, P_PX4_JERK_AUTO,
 ) = range(len(LOOP_PARAMS))  # fmt: skip
 
 
@@ -56,19 +74,75 @@ def _set_level(quats: np.ndarray, i: int, yaw: float) -> None:
 
 
 @njit(cache=True)
+def px4_land_speed(
+    height: float,
+    alt1: float,
+    alt2: float,
+    alt3: float,
+    land_speed: float,
+    crawl_speed: float,
+    max_down: float,
+    auto_down: float,
+) -> float:
+    """PX4's AUTO.LAND descent speed (m/s, > 0) at `height` m above the ground, all in PX4's units.
+
+    FlightTaskAuto::_prepareLandSetpoints: math::interpolate(_dist_to_ground, MPC_LAND_ALT2, MPC_LAND_ALT1,
+    MPC_LAND_SPEED, MPC_Z_VEL_MAX_DN) (MPC_LAND_SPEED at and below ALT2, MPC_Z_VEL_MAX_DN above ALT1, linear
+    between; FlightTaskAuto::updateParams keeps ALT1 >= ALT2), MPC_LAND_CRWL at and below MPC_LAND_ALT3 when a
+    distance sensor measures the height (_dist_to_bottom finite: SIH's downward one, up to PX4_RANGE_MAX_M);
+    the PositionSmoothing then caps the descent at MPC_Z_V_AUTO_DN (_updateTrajConstraints, "down").
+    """
+    alt1 = max(alt1, alt2)
+    if height <= alt2:
+        speed = land_speed
+    elif height > alt1:
+        speed = max_down
+    else:  # lib/mathlib math::interpolate
+        slope = (max_down - land_speed) / (alt1 - alt2)
+        speed = slope * height + (land_speed - slope * alt2)
+    if height <= min(alt3, PX4_RANGE_MAX_M):
+        speed = crawl_speed
+    return min(speed, auto_down)
+
+
+@njit(cache=True)
+def _smooth_vertical(
+    nav_vel: np.ndarray,
+    nav_acc: np.ndarray,
+    i: int,
+    target: float,
+    accel_max: float,
+    jerk_max: float,
+    dt: float,
+) -> None:
+    """One step of vehicle i's vertical velocity target (nav_vel[i, 2], its acceleration nav_acc[i, 2], ENU)
+    towards `target` m/s: acceleration at most accel_max, reached at no more than jerk_max (PX4's jerk-limited
+    PositionSmoothing; SMOOTH_P), never overshooting."""
+    v, a = nav_vel[i, 2], nav_acc[i, 2]
+    want = min(max(sqrt_controller(target - v, SMOOTH_P, jerk_max), -accel_max), accel_max)
+    a += min(max(want - a, -jerk_max * dt), jerk_max * dt)
+    new_v = v + a * dt
+    if (new_v - target) * (v - target) <= 0.0:
+        new_v, a = target, 0.0
+    nav_vel[i, 2], nav_acc[i, 2] = new_v, a
+
+
+@njit(cache=True)
 def outer_loop(
     t, dt, g, params, columns,
     pos, vel, quat, landed, crashed, home,
     mode, armed, control, nav_kind, nav_pos, nav_vel, nav_acc, nav_yaw, nav_yaw_rate, target_time, rtl_stage,
     takeoff_active, land_complete, land_timer, disarm_timer, thrust_demand,
     angle_quat, angle_rates, angle_rate_ff, rates_only, climb_rate, collective, use_thrust, angle_timed_out,
-    integrator, last_gcs_heartbeat, failsafe_gcs,
+    integrator, last_gcs_heartbeat, failsafe_gcs, climb_cap, px4,
     quat_sp, rate_ff, motors_on, tilt_max, rate_mask, events,
 ):  # fmt: skip  # noqa: ANN001, ANN202 - numba kernel over the Autopilot's arrays (see Autopilot.update)
     """Per vehicle: guided timeouts, navigation targets, land detector, control law, disarm/failsafe events.
 
     Writes quat_sp (N,4), rate_ff (N,3), thrust_demand (fraction of full thrust), motors_on, tilt_max (rad),
     rate_mask (rate-only control) and events (0, EVENT_DISARM, EVENT_GCS_FAILSAFE) for Python to act on.
+    climb_cap (N,) m/s caps the upward velocity demand of position control (+inf: none); px4 (N,) bool: the
+    vehicles whose landing descent is PX4's (px4_land_speed); both are the PX4 persona's only.
     """
     for i in range(len(mode)):
         p = params[i]
@@ -108,7 +182,14 @@ def outer_loop(
                 nav_pos[i, 2] = math.nan
                 rtl_stage[i] = RTL_DESCEND
         landing = m == LAND or (m == RTL and rtl_stage[i] == RTL_DESCEND)
-        if landing:
+        if landing and px4[i]:  # PX4's descent profile, through its jerk-limited trajectory
+            speed = px4_land_speed(
+                pos[i, 2] - home[i, 2], p[columns[P_PX4_LAND_ALT1]], p[columns[P_PX4_LAND_ALT2]],
+                p[columns[P_PX4_LAND_ALT3]], p[columns[P_PX4_LAND_SPEED]], p[columns[P_PX4_LAND_CRWL]],
+                p[columns[P_PX4_Z_VEL_MAX_DN]], p[columns[P_PX4_Z_V_AUTO_DN]],
+            )  # fmt: skip
+            _smooth_vertical(nav_vel, nav_acc, i, -speed, PX4_ACC_DOWN_MAX, p[columns[P_PX4_JERK_AUTO]], dt)
+        elif landing:
             low = pos[i, 2] - home[i, 2] <= LAND_ALT_LOW
             nav_vel[i, 2] = -(p[columns[P_LAND_SPEED]] if low else p[columns[P_SPEED_DN]]) / 100.0
         if m == BRAKE and nav_kind[i] == KIND_BRAKE:
@@ -146,6 +227,8 @@ def outer_loop(
             pos[i], nav_pos[i], nav_vel[i], p[columns[P_POSXY_P]], p[columns[P_POSZ_P]],
             p[columns[P_ACCEL]] / 100.0, p[columns[P_SPEED]] / 100.0, speed_up, speed_dn,
         )  # fmt: skip
+        if climb_cap[i] < vz:  # the PX4 persona's takeoff limit (never set for ArduCopter: +inf)
+            vz = climb_cap[i]
         ax = ay = az = 0.0
         if angle:
             vz = min(max(climb_rate[i], -speed_dn), speed_up)

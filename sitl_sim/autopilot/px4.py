@@ -11,16 +11,45 @@ facts are also listed in docs/sitl.md (PX4 persona). Times are simulated seconds
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot import modes as internal
-from sitl_sim.autopilot.params import INT32, REAL32, ParamSpec
+from sitl_sim.autopilot.outer_loop import SMOOTH_P
+from sitl_sim.autopilot.params import INT32, REAL32, ParamSpec, ParamTable
+from sitl_sim.vehicle_model.dynamics import FleetState
+from sitl_sim.vehicle_model.position_control import sqrt_controller
 
-if TYPE_CHECKING:
-    from sitl_sim.autopilot.copter import Autopilot
+
+class Autopilot(Protocol):
+    """What the PX4 rules read and drive of the shared outer loop (sitl_sim.autopilot.copter.Autopilot
+    documents each; arrays (N,) or (N, 3) world ENU m). A Protocol, so that this module need not import
+    copter.py, which imports it."""
+
+    n: int
+    t: float
+    state: FleetState
+    params: ParamTable
+    home: np.ndarray
+    nav_pos: np.ndarray
+    armed: np.ndarray
+    land_complete: np.ndarray
+    takeoff_active: np.ndarray
+    disarm_timer: np.ndarray
+    boot_end: np.ndarray
+    climb_cap: np.ndarray
+    integrator: np.ndarray
+
+    def say(self, i: int, severity: int, text: str) -> None: ...
+
+    def enter_mode(self, i: int, mode: int) -> None: ...
+
+    def climb_to(self, i: int, z: float) -> None: ...
+
+    def position_ok(self, i: int) -> bool: ...
+
 
 M = mavlink2
 ACCEPTED, REJECTED = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_TEMPORARILY_REJECTED
@@ -64,6 +93,23 @@ INTERNAL_MODE = {
 FORCE_MAGIC = 21196  # Commander.cpp VEHICLE_CMD_COMPONENT_ARM_DISARM: param2 that forces (disarm in flight)
 MISSIONPLANNER_COMPID = 190  # Commander.cpp: printRejectMode only for MAV_COMP_ID_MISSIONPLANNER commands
 FALLBACK_TO_RTL = (0, 1, 2)  # failsafe.cpp fromOffboardLossActParam: Position/Altitude/Stabilized need sticks
+# default ready delay of a PX4 vehicle (`sitl-sim --ready-delay` not given; ArduCopter's is
+# copter.READY_DELAY_S): simulated s from boot to the position estimate and pre-arm OK. Real PX4 SITL (SIH
+# quadx, flown on this project's machine) said "Ready for takeoff!" 4.4-4.6 s after boot; 5 s is not earlier.
+READY_DELAY_S = 5.0
+G = 9.80665  # m/s^2, CONSTANTS_ONE_G (lib/geo/geo.h)
+Z_VEL_P_ACC = 4.0  # 1/s, MPC_Z_VEL_P_ACC default (multicopter_position_control_gain_params.yaml)
+ACC_UP_MAX = 4.0  # m/s^2, MPC_ACC_UP_MAX default (mc_pos_control: PARAM_DEFINE_FLOAT(MPC_ACC_UP_MAX, 4.f))
+# mc_pos_control Takeoff.cpp TakeoffHandling::generateInitialRampValue(MPC_Z_VEL_P_ACC): the upward velocity
+# limit before and at the start of the takeoff ramp, -CONSTANTS_ONE_G / MPC_Z_VEL_P_ACC (m/s up; negative = a
+# descent demand: on the ground, no thrust beyond idle)
+TAKEOFF_RAMP_VZ_INIT = -G / Z_VEL_P_ACC
+# FlightTaskAuto::reActivate, called by FlightModeManager::generateTrajectorySetpoint every cycle while the
+# takeoff state is below rampup: the trajectory restarts at the current position with 0.7 m/s DOWN (NED +0.7)
+TAKEOFF_TRAJECTORY_VZ_INIT = -0.7
+# FlightTaskAuto::update: _want_takeoff = unsmoothed_velocity(2) < -0.3 (NED: more than 0.3 m/s up); the
+# unsmoothed velocity is PositionSmoothing::_generateVelocitySetpoint's, capped by _getMaxZSpeed (stop_speed)
+WANT_TAKEOFF_VZ = 0.3
 
 
 def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
@@ -76,20 +122,33 @@ def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
         ParamSpec("COM_FAIL_ACT_T", REAL32, 5.0, 0.0, 25.0, "s", "Hold this long before a failsafe action"),
         ParamSpec("COM_OBL_RC_ACT", INT32, 0, 0, 7, "", "offboard loss: 0 Pos 1 Alt 2 Stab 3 RTL 4 Land"),
         ParamSpec("COM_OF_LOSS_T", REAL32, 1.0, 0.0, 60.0, "s", "offboard setpoint loss timeout"),
-        ParamSpec("COM_RC_IN_MODE", INT32, 3, 0, 8, "", "manual control source (no RC is simulated)"),
+        ParamSpec("COM_SPOOLUP_TIME", REAL32, 1.0, 0.0, 30.0, "s", "motor spool-up after arming (takeoff)"),
         ParamSpec("NAV_DLL_ACT", INT32, 0, 0, 6, "", "GCS loss: 0 off 1 Hold 2 RTL 3 Land 5 Term 6 Disarm"),
         # src/modules/mavlink/mavlink_params.yaml (MAV_SYS_ID), navigator/mission_params (MIS_TAKEOFF_ALT),
-        # mc_pos_control/multicopter_*_params (MPC_*), navigator/rtl_params (RTL_RETURN_ALT)
+        # mc_pos_control/multicopter_*_params (MPC_*), navigator/navigator_params (NAV_ACC_RAD),
+        # navigator/rtl_params (RTL_*)
         ParamSpec("MAV_SYS_ID", INT32, 1, 1, 250, "", "this vehicle's sysid (takes effect on restart)"),
         ParamSpec("MIS_TAKEOFF_ALT", REAL32, 2.5, 0.0, 1000.0, "m", "takeoff altitude above home"),
         ParamSpec("MPC_ACC_HOR", REAL32, 3.0, 2.0, 15.0, "m/s^2", "horizontal acceleration (auto modes)"),
         ParamSpec("MPC_JERK_AUTO", REAL32, 4.0, 1.0, 80.0, "m/s^3", "jerk limit (auto modes)"),
+        ParamSpec("MPC_LAND_ALT1", REAL32, 10.0, 0.0, 122.0, "m", "landing slows down below this height"),
+        ParamSpec("MPC_LAND_ALT2", REAL32, 5.0, 0.0, 122.0, "m", "landing at MPC_LAND_SPEED below this"),
+        ParamSpec("MPC_LAND_ALT3", REAL32, 1.0, 0.0, 122.0, "m", "landing at MPC_LAND_CRWL below this"),
+        ParamSpec("MPC_LAND_CRWL", REAL32, 0.3, 0.1, 3.0, "m/s", "landing crawl speed near the ground"),
         ParamSpec("MPC_LAND_SPEED", REAL32, 0.7, 0.6, 3.0, "m/s", "landing descent speed"),
         ParamSpec("MPC_THR_HOVER", REAL32, hover_fraction, 0.1, 0.8, "", "hover thrust"),
         ParamSpec("MPC_TILTMAX_AIR", REAL32, 45.0, 20.0, 89.0, "deg", "tilt limit (position control)"),
+        ParamSpec("MPC_TKO_RAMP_T", REAL32, 3.0, 0.0, 5.0, "s", "takeoff ramp time (0: no ramp)"),
+        ParamSpec("MPC_TKO_SPEED", REAL32, 1.5, 1.0, 5.0, "m/s", "takeoff climb speed"),
         ParamSpec("MPC_XY_CRUISE", REAL32, 5.0, 3.0, 20.0, "m/s", "horizontal cruise speed (auto modes)"),
         ParamSpec("MPC_Z_VEL_MAX_DN", REAL32, 1.5, 0.5, 4.0, "m/s", "maximum descent speed"),
         ParamSpec("MPC_Z_VEL_MAX_UP", REAL32, 3.0, 0.5, 8.0, "m/s", "maximum climb speed"),
+        ParamSpec("MPC_Z_V_AUTO_DN", REAL32, 1.5, 0.5, 4.0, "m/s", "descent speed in auto modes (land)"),
+        ParamSpec("MPC_Z_V_AUTO_UP", REAL32, 3.0, 0.5, 8.0, "m/s", "climb speed in auto modes (RTL)"),
+        ParamSpec("NAV_ACC_RAD", REAL32, 10.0, 0.05, 200.0, "m", "acceptance radius (RTL near home)"),
+        ParamSpec("NAV_MC_ALT_RAD", REAL32, 0.8, 0.05, 200.0, "m", "altitude acceptance (takeoff reached)"),
+        ParamSpec("RTL_CONE_ANG", INT32, 45, 0, 90, "deg", "RTL cone half angle (0: always return alt)"),
+        ParamSpec("RTL_MIN_DIST", REAL32, 10.0, 0.5, 100.0, "m", "closer to home: the cone limits the climb"),
         ParamSpec("RTL_RETURN_ALT", REAL32, 60.0, 0.0, 150.0, "m", "return altitude above home"),
     )
 
@@ -155,6 +214,13 @@ class Px4Autopilot:
         self.landed_since = np.full(n, math.inf)
         self.armed_at = np.zeros(n)
         self.last_reject_text = np.full(n, -math.inf)
+        # mc_pos_control's takeoff (Takeoff.cpp) and FlightTaskAuto's vertical trajectory of AUTO.TAKEOFF:
+        # simulated s the ramp started (+inf: spool-up or ready_for_takeoff; -inf: already flying), and the
+        # trajectory's upward velocity (m/s) and acceleration (m/s^2)
+        self.ramp_start = np.full(n, math.inf)
+        self.takeoff_vz = np.zeros(n)
+        self.takeoff_az = np.zeros(n)
+        self.takeoff_hold = np.zeros(n, dtype=bool)  # in the Hold a takeoff ended in, still climbing to it
         for i in np.flatnonzero(self.mask & ap.armed):  # airborne starts fly OFFBOARD with a fresh setpoint
             self.nav[i] = MODE_OFFBOARD
             self.last_setpoint[i] = 0.0
@@ -320,6 +386,99 @@ class Px4Autopilot:
 
     # --- every tick -----------------------------------------------------------------------------------------
 
+    def before_loop(self, t: float, dt: float) -> None:
+        """The upward velocity limits PX4 puts on the shared control law this tick (Autopilot.climb_cap):
+        AUTO.TAKEOFF's spool-up, ramp and takeoff trajectory (_takeoff_limit), AUTO.RTL's MPC_Z_V_AUTO_UP."""
+        ap = self.ap
+        ap.climb_cap[self.mask] = math.inf
+        for i in np.flatnonzero(self.mask & ap.armed).tolist():
+            nav = int(self.nav[i])
+            if nav == MODE_TAKEOFF and ap.takeoff_active[i]:
+                ap.climb_cap[i] = self._takeoff_limit(i, t, dt)
+            elif nav == MODE_LOITER and self.takeoff_hold[i]:
+                ap.climb_cap[i] = self._hold_climb_limit(i, dt)
+            elif nav == MODE_RTL:
+                # FlightTaskAuto::_updateTrajConstraints: auto modes climb at MPC_Z_V_AUTO_UP (mc_pos_control
+                # parameters_update keeps it <= MPC_Z_VEL_MAX_UP, which the shared law already applies)
+                ap.climb_cap[i] = ap.params.value(i, "MPC_Z_V_AUTO_UP")
+
+    def _trajectory_step(self, i: int, wanted: float, accel: float, jerk: float, dt: float) -> float:
+        """Vehicle i's vertical trajectory one tick towards the upward velocity `wanted`; its new velocity."""
+        self.takeoff_vz[i], self.takeoff_az[i] = jerk_limited_step(
+            float(self.takeoff_vz[i]), float(self.takeoff_az[i]), wanted, accel, jerk, dt
+        )
+        return float(self.takeoff_vz[i])
+
+    def _hold_climb_limit(self, i: int, dt: float) -> float:
+        """Vehicle i's upward velocity limit (m/s) in the Hold its takeoff ended in (navigator
+        Takeoff::on_active loiters at the takeoff setpoint, setLoiterItemFromCurrentPositionSetpoint):
+        FlightTaskAuto's trajectory goes on, now of a loiter item, to the takeoff altitude at MPC_Z_V_AUTO_UP,
+        MPC_ACC_UP_MAX, MPC_JERK_AUTO (_updateTrajConstraints, "up"); +inf once there."""
+        ap, p = self.ap, self.ap.params
+        remaining = float(ap.nav_pos[i, 2] - ap.state.pos[i, 2])
+        if remaining <= 0.05 and self.takeoff_vz[i] <= 0.05:
+            self.takeoff_hold[i] = False
+            return math.inf
+        speed = min(p.value(i, "MPC_Z_V_AUTO_UP"), p.value(i, "MPC_Z_VEL_MAX_UP"))
+        jerk = p.value(i, "MPC_JERK_AUTO")
+        wanted = min(speed, stop_speed(remaining, ACC_UP_MAX, jerk)) if remaining > 0.0 else 0.0
+        return self._trajectory_step(i, wanted, ACC_UP_MAX, jerk, dt)
+
+    def takeoff_reached(self, i: int) -> bool:
+        """navigator MissionBlock::is_mission_item_reached_or_completed, NAV_CMD_TAKEOFF of a rotary wing:
+        only the altitude counts, above the takeoff altitude minus Navigator::get_altitude_acceptance_radius
+        (NAV_MC_ALT_RAD), or minus half the takeoff altitude above home when that is smaller."""
+        acceptance = self.ap.params.value(i, "NAV_MC_ALT_RAD")
+        takeoff_alt = float(self.takeoff_z[i] - self.ap.home[i, 2])
+        if 0.0 < takeoff_alt < acceptance:
+            acceptance = takeoff_alt / 2.0
+        return bool(self.ap.state.pos[i, 2] > self.takeoff_z[i] - acceptance)
+
+    def _takeoff_limit(self, i: int, t: float, dt: float) -> float:
+        """Vehicle i's upward velocity limit (m/s) in AUTO.TAKEOFF at simulated time t, one tick dt later.
+
+        mc_pos_control (MulticopterPositionControl::Run, Takeoff.cpp TakeoffHandling): after arming the
+        motors spool up for COM_SPOOLUP_TIME (state spoolup, no thrust: the limit is TAKEOFF_RAMP_VZ_INIT and
+        the integrators are reset); once spooled and wanting to take off (ready_for_takeoff -> rampup),
+        updateRamp raises the limit linearly from TAKEOFF_RAMP_VZ_INIT to the vehicle constraint speed_up over
+        MPC_TKO_RAMP_T (in AUTO max(MPC_Z_VEL_MAX_UP, 1.2 MPC_Z_V_AUTO_UP), capped at MPC_Z_VEL_MAX_UP by
+        Run: MPC_Z_VEL_MAX_UP). The climb itself is FlightTaskAuto's PositionSmoothing
+        (_updateTrajConstraints): below MPC_LAND_ALT1 above the ground at most MPC_TKO_SPEED, accelerating at
+        min(MPC_ACC_UP_MAX, MPC_TKO_SPEED / MPC_TKO_RAMP_T), its position held at the vehicle's
+        (forceSetPosition), so the trajectory's velocity is the demand; higher up MPC_Z_V_AUTO_UP at
+        MPC_ACC_UP_MAX; jerk MPC_JERK_AUTO. Until the ramp starts the trajectory restarts every cycle at
+        TAKEOFF_TRAJECTORY_VZ_INIT (FlightTaskAuto::reActivate).
+        """
+        ap, p = self.ap, self.ap.params
+        pos_z, home_z = float(ap.state.pos[i, 2]), float(ap.home[i, 2])
+        remaining = float(ap.nav_pos[i, 2]) - pos_z
+        max_up = p.value(i, "MPC_Z_VEL_MAX_UP")
+        jerk = p.value(i, "MPC_JERK_AUTO")
+        ramp_time = p.value(i, "MPC_TKO_RAMP_T")
+        # mc_pos_control parameters_update: MPC_TKO_SPEED <= MPC_Z_VEL_MAX_UP, MPC_Z_V_AUTO_UP likewise
+        if pos_z - home_z < max(p.value(i, "MPC_LAND_ALT1"), p.value(i, "MPC_LAND_ALT2")):
+            speed = min(p.value(i, "MPC_TKO_SPEED"), max_up)
+            accel = min(ACC_UP_MAX, speed / ramp_time) if ramp_time > 0.0 else ACC_UP_MAX
+        else:
+            speed, accel = min(p.value(i, "MPC_Z_V_AUTO_UP"), max_up), ACC_UP_MAX
+        wanted = min(speed, stop_speed(remaining, accel, jerk)) if remaining > 0.0 else 0.0
+        if self.ramp_start[i] == math.inf:  # spoolup / ready_for_takeoff
+            spooled = t >= self.armed_at[i] + p.value(i, "COM_SPOOLUP_TIME")
+            if not (spooled and wanted > WANT_TAKEOFF_VZ):
+                ap.integrator[i, 2] = 0.0  # MulticopterPositionControl::Run: not taken off -> resetIntegral
+                return TAKEOFF_RAMP_VZ_INIT
+            self.ramp_start[i] = t
+            self.takeoff_vz[i], self.takeoff_az[i] = TAKEOFF_TRAJECTORY_VZ_INIT, 0.0
+        if ap.state.landed[i]:
+            # PositionControl::_velocityControl anti-windup: on the ground the thrust is at its minimum, a
+            # descent demand integrates nothing
+            ap.integrator[i, 2] = max(ap.integrator[i, 2], 0.0)
+        limit = self._trajectory_step(i, wanted, accel, jerk, dt)
+        progress = (t - self.ramp_start[i]) / ramp_time if ramp_time > dt else 1.0
+        if progress < 1.0:  # Takeoff.cpp updateRamp
+            limit = min(limit, TAKEOFF_RAMP_VZ_INIT + progress * (max_up - TAKEOFF_RAMP_VZ_INIT))
+        return limit
+
     def update(self, t: float) -> None:
         """Takeoff completion, offboard loss, GCS loss, auto-disarm of the PX4 vehicles."""
         ap = self.ap
@@ -327,9 +486,18 @@ class Px4Autopilot:
             if not ap.land_complete[i]:
                 self.taken_off[i] = True
             nav = int(self.nav[i])
-            # Commander::checkForMissionUpdate: takeoff finished -> AUTO.LOITER (COM_TAKEOFF_ACT 0)
-            if nav == MODE_TAKEOFF and self.taken_off[i] and not ap.takeoff_active[i]:
-                self.change_mode(i, MODE_LOITER)
+            # navigator Takeoff::on_active: reached (takeoff_reached), the takeoff is completed and the loiter
+            # item is the current position setpoint, the takeoff altitude; Commander: takeoff finished ->
+            # AUTO.LOITER (COM_TAKEOFF_ACT 0)
+            if (
+                nav == MODE_TAKEOFF
+                and self.taken_off[i]
+                and (self.takeoff_reached(i) or not ap.takeoff_active[i])
+            ):
+                altitude = float(self.takeoff_z[i])
+                if self.change_mode(i, MODE_LOITER) == ACCEPTED:
+                    ap.nav_pos[i, 2] = altitude
+                    self.takeoff_hold[i] = True
             if nav == MODE_OFFBOARD and not self.offboard_signal(i) and not self.failsafe[i]:
                 self._offboard_lost(i)
             self._gcs_check(i, t)
@@ -421,12 +589,72 @@ class Px4Autopilot:
     def _enter(self, i: int, mode: int) -> None:
         """Vehicle i is in PX4 mode `mode`: run its shared control law from the current state."""
         self.nav[i] = mode
+        self.takeoff_hold[i] = False
         self.ap.enter_mode(i, INTERNAL_MODE.get(mode, internal.LOITER))
         if mode == MODE_TAKEOFF:
             if not math.isfinite(self.takeoff_z[i]):
                 self.takeoff_z[i] = self.ap.home[i, 2] + self.ap.params.value(i, "MIS_TAKEOFF_ALT")
             self._start_takeoff(i)
+        elif mode == MODE_RTL:  # the shared RTL climbs to nav_pos z, returns at it and lands
+            self.ap.nav_pos[i, 2] = self.return_altitude(i)
 
     def _start_takeoff(self, i: int) -> None:
-        if self.ap.armed[i] and self.nav[i] == MODE_TAKEOFF:
-            self.ap.climb_to(i, float(self.takeoff_z[i]))
+        ap = self.ap
+        if ap.armed[i] and self.nav[i] == MODE_TAKEOFF:
+            # Takeoff.cpp updateTakeoffState: landed, the takeoff starts over (spoolup if just armed, else
+            # ready_for_takeoff); in the air it is in flight (no spool-up, no ramp); a takeoff still on the
+            # ground keeps its state. FlightTaskAuto::activate starts the trajectory at the current velocity.
+            if ap.land_complete[i]:
+                self.ramp_start[i] = math.inf
+                self.takeoff_vz[i], self.takeoff_az[i] = 0.0, 0.0
+            elif not ap.state.landed[i]:
+                if self.ramp_start[i] == math.inf:
+                    self.ramp_start[i] = -math.inf
+                self.takeoff_vz[i], self.takeoff_az[i] = float(ap.state.vel[i, 2]), 0.0
+            ap.climb_to(i, float(self.takeoff_z[i]))
+
+    def return_altitude(self, i: int) -> float:
+        """World height (m) vehicle i returns at in AUTO.RTL: navigator rtl.cpp
+        RTL::calculate_return_alt_from_cone_half_angle for the home destination (RTL_TYPE 0, no rally points
+        or mission landing here), used for rotary wings when RTL_CONE_ANG > 0 (RTL::findRtlDestination; else
+        max(current, home + RTL_RETURN_ALT)): within NAV_ACC_RAD of home 2x the horizontal distance d; beyond
+        it RTL_RETURN_ALT, lowered within RTL_MIN_DIST to the cone's d / tan(RTL_CONE_ANG clamped to 1..89
+        deg), and at least 2 x NAV_ACC_RAD; never below the current altitude (RtlDirect climbs only if
+        lower)."""
+        p = self.ap.params
+        pos, home = self.ap.state.pos[i], self.ap.home[i]
+        cone_deg = p.value(i, "RTL_CONE_ANG")
+        return_alt = home[2] + p.value(i, "RTL_RETURN_ALT")
+        if cone_deg > 0:
+            dist = math.hypot(pos[0] - home[0], pos[1] - home[1])
+            acceptance = p.value(i, "NAV_ACC_RAD")
+            if dist <= acceptance:
+                return_alt = home[2] + 2.0 * dist
+            else:
+                if dist <= p.value(i, "RTL_MIN_DIST"):
+                    cone = math.radians(min(max(cone_deg, 1.0), 89.0))
+                    return_alt = min(home[2] + dist / math.tan(cone), return_alt)
+                return_alt = max(return_alt, home[2] + 2.0 * acceptance)
+        return float(max(return_alt, pos[2]))
+
+
+def stop_speed(distance: float, accel: float, jerk: float) -> float:
+    """The highest speed (m/s) from which a jerk-limited stop (acceleration <= accel, jerk <= jerk) fits in
+    `distance` m: PX4 lib/mathlib/math/TrajMath.hpp computeMaxSpeedFromDistance(jerk, accel, distance, 0),
+    which PositionSmoothing::_getMaxZSpeed uses to slow the vertical trajectory down towards its target."""
+    b = 4.0 * accel * accel / jerk
+    return 0.5 * (-b + math.sqrt(b * b + 8.0 * accel * max(distance, 0.0)))
+
+
+def jerk_limited_step(
+    vel: float, acc: float, target: float, accel_max: float, jerk_max: float, dt: float
+) -> tuple[float, float]:
+    """(velocity, acceleration) one step dt towards the velocity `target`: acceleration at most accel_max,
+    changing by at most jerk_max per s, no overshoot: outer_loop._smooth_vertical (PX4's descents) in Python,
+    the stand-in for PX4's jerk-limited VelocitySmoothing."""
+    want = min(max(sqrt_controller(target - vel, SMOOTH_P, jerk_max), -accel_max), accel_max)
+    acc += min(max(want - acc, -jerk_max * dt), jerk_max * dt)
+    new_vel = vel + acc * dt
+    if (new_vel - target) * (vel - target) <= 0.0:
+        return target, 0.0
+    return new_vel, acc

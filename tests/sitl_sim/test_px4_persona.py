@@ -4,7 +4,9 @@ scripted pymavlink ground station of tests/sitl_sim/sim_process.py.
 Expected values come from PX4's sources (cited), not from this simulator: custom_mode = main << 16 | sub << 24
 (px4_custom_mode.h), TEMPORARILY_REJECTED for refused mode changes and arming (Commander.cpp), offboard
 availability = a setpoint younger than COM_OF_LOSS_T (offboardCheck.cpp), int32 parameters bytewise in the
-float (checked with struct, independently of the simulator's helpers).
+float (checked with struct, independently of the simulator's helpers). The takeoff, landing and return rules
+are checked against bounds worked out by hand from PX4's parameters and the code that uses them
+(mc_pos_control Takeoff.cpp, FlightTaskAuto.cpp, navigator rtl.cpp), in simulated time from the truth log.
 """
 
 from __future__ import annotations
@@ -12,9 +14,10 @@ from __future__ import annotations
 import math
 import struct
 
+import numpy as np
 import pytest
 
-from tests.sitl_sim.sim_process import M
+from tests.sitl_sim.sim_process import M, read_truth
 
 PX4_ARGS = ("--lockstep", "--lockstep-timeout", "60", "--ready-delay", "1", "--autopilot", "px4")
 AUTO, OFFBOARD = 4, 6  # px4_custom_mode.h PX4_CUSTOM_MAIN_MODE_AUTO, _OFFBOARD
@@ -24,6 +27,13 @@ TAKEOFF_MODE = (AUTO << 16) | (TAKEOFF << 24)
 RTL_MODE = (AUTO << 16) | (RTL << 24)
 LAND_MODE = (AUTO << 16) | (LAND << 24)
 OFFBOARD_MODE = OFFBOARD << 16  # 393216, as every PX4 offboard example spells it
+INTERNAL_GUIDED, INTERNAL_LAND = 4, 9  # truth log mode column: the shared law (docs/sitl.md, PX4 persona)
+# PX4 defaults (mc_pos_control multicopter_takeoff_land_params.yaml, multicopter_autonomous_params.yaml,
+# commander COM_SPOOLUP_TIME, navigator navigator_params.yaml / rtl_params.yaml)
+SPOOLUP_S, TKO_SPEED, TKO_RAMP_S = 1.0, 1.5, 3.0
+LAND_ALT1, LAND_ALT2, LAND_ALT3, LAND_SPEED, LAND_CRAWL, AUTO_DN = 10.0, 5.0, 1.0, 0.7, 0.3, 1.5
+NAV_ACC_RAD = 10.0
+POSITION_ONLY = 0b110111111000  # SET_POSITION_TARGET type_mask: position only (velocity/accel/yaw ignored)
 
 
 def as_int32(value: float) -> int:
@@ -228,3 +238,180 @@ def test_garbage_never_crashes_a_px4_handler(sitl, pilot_for):
     code, err = sim.stop()
     assert code == 0
     assert "handler_errors=0" in err
+
+
+def fly_truth(sitl, pilot_for, tmp_path, script, *args: str):
+    """Run `script(pilot)` against a PX4 vehicle whose truth log is kept; returns the log (one vehicle)."""
+    log = tmp_path / "truth.csv"
+    sim = sitl(*PX4_ARGS, "--truth-log", str(log), *args)
+    pilot = pilot_for(sim)
+    script(pilot)
+    code, _ = sim.stop()
+    assert code == 0
+    return read_truth(log)
+
+
+def first_time(truth, mask) -> float:
+    """Simulated s of the first truth sample where `mask` holds."""
+    assert mask.any()
+    return float(truth["t"][np.flatnonzero(mask)[0]])
+
+
+def test_default_ready_delay_is_px4s_for_px4_vehicles_only(sitl, pilot_for):
+    # no --ready-delay: a real PX4 SITL (SIH) was ready for takeoff 4.4-4.6 s after boot, a real ArduCopter's
+    # EKF used GPS after 42 s: neither vehicle may be ready earlier than its real counterpart
+    sim = sitl("--lockstep", "--lockstep-timeout", "60", "--autopilot", "ardupilot,px4", vehicles=2)
+    pilot = pilot_for(sim)
+    ardupilot, px4 = pilot[0], pilot[1]
+    ready_seen = []
+    pilot.spin(lambda: px4.ready or ready_seen.append(px4.t), 10.0)
+    assert ready_seen and max(ready_seen) >= 4.6 - 0.05  # not ready before real PX4 was
+    assert px4.t <= 5.0 + 0.3  # READY_DELAY_S 5 s, seen in the next 5 Hz SYS_STATUS
+    assert not ardupilot.ready and "LOCAL_POSITION_NED" not in ardupilot.latest  # its 40 s are not over
+    # an explicit --ready-delay applies to every vehicle
+    sim = sitl("--lockstep", "--lockstep-timeout", "60", "--ready-delay", "2", "--autopilot", "ardupilot,px4",
+               vehicles=2)  # fmt: skip
+    pilot = pilot_for(sim)
+    pilot.spin(lambda: all(v.ready for v in pilot.vehicles), 4.0)
+    assert all(1.9 <= v.t <= 2.0 + 0.3 for v in pilot.vehicles)
+
+
+def test_takeoff_spools_up_ramps_and_climbs_at_takeoff_speed(sitl, pilot_for, tmp_path):
+    truth = fly_truth(sitl, pilot_for, tmp_path, lambda pilot: take_off(pilot, 10.0))
+    armed_at = first_time(truth, truth["armed"] == 1)
+    lifted = first_time(truth, truth["z"] > 0.01) - armed_at
+    # Takeoff.cpp: no thrust while spooling up (COM_SPOOLUP_TIME); then FlightTaskAuto's trajectory starts at
+    # 0.7 m/s down (reActivate) and accelerates up at most MPC_TKO_SPEED / MPC_TKO_RAMP_T = 0.5 m/s^2
+    accel = TKO_SPEED / TKO_RAMP_S
+    assert lifted >= SPOOLUP_S + 0.7 / accel
+    # below MPC_LAND_ALT1 the climb is at most MPC_TKO_SPEED (the shared law alone would climb at 3 m/s)
+    climbing = (truth["mode"] == INTERNAL_GUIDED) & (truth["t"] > armed_at) & (truth["z"] < LAND_ALT1)
+    assert truth["vz"][climbing].max() <= TKO_SPEED + 0.05
+    assert truth["vz"][climbing].max() >= TKO_SPEED - 0.1  # and it does reach it
+    # so 9.5 m take at least: spool-up, the 0.7 m/s down to 0, 0 to MPC_TKO_SPEED at 0.5 m/s^2 (2.25 m), the
+    # rest at MPC_TKO_SPEED; jerk (MPC_JERK_AUTO), braking and tracking make the real one somewhat slower
+    at_9_5 = first_time(truth, truth["z"] >= 9.5) - armed_at
+    least = SPOOLUP_S + 0.7 / accel + TKO_SPEED / accel + (9.5 - TKO_SPEED**2 / (2 * accel)) / TKO_SPEED
+    assert least <= at_9_5 <= least + 1.5
+
+
+def test_takeoff_follows_changed_spoolup_ramp_and_speed(sitl, pilot_for, tmp_path):
+    def script(pilot):
+        v = pilot[0]
+        pilot.spin(lambda: v.ready, 5.0)
+        for name, value in (("COM_SPOOLUP_TIME", 2.5), ("MPC_TKO_SPEED", 1.0), ("MPC_TKO_RAMP_T", 2.0)):
+            assert pilot.set_param(0, name, value) == pytest.approx(value)
+        take_off(pilot, 4.0)
+
+    truth = fly_truth(sitl, pilot_for, tmp_path, script)
+    armed_at = first_time(truth, truth["armed"] == 1)
+    accel = 1.0 / 2.0  # MPC_TKO_SPEED / MPC_TKO_RAMP_T
+    assert first_time(truth, truth["z"] > 0.01) - armed_at >= 2.5 + 0.7 / accel
+    climbing = (truth["mode"] == INTERNAL_GUIDED) & (truth["t"] > armed_at)
+    assert truth["vz"][climbing].max() <= 1.0 + 0.05
+    least = 2.5 + 0.7 / accel + 1.0 / accel + (3.5 - 1.0 / (2 * accel)) / 1.0
+    assert first_time(truth, truth["z"] >= 3.5) - armed_at >= least
+
+
+def px4_land_speed(height: float) -> float:
+    """FlightTaskAuto::_prepareLandSetpoints at the defaults: MPC_LAND_SPEED at and below MPC_LAND_ALT2,
+    MPC_Z_VEL_MAX_DN (1.5) above MPC_LAND_ALT1, linear between (math::interpolate), MPC_LAND_CRWL below
+    MPC_LAND_ALT3 (SIH's downward distance sensor measures the height); MPC_Z_V_AUTO_DN caps the lot."""
+    if height <= LAND_ALT3:
+        return LAND_CRAWL
+    if height <= LAND_ALT2:
+        return LAND_SPEED
+    if height > LAND_ALT1:
+        return min(1.5, AUTO_DN)
+    return LAND_SPEED + (1.5 - LAND_SPEED) * (height - LAND_ALT2) / (LAND_ALT1 - LAND_ALT2)
+
+
+def test_land_slows_down_below_land_alt1_and_crawls_below_alt3(sitl, pilot_for, tmp_path):
+    def script(pilot):
+        v = pilot[0]
+        take_off(pilot, 16.0)
+        assert pilot.command(0, M.MAV_CMD_NAV_LAND) == M.MAV_RESULT_ACCEPTED
+        pilot.spin(lambda: not v.armed, 60.0)
+
+    truth = fly_truth(sitl, pilot_for, tmp_path, script)
+    landing = (truth["mode"] == INTERNAL_LAND) & (truth["armed"] == 1)
+    height, speed = truth["z"][landing], -truth["vz"][landing]
+    for low, high, tolerance in ((11.0, 13.0, 0.1), (5.5, 9.5, 0.1), (1.2, 4.5, 0.05)):
+        band = (height > low) & (height < high)
+        expected = np.array([px4_land_speed(h) for h in height[band]])
+        assert np.all(np.abs(speed[band] - expected) <= tolerance), (low, high)
+    # below MPC_LAND_ALT3: slowing from 0.7 to 0.3 m/s with jerk <= MPC_JERK_AUTO (4 m/s^3) takes >= 0.63 s,
+    # <= 0.44 m; then MPC_LAND_CRWL
+    crawl = (height > 0.05) & (height < 1.0 - 0.44)
+    assert speed[crawl].max() <= LAND_CRAWL + 0.05
+    # from 5 m: 4 m at <= MPC_LAND_SPEED, then >= 0.63 s slowing down and >= 0.56 m at MPC_LAND_CRWL
+    below_5 = first_time(truth, landing & (truth["z"] < 5.0))
+    touchdown = first_time(truth, landing & (truth["z"] <= 0.0))
+    assert touchdown - below_5 >= 4.0 / LAND_SPEED + 0.63 + (1.0 - 0.44) / LAND_CRAWL
+
+
+def fly_offboard_to(pilot, north_m: float, height_m: float) -> None:
+    """Stream a position setpoint (LOCAL_NED) for > 1 s, switch to OFFBOARD, fly there and settle."""
+    v = pilot[0]
+
+    def setpoint(vehicle):
+        vehicle.mav.set_position_target_local_ned_send(
+            vehicle.time_boot_ms, vehicle.sysid, 1, M.MAV_FRAME_LOCAL_NED, POSITION_ONLY,
+            north_m, 0.0, -height_m, 0, 0, 0, 0, 0, 0, 0, 0,
+        )  # fmt: skip
+
+    start = v.t
+    pilot.spin(lambda: v.t - start > 1.2, 3.0, each_frame=setpoint)
+    v.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, OFFBOARD)
+    pilot.spin(lambda: v.mode == OFFBOARD_MODE, 3.0, each_frame=setpoint)
+
+    def settled() -> bool:
+        local = v.latest["LOCAL_POSITION_NED"]
+        return abs(local.x - north_m) < 0.3 and abs(local.vx) < 0.1 and abs(v.altitude - height_m) < 0.3
+
+    pilot.spin(settled, 30.0, each_frame=setpoint)
+
+
+@pytest.mark.parametrize(
+    ("north_m", "params"),
+    [
+        (0.0, {}),  # above home: 2 x 0 m -> no climb, lands from where it is
+        (6.0, {}),  # within NAV_ACC_RAD (10 m): twice the distance, 12 m (not RTL_RETURN_ALT 60 m)
+        (8.0, {"NAV_ACC_RAD": 2.0, "RTL_MIN_DIST": 20.0, "RTL_RETURN_ALT": 30.0}),  # the 45 deg cone: 8 m
+    ],
+)
+def test_return_altitude_follows_px4s_cone(sitl, pilot_for, tmp_path, north_m, params):
+    height_m = 4.0
+    seen: dict[str, float] = {}
+
+    def script(pilot):
+        v = pilot[0]
+        pilot.spin(lambda: v.ready, 5.0)
+        for name, value in params.items():
+            assert pilot.set_param(0, name, value) == pytest.approx(value)
+        take_off(pilot, height_m)
+        if north_m:
+            fly_offboard_to(pilot, north_m, height_m)
+        local = v.latest["LOCAL_POSITION_NED"]
+        seen["distance"] = math.hypot(local.x, local.y)  # home is the start point, the local origin
+        seen["height"] = v.altitude
+        assert pilot.command(0, M.MAV_CMD_NAV_RETURN_TO_LAUNCH) == M.MAV_RESULT_ACCEPTED
+        pilot.spin(lambda: not v.armed, 90.0)
+
+    truth = fly_truth(sitl, pilot_for, tmp_path, script)
+    # rtl.cpp RTL::calculate_return_alt_from_cone_half_angle, worked out for home at the ground
+    d = seen["distance"]
+    acceptance = params.get("NAV_ACC_RAD", NAV_ACC_RAD)
+    if d <= acceptance:
+        expected = 2.0 * d
+    else:
+        expected = params.get("RTL_RETURN_ALT", 60.0)
+        if d <= params.get("RTL_MIN_DIST", 10.0):
+            expected = min(d / math.tan(math.radians(45.0)), expected)
+        expected = max(expected, 2.0 * acceptance)
+    expected = max(expected, seen["height"])
+    returning = (truth["mode"] == 6) & (truth["armed"] == 1)  # the shared RTL law (internal mode 6)
+    assert returning.any()
+    assert expected - 0.6 <= truth["z"][returning].max() <= expected + 0.3
+    final = np.flatnonzero(truth["armed"] == 1)[-1]
+    assert math.hypot(truth["x"][final], truth["y"][final]) < 1.0  # and it landed at home
