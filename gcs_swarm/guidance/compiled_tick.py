@@ -14,22 +14,76 @@ it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from gcs_swarm.guidance import field_kernels as fk
 from gcs_swarm.guidance import tick_kernels as tk
+from gcs_swarm.guidance.attitude_slew import TiltSlew
+from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.failsafe_speed import _brake_table
 from gcs_swarm.guidance.obstacles import clearance
-from gcs_swarm.guidance.params import Limits, ReferenceParams, SMCParams
+from gcs_swarm.guidance.params import (
+    DeadGcsParams,
+    FieldParams,
+    Limits,
+    ReferenceParams,
+    SeparationParams,
+    SMCParams,
+)
 from gcs_swarm.guidance.reference import ReferenceGenerator, paper_literal_reference
 from gcs_swarm.guidance.separation import CLOSING_MARGIN_M, CLOSING_RANGE_MAX_M
 from gcs_swarm.guidance.smc import SMCController, _per_axis
 
-if TYPE_CHECKING:
-    from gcs_swarm.guidance.fleet_controller import FleetController
+
+class FleetState(Protocol):
+    """What the compiled steps read and update of their FleetController (fleet_controller.py documents each;
+    arrays have one row per vehicle). A Protocol, so that this module need not import fleet_controller,
+    which imports it."""
+
+    n: int
+    leader: int
+    is_leader: np.ndarray
+    offsets: np.ndarray
+    follower_targets: np.ndarray | None
+    field: FieldParams
+    separation: SeparationParams
+    reference: ReferenceParams
+    limits: Limits
+    dead_gcs: DeadGcsParams | None
+    generator: ReferenceGenerator
+    position_controller: PositionController
+    slew: TiltSlew
+    thrust_mode: str
+    g: float
+    d_g: float
+    d_max: float
+    v_xy_cap: np.ndarray
+    speed_scale: float
+    spacing_scale: float
+    last_pos: np.ndarray
+    last_vel: np.ndarray
+
+
+class WarmUpController(Protocol):
+    """The two calls warm_up makes on a controller (FleetController.reset and .tick)."""
+
+    def reset(self, pos: np.ndarray, vel: np.ndarray, yaw: np.ndarray) -> None: ...
+
+    def tick(
+        self,
+        t: float,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        att: np.ndarray,
+        obstacles_c: np.ndarray,
+        obstacles_r: np.ndarray,
+        active: np.ndarray,
+    ) -> object: ...
+
 
 NO_ROWS = np.zeros((0, 3))
 NO_VALUES = np.zeros(0)
@@ -97,7 +151,7 @@ class CompiledTick:
         self._failsafe: tuple[np.ndarray, np.ndarray] | None = None
         self._trig = (0.0, 0.0)
 
-    def _constants(self, ctl: FleetController) -> None:
+    def _constants(self, ctl: FleetState) -> None:
         pc = ctl.position_controller
         key = (
             ctl.generator.params,
@@ -122,7 +176,7 @@ class CompiledTick:
 
     def __call__(
         self,
-        ctl: FleetController,
+        ctl: FleetState,
         heard: np.ndarray,
         goal: np.ndarray,
         dt: float,
@@ -262,7 +316,7 @@ class CompiledTick:
 
     def _smc_step(
         self,
-        ctl: FleetController,
+        ctl: FleetState,
         x_d: np.ndarray,
         xd_dot: np.ndarray,
         xd_ddot: np.ndarray,
@@ -296,16 +350,13 @@ class CompiledTick:
         return u
 
 
-def warm_up() -> None:
+def warm_up(make_controller: Callable[..., WarmUpController]) -> None:
     """Call every kernel once on a small fleet (compiles them, or loads them from numba's cache: about 0.1 s),
-    so that no tick of a flight waits for the JIT."""
-    from gcs_swarm.guidance.fleet_controller import FleetController
-    from gcs_swarm.guidance.params import SeparationParams
-
+    so that no tick of a flight waits for the JIT. make_controller: FleetController's constructor."""
     offsets = np.array([[0.0, 0.0, 0.0], [-5.0, 2.0, 0.0], [-5.0, -2.0, 0.0]])
     pos = offsets + np.array([0.0, 0.0, 10.0])
     for mode in ("constant", "formula"):
-        ctl = FleetController(
+        ctl = make_controller(
             3, 0, offsets, np.array([[100.0, 0.0, 10.0]]), separation=SeparationParams(mode=mode), z_min=1.0
         )
         ctl.reset(pos, np.zeros((3, 3)), np.zeros(3))

@@ -174,7 +174,7 @@ class FleetController:
         global _warmed_up
         if self._compiled is not None and not _warmed_up:  # load the kernels now, not in the first tick
             _warmed_up = True
-            warm_up()
+            warm_up(FleetController)
 
     # ----- live changes (operator console) -----
 
