@@ -106,6 +106,21 @@ def px4_land_speed(
 
 
 @njit(cache=True)
+def jerk_limited_step(
+    vel: float, acc: float, target: float, accel_max: float, jerk_max: float, dt: float
+) -> tuple[float, float]:
+    """(velocity, acceleration) one step dt towards the velocity `target` (m/s, m/s^2): acceleration at most
+    accel_max, changing by at most jerk_max per s, never overshooting: the stand-in for PX4's jerk-limited
+    PositionSmoothing (SMOOTH_P) in the PX4 persona's descents (_smooth_vertical) and climbs (px4.py)."""
+    want = min(max(sqrt_controller(target - vel, SMOOTH_P, jerk_max), -accel_max), accel_max)
+    acc += min(max(want - acc, -jerk_max * dt), jerk_max * dt)
+    new_vel = vel + acc * dt
+    if (new_vel - target) * (vel - target) <= 0.0:
+        return target, 0.0
+    return new_vel, acc
+
+
+@njit(cache=True)
 def _smooth_vertical(
     nav_vel: np.ndarray,
     nav_acc: np.ndarray,
@@ -116,15 +131,10 @@ def _smooth_vertical(
     dt: float,
 ) -> None:
     """One step of vehicle i's vertical velocity target (nav_vel[i, 2], its acceleration nav_acc[i, 2], ENU)
-    towards `target` m/s: acceleration at most accel_max, reached at no more than jerk_max (PX4's jerk-limited
-    PositionSmoothing; SMOOTH_P), never overshooting."""
-    v, a = nav_vel[i, 2], nav_acc[i, 2]
-    want = min(max(sqrt_controller(target - v, SMOOTH_P, jerk_max), -accel_max), accel_max)
-    a += min(max(want - a, -jerk_max * dt), jerk_max * dt)
-    new_v = v + a * dt
-    if (new_v - target) * (v - target) <= 0.0:
-        new_v, a = target, 0.0
-    nav_vel[i, 2], nav_acc[i, 2] = new_v, a
+    towards `target` m/s (jerk_limited_step)."""
+    nav_vel[i, 2], nav_acc[i, 2] = jerk_limited_step(
+        nav_vel[i, 2], nav_acc[i, 2], target, accel_max, jerk_max, dt
+    )
 
 
 @njit(cache=True)

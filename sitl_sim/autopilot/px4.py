@@ -17,10 +17,9 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot import modes as internal
-from sitl_sim.autopilot.outer_loop import SMOOTH_P
+from sitl_sim.autopilot.outer_loop import jerk_limited_step
 from sitl_sim.autopilot.params import INT32, REAL32, ParamSpec, ParamTable
 from sitl_sim.vehicle_model.dynamics import FleetState
-from sitl_sim.vehicle_model.position_control import sqrt_controller
 
 
 class Autopilot(Protocol):
@@ -644,17 +643,3 @@ def stop_speed(distance: float, accel: float, jerk: float) -> float:
     which PositionSmoothing::_getMaxZSpeed uses to slow the vertical trajectory down towards its target."""
     b = 4.0 * accel * accel / jerk
     return 0.5 * (-b + math.sqrt(b * b + 8.0 * accel * max(distance, 0.0)))
-
-
-def jerk_limited_step(
-    vel: float, acc: float, target: float, accel_max: float, jerk_max: float, dt: float
-) -> tuple[float, float]:
-    """(velocity, acceleration) one step dt towards the velocity `target`: acceleration at most accel_max,
-    changing by at most jerk_max per s, no overshoot: outer_loop._smooth_vertical (PX4's descents) in Python,
-    the stand-in for PX4's jerk-limited VelocitySmoothing."""
-    want = min(max(sqrt_controller(target - vel, SMOOTH_P, jerk_max), -accel_max), accel_max)
-    acc += min(max(want - acc, -jerk_max * dt), jerk_max * dt)
-    new_vel = vel + acc * dt
-    if (new_vel - target) * (vel - target) <= 0.0:
-        return target, 0.0
-    return new_vel, acc
