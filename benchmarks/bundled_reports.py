@@ -21,7 +21,7 @@ from pathlib import Path
 from swarm_common.ports import free_udp_base
 
 ROOT = Path(__file__).resolve().parents[1]
-MISSIONS = (  # every bundled mission the embedded simulator flies (ardupilot_sitl_3 needs real ArduCopter)
+MISSIONS = (  # every bundled mission the embedded simulator flies (ardupilot_sitl_3, px4_sitl_3: real SITL)
     "quickstart",
     "quickstart_faulty",
     "paper_static_6",
@@ -29,6 +29,7 @@ MISSIONS = (  # every bundled mission the embedded simulator flies (ardupilot_si
     "paper_dense_6",
     "paper_nine_9",
     "paper_table1_2d",
+    "mixed_fleet",
 )
 WALL_CLOCK_KEYS = ("wall_duration_s",)
 

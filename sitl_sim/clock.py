@@ -16,13 +16,37 @@ from dataclasses import dataclass
 MAX_LAG_S = 0.25  # wall seconds a paced run may fall behind before it stops trying to catch up
 
 
-class RealTimePacer:
-    """Maps simulated seconds to wall deadlines at `speedup` x real time; forgives lags above MAX_LAG_S."""
+LATE_S = 0.02  # wall seconds behind schedule that count as late: one frame of the 50 Hz telemetry streams
 
-    def __init__(self, speedup: float) -> None:
+
+@dataclass
+class PacingLag:
+    """How far behind the wall clock a paced run fell: `worst_s` (wall s, the largest lag seen), `late_ticks`
+    (ticks that started more than LATE_S behind schedule) of `paced_ticks`. A simulator that falls behind
+    sends the frames it owes in a burst, which a real-time client sees as frames replaced before it could
+    use them: its missed frames are then the simulator's, not its own."""
+
+    worst_s: float = 0.0
+    late_ticks: int = 0
+    paced_ticks: int = 0
+
+    def summary(self) -> str:
+        """One line for the simulator's exit report."""
+        return (
+            f"real-time pacing: worst lag {self.worst_s * 1000:.1f} ms, {self.late_ticks} of "
+            f"{self.paced_ticks} ticks more than {LATE_S * 1000:g} ms behind"
+        )
+
+
+class RealTimePacer:
+    """Maps simulated seconds to wall deadlines at `speedup` x real time; forgives lags above MAX_LAG_S and
+    keeps the lags it saw in `lag` (a PacingLag, shared with a pacer that takes over, e.g. when orphaned)."""
+
+    def __init__(self, speedup: float, lag: PacingLag | None = None) -> None:
         self.speedup = speedup
         self.wall0: float | None = None
         self.sim0 = 0.0
+        self.lag = PacingLag() if lag is None else lag
 
     def restart(self, sim_t: float, wall_now: float) -> None:
         """Anchor: simulated time sim_t corresponds to wall_now."""
@@ -35,7 +59,13 @@ class RealTimePacer:
             self.restart(sim_t, wall_now)
         assert self.wall0 is not None
         due = self.wall0 + (sim_t - self.sim0) / self.speedup
-        if wall_now - due > MAX_LAG_S:
+        behind = wall_now - due
+        lag = self.lag
+        lag.paced_ticks += 1
+        if behind > LATE_S:
+            lag.late_ticks += 1
+        lag.worst_s = max(lag.worst_s, behind)
+        if behind > MAX_LAG_S:
             self.restart(sim_t, wall_now)
             due = wall_now
         return due

@@ -224,7 +224,7 @@ class Simulator:
         """Stop waiting for lockstep answers and run free so that the vehicles' own failsafes play out."""
         self.orphaned_at = self.t
         self.lockstep = None
-        self.pacer = RealTimePacer(self.orphan_speedup)
+        self.pacer = RealTimePacer(self.orphan_speedup, self.pacer.lag)
         logger.warning(
             "the ground station is gone at t=%.2f s: flying the vehicles on their own autopilots until all "
             "are down (at most %g s)",
@@ -491,11 +491,15 @@ class Simulator:
         )
 
     def counters_report(self) -> list[str]:
-        """One line per vehicle with its link counters."""
-        return [
+        """One line per vehicle with its link counters, then how far behind the wall clock a paced (real-time,
+        --speedup or orphaned) run fell, when any of it was paced."""
+        lines = [
             f"vehicle {ep.index} (sysid {ep.sysid}): {ep.counters.summary()} {ep.channel.summary()}"
             for ep in self.endpoints
         ]
+        if self.pacer.lag.paced_ticks:
+            lines.append(self.pacer.lag.summary())
+        return lines
 
     def close(self) -> None:
         """Free the ports, flush and close the truth log (idempotent)."""

@@ -95,12 +95,9 @@ def time_below(t: np.ndarray, pos: np.ndarray, distance: float) -> tuple[float, 
     pos (T, N, 3); each sample counts for the interval to the next."""
     t = np.asarray(t, dtype=float)
     p = np.asarray(pos, dtype=float)
-    n = p.shape[1]
-    if n < 2 or len(t) == 0:
+    if p.shape[1] < 2 or len(t) == 0:
         return 0.0, math.inf
-    i, j = np.triu_indices(n, 1)
-    gaps = np.linalg.norm(p[:, i] - p[:, j], axis=-1)
-    closest = np.fmin.reduce(gaps, axis=1)
+    closest = metrics.closest_pair_distance(p)
     dt = np.diff(t, append=t[-1])
     return float(dt[closest < distance].sum()), float(np.nanmin(closest))
 

@@ -110,8 +110,8 @@ def report_from(
     last = slice(-max(1, len(tw) // 10), None)
     t_osc, reversals = metrics.oscillation(tw, vw[:, leader, :2])
     per_vehicle = []
+    nearest = metrics.nearest_neighbour_distance(traj.pos)  # (T, N) m
     for i, name in enumerate(names):
-        sep_i = np.delete(np.linalg.norm(traj.pos - traj.pos[:, i : i + 1], axis=-1), i, axis=1)
         clear_i, _ = metrics.min_obstacle_clearance(
             traj.pos[:, i : i + 1], traj.obstacle_centres, traj.obstacle_radii
         )
@@ -124,7 +124,9 @@ def report_from(
                 "reached": reach[i] is not None,
                 "time_to_goal_s": _finite(None if reach[i] is None or t0 is None else reach[i] - t0),
                 "final_error_m": _finite(float(np.linalg.norm(pw[-1, i] - goals[i]))),
-                "min_separation_m": _finite(float(sep_i.min()) if sep_i.size else None),
+                "min_separation_m": _finite(
+                    float(nearest[:, i].min()) if len(names) > 1 and len(nearest) else None
+                ),
                 "min_obstacle_clearance_m": _finite(clear_i),
                 "max_speed_m_s": _finite(float(np.linalg.norm(traj.vel[:, i], axis=1).max())),
                 "relative_angle_deg": _deg(float(np.nanmedian(final_angle)))

@@ -122,3 +122,50 @@ def test_chattering_amplitude_sees_fast_content_only():
     assert metrics.chattering_amplitude(t, y, (21.0, 39.0)) < 1e-3
     with pytest.raises(ValueError, match="window"):
         metrics.chattering_amplitude(t, y, (50.0, 60.0))
+
+
+def _brute_force_closest(p: np.ndarray) -> np.ndarray:
+    """The definition, one pair at a time: per sample, the smallest |p_i - p_j| over pairs without NaN."""
+    out = np.full(len(p), np.nan)
+    for k, sample in enumerate(p):
+        for i in range(sample.shape[0]):
+            for j in range(i + 1, sample.shape[0]):
+                d = math.dist(sample[i], sample[j])
+                if not math.isnan(d) and not d >= out[k]:
+                    out[k] = d
+    return out
+
+
+@pytest.mark.parametrize("n", [2, 3, 9, 16, 40])
+def test_closest_pair_distance_is_the_definition_on_both_paths(monkeypatch, n):
+    rng = np.random.default_rng(n)
+    p = rng.normal(scale=50.0, size=(30, n, 3))
+    p[3, 0] = np.nan  # a vehicle out of the log at one sample: its pairs are left out
+    p[5, :] = np.nan  # nobody logged: no finite pair
+    expected = _brute_force_closest(p)
+    got = metrics.closest_pair_distance(p)
+    np.testing.assert_allclose(got, expected, rtol=1e-12)
+    assert np.isnan(got[5])
+    monkeypatch.setattr(metrics, "PDIST_MIN_VEHICLES", 2)  # every fleet through scipy's pdist
+    by_pdist = metrics.closest_pair_distance(p)
+    monkeypatch.setattr(metrics, "PDIST_MIN_VEHICLES", 10**6)  # every fleet through whole-array numpy
+    by_numpy = metrics.closest_pair_distance(p)
+    assert np.array_equal(by_pdist, by_numpy, equal_nan=True)  # the same bits: reports do not move
+    assert metrics.min_separation(p) == pytest.approx(float(np.nanmin(expected)), rel=1e-12)
+
+
+def test_nearest_neighbour_distance():
+    p = np.zeros((2, 3, 3))
+    p[:, 1, 0] = [3.0, 5.0]  # vehicle 1 on the x axis
+    p[:, 2, 1] = [4.0, 1.0]  # vehicle 2 on the y axis
+    d = metrics.nearest_neighbour_distance(p)
+    np.testing.assert_allclose(d[0], [3.0, 3.0, 4.0])  # 0-1 3 m, 0-2 4 m, 1-2 5 m
+    np.testing.assert_allclose(d[1], [1.0, 5.0, 1.0])  # 0-1 5 m, 0-2 1 m, 1-2 sqrt(26) m
+    assert metrics.nearest_neighbour_distance(p[:, :1]).tolist() == [[math.inf], [math.inf]]
+    p[1, 2] = np.nan
+    assert np.isnan(metrics.nearest_neighbour_distance(p)[1]).all()  # as numpy's min: NaN spreads
+
+
+def test_min_separation_without_finite_pairs_is_inf():
+    p = np.full((4, 3, 3), np.nan)
+    assert metrics.min_separation(p) == math.inf
