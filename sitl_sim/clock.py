@@ -11,6 +11,7 @@ frame end waits for the answers to the previous frame instead, and holds its own
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 MAX_LAG_S = 0.25  # wall seconds a paced run may fall behind before it stops trying to catch up
@@ -54,7 +55,10 @@ class RealTimePacer:
         self.wall0 = wall_now
 
     def deadline(self, sim_t: float, wall_now: float) -> float:
-        """Wall time at which sim_t is due (re-anchored first if the run is more than MAX_LAG_S behind)."""
+        """Wall time at which sim_t is due (re-anchored first if the run is more than MAX_LAG_S behind);
+        `wall_now` for an unpaced run (speedup inf: as fast as it can, never behind)."""
+        if math.isinf(self.speedup):
+            return wall_now
         if self.wall0 is None:
             self.restart(sim_t, wall_now)
         assert self.wall0 is not None

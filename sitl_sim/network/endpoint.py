@@ -156,9 +156,8 @@ class VehicleEndpoint:
         sim = self.sim
         if sim.lockstep is not None and not sim.lockstep_started or sim.t < self.link_from_s:
             return NO_LINK_FAULTS
-        return tuple(
-            map(sim.params.values[self.index].item, self._link_columns)
-        )  # 2x the fancy index's speed
+        row = sim.params.values[self.index]
+        return tuple(map(row.item, self._link_columns))  # twice as fast as a fancy index and tolist()
 
     def _deliver_due(self, wall_now: float) -> int:
         """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""

@@ -41,3 +41,10 @@ def test_a_pacer_that_takes_over_keeps_adding_to_the_same_lag():
     second.deadline(5.0, 9.0)
     second.deadline(5.3, 9.13)  # due at 9.1: 30 ms behind
     assert lag.paced_ticks == 4 and lag.late_ticks == 2 and lag.worst_s == pytest.approx(0.05)
+
+
+def test_an_unpaced_run_is_due_at_once_and_never_behind():
+    pacer = RealTimePacer(speedup=float("inf"))  # e.g. an orphaned lockstep run, as fast as it can
+    assert pacer.deadline(0.0, 7.0) == 7.0
+    assert pacer.deadline(100.0, 7.5) == 7.5
+    assert pacer.lag == PacingLag()  # nothing paced, nothing to report

@@ -55,7 +55,8 @@ def test_garbage_is_counted_and_traffic_continues(sitl, pilot_for):
     )
     status, err = sim.stop()
     assert status == 0
-    counters = dict(item.split("=") for item in err.split(": ", 2)[-1].split())
+    line = next(text for text in err.splitlines() if text.startswith("sitl-sim: vehicle 0 (sysid 1): "))
+    counters = dict(item.split("=") for item in line.split(": ", 2)[-1].split())
     assert int(counters["bad_frames"]) >= 4
     assert int(counters["foreign"]) >= 1
     assert int(counters["invalid"]) >= 3
