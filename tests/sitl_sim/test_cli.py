@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 import signal
 import subprocess
 import sys
@@ -97,7 +96,6 @@ def test_signal_exits_cleanly_with_the_truth_log_closed(sitl, tmp_path, sig):
     status, err = sim.stop(sig)
     assert status == 0
     assert "vehicle 1 (sysid 2): received=" in err
-    assert re.search(r"sitl-sim: real-time pacing: worst lag [\d.]+ ms, \d+ of [1-9]\d* ticks", err)  # paced
     text = log.read_text()
     assert text.endswith("\n") and text.startswith("t,vehicle,sysid,")
     assert all(line.count(",") == 23 for line in text.splitlines())

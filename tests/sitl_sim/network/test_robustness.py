@@ -5,6 +5,7 @@ raises (`handler_errors` 0: an exception in a handler is a simulator bug and fai
 from __future__ import annotations
 
 import math
+import re
 import select
 import socket
 import struct
@@ -57,6 +58,8 @@ def test_garbage_is_counted_and_traffic_continues(sitl, pilot_for):
     assert status == 0
     line = next(text for text in err.splitlines() if text.startswith("sitl-sim: vehicle 0 (sysid 1): "))
     counters = dict(item.split("=") for item in line.split(": ", 2)[-1].split())
+    # seconds of --speedup 5 were paced before the stop: the exit report says how far behind they fell
+    assert re.search(r"^sitl-sim: real-time pacing: worst lag [\d.]+ ms, \d+ of [1-9]\d* ticks", err, re.M)
     assert int(counters["bad_frames"]) >= 4
     assert int(counters["foreign"]) >= 1
     assert int(counters["invalid"]) >= 3
