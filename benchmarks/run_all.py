@@ -36,6 +36,9 @@ BENCHMARKS: list[tuple[str, str, list[str], list[str], bool]] = [
     ("physics", "bench_physics.py", [], [], False),
     ("guidance", "bench_guidance.py", [], ["--quick"], False),
     ("sitl", "bench_sitl.py", [], [], False),
+    ("telemetry_encoding", "bench_telemetry_encoding.py", [], ["--repeats", "3"], False),
+    ("sim_intake", "bench_sim_intake.py", [], ["--repeats", "1", "--frames", "100"], False),
+    ("link_intake", "bench_intake.py", [], ["--repeats", "1", "--frames", "100"], False),
     ("end_to_end", "bench_end_to_end.py", [], ["--quick"], True),
     (
         "paper_static_6",

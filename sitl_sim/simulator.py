@@ -46,7 +46,6 @@ from sitl_sim.world import Obstacles, find_collisions
 
 logger = logging.getLogger(__name__)
 KEEPALIVE_S = 1.0  # wall seconds between HEARTBEATs while paused for lockstep clients
-FLUSH_LOG_S = 1.0  # wall seconds between truth-log flushes
 STAMPED_MESSAGES = frozenset(  # streams that carry time_boot_ms
     {
         mavlink2.MAVLINK_MSG_ID_ATTITUDE,
@@ -155,7 +154,6 @@ class Simulator:
         self.step = 0
         self.ticks = 0
         self._view: TelemetryView | None = None
-        self._last_log_flush = time.monotonic()
         self.selector = selectors.DefaultSelector()
         self.endpoints: list[VehicleEndpoint] = []
         self.truth: TruthLog | None = None
@@ -179,6 +177,10 @@ class Simulator:
         except BaseException:
             self.close()
             raise
+        # the live queues of every endpoint, for _serve's one-call checks (any() over lists and deques)
+        self._inboxes = [endpoint.inbox for endpoint in self.endpoints]
+        self._uplinks = [endpoint.channel.waiting(UP) for endpoint in self.endpoints]
+        self._outboxes = [endpoint.outbox.packets for endpoint in self.endpoints]
 
     # --- clock ----------------------------------------------------------------------------------------------
 
@@ -322,10 +324,6 @@ class Simulator:
             for endpoint in endpoints:  # every frame end carries a time_boot_ms to answer
                 if endpoint.peers and endpoint.index not in stamped:
                     self._send_now(endpoint.index, (mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,))
-        wall = time.monotonic()
-        if self.truth is not None and wall - self._last_log_flush > FLUSH_LOG_S:
-            self.truth.flush()
-            self._last_log_flush = wall
 
     def _flush_frame(self) -> None:
         """Send every endpoint's queued telemetry and replies (in lockstep ending with the frame's clock
@@ -418,9 +416,10 @@ class Simulator:
         """Wait up to timeout s for input, handle it, send replies (frame_ms: paused at that frame end)."""
         wall = time.monotonic()
         handled = 0
-        for endpoint in self.endpoints:  # first what arrived after the clients' previous answers
-            if endpoint.inbox or endpoint.channel.pending(UP):
-                handled += endpoint.receive(wall, frame_ms)
+        if any(self._inboxes) or any(self._uplinks):  # first what arrived after the clients' previous answers
+            for endpoint in self.endpoints:
+                if endpoint.inbox or endpoint.channel.pending(UP):
+                    handled += endpoint.receive(wall, frame_ms)
         events = self.selector.select(0.0 if handled else timeout)
         wall = time.monotonic()
         for key, _ in events:
@@ -434,6 +433,8 @@ class Simulator:
         if self._held_frame:  # replies leave with the held frame's telemetry, after it
             return
         texts = self.autopilot.texts
+        if not any(self._outboxes) and not any(texts):  # a frame's commands ask for no reply
+            return
         for endpoint in self.endpoints:
             if endpoint.outbox.packets or texts[endpoint.index]:
                 endpoint.flush(wall)

@@ -6,7 +6,8 @@ t simulated s since boot; vehicle 0-based; ENU m and m/s in the mission frame; q
 ENU; Euler ZYX rad; motor thrusts N (ArduCopter motor order); mode = ArduCopter custom_mode; flags 0/1
 (landed = the autopilot's land_complete). PATH with its suffix replaced by `.obstacles.csv`:
     t,obstacle,x,y,z,radius
-Numbers are printed with fixed precision so that identical runs give identical bytes.
+Numbers are printed with fixed precision so that identical runs give identical bytes. Each sample goes to a
+writer thread per file (swarm_common.background_writer): the simulator never waits on the disk.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
+from swarm_common.background_writer import BackgroundWriter
 
 VEHICLE_HEADER = (
     "t,vehicle,sysid,x,y,z,vx,vy,vz,qw,qx,qy,qz,roll,pitch,yaw,f1,f2,f3,f4,mode,armed,crashed,landed"
@@ -29,7 +32,7 @@ def obstacles_path(path: Path) -> Path:
 
 
 class TruthLog:
-    """Writes samples of N vehicles and K obstacles; `close` flushes and closes both files."""
+    """Writes samples of N vehicles and K obstacles; `close` writes everything and closes both files."""
 
     def __init__(self, path: Path, sysids: np.ndarray) -> None:
         self.path = path
@@ -39,10 +42,10 @@ class TruthLog:
         self._table[:, 1] = np.arange(n)
         self._table[:, 2] = self.sysids
         self._rows = VEHICLE_ROW * n
-        self.vehicles = open(path, "w", encoding="ascii", newline="")  # noqa: SIM115 - closed in close()
-        self.obstacles = open(obstacles_path(path), "w", encoding="ascii", newline="")  # noqa: SIM115
-        self.vehicles.write(VEHICLE_HEADER + "\n")
-        self.obstacles.write(OBSTACLE_HEADER + "\n")
+        self.vehicles = BackgroundWriter(path, "truth log")
+        self.obstacles = BackgroundWriter(obstacles_path(path), "truth obstacles")
+        self.vehicles.write((VEHICLE_HEADER + "\n").encode("ascii"))
+        self.obstacles.write((OBSTACLE_HEADER + "\n").encode("ascii"))
 
     def write(
         self,
@@ -66,19 +69,18 @@ class TruthLog:
         table[:, 13:16] = euler
         table[:, 16:20] = motor
         table[:, 20:24] = flags
-        self.vehicles.write(self._rows % tuple(table.ravel().tolist()))
+        self.vehicles.write((self._rows % tuple(table.ravel().tolist())).encode("ascii"))
         k = len(obstacle_radii)
         if k:
             rows = np.column_stack((np.full(k, t), np.arange(k), obstacle_centers, obstacle_radii))
-            self.obstacles.write((OBSTACLE_ROW * k) % tuple(rows.ravel().tolist()))
+            self.obstacles.write(((OBSTACLE_ROW * k) % tuple(rows.ravel().tolist())).encode("ascii"))
 
     def flush(self) -> None:
-        """Push buffered rows to the files."""
+        """Return once every sample so far is in the files."""
         self.vehicles.flush()
         self.obstacles.flush()
 
     def close(self) -> None:
-        """Flush and close both files (idempotent)."""
-        for handle in (self.vehicles, self.obstacles):
-            if not handle.closed:
-                handle.close()
+        """Write every sample and close both files (idempotent)."""
+        self.vehicles.close()
+        self.obstacles.close()

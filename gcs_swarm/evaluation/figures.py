@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gcs_swarm.evaluation import flight_quality, metrics, signals
+from gcs_swarm.evaluation import flight_quality, signals
 from gcs_swarm.guidance.formation import slot_positions
 
 if TYPE_CHECKING:
@@ -72,7 +72,7 @@ def _pair_distances(traj: Trajectories) -> tuple[np.ndarray, list[tuple[int, int
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
         d = [np.linalg.norm(traj.pos[:, i] - traj.pos[:, j], axis=1) for i, j in pairs]
         return np.array(d).T.reshape(len(traj.t), len(pairs)), pairs
-    return metrics.nearest_neighbour_distance(traj.pos), [(i, -1) for i in range(n)]
+    return traj.nearest_neighbour, [(i, -1) for i in range(n)]
 
 
 def _draw_distances(ax: Any, traj: Trajectories, names: list[str], mission: Any, t0: float) -> None:

@@ -90,14 +90,18 @@ def path_ratio(pos: np.ndarray, route: np.ndarray) -> float:
     return metrics.path_length(np.asarray(pos, dtype=float)) / straight if straight > 0 else math.nan
 
 
-def time_below(t: np.ndarray, pos: np.ndarray, distance: float) -> tuple[float, float]:
+def time_below(
+    t: np.ndarray, pos: np.ndarray, distance: float, closest: np.ndarray | None = None
+) -> tuple[float, float]:
     """(s spent with any pair of vehicles closer than `distance` m, the smallest pair distance m), over
-    pos (T, N, 3); each sample counts for the interval to the next."""
+    pos (T, N, 3); each sample counts for the interval to the next. `closest`: (T,) m, the caller's
+    metrics.closest_pair_distance(pos), computed here when not given."""
     t = np.asarray(t, dtype=float)
     p = np.asarray(pos, dtype=float)
     if p.shape[1] < 2 or len(t) == 0:
         return 0.0, math.inf
-    closest = metrics.closest_pair_distance(p)
+    if closest is None:
+        closest = metrics.closest_pair_distance(p)
     dt = np.diff(t, append=t[-1])
     return float(dt[closest < distance].sum()), float(np.nanmin(closest))
 
@@ -150,12 +154,14 @@ def whole_flight_figures(
     d_emg: float,
     commands: tuple[np.ndarray, np.ndarray] | None,
     names: list[str],
+    closest: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The whole-flight figures of report.json (docs/metrics.md). Motion over t (T,), pos, vel (T, N, 3),
     the follower-to-slot error slot_error (T, N) m (None without a record) for the vehicles `followers`
     (N,) bool, inside window = (formation start, arrival or end of formation flight) s; the leader's route
     (W, 3) from its start; formation_altitude (N,) m (slot height); commands = (t (C,), attitude_d
-    (C, N, 3)) of the formation phase, or None."""
+    (C, N, 3)) of the formation phase, or None; closest (T,) m: metrics.closest_pair_distance(pos), when the
+    caller has it."""
     t = np.asarray(t, dtype=float)
     sel = (t >= window[0]) & (t <= window[1])
     ts, ps, vs = t[sel], pos[sel], vel[sel]
@@ -176,8 +182,8 @@ def whole_flight_figures(
         out["jerk_p99_m_s3"] = [_r(x, 3) for x in per]
         out["jerk_p99_max_m_s3"] = _r(max(per), 3)
     out["leader_path_ratio"] = _r(path_ratio(ps[:, leader], leader_route))
-    below_s, closest = time_below(t, pos, d_emg)
-    out["min_separation_whole_flight_m"] = _r(closest)
+    below_s, smallest = time_below(t, pos, d_emg, closest)
+    out["min_separation_whole_flight_m"] = _r(smallest)
     out["time_below_d_emg_s"] = _r(below_s, 3)
     if sel.any():
         z = ps[:, :, 2]

@@ -110,10 +110,12 @@ def nearest_neighbour_distance(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def min_separation(p: np.ndarray) -> float:
+def min_separation(p: np.ndarray, closest: np.ndarray | None = None) -> float:
     """d_min = min over t and i < j of |p_i - p_j| from (T, N, D), pairs with a NaN coordinate left out; inf
-    for fewer than 2 vehicles or no finite pair (spec 10)."""
-    closest = closest_pair_distance(p)
+    for fewer than 2 vehicles or no finite pair (spec 10). `closest`: closest_pair_distance(p), when the
+    caller has it."""
+    if closest is None:
+        closest = closest_pair_distance(p)
     finite = closest[~np.isnan(closest)]
     return float(finite.min()) if finite.size else math.inf
 

@@ -84,7 +84,7 @@ def report_from(
     ]
     crashed_any = cast(NDArray[np.bool_], traj.crashed.any(axis=0))  # (N,)
     reached = all(r is not None for r in reach) and not crashed_any.any() and arrived
-    min_sep = metrics.min_separation(traj.pos)
+    min_sep = metrics.min_separation(traj.pos, traj.closest_pair)
     clearance, _ = metrics.min_obstacle_clearance(traj.pos, traj.obstacle_centres, traj.obstacle_radii)
     cruise = None
     slot_error = None
@@ -110,7 +110,7 @@ def report_from(
     last = slice(-max(1, len(tw) // 10), None)
     t_osc, reversals = metrics.oscillation(tw, vw[:, leader, :2])
     per_vehicle = []
-    nearest = metrics.nearest_neighbour_distance(traj.pos)  # (T, N) m
+    nearest = traj.nearest_neighbour  # (T, N) m
     for i, name in enumerate(names):
         clear_i, _ = metrics.min_obstacle_clearance(
             traj.pos[:, i : i + 1], traj.obstacle_centres, traj.obstacle_radii
@@ -152,8 +152,11 @@ def report_from(
         emergency_distance(mission),
         None if commands is None else _commands_between(commands, float(tw[0]), t_arrival),
         names,
+        traj.closest_pair[window],
     )
-    below_s, closest = flight_quality.time_below(traj.t, traj.pos, emergency_distance(mission))
+    below_s, closest = flight_quality.time_below(
+        traj.t, traj.pos, emergency_distance(mission), traj.closest_pair
+    )
     whole["min_separation_whole_flight_m"] = _finite(closest)
     whole["time_below_d_emg_s"] = _finite(below_s)
     safety_events = []

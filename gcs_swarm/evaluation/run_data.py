@@ -5,11 +5,13 @@ Positions ENU metres, times s."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from gcs_swarm.evaluation import metrics
 from gcs_swarm.flight.run_folder import RECORD_FILE, TRUTH_FILE
 
 
@@ -25,6 +27,18 @@ class Trajectories:
     obstacle_centres: np.ndarray
     obstacle_radii: np.ndarray
     source: str
+
+    @cached_property
+    def closest_pair(self) -> np.ndarray:
+        """(T,) m: the smallest distance between two vehicles at each sample (metrics.closest_pair_distance),
+        computed once for the report and its figures."""
+        return metrics.closest_pair_distance(self.pos)
+
+    @cached_property
+    def nearest_neighbour(self) -> np.ndarray:
+        """(T, N) m: each vehicle's distance to its nearest other vehicle at each sample
+        (metrics.nearest_neighbour_distance), computed once for the report and its figures."""
+        return metrics.nearest_neighbour_distance(self.pos)
 
 
 def read_columns(path: Path, columns: list[str]) -> dict[str, np.ndarray]:

@@ -3,7 +3,8 @@
 Columns (ENU metres, rad, m/s^2): t, vehicle, phase, x, y, z, vx, vy, vz, roll, pitch, yaw (measured, from
 telemetry), ref_x, ref_y, ref_z, ref_vx, ref_vy, ref_vz (reference generator, spec 8), slot_x, slot_y, slot_z,
 fx, fy, fz (total field force, spec 4), roll_d, pitch_d, yaw_d, thrust_acc, thrust (normalised), emergency,
-active, psi_l. Flushed every second of vehicle time so a killed ground station leaves a readable record.
+active, psi_l. Each tick's rows go to a writer thread (swarm_common.background_writer) that writes them at
+once, so a killed ground station leaves a readable record and the control loop never waits on the disk.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from swarm_common.background_writer import BackgroundWriter
 
 COLUMNS = (
     "t,vehicle,phase,x,y,z,vx,vy,vz,roll,pitch,yaw,ref_x,ref_y,ref_z,ref_vx,ref_vy,ref_vz,"
@@ -31,9 +34,10 @@ class RunRecord:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self._file = path.open("w", newline="")
-        csv.writer(self._file).writerow(COLUMNS)
-        self._last_flush_t = 0.0
+        self._writer = BackgroundWriter(path, "run record")
+        header = io.StringIO()
+        csv.writer(header).writerow(COLUMNS)
+        self._writer.write(header.getvalue().encode())
         numbers = ",".join(["%.6g"] * _NUMERIC_COLUMNS)
         self._row = f"%.3f,%d,%s,{numbers},%d,%d,%.6g\r\n"  # t, vehicle, phase, numbers, flags, psi_l
 
@@ -72,18 +76,15 @@ class RunRecord:
         flags = np.asarray(active, dtype=int).tolist()
         psi_l = float(c.psi_leader)
         row, field = self._row, _csv_field(phase)
-        self._file.write(
-            "".join(
-                row % (t, i, field, *values, emergency[i], flags[i], psi_l)
-                for i, values in enumerate(block.tolist())
-            )
+        text = "".join(
+            row % (t, i, field, *values, emergency[i], flags[i], psi_l)
+            for i, values in enumerate(block.tolist())
         )
-        if t - self._last_flush_t >= 1.0:
-            self._file.flush()
-            self._last_flush_t = t
+        self._writer.write(text.encode())
 
     def close(self) -> None:
-        self._file.close()
+        """Write every row and close the file (idempotent)."""
+        self._writer.close()
 
 
 _NUMERIC_COLUMNS = len(COLUMNS) - 6  # all but t, vehicle, phase, emergency, active, psi_l

@@ -29,7 +29,7 @@ from typing import Any, TypeAlias
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from swarm_common.mavlink_datagrams import decode_leading_packets
+from swarm_common.mavlink_datagrams import PacketTaker, decode_leading_packets
 from swarm_common.signing import VerifyingParser
 
 MAVLinkMessage: TypeAlias = mavlink2.MAVLink_message
@@ -111,8 +111,9 @@ class _DatagramParser:
         self._key = key
         self._parser = new_parser(key)
 
-    def parse(self, data: bytes) -> list[MAVLinkMessage]:
-        msgs, start = decode_leading_packets(self._parser, data)
+    def parse(self, data: bytes, take: PacketTaker | None = None) -> list[MAVLinkMessage]:
+        """The messages of one datagram; `take` is offered its whole MAVLink 2 packets first (PacketTaker)."""
+        msgs, start = decode_leading_packets(self._parser, data, take)
         if start < len(data):
             msgs += self._parse_buffer(data[start:])
         return msgs
@@ -138,8 +139,10 @@ class Endpoint:
     def fileno(self) -> int:
         raise NotImplementedError
 
-    def receive(self) -> list[tuple[MAVLinkMessage, Any]]:
-        """Drain what is readable now: (message, peer address or None) pairs, BAD_DATA included."""
+    def receive(self, take: PacketTaker | None = None) -> list[tuple[MAVLinkMessage, Any]]:
+        """Drain what is readable now: (message, peer address or None) pairs, BAD_DATA included. `take`:
+        offered every whole MAVLink 2 packet of a datagram first (PacketTaker); only a datagram endpoint of
+        one vehicle (udpout) offers them, the others decode everything."""
         raise NotImplementedError
 
     def send(self, packet: bytes | bytearray, sysid: int | None) -> bool:
@@ -173,7 +176,7 @@ class UdpRouter(Endpoint):
     def fileno(self) -> int:
         return self._sock.fileno()
 
-    def receive(self) -> list[tuple[MAVLinkMessage, Any]]:
+    def receive(self, take: PacketTaker | None = None) -> list[tuple[MAVLinkMessage, Any]]:
         out: list[tuple[MAVLinkMessage, Any]] = []
         for _ in range(_MAX_READS_PER_POLL):
             try:
@@ -256,7 +259,7 @@ class MavutilEndpoint(Endpoint):
             raise OSError(f"{self.spec.text} has no pollable file descriptor")
         return int(fd)
 
-    def receive(self) -> list[tuple[MAVLinkMessage, Any]]:
+    def receive(self, take: PacketTaker | None = None) -> list[tuple[MAVLinkMessage, Any]]:
         out: list[tuple[MAVLinkMessage, Any]] = []
         if self._datagrams:
             for _ in range(_MAX_READS_PER_POLL):
@@ -266,7 +269,7 @@ class MavutilEndpoint(Endpoint):
                     break
                 except OSError:  # ECONNREFUSED: nothing listens at the destination (yet)
                     continue
-                out.extend((msg, addr) for msg in self._udp_parser.parse(data))
+                out.extend((msg, addr) for msg in self._udp_parser.parse(data, take))
             return out
         chunk = b""
         if self.spec.kind == "tcp":

@@ -7,7 +7,9 @@ does not give a vehicle are counted (`unrouted` on a shared endpoint, `foreign_h
 own one), and the identity checks refuse two vehicles answering to one sysid.
 
 With a signing key every endpoint checks signatures (connection.py): what fails is counted per vehicle
-(`unsigned`, `bad_signature` in its LinkStats) and never reaches it. Forwards (gcs_swarm.link.forward) get
+(`unsigned`, `bad_signature` in its LinkStats) and never reaches it. Without one, a vehicle on its own udpout
+endpoint has its 50 Hz telemetry taken straight from the datagram bytes (gcs_swarm.link.hot_telemetry), with
+the same effect as the general path. Forwards (gcs_swarm.link.forward) get
 every vehicle frame, and their own frames are routed to the vehicles by target system when they may pass.
 """
 
@@ -32,6 +34,7 @@ from gcs_swarm.link.connection import (
     parse_connection,
 )
 from gcs_swarm.link.forward import Forward, ForwardConfig
+from gcs_swarm.link.hot_telemetry import HotTelemetry, TakenPacket
 from gcs_swarm.link.tlog import TlogWriter
 from gcs_swarm.link.vehicle import VehicleLink
 from swarm_common.signing import is_signature_rejection, was_signed
@@ -42,19 +45,23 @@ SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before th
 class Network:
     """Endpoints and routing for `links` (row i = links[i]) and `forward_configs`; every packet in and out
     goes to the tlog (a forward's frames when they reach a vehicle). `signing_key`: checked on every frame
-    received (vehicles' and forwards')."""
+    received (vehicles' and forwards'). `hot_intake`: take the 50 Hz telemetry from the bytes where possible
+    (HotTelemetry; False: every packet through pymavlink messages, the reference path)."""
 
     def __init__(
         self,
         links: Sequence[VehicleLink],
         signing_key: bytes | None = None,
         forward_configs: Sequence[ForwardConfig] = (),
+        hot_intake: bool = True,
     ) -> None:
         self.links = list(links)
         self.signing_key = signing_key
+        self.hot_intake = hot_intake
+        self._hot: dict[Endpoint, HotTelemetry] = {}  # the endpoints whose telemetry HotTelemetry takes
         self.forward_configs = list(forward_configs)
         self.forwards: list[Forward] = []
-        self._outgoing: list[bytearray] = []  # vehicle frames read in this receive, for the forwards
+        self._outgoing: list[bytes | bytearray] = []  # vehicle frames read in this receive, for the forwards
         self._routes: dict[Endpoint, list[VehicleLink]] = {}
         self._selector = selectors.DefaultSelector()
         self._tlog: TlogWriter | None = None
@@ -89,6 +96,8 @@ class Network:
                 )
             endpoint = open_endpoint(spec, names, connect_timeout_s, self.signing_key)
             self._routes[endpoint] = members
+            if self.hot_intake and self.signing_key is None and spec.kind == "udpout":
+                self._hot[endpoint] = HotTelemetry(members[0], self._record)
             self._selector.register(endpoint.fileno(), selectors.EVENT_READ, endpoint)
             for member in members:
                 member.channel.endpoint = endpoint
@@ -112,6 +121,7 @@ class Network:
         for endpoint in self._routes:
             endpoint.close()
         self._routes.clear()
+        self._hot.clear()
         for forward in self.forwards:
             forward.endpoint.close()
         self.forwards.clear()
@@ -137,8 +147,16 @@ class Network:
                     self._selector.unregister(key.fd)
                 continue
             endpoint: Endpoint = key.data
-            for msg, peer in endpoint.receive():
-                self._deliver(endpoint, msg, peer, now)
+            hot = self._hot.get(endpoint)
+            if hot is None:
+                for msg, peer in endpoint.receive():
+                    self._deliver(endpoint, msg, peer, now)
+                continue
+            for item, peer in endpoint.receive(hot.take):
+                if isinstance(item, TakenPacket):
+                    hot.apply(item, now)
+                else:
+                    self._deliver(endpoint, item, peer, now)
             if endpoint.closed:
                 self._selector.unregister(key.fd)
                 for link in self._routes[endpoint]:
@@ -170,30 +188,36 @@ class Network:
                     self._tlog.write(packet)
 
     def _deliver(self, endpoint: Endpoint, msg: MAVLinkMessage, peer: Any, now: float) -> None:
-        bad = msg.get_type() == "BAD_DATA"
+        mtype = msg.get_type()
+        bad = mtype == "BAD_DATA"
         if not bad:
-            if self._tlog is not None:
-                self._tlog.write(msg.get_msgbuf())
-            if self.forwards:
-                self._outgoing.append(msg.get_msgbuf())
+            self._record(msg.get_msgbuf())
         members = self._routes[endpoint]
         if len(members) == 1:
-            self.accept(members[0], msg, now)
+            self.accept(members[0], msg, now, mtype)
             return
         assert isinstance(endpoint, UdpRouter)
         sysid = msg.get_srcSystem() if not bad else endpoint.sysid_of.get(peer, _claimed_sysid(msg))
         for link in members:
             if link.config.sysid == sysid:
-                self.accept(link, msg, now)
+                self.accept(link, msg, now, mtype)
                 return
         self.unrouted += 1
 
-    def accept(self, link: VehicleLink, msg: MAVLinkMessage, now: float) -> None:
-        """A packet from `link`'s connection (`now` = time.monotonic()): counted, garbage and other systems
-        set aside, the rest handed to the link."""
+    def _record(self, packet: bytes | bytearray) -> None:
+        """A vehicle's packet (not garbage): to the tlog, and to the forwards after this receive."""
+        if self._tlog is not None:
+            self._tlog.write(packet)
+        if self.forwards:
+            self._outgoing.append(packet)
+
+    def accept(self, link: VehicleLink, msg: MAVLinkMessage, now: float, mtype: str | None = None) -> None:
+        """A packet from `link`'s connection (`now` = time.monotonic(); `mtype`: its msg.get_type(), when the
+        caller has it): counted, garbage and other systems set aside, the rest handed to the link."""
         stats = link.channel.stats
         stats.received += 1
-        mtype = msg.get_type()
+        if mtype is None:
+            mtype = msg.get_type()
         if mtype == "BAD_DATA":
             if not is_signature_rejection(msg):
                 stats.bad += 1
@@ -206,7 +230,7 @@ class Network:
         if sysid != link.sysid and not self._bind(link, msg, mtype, sysid):
             stats.ignored += 1
             return
-        link.handle(msg, now)
+        link.handle(msg, now, mtype)
 
     def _bind(self, link: VehicleLink, msg: MAVLinkMessage, mtype: str, sysid: int) -> bool:
         """Bind `link` at the first vehicle HEARTBEAT with the expected sysid (its component and autopilot

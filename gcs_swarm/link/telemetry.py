@@ -229,26 +229,34 @@ class VehicleTelemetry:
         self.stats.invalid += 1
 
     def _on_global_position_int(self, m: MAVLinkMessage) -> None:
-        if abs(m.lat) > 900_000_000 or abs(m.lon) > 1_800_000_000:
+        self.on_global_position(m.time_boot_ms, m.lat, m.lon, m.alt, m.vx, m.vy, m.vz)
+
+    def on_global_position(self, t_ms: int, lat: int, lon: int, alt: int, vx: int, vy: int, vz: int) -> None:
+        """GLOBAL_POSITION_INT's fields: time_boot_ms, lat, lon degE7, alt mm AMSL, vx, vy, vz cm/s NED."""
+        if abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000:
             return self._invalid()
-        if not self.on_time(m.time_boot_ms, "position"):
+        if not self.on_time(t_ms, "position"):
             return
         st, i = self.state, self.index
-        st.geodetic[i] = (m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3)  # degE7, degE7, mm AMSL
-        st.vel[i] = (m.vy * 0.01, m.vx * 0.01, -m.vz * 0.01)  # cm/s NED -> m/s ENU (spec 1.1)
+        st.geodetic[i] = (lat * 1e-7, lon * 1e-7, alt * 1e-3)  # degE7, degE7, mm AMSL
+        st.vel[i] = (vy * 0.01, vx * 0.01, -vz * 0.01)  # cm/s NED -> m/s ENU (spec 1.1)
         st.pos_stale = True
         st.position_count[i] += 1
-        if m.time_boot_ms > st.position_ms[i] > st.tick_ms[i]:  # a new frame; the one in hand was never used
+        if t_ms > st.position_ms[i] > st.tick_ms[i]:  # a new frame; the one in hand was never used
             st.frames_missed[i] += 1
-        st.position_ms[i] = m.time_boot_ms
+        st.position_ms[i] = t_ms
 
     def _on_attitude(self, m: MAVLinkMessage) -> None:
-        if not (math.isfinite(m.roll) and math.isfinite(m.pitch) and math.isfinite(m.yaw)):
+        self.on_attitude(m.time_boot_ms, m.roll, m.pitch, m.yaw)
+
+    def on_attitude(self, t_ms: int, roll: float, pitch: float, yaw: float) -> None:
+        """ATTITUDE's fields: time_boot_ms, roll, pitch, yaw rad (FRD body in NED)."""
+        if not (math.isfinite(roll) and math.isfinite(pitch) and math.isfinite(yaw)):
             return self._invalid()
-        if not self.on_time(m.time_boot_ms, "attitude"):
+        if not self.on_time(t_ms, "attitude"):
             return
-        yaw = (0.5 * math.pi - m.yaw + math.pi) % (2.0 * math.pi) - math.pi
-        self.state.att[self.index] = (m.roll, -m.pitch, yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
+        enu_yaw = (0.5 * math.pi - yaw + math.pi) % (2.0 * math.pi) - math.pi
+        self.state.att[self.index] = (roll, -pitch, enu_yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
 
     def _on_attitude_quaternion(self, m: MAVLinkMessage) -> None:
         q = (m.q1, m.q2, m.q3, m.q4)

@@ -3,6 +3,8 @@
 Each record is an 8-byte big-endian timestamp (microseconds since the UNIX epoch, wall clock) followed by
 one raw MAVLink packet. The fleet writes every packet it receives and every packet it sends, for all
 vehicles, into one file; `mavlogdump.py FILE` and `pymavlink.mavutil.mavlink_connection(FILE)` read it.
+Records are gathered in memory and handed to a writer thread (swarm_common.background_writer) every
+CHUNK_BYTES or FLUSH_PERIOD_S, whichever comes first: the control loop never waits on the disk.
 """
 
 from __future__ import annotations
@@ -12,8 +14,11 @@ import time
 from pathlib import Path
 from types import TracebackType
 
+from swarm_common.background_writer import BackgroundWriter
+
 _TIMESTAMP = struct.Struct(">Q")
-FLUSH_PERIOD_S = 1.0  # wall s between flushes to the OS
+FLUSH_PERIOD_S = 1.0  # wall s at most between hand-overs to the writer thread (what a killed process loses)
+CHUNK_BYTES = 65536  # records handed over at once (about a frame's worth at 200 vehicles)
 
 
 class TlogWriter:
@@ -22,25 +27,36 @@ class TlogWriter:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = self.path.open("wb")
+        self._writer = BackgroundWriter(self.path, "tlog")
+        self._pending = bytearray()  # records not yet handed over
         self.records = 0
-        self._flushed_at = time.monotonic()
+        self._handed_at = time.monotonic()
 
     def write(self, packet: bytes | bytearray, unix_time_s: float | None = None) -> None:
         """Record one packet; `unix_time_s` defaults to now."""
         t = time.time() if unix_time_s is None else unix_time_s
-        self._file.write(_TIMESTAMP.pack(int(t * 1e6)) + packet)
+        self._pending += _TIMESTAMP.pack(int(t * 1e6))
+        self._pending += packet
         self.records += 1
-        if time.monotonic() - self._flushed_at >= FLUSH_PERIOD_S:  # a killed process loses at most this much
-            self.flush()
+        if len(self._pending) >= CHUNK_BYTES or time.monotonic() - self._handed_at >= FLUSH_PERIOD_S:
+            self._hand_over()
+
+    def _hand_over(self) -> None:
+        if self._pending:
+            self._writer.write(bytes(self._pending))
+            self._pending.clear()
+        self._handed_at = time.monotonic()
 
     def flush(self) -> None:
-        self._file.flush()
-        self._flushed_at = time.monotonic()
+        """Return once every record so far is in the file."""
+        self._hand_over()
+        self._writer.flush()
 
     def close(self) -> None:
-        if not self._file.closed:
-            self._file.close()
+        """Write every record and close the file (idempotent)."""
+        if not self._writer.closed:
+            self._hand_over()
+            self._writer.close()
 
     def __enter__(self) -> TlogWriter:
         return self

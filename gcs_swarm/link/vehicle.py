@@ -162,23 +162,26 @@ class VehicleLink:
 
     # ------------------------------------------------------------------ receiving
 
-    def handle(self, msg: MAVLinkMessage, now: float) -> None:
-        """Decode one packet from this vehicle's sysid (routed by the network; `now` = time.monotonic()).
+    def handle(self, msg: MAVLinkMessage, now: float, mtype: str | None = None) -> None:
+        """Decode one packet from this vehicle's sysid (routed by the network; `now` = time.monotonic();
+        `mtype`: its msg.get_type(), when the caller has it).
 
         A STATUSTEXT is taken from any of the vehicle's components; anything else only from the autopilot.
         """
-        if msg.get_type() == "STATUSTEXT":
+        if mtype is None:
+            mtype = msg.get_type()
+        if mtype == "STATUSTEXT":
             text = self.telemetry.on_statustext(msg)
             for hook in self.statustext_hooks:
                 hook(self, text)
         elif msg.get_srcComponent() != self.channel.compid:
             self.channel.stats.ignored += 1
             return
-        elif is_clock_tick(msg):
+        elif mtype == "SYSTEM_TIME" and is_clock_tick(msg):
             self.lockstep.on_clock_tick(msg)
             return  # a clock tick is no evidence that the radio link works
         else:
-            handler = self._handlers.get(msg.get_type())
+            handler = self._handlers.get(mtype)
             if handler is not None:
                 handler(msg)
         self.telemetry.heard(now)

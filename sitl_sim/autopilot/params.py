@@ -121,6 +121,9 @@ class ParamTable:
 
     visible (N, P) bool, default all: the parameters each vehicle shows on the wire (a PX4 vehicle shows PX4
     names, an ArduPilot one ArduCopter names; the hidden columns still drive the shared autopilot code).
+    revision counts the `set` calls: a reader that keeps something derived from `values` compares it and reads
+    again when it changed (the endpoints' SIM_LINK_* check), so the columns it derives from change only
+    through `set` once it runs.
     """
 
     def __init__(
@@ -140,6 +143,7 @@ class ParamTable:
             if old_name in self.index:
                 self._internal.setdefault(new_name, self.index[old_name])
         self.values = np.array([[spec.default for spec in specs]] * n, dtype=float)
+        self.revision = 0
         for name, value in overrides.items():
             self.values[:, self._internal[name]] = value
 
@@ -161,7 +165,7 @@ class ParamTable:
 
     def value(self, i: int, name: str) -> float:
         """Value of `name` on vehicle i (renamed ones also by their 4.7 name)."""
-        return float(self.values[i, self._internal[name]])
+        return self.values.item(i, self._internal[name])  # float(self.values[i, j]), without a numpy scalar
 
     def column_index(self, name: str) -> int:
         """Column j of `name` (renamed ones also by their 4.7 name)."""
@@ -188,4 +192,5 @@ class ParamTable:
         stored = float(round(value)) if spec.type in INT_TYPES else float(np.float32(value))
         rows = list(range(len(self.values))) if spec.world else [i]
         self.values[rows, j] = stored
+        self.revision += 1
         return rows

@@ -6,6 +6,11 @@ traffic (streams, acks, params, texts), several clients at once. MAVLink 2 out, 
 handlers live in sitl_sim.network.commands, .setpoints and .mission_protocol. Bad input never raises: it is
 ignored or refused and counted in `counters`; an exception escaping a handler is a simulator bug, logged with
 its traceback and counted in `counters.handler_errors`, and the vehicle goes on serving.
+
+The ground station's answer to every frame, a datagram holding one unsigned SET_ATTITUDE_TARGET, takes a
+short cut on an ArduPilot vehicle without a signing key: its fields are unpacked straight from the packet
+(`lone_attitude_target`) and handed to the setpoint handler's `attitude_target`, with the checks, counters and
+lockstep answer of the general path (`parse_datagram`, `_handle_message`) and no pymavlink message object.
 """
 
 from __future__ import annotations
@@ -14,7 +19,9 @@ import logging
 import socket
 from collections import deque
 from collections.abc import Callable
+from typing import Any
 
+from fastcrc.crc16 import mcrf4xx
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.network import signing
@@ -49,6 +56,10 @@ LINK_PARAMS = (  # the order of link_rates and of FaultChannel's rates
 )
 NO_LINK_FAULTS = (0.0,) * len(LINK_PARAMS)
 Handler = Callable[[mavlink2.MAVLink_message, tuple[str, int]], None]
+AttitudeTargetHandler = Callable[[int, tuple[float, ...], float, float, float, float], None]
+ATTITUDE_TARGET = mavlink2.MAVLink_set_attitude_target_message
+ATTITUDE_TARGET_CRC_EXTRA = bytes((ATTITUDE_TARGET.crc_extra,))
+ATTITUDE_TARGET_SIZE = ATTITUDE_TARGET.unpacker.size  # payload bytes before MAVLink 2 truncation (39)
 
 
 class VehicleEndpoint:
@@ -86,6 +97,8 @@ class VehicleEndpoint:
         self.signer = None if signing_key is None else signing.FrameSigner(signing_key)
         self.channel = FaultChannel(seed, index, outages)
         self._link_columns = [sim.params.column_index(name) for name in LINK_PARAMS]
+        self._link_revision = -1  # sim.params.revision when _link_configured was read
+        self._link_configured = False  # some SIM_LINK_* parameter of this vehicle is > 0
         self.outbox = Outbox(Framer(sysid, 1))
         self.peers: dict[tuple[str, int], float] = {}
         self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
@@ -93,11 +106,16 @@ class VehicleEndpoint:
         self.missions = FenceProtocol(index, self.counters, self.outbox, sim)  # MISSION_* of the fence
         px4 = sim.autopilot.is_px4(index)  # the one place an endpoint picks its autopilot's MAVLink surface
         commands = Px4CommandHandlers if px4 else CommandHandlers
-        setpoints = Px4SetpointHandlers if px4 else SetpointHandlers
+        setpoints = (Px4SetpointHandlers if px4 else SetpointHandlers)(index, self.counters, sim)
         self.handlers: dict[int, Handler] = {
             **commands(index, sysid, self.counters, self.outbox, sim).handlers(),
-            **setpoints(index, self.counters, sim).handlers(),
+            **setpoints.handlers(),
         }
+        # the lone SET_ATTITUDE_TARGET short cut (module doc): not for PX4 (its handler checks more), nor with
+        # a key (the parser checks signatures)
+        self._attitude_target: AttitudeTargetHandler | None = (
+            None if px4 or signing_key is not None else setpoints.attitude_target
+        )
         for msg_id in self.missions.handlers:
             self.handlers[msg_id] = lambda msg, addr: self.missions.handle(msg)
 
@@ -118,30 +136,31 @@ class VehicleEndpoint:
         have all answered it, later datagrams wait in the inbox for the next frame end, so what a client sends
         after its answer never depends on how fast the simulator read it.
         """
+        inbox, peers, recvfrom = self.inbox, self.peers, self.sock.recvfrom
         while True:
             try:
-                self.inbox.append(self.sock.recvfrom(65535))
+                inbox.append(recvfrom(65535))
             except BlockingIOError:
                 break
             except OSError:  # e.g. ICMP port unreachable from a peer that went away
                 continue
         lockstep = self.sim.lockstep
         handled = 0
-        while self.inbox:
+        while inbox:
             if (
                 frame_ms is not None
                 and lockstep is not None
                 and lockstep.vehicle_answered(self.index, frame_ms)
             ):
                 break
-            data, addr = self.inbox.popleft()
+            data, addr = inbox.popleft()
             handled += 1
-            if addr not in self.peers:
-                self.peers[addr] = wall_now
+            if addr not in peers:
+                peers[addr] = wall_now
                 self.sim.on_new_peer(self.index)
-            self.peers[addr] = wall_now
-            rates = self.link_rates()
-            if not self.channel.active(rates):
+            peers[addr] = wall_now
+            rates = self._faulty_link_rates()
+            if rates is None:
                 self.handle_datagram(data, addr, wall_now)
                 continue
             self._register_lockstep_answers(data, addr, wall_now)
@@ -156,8 +175,25 @@ class VehicleEndpoint:
         sim = self.sim
         if sim.lockstep is not None and not sim.lockstep_started or sim.t < self.link_from_s:
             return NO_LINK_FAULTS
-        row = sim.params.values[self.index]
+        return self._configured_link_rates()
+
+    def _configured_link_rates(self) -> tuple[float, ...]:
+        """This vehicle's SIM_LINK_* parameter values in link_rates order, whether they apply yet or not."""
+        row = self.sim.params.values[self.index]
         return tuple(map(row.item, self._link_columns))  # twice as fast as a fancy index and tolist()
+
+    def _faulty_link_rates(self) -> tuple[float, ...] | None:
+        """link_rates() when the faulty link acts on this vehicle's packets now (FaultChannel.active), None
+        when they go straight through: always None without an outage and with no SIM_LINK_* rate > 0, which is
+        found cheaply (the parameters are read again only after one was set, ParamTable.revision)."""
+        params = self.sim.params
+        if self._link_revision != params.revision:
+            self._link_revision = params.revision
+            self._link_configured = any(r > 0 for r in self._configured_link_rates())
+        if not self._link_configured and not self.channel.outages:
+            return None
+        rates = self.link_rates()
+        return rates if self.channel.active(rates) else None
 
     def _deliver_due(self, wall_now: float) -> int:
         """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""
@@ -182,6 +218,13 @@ class VehicleEndpoint:
                 self.sim.lockstep.answer(self.index, addr, int(msg.time_boot_ms), wall_now)
 
     def handle_datagram(self, data: bytes, addr: tuple[str, int], wall_now: float) -> None:
+        """Handle the messages of one datagram from addr in order (garbage is counted, never raised)."""
+        attitude_target = self._attitude_target
+        if attitude_target is not None:
+            fields = lone_attitude_target(data)
+            if fields is not None:
+                self._handle_attitude_target(attitude_target, fields, addr, wall_now)
+                return
         try:
             messages = parse_datagram(self.rx, data)
         except Exception:  # noqa: BLE001 - a parser failure on hostile bytes must not stop the vehicle
@@ -201,24 +244,54 @@ class VehicleEndpoint:
             else:
                 self.counters.bad_frames += 1
             return
-        target_system = getattr(msg, "target_system", 0)
-        target_component = getattr(msg, "target_component", 0)
-        if target_system not in (0, self.sysid) or target_component not in (0, 1):
-            self.counters.foreign += 1
+        if not self._addressed_here(getattr(msg, "target_system", 0), getattr(msg, "target_component", 0)):
             return
-        self.counters.received += 1
         handler = self.handlers.get(msg_id)
         if handler is None:
             return
         try:
             handler(msg, addr)
         except Exception:  # a simulator bug: log it, count it apart from bad input, keep serving
-            self.counters.handler_errors += 1
-            logger.exception("vehicle %d: error handling %s", self.index, msg.get_type())
+            self._handler_failed(msg.get_type())
             return
         if msg_id in LOCKSTEP_ANSWERS and self.sim.lockstep is not None:
             time_boot_ms = msg.time_boot_ms
             self.sim.lockstep.answer(self.index, addr, int(time_boot_ms), wall_now)
+
+    def _handle_attitude_target(
+        self,
+        handler: AttitudeTargetHandler,
+        fields: tuple[Any, ...],
+        addr: tuple[str, int],
+        wall_now: float,
+    ) -> None:
+        """_handle_message of a lone SET_ATTITUDE_TARGET from its fields (lone_attitude_target's, wire
+        order) for `handler` (the setpoints' attitude_target): the same addressing check, counters, handler
+        error and lockstep answer."""
+        time_boot_ms, w, x, y, z, roll_rate, pitch_rate, yaw_rate, thrust, system, component, mask = fields
+        if not self._addressed_here(system, component):
+            return
+        try:
+            handler(mask, (w, x, y, z), roll_rate, pitch_rate, yaw_rate, thrust)
+        except Exception:  # a simulator bug: log it, count it apart from bad input, keep serving
+            self._handler_failed(ATTITUDE_TARGET.msgname)
+            return
+        if self.sim.lockstep is not None:
+            self.sim.lockstep.answer(self.index, addr, time_boot_ms, wall_now)
+
+    def _addressed_here(self, target_system: int, target_component: int) -> bool:
+        """A valid message for (target_system, target_component) is this vehicle's (broadcast 0 or its sysid,
+        component 0 or the autopilot's 1), counted in `received`; else it is counted `foreign`."""
+        if target_system not in (0, self.sysid) or target_component not in (0, 1):
+            self.counters.foreign += 1
+            return False
+        self.counters.received += 1
+        return True
+
+    def _handler_failed(self, msg_type: str) -> None:
+        """Count and log (with the traceback being handled) an exception a handler raised on a msg_type."""
+        self.counters.handler_errors += 1
+        logger.exception("vehicle %d: error handling %s", self.index, msg_type)
 
     # --- output ---------------------------------------------------------------------------------------------
 
@@ -232,8 +305,8 @@ class VehicleEndpoint:
         packets = self.outbox.take()
         if self.signer is not None:
             packets = [self.signer.sign(packet) for packet in packets]
-        rates = self.link_rates()
-        if self.channel.active(rates):
+        rates = self._faulty_link_rates()
+        if rates is not None:
             now_ms = self.sim.time_us // 1000
             for packet in packets:
                 self.channel.push(DOWN, packet, None, now_ms, rates)
@@ -279,6 +352,28 @@ def parse_datagram(parser: mavlink2.MAVLink, data: bytes) -> list[mavlink2.MAVLi
     if start < len(data):
         messages += parser.parse_buffer(data[start:]) or []
     return messages
+
+
+def lone_attitude_target(data: bytes) -> tuple[Any, ...] | None:
+    """The fields of SET_ATTITUDE_TARGET in wire order (time_boot_ms ms, q [w,x,y,z] body FRD -> NED, body
+    roll, pitch, yaw rates FRD rad/s, thrust, target_system, target_component, type_mask) when `data` is
+    exactly one unsigned MAVLink 2 SET_ATTITUDE_TARGET packet with a correct CRC; None for anything else.
+
+    Accepts what parse_datagram decodes with a parser without a signing key into one SET_ATTITUDE_TARGET
+    message and nothing else (swarm_common.mavlink_codec.decode's rules: no incompatibility flag, the
+    CRC-16/MCRF4XX of all but the magic byte and then CRC_EXTRA), with the same values: the MAVLink 2 trailing
+    zeros put back, payload bytes beyond the dialect's fields ignored."""
+    size = len(data)
+    if size < 12 or data[0] != mavlink2.PROTOCOL_MARKER_V2 or data[2] or size != 12 + data[1]:
+        return None
+    if data[7] | data[8] << 8 | data[9] << 16 != mavlink2.MAVLINK_MSG_ID_SET_ATTITUDE_TARGET:
+        return None
+    end = size - 2  # the CRC's first byte
+    if mcrf4xx(data[1:end] + ATTITUDE_TARGET_CRC_EXTRA, 0xFFFF) != data[end] | data[end + 1] << 8:
+        return None
+    if data[1] < ATTITUDE_TARGET_SIZE:
+        return ATTITUDE_TARGET.unpacker.unpack(data[10:end] + bytes(ATTITUDE_TARGET_SIZE - data[1]))
+    return ATTITUDE_TARGET.unpacker.unpack_from(data, 10)
 
 
 def _reset_parser(parser: mavlink2.MAVLink) -> None:

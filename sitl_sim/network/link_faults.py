@@ -139,6 +139,11 @@ class FaultChannel:
         """Packets are waiting in `direction`."""
         return bool(self._queues[direction])
 
+    def waiting(self, direction: int) -> list[tuple[int, int, bytes, object]]:
+        """The queue of `direction` itself (the same list for the channel's life; read only): one C-level
+        any() over many channels' queues finds whether any has packets waiting."""
+        return self._queues[direction]
+
     def push(self, direction: int, packet: bytes, tag: object, now_ms: int, rates: tuple[float, ...]) -> None:
         """One packet enters the channel at simulated ms now_ms; tag travels with it (e.g. the peer)."""
         loss, dup, corrupt, reorder, delay_ms, jitter_ms = rates

@@ -25,8 +25,10 @@ class Outbox:
         self.packets.append(packet)
 
     def take(self) -> list[bytes]:
-        """Everything queued, oldest first; the outbox is empty afterwards."""
-        packets, self.packets = self.packets, []
+        """Everything queued, oldest first; the outbox is empty afterwards (`packets` stays the same list, so
+        the simulator can watch every outbox with one any())."""
+        packets = self.packets.copy()
+        self.packets.clear()
         return packets
 
     def ack(self, command: int, result: int, msg: mavlink2.MAVLink_message) -> None:

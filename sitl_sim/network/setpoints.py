@@ -8,7 +8,7 @@ Fields ArduCopter would not accept (NaN/inf/absurd values, unsupported frames) a
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
@@ -154,10 +154,29 @@ class SetpointHandlers:
     def _on_attitude_target(
         self, msg: mavlink2.MAVLink_set_attitude_target_message, addr: tuple[str, int]
     ) -> None:
-        mask = msg.type_mask
+        self.attitude_target(
+            msg.type_mask, msg.q, msg.body_roll_rate, msg.body_pitch_rate, msg.body_yaw_rate, msg.thrust
+        )
+
+    def attitude_target(
+        self,
+        mask: int,
+        q: Sequence[float],
+        roll_rate: float,
+        pitch_rate: float,
+        yaw_rate: float,
+        thrust: float,
+    ) -> None:
+        """SET_ATTITUDE_TARGET's fields as ArduCopter's GCS_MAVLINK_Copter::handle_message_set_attitude_target
+        takes them: type_mask, q (4,) [w,x,y,z] body FRD -> NED, body rates FRD rad/s, thrust 0..1; the target
+        goes to the autopilot as FLU -> ENU (spec 1.1). Also called by the endpoint with the fields of a lone
+        SET_ATTITUDE_TARGET datagram (no message object)."""
         autopilot = self.sim.autopilot
-        values = [*msg.q, msg.body_roll_rate, msg.body_pitch_rate, msg.body_yaw_rate, msg.thrust]
-        if not finite(*values) or max(map(abs, values[4:7])) > MAX_RATE:
+        w, x, y, z = q
+        if (
+            not all(map(math.isfinite, (w, x, y, z, roll_rate, pitch_rate, yaw_rate, thrust)))
+            or max(abs(roll_rate), abs(pitch_rate), abs(yaw_rate)) > MAX_RATE
+        ):
             self.counters.invalid += 1
             return
         if autopilot.mode[self.index] not in (modes.GUIDED, modes.GUIDED_NOGPS) or mask & THROTTLE_IGNORE:
@@ -165,15 +184,14 @@ class SetpointHandlers:
             return
         quat = None
         if not mask & ATTITUDE_IGNORE:
-            w, x, y, z = msg.q
             if abs(w * w + x * x + y * y + z * z - 1.0) >= 1e-3:  # ArduPilot Quaternion::is_unit_length
                 self.counters.refused += 1
                 return
-            quat = swap_quat_enu_ned(msg.q)
+            quat = swap_quat_enu_ned(q)
         rate_bits = mask & RATES_IGNORE
         if rate_bits not in (0, RATES_IGNORE):  # some but not all rates ignored: ill-defined, stop
             self.counters.refused += 1
             autopilot.guided_stop(self.index)
             return
-        rates = None if rate_bits else (msg.body_roll_rate, -msg.body_pitch_rate, -msg.body_yaw_rate)
-        autopilot.set_attitude_target(self.index, quat, rates, msg.thrust)
+        rates = None if rate_bits else (roll_rate, -pitch_rate, -yaw_rate)
+        autopilot.set_attitude_target(self.index, quat, rates, thrust)

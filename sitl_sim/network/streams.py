@@ -3,12 +3,14 @@
 Streams are scheduled at multiples of their interval from boot, checked at every autopilot tick, so a 50 Hz
 stream lands on every 20 ms frame end. Intervals shorter than the tick are raised to the tick (the fastest the
 autopilot state changes). This module is also the MAVLink frame boundary for telemetry: physics is ENU/FLU,
-everything built here is NED/FRD (spec 1.1).
+everything built here is NED/FRD (spec 1.1). The fast streams' payloads are packed for the whole fleet at once
+per instant (TelemetryView); each vehicle's packet then only gets its header and CRC.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import struct
 from collections.abc import Sequence
 from functools import cached_property
@@ -241,11 +243,52 @@ class StreamSchedule:
         return [(r, STREAM_IDS[c]) for r, c in zip(rows.tolist(), cols.tolist(), strict=True)]
 
 
+def truncate(payload: bytes) -> bytes:
+    """MAVLink 2 trailing-zero truncation of a packed payload (at least one byte stays)."""
+    return payload.rstrip(b"\0") or b"\0"
+
+
+STRUCT_TO_NUMPY = {  # struct format character -> numpy type (wire_dtype adds the byte order)
+    "B": "u1", "b": "i1", "H": "u2", "h": "i2", "I": "u4", "i": "i4", "Q": "u8", "q": "i8",
+    "f": "f4", "d": "f8",
+}  # fmt: skip
+
+
+def wire_dtype(cls: type[mavlink2.MAVLink_message]) -> np.dtype:
+    """Structured dtype of message class cls's (numeric) payload: its fields named and in wire order
+    (ordered_fieldnames), little-endian and unpadded, exactly as cls.unpacker.format packs them."""
+    items = re.findall(r"(\d*)([a-zA-Z])", cls.unpacker.format.removeprefix("<"))
+    fields = [
+        (name, "<" + STRUCT_TO_NUMPY[code], (int(count),) if count else ())
+        for name, (count, code) in zip(cls.ordered_fieldnames, items, strict=True)
+    ]
+    return np.dtype(fields)
+
+
+# wire_dtype of the messages TelemetryView packs for the whole fleet, by msg_id
+FLEET_DTYPES = {
+    cls.id: wire_dtype(cls)
+    for cls in (
+        mavlink2.MAVLink_attitude_message,
+        mavlink2.MAVLink_attitude_quaternion_message,
+        mavlink2.MAVLink_local_position_ned_message,
+        mavlink2.MAVLink_global_position_int_message,
+    )
+}
+
+
+def fleet_payloads(payload: np.ndarray) -> list[bytes]:
+    """(N,) structured array of wire_dtype -> N truncated payloads (truncate), one per row."""
+    blob, size = payload.tobytes(), payload.dtype.itemsize
+    return [truncate(blob[k : k + size]) for k in range(0, len(blob), size)]
+
+
 class Framer:
     """MAVLink 2 framing of one sender (sysid, compid) with its own sequence number.
 
     `pack` frames a pymavlink message object; `frame` builds the same bytes straight from a message class and
-    its field values in wire order (the hot telemetry path: no per-message objects).
+    its field values in wire order, and `frame_payload` from an already packed payload (the hot telemetry
+    path: no per-message objects).
     """
 
     HEADER = struct.Struct("<BBBBBBBHB")
@@ -262,18 +305,29 @@ class Framer:
 
     def frame(self, cls: type[mavlink2.MAVLink_message], *values: float) -> bytes:
         """Bytes of message class cls from field values in wire order (ordered_fieldnames, flat arrays)."""
-        payload = cls.unpacker.pack(*values).rstrip(b"\0") or b"\0"  # MAVLink 2 trailing-zero truncation
+        return self.frame_payload(cls, truncate(cls.unpacker.pack(*values)))
+
+    def frame_payload(self, cls: type[mavlink2.MAVLink_message], payload: bytes) -> bytes:
+        """Bytes of message class cls around its packed, truncated payload: header (with this sender's
+        sequence number, which then advances), payload, CRC-16/MCRF4XX of all but the magic byte and then
+        cls.crc_extra."""
         mav = self.mav
+        seq = mav.seq
         header = self.HEADER.pack(
-            253, len(payload), 0, 0, mav.seq, mav.srcSystem, mav.srcComponent, cls.id & 0xFFFF, cls.id >> 16
+            253, len(payload), 0, 0, seq, mav.srcSystem, mav.srcComponent, cls.id & 0xFFFF, cls.id >> 16
         )
-        mav.seq = (mav.seq + 1) % 256
+        mav.seq = (seq + 1) % 256
         body = header + payload
-        return body + self.CRC.pack(_mcrf4xx(body[1:] + bytes((cls.crc_extra,)), 0xFFFF))
+        return body + self.CRC.pack(_mcrf4xx(body[1:] + cls.crc_extra.to_bytes(), 0xFFFF))
 
 
 class TelemetryView:
-    """The fleet as MAVLink sees it at one instant; arrays computed on first use, as Python lists."""
+    """The fleet as MAVLink sees it at one instant; arrays computed on first use.
+
+    The messages of the fast streams (ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED, GLOBAL_POSITION_INT)
+    are packed for the whole fleet at once (numpy, wire_dtype) on first use; each vehicle's packet then only
+    gets its header and CRC (Framer.frame_payload).
+    """
 
     def __init__(self, autopilot: Autopilot, time_us: int, geodesy: Geodesy, unix_epoch_us: int) -> None:
         self.ap = autopilot
@@ -283,19 +337,72 @@ class TelemetryView:
         self.unix_epoch_us = unix_epoch_us
 
     @cached_property
-    def ned(self) -> list[list[float]]:
-        """Per vehicle (ned_telemetry): q FRD->NED 0:4, roll pitch yaw 4:7, rates FRD 7:10, position NED 10:13
-        (from its EKF origin), velocity NED 13:16."""
+    def ned(self) -> np.ndarray:
+        """(N,16) per vehicle (ned_telemetry): q FRD->NED 0:4, roll pitch yaw 4:7 (rad), rates FRD 7:10
+        (rad/s), position NED 10:13 (m, from its EKF origin), velocity NED 13:16 (m/s)."""
         state = self.ap.state
-        return ned_telemetry(state.pos, state.vel, state.quat, state.omega, self.ap.origin).tolist()
+        return ned_telemetry(state.pos, state.vel, state.quat, state.omega, self.ap.origin)
 
     @cached_property
-    def global_position(self) -> tuple[list, list, list, list]:
-        """(lat 1e7, lon 1e7, alt mm AMSL, alt mm above home) as (N,) integer lists."""
+    def global_position(self) -> np.ndarray:
+        """(N,4) int64 per vehicle: lat, lon (1e7 deg), alt (mm AMSL), alt above home (mm), rounded half to
+        even."""
         geodetic = self.geodesy.to_geodetic(self.ap.state.pos) * np.array([1e7, 1e7, 1000.0])
         rel = (self.ap.state.pos[:, 2] - self.ap.home[:, 2]) * 1000.0
-        lat, lon, alt = np.round(geodetic).astype(np.int64).T.tolist()
-        return lat, lon, alt, np.round(rel).astype(np.int64).tolist()
+        return np.round(np.column_stack((geodetic, rel))).astype(np.int64)
+
+    def _fleet_payloads(self, cls: type[mavlink2.MAVLink_message], **fields: np.ndarray) -> list[bytes]:
+        """Each vehicle's payload of message class cls, truncated: time_boot_ms now, the named fields from
+        their (N,) columns (cast to the field's wire type), the others zero."""
+        payload = np.zeros(self.ap.n, dtype=FLEET_DTYPES[cls.id])
+        payload["time_boot_ms"] = self.time_boot_ms
+        for name, column in fields.items():
+            payload[name] = column
+        return fleet_payloads(payload)
+
+    @cached_property
+    def attitude_payloads(self) -> list[bytes]:
+        """ATTITUDE payload per vehicle: roll, pitch, yaw NED (rad), body rates FRD (rad/s)."""
+        ned = self.ned
+        return self._fleet_payloads(
+            mavlink2.MAVLink_attitude_message,
+            roll=ned[:, 4], pitch=ned[:, 5], yaw=ned[:, 6],
+            rollspeed=ned[:, 7], pitchspeed=ned[:, 8], yawspeed=ned[:, 9],
+        )  # fmt: skip
+
+    @cached_property
+    def attitude_quaternion_payloads(self) -> list[bytes]:
+        """ATTITUDE_QUATERNION payload per vehicle: q FRD->NED (w, x, y, z), body rates FRD (rad/s),
+        repr_offset_q zero."""
+        ned = self.ned
+        return self._fleet_payloads(
+            mavlink2.MAVLink_attitude_quaternion_message,
+            q1=ned[:, 0], q2=ned[:, 1], q3=ned[:, 2], q4=ned[:, 3],
+            rollspeed=ned[:, 7], pitchspeed=ned[:, 8], yawspeed=ned[:, 9],
+        )  # fmt: skip
+
+    @cached_property
+    def local_position_payloads(self) -> list[bytes]:
+        """LOCAL_POSITION_NED payload per vehicle: position NED from its EKF origin (m), velocity NED
+        (m/s)."""
+        ned = self.ned
+        return self._fleet_payloads(
+            mavlink2.MAVLink_local_position_ned_message,
+            x=ned[:, 10], y=ned[:, 11], z=ned[:, 12], vx=ned[:, 13], vy=ned[:, 14], vz=ned[:, 15],
+        )  # fmt: skip
+
+    @cached_property
+    def global_position_int_payloads(self) -> list[bytes]:
+        """GLOBAL_POSITION_INT payload per vehicle: global_position; velocity NED v (m/s) as
+        clamp(round(100 v), int16) cm/s; heading hdg = round(100 degrees(yaw NED)) mod 36000 cdeg, in
+        [0, 36000). round: half to even, as Python's round."""
+        lat, lon, alt, relative_alt = self.global_position.T
+        vn, ve, vd = np.rint(self.ned[:, 13:16] * 100.0).clip(-32768, 32767).T
+        hdg = np.rint(np.degrees(self.ned[:, 6]) * 100.0).astype(np.int64) % 36000
+        return self._fleet_payloads(
+            mavlink2.MAVLink_global_position_int_message,
+            lat=lat, lon=lon, alt=alt, relative_alt=relative_alt, vx=vn, vy=ve, vz=vd, hdg=hdg,
+        )  # fmt: skip
 
     def encode(self, framer: Framer, msg_id: int, i: int) -> bytes | None:
         """The framed message msg_id of vehicle i now, or None when the vehicle has nothing to say yet."""
@@ -323,48 +430,23 @@ def _ekf_status(v: TelemetryView, f: Framer, i: int) -> bytes | None:
 
 
 def _attitude(v: TelemetryView, f: Framer, i: int) -> bytes:
-    return f.frame(mavlink2.MAVLink_attitude_message, v.time_boot_ms, *v.ned[i][4:10])
+    return f.frame_payload(mavlink2.MAVLink_attitude_message, v.attitude_payloads[i])
 
 
 def _attitude_quaternion(v: TelemetryView, f: Framer, i: int) -> bytes:
-    row = v.ned[i]
-    return f.frame(
-        mavlink2.MAVLink_attitude_quaternion_message,
-        v.time_boot_ms,
-        *row[0:4],
-        *row[7:10],
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-    )
+    return f.frame_payload(mavlink2.MAVLink_attitude_quaternion_message, v.attitude_quaternion_payloads[i])
 
 
 def _local_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
     if not v.ap.position_ok(i):
         return None  # ArduPilot sends it only once the EKF has an origin
-    return f.frame(mavlink2.MAVLink_local_position_ned_message, v.time_boot_ms, *v.ned[i][10:16])
+    return f.frame_payload(mavlink2.MAVLink_local_position_ned_message, v.local_position_payloads[i])
 
 
 def _global_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
     if not v.ap.position_ok(i):
         return None
-    lat, lon, alt, rel = v.global_position
-    row = v.ned[i]
-    hdg = round(math.degrees(row[6]) * 100.0) % 36000
-    vn, ve, vd = (max(-32768, min(32767, round(c * 100.0))) for c in row[13:16])
-    return f.frame(
-        mavlink2.MAVLink_global_position_int_message,
-        v.time_boot_ms,
-        lat[i],
-        lon[i],
-        alt[i],
-        rel[i],
-        vn,
-        ve,
-        vd,
-        hdg,
-    )
+    return f.frame_payload(mavlink2.MAVLink_global_position_int_message, v.global_position_int_payloads[i])
 
 
 def _gps_raw(v: TelemetryView, f: Framer, i: int) -> bytes:
@@ -372,13 +454,13 @@ def _gps_raw(v: TelemetryView, f: Framer, i: int) -> bytes:
         return f.pack(
             f.mav.gps_raw_int_encode(v.time_us, mavlink2.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 9999, 9999, 0, 0, 0)
         )
-    lat, lon, alt, _ = v.global_position
-    vn, ve = v.ned[i][13:15]
+    lat, lon, alt, _ = v.global_position[i].tolist()
+    vn, ve = v.ned[i, 13:15].tolist()
     speed = math.hypot(vn, ve)
     cog = round(math.degrees(math.atan2(ve, vn)) * 100.0) % 36000 if speed > 0.2 else 0
     return f.pack(f.mav.gps_raw_int_encode(
-        v.time_us, mavlink2.GPS_FIX_TYPE_3D_FIX, lat[i], lon[i], alt[i], 121, 200, round(speed * 100.0), cog,
-        10, alt[i], 300, 500, 200, 0, 0,
+        v.time_us, mavlink2.GPS_FIX_TYPE_3D_FIX, lat, lon, alt, 121, 200, round(speed * 100.0), cog,
+        10, alt, 300, 500, 200, 0, 0,
     ))  # fmt: skip
 
 
