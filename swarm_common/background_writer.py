@@ -1,11 +1,12 @@
 """A log file written by a thread of its own, so that a control loop never waits on the disk.
 
 A write() system call can block for tens of milliseconds when the kernel throttles a process that has many
-dirty pages (a 200-vehicle real-time flight writes about 6 MB/s of truth log, tlog and run record; one
-run-record write there took 28 ms of a 20 ms frame, BENCHMARKS.md 2026-11-27). The owner hands over chunks of
-bytes (`write`, a queue put) and goes on; the thread writes them, in order, straight to the OS (no user-space
-buffer), so what was handed over is in the file within moments and a killed process loses at most what is
-still queued. The write system call releases the GIL, so the owner keeps running while the thread waits.
+dirty pages (a 200-vehicle real-time flight writes about 6 MB/s of truth log, tlog and run record; one tick
+of such a flight spent 28 ms in its run-record phase, whose formatting takes 1.6 ms, BENCHMARKS.md
+2026-11-27). The owner hands over chunks of bytes (`write`, a queue put) and goes on; the thread writes
+them, in order, straight to the OS (no user-space buffer), so what was handed over is in the file within
+moments and a killed process loses at most what is still queued. The write system call releases the GIL,
+so the owner keeps running while the thread waits.
 
 `flush` waits until everything handed over so far is written; `close` does that, then closes the file. An
 error the thread meets (disk full) is raised by the owner's next write, flush or close, and nothing more is
