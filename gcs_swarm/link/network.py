@@ -9,8 +9,8 @@ own one), and the identity checks refuse two vehicles answering to one sysid.
 With a signing key every endpoint checks signatures (connection.py): what fails is counted per vehicle
 (`unsigned`, `bad_signature` in its LinkStats) and never reaches it. Without one, a vehicle on its own udpout
 endpoint has its 50 Hz telemetry taken straight from the datagram bytes (gcs_swarm.link.hot_telemetry), with
-the same effect as the general path. Forwards (gcs_swarm.link.forward) get
-every vehicle frame, and their own frames are routed to the vehicles by target system when they may pass.
+the same effect as the general path. Forwards (gcs_swarm.link.forward) get every vehicle frame, and their own
+frames are routed to the vehicles by target system when they may pass.
 """
 
 from __future__ import annotations
