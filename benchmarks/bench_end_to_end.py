@@ -10,7 +10,12 @@ the per-tick work is the same), and a generated 100-vehicle grid (not with --qui
 (`--mission FILE`, flown as it is, e.g. the full missions/paper_static_6.yaml). The flights are interleaved
 (every scenario once, then again) so that a change in the machine's load spreads over the scenarios.
 
+With --baseline DIR (another tree, e.g. `git worktree add DIR <commit>`), every flight of this tree is
+followed by the same flight with DIR's code (tree_ab.flight_environment), and each scenario gets a row per
+tree.
+
 Usage: python benchmarks/bench_end_to_end.py [--quick] [--repeats 3] [--mission FILE] [--json FILE]
+       [--baseline DIR]
 """
 
 from __future__ import annotations
@@ -30,6 +35,9 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import tree_ab  # noqa: E402
 
 from swarm_common.ports import free_udp_base  # noqa: E402
 from tests.e2e.flights import numbers  # noqa: E402
@@ -74,17 +82,20 @@ def grid_mission(n: int, out: Path) -> Path:
     return path
 
 
-def fly(mission: Path, n: int, run_dir: Path) -> dict[str, Any]:
-    """One `gcs-swarm run` of `mission` (n vehicles): exit status, real-time factor, tick figures."""
+def fly(mission: Path, n: int, run_dir: Path, tree: Path = ROOT) -> dict[str, Any]:
+    """One `gcs-swarm run` of `mission` (n vehicles) with `tree`'s code: exit status, real-time factor, tick
+    figures."""
     cmd = [sys.executable, "-m", "gcs_swarm", "run", str(mission), "--out", str(run_dir), "--quiet"]
     cmd += ["--base-port", str(free_udp_base(n))]
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=3600)
+    cwd, env = tree_ab.flight_environment(tree)
+    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=3600)
     flight_path, report_path = run_dir / "flight.json", run_dir / "report.json"
     flight = json.loads(flight_path.read_text()) if flight_path.exists() else {}
     report = json.loads(report_path.read_text()) if report_path.exists() else {}
     sim_s, wall_s = report.get("sim_duration_s", math.nan), flight.get("wall_duration_s", math.nan)
     latency = flight.get("tick_latency_ms") or {}
     return {
+        "tree": str(tree),
         "status": proc.returncode,
         "sim_s": sim_s,
         "wall_s": wall_s,
@@ -125,16 +136,18 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3, help="flights per scenario (default 3)")
     parser.add_argument("--mission", help="time this one mission file instead of the scenarios")
     parser.add_argument("--json", help="also write every flight's figures to this file")
+    parser.add_argument("--baseline", type=Path, help="another tree to fly after each flight (A/B)")
     args = parser.parse_args()
+    trees = [ROOT] + ([args.baseline.resolve()] if args.baseline else [])
     started = time.time()
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         if args.mission:
             path = Path(args.mission).resolve()
             n = len(yaml.safe_load(path.read_text())["vehicles"])
-            cases = [(f"{args.mission} (as it is)", path, n)]
+            scenarios = [(f"{args.mission} (as it is)", path, n)]
         else:
-            cases = [
+            scenarios = [
                 ("quickstart (3)", ROOT / "missions" / "quickstart.yaml", 3),
                 (
                     "paper_static_6, goal (600,600,200)",
@@ -148,18 +161,23 @@ def main() -> int:
                 ),
             ]
             if not args.quick:
-                cases.append(("grid of 100, 150 m leg", grid_mission(100, out), 100))
-        runs: dict[str, list[dict[str, Any]]] = {label: [] for label, _, _ in cases}
+                scenarios.append(("grid of 100, 150 m leg", grid_mission(100, out), 100))
+        cases = [  # each scenario once per tree, one after the other
+            (f"{label}{'' if tree == ROOT else f' (baseline {args.baseline})'}", mission, n, tree)
+            for label, mission, n in scenarios
+            for tree in trees
+        ]
+        runs: dict[str, list[dict[str, Any]]] = {label: [] for label, _, _, _ in cases}
         for k in range(args.repeats):
-            for label, mission, n in cases:
+            for i, (label, mission, n, tree) in enumerate(cases):
                 print(f"flight {k + 1}/{args.repeats}: {label}", file=sys.stderr, flush=True)
-                runs[label].append(fly(mission, n, out / f"{mission.stem}-{k}"))
+                runs[label].append(fly(mission, n, out / f"{mission.stem}-{k}-{i}", tree))
     print(
         "| scenario | vehicles | exit | sim s | real-time factor | tick latency median ms | p99 ms "
         "| worst flight |"
     )
     print("|---|---|---|---|---|---|---|---|")
-    for label, _, n in cases:
+    for label, _, n, _ in cases:
         rs = runs[label]
         print(
             f"| {label} | {n} | {','.join(str(r['status']) for r in rs)} "
@@ -181,7 +199,10 @@ def main() -> int:
             "started_unix_s": started,
             "repeats": args.repeats,
             "mission": args.mission,
-            "scenarios": [{"label": label, "vehicles": n, "flights": runs[label]} for label, _, n in cases],
+            "baseline": str(args.baseline) if args.baseline else None,
+            "scenarios": [
+                {"label": label, "vehicles": n, "flights": runs[label]} for label, _, n, _ in cases
+            ],
         }
         Path(args.json).write_text(json.dumps(summary, indent=2) + "\n")
     return 0

@@ -17,8 +17,12 @@ the worst lag, and how many of its ticks started more than one 20 ms frame late:
 sends the frames it owes in a burst, so missed frames beside a large lag are the simulator's, not the ground
 station's), and what the worst tick of all flights was spent on (`worst_tick`).
 
+With --baseline DIR (another tree, e.g. `git worktree add DIR <commit>`), every flight of this tree is
+followed by the same flight with DIR's code (tree_ab.flight_environment), and each size gets a row per tree;
+only this tree's rows decide the largest fleet held.
+
 Usage: python benchmarks/bench_fleet_capacity.py [--sizes 25,50,...] [--repeats 3] [--leg 600] [--all]
-       [--json FILE]
+       [--json FILE] [--baseline DIR]
 """
 
 from __future__ import annotations
@@ -39,6 +43,9 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import tree_ab  # noqa: E402
 
 from gcs_swarm.guidance.formation import formation_offsets  # noqa: E402
 from swarm_common.ports import free_udp_base  # noqa: E402
@@ -86,13 +93,15 @@ def grid_mission(n: int, out: Path, leg_m: float) -> Path:
     return path
 
 
-def fly_realtime(n: int, leg_m: float, out: Path, repeat: int) -> dict[str, Any]:
-    """One real-time flight of n vehicles: its exit status and flight.json's timing and missed frames."""
+def fly_realtime(n: int, leg_m: float, out: Path, repeat: int, tree: Path = ROOT) -> dict[str, Any]:
+    """One real-time flight of n vehicles with `tree`'s code: its exit status and flight.json's timing and
+    missed frames."""
     mission = grid_mission(n, out, leg_m)
-    run_dir = out / f"run{n}-{repeat}"
+    run_dir = out / f"run{n}-{repeat}-{tree.name}"
     cmd = [sys.executable, "-m", "gcs_swarm", "run", str(mission), "--out", str(run_dir), "--quiet"]
     cmd += ["--time-mode", "realtime", "--base-port", str(free_udp_base(n))]
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=3600)
+    cwd, env = tree_ab.flight_environment(tree)
+    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=3600)
     flight_path = run_dir / "flight.json"
     flight = json.loads(flight_path.read_text()) if flight_path.exists() else {}
     t0, t1 = flight.get("t_formation_start"), flight.get("t_formation_end")
@@ -102,6 +111,7 @@ def fly_realtime(n: int, leg_m: float, out: Path, repeat: int) -> dict[str, Any]
     sim_lag_ms, sim_late_ticks = simulator_lag(run_dir)
     return {
         "vehicles": n,
+        "tree": str(tree),
         "status": proc.returncode,
         "formation_s": (t1 - t0) if t0 is not None and t1 is not None else math.nan,
         "ticks": flight.get("ticks", 0),
@@ -143,12 +153,12 @@ def spent_on(runs: list[dict[str, Any]]) -> str:
     return f"{worst['work_ms']:.1f} ms at t={worst['t_s']:.2f} s: {shown} (waited {worst['wait_ms']:.1f})"
 
 
-def row(n: int, runs: list[dict[str, Any]]) -> str:
+def row(label: str, runs: list[dict[str, Any]]) -> str:
     status = ",".join(str(r["status"]) for r in runs)
     missed = ", ".join("-" if r["frames_missed"] is None else str(r["frames_missed"]) for r in runs)
     late = ", ".join("-" if (k := r["simulator_late_ticks"]) is None else str(k) for r in runs)
     return (
-        f"| {n} | {status} | {missed} | {median_worst([r['work_median_ms'] for r in runs], '.2f')} "
+        f"| {label} | {status} | {missed} | {median_worst([r['work_median_ms'] for r in runs], '.2f')} "
         f"| {median_worst([r['work_p99_ms'] for r in runs], '.2f')} "
         f"| {median_worst([r['work_max_ms'] for r in runs], '.2f')} "
         f"| {median_worst([r['latency_p99_ms'] for r in runs], '.2f')} "
@@ -167,7 +177,9 @@ def main() -> int:
     parser.add_argument("--leg", type=float, default=600.0, help="m the leader flies east (default 600)")
     parser.add_argument("--all", action="store_true", help="fly every size, not stopping at the first fail")
     parser.add_argument("--json", help="also write every flight's figures to this file")
+    parser.add_argument("--baseline", type=Path, help="another tree to fly after each flight (A/B)")
     args = parser.parse_args()
+    trees = [ROOT] + ([args.baseline.resolve()] if args.baseline else [])
     sizes = [int(x) for x in args.sizes.split(",")] if args.sizes else list(SIZES)
     print(
         "| vehicles | exit | frames missed per flight | tick work median ms | p99 ms | max ms "
@@ -175,14 +187,21 @@ def main() -> int:
         "| worst tick spent on (ms) | holds |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
-    largest, flights = None, []
+    largest, flights, baseline_flights = None, [], []
     started = time.time()
     with tempfile.TemporaryDirectory() as tmp:
         for n in sizes:
-            runs = [fly_realtime(n, args.leg, Path(tmp), k) for k in range(args.repeats)]
+            by_tree: dict[Path, list[dict[str, Any]]] = {tree: [] for tree in trees}
+            for k in range(args.repeats):
+                for tree in trees:  # interleaved: both trees see the same machine load
+                    by_tree[tree].append(fly_realtime(n, args.leg, Path(tmp), k, tree))
+            runs = by_tree[ROOT]
             flights += runs
-            print(row(n, runs), flush=True)
-            for r in runs:
+            baseline_flights += [r for tree in trees[1:] for r in by_tree[tree]]
+            print(row(str(n), runs), flush=True)
+            if args.baseline:
+                print(row(f"{n} (baseline {args.baseline})", by_tree[trees[1]]), flush=True)
+            for r in [r for tree in trees for r in by_tree[tree]]:
                 if r["stderr"]:
                     print(f"  exit {r['status']}: {r['stderr'].strip().splitlines()[-1]}", file=sys.stderr)
             if holds(runs):
@@ -204,8 +223,10 @@ def main() -> int:
             "sizes": sizes,
             "repeats": args.repeats,
             "leg_m": args.leg,
+            "baseline": str(args.baseline) if args.baseline else None,
             "largest_held": largest,
             "flights": flights,
+            "baseline_flights": baseline_flights,
         }
         Path(args.json).write_text(json.dumps(summary, indent=2) + "\n")
     return 0

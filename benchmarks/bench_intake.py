@@ -1,6 +1,8 @@
 """The ground station's per-frame link cost at N vehicles, without a simulator: intake (N datagrams of
-GLOBAL_POSITION_INT + ATTITUDE read, decoded and turned into state by `Fleet.pump`) and commands (N
-SET_ATTITUDE_TARGET packed, logged and sent by `Fleet.send_attitude_targets`).
+GLOBAL_POSITION_INT + ATTITUDE read, decoded and turned into state by `Fleet.pump`), commands (N
+SET_ATTITUDE_TARGET packed, logged and sent by `Fleet.send_attitude_targets`), and an idle pump (`Fleet.pump`
+with nothing to read: select and the link's housekeeping; in a 200-vehicle flight the ground station pumps
+about 4 times a frame).
 
 N loopback sockets play the vehicles: each says HEARTBEAT once (the link binds its sysid), then every frame
 sends one datagram with the two 50 Hz messages as the simulator frames them (sitl_sim.network.streams.Framer),
@@ -101,29 +103,39 @@ def measure(vehicles: int, frames: int) -> dict[str, float | str]:
                         pass
                 except BlockingIOError:
                     pass
+        idle = []
+        for _ in range(frames):
+            start = time.process_time()
+            fleet.pump(0.0)
+            idle.append(time.process_time() - start)
         fleet.network.close()
     for sock in vehicle_socks:
         sock.close()
     return {
         "intake_ms": statistics.median(intake[WARMUP_FRAMES:]) * 1e3,
         "commands_ms": statistics.median(commands[WARMUP_FRAMES:]) * 1e3,
+        "idle_pump_us": statistics.median(idle[WARMUP_FRAMES:]) * 1e6,
         "tree": tree_ab.package_tree(gcs_swarm.__file__),
     }
 
 
 def report(results: dict[str, list[tree_ab.Figures]], args: argparse.Namespace) -> None:
     """The table of the invocations' figures per tree."""
-    print("| tree | intake CPU ms/frame | per message us | commands CPU ms/frame | per command us |")
-    print("|---|---|---|---|---|")
+    print(
+        "| tree | intake CPU ms/frame | per message us | commands CPU ms/frame | per command us "
+        "| idle pump CPU us |"
+    )
+    print("|---|---|---|---|---|---|")
     for name, runs in results.items():
         intake = [r["intake_ms"] for r in runs]
         commands = [r["commands_ms"] for r in runs]
         per_message = [1e3 * v / (2 * args.vehicles) for v in intake]
         per_command = [1e3 * v / args.vehicles for v in commands]
-        cells = [tree_ab.spread(v) for v in (intake, per_message, commands, per_command)]
+        idle = [r["idle_pump_us"] for r in runs]
+        cells = [tree_ab.spread(v) for v in (intake, per_message, commands, per_command, idle)]
         print(f"| {name} | " + " | ".join(cells) + " |")
     if args.baseline:
-        print(tree_ab.ratios(results, ("intake_ms", "commands_ms")))
+        print(tree_ab.ratios(results, ("intake_ms", "commands_ms", "idle_pump_us")))
 
 
 if __name__ == "__main__":

@@ -5,6 +5,10 @@ with the key "tree": the folder its packages were imported from (checked here, s
 silently measure this tree).
 
 Used by bench_intake.py (the ground station's link) and bench_sim_intake.py (the simulator's command intake).
+Flight benchmarks (bench_end_to_end.py, bench_fleet_capacity.py) run `python -m gcs_swarm` per flight and take
+their cwd and environment from `flight_environment`: `python -m` puts the working directory first on sys.path,
+before PYTHONPATH, so a flight started from this tree flies this tree's code whatever PYTHONPATH says (flight
+A/Bs made that way before 2026-11-27 12:00 UTC compared this tree with itself; BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -55,6 +59,22 @@ def _add_arguments(parser: argparse.ArgumentParser, warmup_frames: int) -> None:
 def package_tree(package_file: str) -> str:
     """The tree (folder) a package was imported from, given its module's __file__."""
     return str(Path(package_file).resolve().parents[1])
+
+
+def flight_environment(tree: Path) -> tuple[Path, dict[str, str]]:
+    """Working directory and environment for a `python -m gcs_swarm ...` flight with `tree`'s packages (the
+    simulator it starts inherits both); RuntimeError when a process started that way imports any of
+    gcs_swarm, sitl_sim and swarm_common from elsewhere."""
+    tree = tree.resolve()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tree), os.environ.get("PYTHONPATH", "")])}
+    packages = ("gcs_swarm", "sitl_sim", "swarm_common")
+    probe = f"import {', '.join(packages)}; print({', '.join(f'{p}.__file__' for p in packages)})"
+    cmd = [sys.executable, "-c", probe]
+    out = subprocess.run(cmd, cwd=tree, env=env, check=True, capture_output=True, text=True, timeout=60)
+    trees = {package_tree(f) for f in out.stdout.split()}
+    if trees != {str(tree)}:
+        raise RuntimeError(f"a flight started in {tree} imports packages from {sorted(trees)}")
+    return tree, env
 
 
 def invoke(script: Path, tree: Path, vehicles: int, frames: int) -> Figures:

@@ -6,12 +6,15 @@ t simulated s since boot; vehicle 0-based; ENU m and m/s in the mission frame; q
 ENU; Euler ZYX rad; motor thrusts N (ArduCopter motor order); mode = ArduCopter custom_mode; flags 0/1
 (landed = the autopilot's land_complete). PATH with its suffix replaced by `.obstacles.csv`:
     t,obstacle,x,y,z,radius
-Numbers are printed with fixed precision so that identical runs give identical bytes. Each sample goes to a
-writer thread per file (swarm_common.background_writer): the simulator never waits on the disk.
+Numbers are printed with fixed precision so that identical runs give identical bytes. Samples go to a writer
+thread per file (swarm_common.background_writer) in batches of about 200 rows or 10 samples and at least
+every second: the simulator never waits on the disk, and from 200 vehicles on the thread also formats them
+(0.9 ms a sample).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -69,11 +72,11 @@ class TruthLog:
         table[:, 13:16] = euler
         table[:, 16:20] = motor
         table[:, 20:24] = flags
-        self.vehicles.write((self._rows % tuple(table.ravel().tolist())).encode("ascii"))
+        self.vehicles.write_rows(_render(self._rows, tuple(table.ravel().tolist())), len(table))
         k = len(obstacle_radii)
         if k:
             rows = np.column_stack((np.full(k, t), np.arange(k), obstacle_centers, obstacle_radii))
-            self.obstacles.write(((OBSTACLE_ROW * k) % tuple(rows.ravel().tolist())).encode("ascii"))
+            self.obstacles.write_rows(_render(OBSTACLE_ROW * k, tuple(rows.ravel().tolist())), k)
 
     def flush(self) -> None:
         """Return once every sample so far is in the files."""
@@ -84,3 +87,8 @@ class TruthLog:
         """Write every sample and close both files (idempotent)."""
         self.vehicles.close()
         self.obstacles.close()
+
+
+def _render(template: str, values: tuple[float, ...]) -> Callable[[], bytes]:
+    """A sample's text: `template % values` as ASCII bytes (`values` a copy: the writer thread may do it)."""
+    return lambda: (template % values).encode("ascii")

@@ -1,67 +1,128 @@
 """A log file written by a thread of its own, so that a control loop never waits on the disk.
 
 A write() system call can block for tens of milliseconds when the kernel throttles a process that has many
-dirty pages (a 200-vehicle real-time flight writes about 6 MB/s of truth log, tlog and run record; one tick
-of such a flight spent 28 ms in its run-record phase, whose formatting takes 1.6 ms, BENCHMARKS.md
-2026-11-27). The owner hands over chunks of bytes (`write`, a queue put) and goes on; the thread writes
-them, in order, straight to the OS (no user-space buffer), so what was handed over is in the file within
-moments and a killed process loses at most what is still queued. The write system call releases the GIL,
-so the owner keeps running while the thread waits.
+dirty pages (a 200-vehicle real-time flight writes about 6 MB/s of truth log, tlog and run record; one tick of
+such a flight spent 28 ms in its run-record phase, whose formatting takes 1.6 ms, BENCHMARKS.md 2026-11-27).
+The owner queues chunks (`write`) and goes on; the thread writes them, in order, straight to the OS (no
+user-space buffer). The write system call releases the GIL, so the owner keeps running while the thread waits.
 
-`flush` waits until everything handed over so far is written; `close` does that, then closes the file. An
-error the thread meets (disk full) is raised by the owner's next write, flush or close, and nothing more is
-written after it.
+A chunk is bytes, or a render function: the thread calls it, in order, and writes what it returns (it must
+only read values the owner will not change afterwards: copies, `array.tolist()`). Chunks reach the thread in
+batches: every `chunks_per_hand_over` chunks, and whatever waits when the thread has had nothing for
+`period_s` (wall; the thread takes it itself). A killed process loses at most the last `period_s` of chunks
+and what the thread had not written yet.
+
+Logs of rows (`write_rows`, the run record and truth log) batch about ROWS_PER_HAND_OVER rows per hand-over,
+at most MAX_CHUNKS_PER_HAND_OVER chunks (ticks): one per tick at 200 vehicles, one per 10 ticks at 6, so that
+a killed ground station's record still ends within 0.2 s of vehicle time of its death
+(tests/e2e/test_gcs_killed.py asks 1.5 s). Each hand-over wakes the thread, which then takes the GIL from the
+owner and gives it back; in a 6-vehicle lockstep flight, where a tick takes about 1 ms, one hand-over per tick
+in both processes made whole runs about 20 % slower (BENCHMARKS.md 2026-11-27 12:00). Turning numbers into
+text is most of a log's cost (about 1.2 ms of a 200-vehicle tick for the run record): a chunk that is a whole
+hand-over (200 rows or more) is formatted by the thread, while the owner waits for its next packets; smaller
+chunks are formatted by the owner, since a batch formatted at once by the thread (34 ticks of 6 vehicles) held
+the GIL long enough to double a 6-vehicle flight's tick latency p99.
+
+`flush` hands over and waits until everything so far is written; `close` does that, then closes the file. An
+error the thread meets (disk full, or a render function that raises) is raised by the owner's next write,
+flush or close, and nothing more is written after it.
 """
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
+
+Chunk = bytes | Callable[[], bytes]
+"""What the owner writes: bytes, or a function the thread calls for them (see the module doc)."""
+
+ROWS_PER_HAND_OVER = 200  # log rows (vehicles x samples) an owner batches per hand-over (chunks_for_rows)
+MAX_CHUNKS_PER_HAND_OVER = 10  # at most this many chunks (ticks, samples) per hand-over: what a kill loses
+HAND_OVER_PERIOD_S = 1.0  # wall s after which a write hands over whatever is pending
 
 _STOP = None  # queued by close: the thread's last item
 
 
-class BackgroundWriter:
-    """Writes the byte chunks handed to `write` to `path` (created or truncated) from a thread named
-    `name`."""
+def chunks_for_rows(rows_per_chunk: int) -> int:
+    """Chunks per hand-over for chunks of `rows_per_chunk` rows: about ROWS_PER_HAND_OVER rows, at least 1,
+    at most MAX_CHUNKS_PER_HAND_OVER."""
+    wanted = math.ceil(ROWS_PER_HAND_OVER / max(rows_per_chunk, 1))
+    return min(max(1, wanted), MAX_CHUNKS_PER_HAND_OVER)
 
-    def __init__(self, path: Path, name: str) -> None:
+
+class BackgroundWriter:
+    """Writes the chunks given to `write` (bytes, or render functions called in the thread) to `path`
+    (created or truncated) from a thread named `name`, handed over in batches (see the module doc)."""
+
+    def __init__(
+        self, path: Path, name: str, chunks_per_hand_over: int = 1, period_s: float = HAND_OVER_PERIOD_S
+    ) -> None:
+        if chunks_per_hand_over < 1 or not period_s > 0:
+            raise ValueError("chunks_per_hand_over must be >= 1 and period_s > 0")
         self.path = Path(path)
+        self.chunks_per_hand_over = chunks_per_hand_over
+        self.period_s = period_s
         self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - the thread owns it; close() closes it
-        self._queue: queue.SimpleQueue[bytes | threading.Event | None] = queue.SimpleQueue()
-        self._error: OSError | None = None
+        self._pending: list[Chunk] = []  # written, not yet handed over
+        self._lock = threading.Lock()  # guards _pending and keeps hand-overs in order (owner and thread)
+        self._queue: queue.SimpleQueue[list[Chunk] | threading.Event | None] = queue.SimpleQueue()
+        self._error: Exception | None = None
         self.closed = False
         self._thread = threading.Thread(target=self._run, name=f"writer {name}", daemon=True)
         self._thread.start()
 
-    def write(self, data: bytes) -> None:
-        """Hand `data` over to be written after everything handed over before."""
+    def write(self, data: Chunk) -> None:
+        """Queue `data` to be written after everything written before: bytes, or a function that returns
+        them, called in the writer's thread."""
         self._raise_error()
         if self.closed:
             raise ValueError(f"{self.path.name}: write after close")
-        self._queue.put(data)
+        with self._lock:
+            self._pending.append(data)
+            if len(self._pending) >= self.chunks_per_hand_over:
+                self._queue.put(self._pending)
+                self._pending = []
+
+    def write_rows(self, render: Callable[[], bytes], rows: int) -> None:
+        """Write a chunk of `rows` log rows that `render` formats, batched to about ROWS_PER_HAND_OVER rows
+        per hand-over (chunks_for_rows); formatted by the thread when the chunk is a hand-over of its own,
+        else now (see the module doc)."""
+        self.chunks_per_hand_over = chunks_for_rows(rows)
+        self.write(render if rows >= ROWS_PER_HAND_OVER else render())
 
     def flush(self) -> None:
-        """Return once everything handed over so far is written to the OS."""
+        """Return once everything written so far is written to the OS."""
         self._raise_error()
         if self.closed:
             return
+        self._hand_over()
         done = threading.Event()
         self._queue.put(done)
         done.wait()
         self._raise_error()
 
     def close(self) -> None:
-        """Write everything handed over, stop the thread and close the file (idempotent)."""
+        """Write everything written so far, stop the thread and close the file (idempotent)."""
         if self.closed:
             return
         self.closed = True
+        self._hand_over()
         self._queue.put(_STOP)
         self._thread.join()
         self._file.close()
         self._raise_error()
+
+    def _hand_over(self) -> None:
+        """Queue the pending chunks for the thread (from the owner, or from the thread after a quiet
+        period)."""
+        with self._lock:
+            if self._pending:
+                self._queue.put(self._pending)
+                self._pending = []
 
     def _raise_error(self) -> None:
         if self._error is not None:
@@ -71,7 +132,11 @@ class BackgroundWriter:
     def _run(self) -> None:
         failed = False
         while True:
-            item = self._queue.get()
+            try:
+                item = self._queue.get(timeout=self.period_s)
+            except queue.Empty:
+                self._hand_over()  # chunks waiting a whole period: taken in order, after the queued ones
+                continue
             if item is _STOP:
                 return
             if isinstance(item, threading.Event):
@@ -80,8 +145,9 @@ class BackgroundWriter:
             if failed:
                 continue
             try:
-                self._write_all(item)
-            except OSError as err:
+                for chunk in item:
+                    self._write_all(chunk() if callable(chunk) else chunk)
+            except Exception as err:  # noqa: BLE001 - the owner raises it (a disk error, a render error)
                 self._error, failed = err, True
 
     def _write_all(self, data: bytes) -> None:

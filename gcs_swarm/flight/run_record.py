@@ -3,8 +3,9 @@
 Columns (ENU metres, rad, m/s^2): t, vehicle, phase, x, y, z, vx, vy, vz, roll, pitch, yaw (measured, from
 telemetry), ref_x, ref_y, ref_z, ref_vx, ref_vy, ref_vz (reference generator, spec 8), slot_x, slot_y, slot_z,
 fx, fy, fz (total field force, spec 4), roll_d, pitch_d, yaw_d, thrust_acc, thrust (normalised), emergency,
-active, psi_l. Each tick's rows go to a writer thread (swarm_common.background_writer) that writes them at
-once, so a killed ground station leaves a readable record and the control loop never waits on the disk.
+active, psi_l. Each tick's rows go to a writer thread (swarm_common.background_writer) in batches of about
+200 rows or 10 ticks and at least every second, so a killed ground station leaves a readable record and the
+control loop never waits on the disk; from 200 vehicles on, the thread also formats them (1.2 ms of a tick).
 """
 
 from __future__ import annotations
@@ -72,15 +73,18 @@ class RunRecord:
         )
         if block.shape[1] != _NUMERIC_COLUMNS:
             raise ValueError(f"a record row needs {_NUMERIC_COLUMNS} numbers, got {block.shape[1]}")
+        rows = block.tolist()
         emergency = np.asarray(c.emergency, dtype=int).tolist()
         flags = np.asarray(active, dtype=int).tolist()
         psi_l = float(c.psi_leader)
         row, field = self._row, _csv_field(phase)
-        text = "".join(
-            row % (t, i, field, *values, emergency[i], flags[i], psi_l)
-            for i, values in enumerate(block.tolist())
-        )
-        self._writer.write(text.encode())
+
+        def render() -> bytes:  # from the copies above (in the writer's thread at 200 vehicles and more)
+            return "".join(
+                row % (t, i, field, *values, emergency[i], flags[i], psi_l) for i, values in enumerate(rows)
+            ).encode()
+
+        self._writer.write_rows(render, len(rows))
 
     def close(self) -> None:
         """Write every row and close the file (idempotent)."""
