@@ -42,7 +42,7 @@ Chunk = bytes | Callable[[], bytes]
 
 ROWS_PER_HAND_OVER = 200  # log rows (vehicles x samples) an owner batches per hand-over (chunks_for_rows)
 MAX_CHUNKS_PER_HAND_OVER = 10  # at most this many chunks (ticks, samples) per hand-over: what a kill loses
-HAND_OVER_PERIOD_S = 1.0  # wall s after which a write hands over whatever is pending
+HAND_OVER_PERIOD_S = 1.0  # wall s without a hand-over after which the thread takes what is pending itself
 
 _STOP = None  # queued by close: the thread's last item
 
@@ -83,9 +83,9 @@ class BackgroundWriter:
             raise ValueError(f"{self.path.name}: write after close")
         with self._lock:
             self._pending.append(data)
-            if len(self._pending) >= self.chunks_per_hand_over:
-                self._queue.put(self._pending)
-                self._pending = []
+            full = len(self._pending) >= self.chunks_per_hand_over
+        if full:
+            self._hand_over()
 
     def write_rows(self, render: Callable[[], bytes], rows: int) -> None:
         """Write a chunk of `rows` log rows that `render` formats, batched to about ROWS_PER_HAND_OVER rows
