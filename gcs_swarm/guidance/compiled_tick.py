@@ -67,6 +67,8 @@ class FleetState(Protocol):
     last_pos: np.ndarray
     last_vel: np.ndarray
 
+    def speed_caps(self) -> np.ndarray: ...
+
 
 class WarmUpController(Protocol):
     """The two calls warm_up makes on a controller (FleetController.reset and .tick)."""
@@ -243,7 +245,7 @@ class CompiledTick:
         force = f_att + f_obs + f_uav
 
         # Steps 3-5
-        speed_cap = ctl.v_xy_cap * ctl.speed_scale
+        speed_cap = ctl.speed_caps()
         if sep.closing_brake_accel > 0.0:
             accel = sep.closing_brake_accel
             gap = d_emg if sep.mode == "constant" else s_s

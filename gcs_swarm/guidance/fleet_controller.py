@@ -24,6 +24,7 @@ from gcs_swarm.guidance.formation import (
     turn_velocity,
 )
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
+from gcs_swarm.guidance.leader_wait import leader_cap_scale
 from gcs_swarm.guidance.obstacles import clearance, push_out_horizontally
 from gcs_swarm.guidance.params import (
     DeadGcsParams,
@@ -160,6 +161,7 @@ class FleetController:
         self.relay: LeaderRelay | None = None
         self.speed_scale = 1.0
         self.spacing_scale = 1.0
+        self.leader_speed_scale = 1.0  # the leader's cap factor of the latest tick (leader_wait), in (0, 1]
         if dead_gcs is not None and None in (
             dead_gcs.failsafe_timeout_s,
             dead_gcs.brake_accel,
@@ -209,6 +211,14 @@ class FleetController:
         pos (3,) ENU m moving at vel (3,) m/s, not from its last report (gcs_swarm.guidance.lost_vehicles)."""
         self.last_pos[row] = _as_array("pos", pos, (3,))
         self.last_vel[row] = _as_array("vel", vel, (3,))
+
+    def speed_caps(self) -> np.ndarray:
+        """(N,) m/s: each vehicle's horizontal speed cap before the closing-speed and failsafe caps: v_xy
+        (leader v_xy_leader x leader_speed_scale) x the degraded-flight speed_scale."""
+        cap = self.v_xy_cap * self.speed_scale
+        if self.leader_speed_scale < 1.0:
+            cap[self.leader] *= self.leader_speed_scale
+        return cap
 
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
         arr = _as_array("follower_targets", targets, (self.n, 3))
@@ -326,6 +336,12 @@ class FleetController:
             goal_dist = float(np.linalg.norm(self.waypoints[self.waypoint_index] - p_lead))
         goal = self.waypoints[self.waypoint_index]
         self.heading.update(self.generator.v[lead, :2], goal_dist, dt)
+        ref = self.reference
+        if ref.leader_wait_m > 0.0:  # [add] the leader waits for followers behind their slots (leader_wait)
+            self.leader_speed_scale = leader_cap_scale(
+                self.last_pos, lead, self.offsets * self.spacing_scale, self.heading.psi,
+                active & ~self.is_leader, ref.leader_wait_m, ref.leader_wait_span_m, ref.leader_wait_floor,
+            )  # fmt: skip
 
         # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
         self.relay.push(self._leader_state())
@@ -384,7 +400,7 @@ class FleetController:
         force = f_att + f_obs + f_uav
 
         # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
-        speed_cap = self.v_xy_cap * self.speed_scale
+        speed_cap = self.speed_caps()
         if separation.closing_brake_accel > 0.0:  # nobody closes on another faster than it could stop
             speed_cap = np.minimum(
                 speed_cap,

@@ -202,6 +202,12 @@ class ReferenceParams:
     brake_accel: float = (
         1.5  # m/s^2, obstacle field felt at the braking point v|v|/(2 a) ahead [add]; 0 = off
     )
+    # [add] the leader waits for its followers (gcs_swarm.guidance.leader_wait): its speed cap falls once the
+    # worst follower is more than leader_wait_m (m) from its slot, linearly over leader_wait_span_m (m) down
+    # to leader_wait_floor x v_xy_leader; 0 = off (the paper's leader ignores its followers)
+    leader_wait_m: float = 0.0
+    leader_wait_span_m: float = 5.0
+    leader_wait_floor: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius", "accel_xy_max"):
@@ -217,6 +223,10 @@ class ReferenceParams:
             raise ValueError("stop_accel must be >= 0 (0 turns the stopping curve off)")
         if not (self.jerk_max >= 0 and self.jerk_max_z > 0):
             raise ValueError("jerk_max must be >= 0 (0: unshaped, spec 8 step 4) and jerk_max_z > 0")
+        if not (self.leader_wait_m >= 0 and self.leader_wait_span_m > 0 and 0 < self.leader_wait_floor <= 1):
+            raise ValueError(
+                "need leader_wait_m >= 0 (0: off), leader_wait_span_m > 0 and 0 < leader_wait_floor <= 1"
+            )
 
 
 @dataclass(frozen=True)

@@ -107,6 +107,8 @@ def _grid_setup(n: int, k: int, seed: int, variant: str) -> Setup:
         topology = "relay"
     elif variant == "pid":
         controller = "pid"
+    elif variant == "wait":  # the leader waits for followers 1 m off their slots (leader_wait)
+        reference = replace(reference, leader_wait_m=1.0, leader_wait_span_m=4.0)
     ctl = FleetController(
         n, 0, offsets, np.array([[400.0, 60.0, 50.0], [800.0, -40.0, 60.0]]),
         field=field, separation=separation, reference=reference, limits=limits,
@@ -144,6 +146,7 @@ SCENARIOS = {
     "grid_3_plain": lambda: _grid_setup(3, 4, 3, "plain"),
     "grid_6_formula": lambda: _grid_setup(6, 5, 4, "formula"),
     "grid_9_pid": lambda: _grid_setup(9, 0, 5, "pid"),
+    "grid_7_wait": lambda: _grid_setup(7, 4, 10, "wait"),
     "grid_12": lambda: _grid_setup(12, 10, 6, "default"),
     "grid_25": lambda: _grid_setup(25, 8, 7, "default"),
     "grid_100": lambda: _grid_setup(100, 20, 8, "default"),
@@ -198,6 +201,7 @@ def replay(name: str, ticks: int = 400, seed: int = 0) -> Iterator[dict[str, np.
             unboosted=acc, thrust=thrust, guard_roll=g_roll, guard_pitch=g_pitch, guard_yaw=g_yaw,
             guard_thrust=g_thrust, guard_changed=changed,
             ref_p=ctl.generator.p, ref_v=ctl.generator.v, ref_a=ctl.generator.a,
+            leader_speed_scale=np.asarray(ctl.leader_speed_scale),
             slew_roll=ctl.slew.roll, slew_pitch=ctl.slew.pitch,
             heading=np.array([ctl.heading.psi, ctl.heading.rate]) if ctl.heading else np.zeros(0),
         )  # fmt: skip

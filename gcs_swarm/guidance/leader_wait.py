@@ -1,0 +1,63 @@
+"""The leader waits for its followers [add] (`guidance.reference.leader_wait_m`; spec 8a.8).
+
+The paper's leader flies to its goal at its own cap whatever its followers do. On an airframe whose top speed
+is below that cap (PX4's SIH quadrotor reaches 6.9 m/s at 35 deg tilt, below the leader's 10 m/s), leader
+and followers all fly flat out, and a follower that falls behind its slot, in a turn or while the formation
+assembles, never catches up. So the leader's horizontal speed cap is scaled down as the worst follower falls
+behind:
+
+    e     = max over active followers of |p_i - (p_L + R(psi_L) delta_i)|_xy     (m)
+    scale = clip(1 - (e - leader_wait_m) / leader_wait_span_m, leader_wait_floor, 1)
+
+and the leader's cap v_xy_leader becomes scale * v_xy_leader (FleetController.speed_caps). The reference
+generator shapes the change (acceleration and jerk limits), so a falling cap never steps the leader's
+attitude command. In the steady
+state of a leader held back by followers flying at their top speed v_top < v_xy_leader the worst follower
+trails by about leader_wait_m + leader_wait_span_m (1 - v_top / v_xy_leader). The floor keeps the formation
+moving when a follower cannot reach its slot at all (a slot inside an obstacle, say). Followers whose slots
+pass obstacles still go round them as the field says; waiting does not shorten that (docs/px4-sitl.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gcs_swarm.guidance.formation import rotate_z
+
+
+def worst_slot_error(pos: np.ndarray, leader: int, world_offsets: np.ndarray, followers: np.ndarray) -> float:
+    """m: the largest horizontal distance of a follower (rows of the (N,) bool mask `followers`) from its
+    slot p_L + world offset, from positions pos (N, 3) ENU m and world-frame offsets (N, 3) m; 0 when the mask
+    selects nobody."""
+    if not followers.any():
+        return 0.0
+    slots = pos[leader] + world_offsets[followers]
+    gap = pos[followers, :2] - slots[:, :2]
+    return float(np.max(np.hypot(gap[:, 0], gap[:, 1])))
+
+
+def leader_wait_scale(error_m: float, wait_m: float, span_m: float, floor: float) -> float:
+    """The factor in [floor, 1] on the leader's speed cap for a worst follower slot error of error_m m; 1 when
+    the wait is off (wait_m == 0)."""
+    if wait_m <= 0.0:
+        return 1.0
+    return float(min(1.0, max(floor, 1.0 - (error_m - wait_m) / span_m)))
+
+
+def leader_cap_scale(
+    pos: np.ndarray,
+    leader: int,
+    offsets: np.ndarray,
+    psi_leader: float,
+    followers: np.ndarray,
+    wait_m: float,
+    span_m: float,
+    floor: float,
+) -> float:
+    """The leader's speed-cap factor this tick from positions pos (N, 3) ENU m, leader-frame slot offsets
+    (N, 3) m, the formation heading psi_leader (rad) and the (N,) bool mask of followers to wait for."""
+    if wait_m <= 0.0:
+        return 1.0
+    known = followers & np.isfinite(pos).all(axis=1)
+    error = worst_slot_error(pos, leader, rotate_z(offsets, psi_leader), known)
+    return leader_wait_scale(error, wait_m, span_m, floor)
