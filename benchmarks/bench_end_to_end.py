@@ -1,10 +1,12 @@
 """End to end: ground station + simulator over real MAVLink/UDP in lockstep, `--repeats` flights per scenario.
 
 Prints, per scenario, the median and the range (min-max) over the flights of the real-time factor (simulated s
-/ wall s of the whole run, power-on to disarm: report.json `sim_duration_s` / flight.json `wall_duration_s`)
-and of the ground station's tick latency (wall time from a complete telemetry tick to its last
-SET_ATTITUDE_TARGET out: median and p99 of each flight), and the worst flight (the lowest real-time factor)
-with its worst tick (flight.json `worst_tick`: the tick with the most work, and what it was spent on).
+/ wall s of the whole run, power-on to disarm: report.json `sim_duration_s` / flight.json `wall_duration_s`;
+and apart, of the formation ticks, where the ground station sets the pace, and of the rest of the flight,
+mostly take-off and landing, where the simulator does) and of the ground station's tick latency (wall
+time from a complete telemetry tick to its last SET_ATTITUDE_TARGET out: median and p99 of each flight), and
+the worst flight (the lowest real-time factor) with its worst tick (flight.json `worst_tick`: the tick with
+the most work, and what it was spent on).
 Scenarios: the bundled paper missions with their goals shortened (the full legs take 10-20 simulated minutes;
 the per-tick work is the same), and a generated 100-vehicle grid (not with --quick); or one given mission
 (`--mission FILE`, flown as it is, e.g. the full missions/paper_static_6.yaml). The flights are interleaved
@@ -92,18 +94,33 @@ def fly(mission: Path, n: int, run_dir: Path, tree: Path = ROOT) -> dict[str, An
     flight_path, report_path = run_dir / "flight.json", run_dir / "report.json"
     flight = json.loads(flight_path.read_text()) if flight_path.exists() else {}
     report = json.loads(report_path.read_text()) if report_path.exists() else {}
-    sim_s, wall_s = report.get("sim_duration_s", math.nan), flight.get("wall_duration_s", math.nan)
+    sim_s, wall_s = number(report.get("sim_duration_s")), number(flight.get("wall_duration_s"))
     latency = flight.get("tick_latency_ms") or {}
+    phases = flight.get("tick_phases_ms") or {}
+    formation_sim_s, formation_wall_s = number(phases.get("vehicle_s")), number(phases.get("wall_s"))
     return {
         "tree": str(tree),
         "status": proc.returncode,
         "sim_s": sim_s,
         "wall_s": wall_s,
-        "real_time_factor": sim_s / wall_s if sim_s is not None and wall_s else math.nan,
+        "real_time_factor": ratio(sim_s, wall_s),
+        # formation flight (the ground station's tick sets the pace) and the rest (mostly the simulator's)
+        "formation_factor": ratio(formation_sim_s, formation_wall_s),
+        "outside_formation_factor": ratio(sim_s - formation_sim_s, wall_s - formation_wall_s),
         "latency_median_ms": latency.get("median", math.nan),
         "latency_p99_ms": latency.get("p99", math.nan),
         "worst_tick": flight.get("worst_tick"),
     }
+
+
+def number(value: float | None) -> float:
+    """A figure of flight.json or report.json, NaN when it is missing (a failed flight)."""
+    return math.nan if value is None else float(value)
+
+
+def ratio(sim_s: float, wall_s: float) -> float:
+    """Simulated s per wall s, NaN when either is NaN or the wall time is not positive."""
+    return sim_s / wall_s if wall_s > 0 else math.nan
 
 
 def spread(values: list[float], fmt: str, unit: str = "") -> str:
@@ -173,25 +190,29 @@ def main() -> int:
                 print(f"flight {k + 1}/{args.repeats}: {label}", file=sys.stderr, flush=True)
                 runs[label].append(fly(mission, n, out / f"{mission.stem}-{k}-{i}", tree))
     print(
-        "| scenario | vehicles | exit | sim s | real-time factor | tick latency median ms | p99 ms "
-        "| worst flight |"
+        "| scenario | vehicles | exit | sim s | real-time factor | in formation | outside formation "
+        "| tick latency median ms | p99 ms | worst flight |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for label, _, n, _ in cases:
         rs = runs[label]
         print(
             f"| {label} | {n} | {','.join(str(r['status']) for r in rs)} "
             f"| {spread([r['sim_s'] for r in rs], '.1f')} "
             f"| {spread([r['real_time_factor'] for r in rs], '.1f', 'x')} "
+            f"| {spread([r['formation_factor'] for r in rs], '.1f', 'x')} "
+            f"| {spread([r['outside_formation_factor'] for r in rs], '.1f', 'x')} "
             f"| {spread([r['latency_median_ms'] for r in rs], '.2f')} "
             f"| {spread([r['latency_p99_ms'] for r in rs], '.2f')} | {worst_run(rs)} |"
         )
     print(
         f"\nMedian (min-max) of {args.repeats} flight(s) each, interleaved. Real-time factor = simulated "
-        "seconds of the whole run (power-on to disarm) per wall second. Tick latency = wall time from a "
-        "complete telemetry tick (every vehicle's GLOBAL_POSITION_INT of the frame in) to the last "
-        "SET_ATTITUDE_TARGET out, each flight's median and p99. Worst flight: the lowest real-time factor, "
-        "with its worst tick (the most work) and the phase that took most of it."
+        "seconds of the whole run (power-on to disarm) per wall second; in formation: of the formation "
+        "ticks alone (flight.json tick_phases_ms vehicle_s / wall_s), where the ground station's tick sets "
+        "the pace; outside formation: of the rest (take-off, landing), where the simulator does. Tick "
+        "latency = wall time from a complete telemetry tick (every vehicle's GLOBAL_POSITION_INT of the "
+        "frame in) to the last SET_ATTITUDE_TARGET out, each flight's median and p99. Worst flight: the "
+        "lowest real-time factor, with its worst tick (the most work) and the phase that took most of it."
     )
     if args.json:
         summary = {
