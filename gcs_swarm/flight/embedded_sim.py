@@ -15,6 +15,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 
 from gcs_swarm.mission import Mission
@@ -71,8 +72,10 @@ class EmbeddedSimulator:
         self.output: deque[str] = deque(maxlen=200)
         self._reader: threading.Thread | None = None
 
-    def start(self, timeout_s: float = 60.0) -> None:
-        """Launch and wait for the simulator's READY line; SimulatorError if it dies or times out."""
+    def start(self, timeout_s: float = 60.0, while_starting: Callable[[], None] | None = None) -> None:
+        """Launch and wait for the simulator's READY line; SimulatorError if it dies or times out.
+        `while_starting` runs after the launch, before the wait (work of this process that can overlap the
+        simulator's start); if it raises, the simulator is stopped and the error passes on."""
         self.proc = subprocess.Popen(
             self.args,
             stdin=subprocess.PIPE,  # never written; closed by the kernel whenever this process ends
@@ -93,6 +96,12 @@ class EmbeddedSimulator:
 
         self._reader = threading.Thread(target=read, name="sitl-sim-output", daemon=True)
         self._reader.start()
+        if while_starting is not None:
+            try:
+                while_starting()
+            except BaseException:
+                self.stop()
+                raise
         deadline = time.monotonic() + timeout_s
         while not ready.wait(0.1):
             if self.proc.poll() is not None:

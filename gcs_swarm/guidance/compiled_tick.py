@@ -367,6 +367,6 @@ def warm_up(make_controller: Callable[..., WarmUpController]) -> None:
         )
     table = np.array(
         [0.0, 1.0]
-    )  # the failsafe speed scheduling's kernel (its real table takes ~1 s to build)
+    )  # the failsafe speed scheduling's kernel (its real table takes 0.3 s to build, 1.1 s without numba)
     fk.failsafe_speed_caps(pos, np.ones((3, 3)), pos[:1] + 3.0, np.ones(1), 1.0, table, table)
     fk.neighbour_pairs(np.zeros((fk.DENSE_PAIRS_MAX, 3)), np.zeros((2, 3)), 1.0, True)  # the hash grid's path

@@ -188,3 +188,30 @@ def shape_reference_acceleration(
         )  # fmt: skip
         out[i, 2] = _shape_vel_accel(v_cmd[i, 2], a_ff[i, 2], vel[i, 2], accel[i, 2], accel_z, jerk_z[i], dt)
     return out
+
+
+@njit("float64[::1](float64[::1], float64, float64, float64, int64)", cache=True, error_model="numpy")
+def brake_distances(speeds: np.ndarray, accel: float, jerk: float, dt: float, steps: int) -> np.ndarray:
+    """(S,) m: the distance each start speed of `speeds` (S,) m/s covers until the BRAKE shaping (accel
+    m/s^2, jerk m/s^3) brings it to rest, integrated at dt s for at most `steps` steps. The compiled twin of
+    the numpy loop in failsafe_speed._brake_table, which calls shaping.shape_vel_accel with scalar limits
+    (so every clip here is numpy's constant-bound loop) and stops a speed once it reaches zero."""
+    out = np.empty(speeds.shape[0])
+    kpa = jerk / accel
+    jerk_step = jerk * dt
+    for i in range(speeds.shape[0]):
+        v = speeds[i]
+        a = 0.0
+        x = 0.0
+        for _ in range(steps):
+            if not v > 0.0:  # at rest: the numpy loop's a = 0, v = 0 from here on add nothing to x
+                break
+            target = _clip_to_scalars(_sqrt_controller(0.0 - v, kpa, jerk, dt), -accel, accel)
+            target = _clip_to_scalars(target + 0.0, -accel, accel)
+            a = a + _clip_to_scalars(target - a, -jerk_step, jerk_step)
+            v = _maximum(v + a * dt, 0.0)
+            if x + v * dt == x:  # a <= target <= 0 throughout: v never grows, so x will not change again
+                break
+            x += v * dt
+        out[i] = x
+    return out

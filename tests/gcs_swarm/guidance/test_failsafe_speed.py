@@ -89,3 +89,22 @@ def test_closing_speed_cap_slows_the_vehicle_behind_only() -> None:
     # slow enough, or unknown: no cap
     assert np.isinf(closing_speed_caps(pos, vel * 0.3, np.ones(3, dtype=bool), 3.0, 2.0, 20.0)).all()
     assert np.isinf(closing_speed_caps(pos, vel, np.array([True, False, True]), 3.0, 2.0, 20.0)).all()
+
+
+@pytest.mark.parametrize(("accel", "jerk"), [(A, J), (2.5, 5.0), (1.0, 20.0)])
+def test_the_compiled_stopping_table_is_the_numpy_tables_bits(accel, jerk, monkeypatch):
+    """failsafe_speed._brake_table compiled (shaping_kernels.brake_distances, with its early stop) and in
+    numpy give the same bytes."""
+    from gcs_swarm.guidance import failsafe_speed
+
+    if failsafe_speed.compiled_brake_distances is None:
+        pytest.skip("numba not installed: no compiled table")
+    failsafe_speed._brake_table.cache_clear()
+    speeds, compiled = failsafe_speed._brake_table(accel, jerk)
+    monkeypatch.setattr(failsafe_speed, "compiled_brake_distances", None)
+    failsafe_speed._brake_table.cache_clear()
+    numpy_speeds, reference = failsafe_speed._brake_table(accel, jerk)
+    failsafe_speed._brake_table.cache_clear()  # no numpy table left for the other tests
+    assert speeds.tobytes() == numpy_speeds.tobytes()
+    assert compiled.tobytes() == reference.tobytes()
+    assert reference[-1] > reference[300] > 0.0  # a real table: longer stops from higher speeds
