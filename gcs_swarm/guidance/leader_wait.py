@@ -11,11 +11,11 @@ behind:
 
 and the leader's cap v_xy_leader becomes scale * v_xy_leader (FleetController.speed_caps). The reference
 generator shapes the change (acceleration and jerk limits), so a falling cap never steps the leader's
-attitude command. In the steady
-state of a leader held back by followers flying at their top speed v_top < v_xy_leader the worst follower
-trails by about leader_wait_m + leader_wait_span_m (1 - v_top / v_xy_leader). The floor keeps the formation
-moving when a follower cannot reach its slot at all (a slot inside an obstacle, say). Followers whose slots
-pass obstacles still go round them as the field says; waiting does not shorten that (docs/px4-sitl.md).
+attitude command. In the steady state of a leader held back by followers flying at their top speed
+v_top < v_xy_leader the worst follower trails by about leader_wait_m + leader_wait_span_m (1 - v_top /
+v_xy_leader). The floor keeps the formation moving when a follower cannot reach its slot at all (a slot
+inside an obstacle, say). Followers whose slots pass obstacles still go round them as the field says;
+waiting does not shorten that (docs/px4-sitl.md).
 """
 
 from __future__ import annotations

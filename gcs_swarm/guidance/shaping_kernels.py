@@ -1,14 +1,16 @@
 """Compiled twin of the reference generator's jerk-limited step 4: the numpy `shape_vel_accel_xy` (columns
 x, y) and `shape_vel_accel` (column z) of gcs_swarm.guidance.shaping, as ReferenceGenerator._acceleration
-calls them, transcribed to one scalar loop over vehicles.
+calls them, transcribed to one scalar loop over vehicles; and of the BRAKE stopping-distance table that
+gcs_swarm.guidance.failsafe_speed integrates with the same shaping (`brake_distances`).
 
 A small fleet pays numpy's per-call overhead about 150 times per tick in this stage; the loop pays one call.
 Every operation is the numpy code's IEEE operation in the same order, and the helpers below reproduce
 numpy's rules for NaN and signed zeros (np.maximum, np.clip, np.sign), so the results are the same bits
 (but for the sign of a NaN where two NaNs meet: which one x86 returns depends on the operand order the
-compiler picks): tests/gcs_swarm/guidance/test_shaping_kernels.py pins them equal, so change both together.
+compiler picks): tests/gcs_swarm/guidance/test_shaping_kernels.py and test_failsafe_speed.py pin them equal,
+so change both together.
 No fastmath (it would reorder and contract operations); error_model "numpy" makes x / 0 inf or NaN, as in
-numpy. Compiled at import for the signature below (cache=True: later imports load it from numba's cache),
+numpy. Compiled at import for the signatures below (cache=True: later imports load it from numba's cache),
 so no tick waits for the JIT. Importing this module requires numba (extra "fast"); reference.py falls back
 to the numpy functions without it.
 """
