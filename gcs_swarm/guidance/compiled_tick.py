@@ -61,6 +61,7 @@ class FleetState(Protocol):
     g: float
     d_g: float
     d_max: float
+    closing_accel: float
     v_xy_cap: np.ndarray
     speed_scale: float
     spacing_scale: float
@@ -246,8 +247,8 @@ class CompiledTick:
 
         # Steps 3-5
         speed_cap = ctl.speed_caps()
-        if sep.closing_brake_accel > 0.0:
-            accel = sep.closing_brake_accel
+        if ctl.closing_accel > 0.0:
+            accel = ctl.closing_accel
             gap = d_emg if sep.mode == "constant" else s_s
             reach = gap + CLOSING_MARGIN_M + (2.0 * float(np.max(ctl.v_xy_cap))) ** 2 / (2.0 * accel)
             caps = fk.closing_speed_caps(

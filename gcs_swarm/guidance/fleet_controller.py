@@ -36,7 +36,12 @@ from gcs_swarm.guidance.params import (
     SMCParams,
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
-from gcs_swarm.guidance.separation import closing_speed_caps, repulsion_range, uav_repulsion
+from gcs_swarm.guidance.separation import (
+    closing_deceleration,
+    closing_speed_caps,
+    repulsion_range,
+    uav_repulsion,
+)
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
 
@@ -159,6 +164,7 @@ class FleetController:
         self.follower_targets = None if follower_targets is None else self._checked_targets(follower_targets)
         self.d_g = default_d_g(self.field, self.limits.v_xy, self.reference.k_v)
         self.d_max = repulsion_range(self.separation, self.limits.v_xy, self.limits.a_xy)
+        self.closing_accel = closing_deceleration(self.separation, self.limits.tilt_max, g)  # m/s^2, 0: off
         if topology == "relay":
             graph = star_adjacency(n, leader) if adjacency is None else adjacency
             self.delays = check_adjacency(graph, n, leader)
@@ -409,13 +415,13 @@ class FleetController:
 
         # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
         speed_cap = self.speed_caps()
-        if separation.closing_brake_accel > 0.0:  # nobody closes on another faster than it could stop
+        if self.closing_accel > 0.0:  # nobody closes on another faster than it could stop
             speed_cap = np.minimum(
                 speed_cap,
                 closing_speed_caps(
                     self.last_pos, self.last_vel, known,
                     separation.d_emg if separation.mode == "constant" else separation.s_s,
-                    separation.closing_brake_accel,
+                    self.closing_accel,
                     float(np.max(self.v_xy_cap)),
                 ),
             )  # fmt: skip

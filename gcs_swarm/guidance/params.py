@@ -59,10 +59,17 @@ class SeparationParams:
     # stop, at this deceleration, 1 m outside d_emg (separation.closing_speed_caps): the repulsion alone let a
     # follower catching up at 20 m/s run into one slowing ahead of it (1.29 m in the nine-UAV V). 0 = off
     closing_brake_accel: float = 2.0
+    # [add] ... but at most this share of g tan(limits.tilt_max_deg), the horizontal acceleration the tilt
+    # limit allows (separation.closing_deceleration): with 2 m/s^2 a V assembling on a 15 deg tilt limit
+    # passed 1.3 m from its leader, on 11 deg 0.9 m (g tan 11 deg is 1.9 m/s^2). 0.3 leaves 35 deg's 2 m/s^2
+    # as it is. 0 = no such bound
+    closing_brake_tilt_share: float = 0.3
 
     def __post_init__(self) -> None:
         if not self.closing_brake_accel >= 0:
             raise ValueError("closing_brake_accel must be >= 0 (0 turns the closing-speed cap off)")
+        if not 0 <= self.closing_brake_tilt_share <= 1:
+            raise ValueError("closing_brake_tilt_share must lie in [0, 1] (0: no bound by the tilt limit)")
         if self.mode not in ("constant", "formula"):
             raise ValueError(f"separation mode must be 'constant' or 'formula', not {self.mode!r}")
         for name in ("d_max", "d_emg", "a_e"):

@@ -7,6 +7,8 @@ both belongs to vehicle i. D = 2 or 3; the emergency force needs D = 3 (z up).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from gcs_swarm.guidance.obstacles import squared_distances
@@ -96,6 +98,16 @@ def neighbour_pairs(
 
 CLOSING_MARGIN_M = 1.0  # m kept beyond d_emg by the closing-speed cap
 CLOSING_RANGE_MAX_M = 200.0  # m, pairs farther apart than this are not checked
+
+
+def closing_deceleration(sep: SeparationParams, tilt_max: float, g: float) -> float:
+    """m/s^2: the deceleration the closing-speed cap assumes, sep.closing_brake_accel bounded by
+    sep.closing_brake_tilt_share x g tan(tilt_max) (tilt_max rad, g m/s^2), the horizontal acceleration the
+    tilt limit allows; 0 when the cap is off."""
+    accel = sep.closing_brake_accel
+    if sep.closing_brake_tilt_share > 0.0:
+        accel = min(accel, sep.closing_brake_tilt_share * g * math.tan(tilt_max))
+    return accel
 
 
 def closing_speed_caps(

@@ -4,6 +4,7 @@ closed form and the real vehicle) for a dead ground station, and the closing-spe
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,7 +12,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gcs_swarm.guidance.failsafe_speed import brake_distance, distance_along_course, failsafe_speed_caps
-from gcs_swarm.guidance.separation import closing_speed_caps
+from gcs_swarm.guidance.fleet_controller import FleetController
+from gcs_swarm.guidance.params import Limits, SeparationParams
+from gcs_swarm.guidance.separation import closing_deceleration, closing_speed_caps
 
 A, J = 7.5, 5.0  # BRAKE_MODE_DECEL_RATE m/s^2, PSC_JERK_XY m/s^3
 
@@ -108,3 +111,23 @@ def test_the_compiled_stopping_table_is_the_numpy_tables_bits(accel, jerk, monke
     assert speeds.tobytes() == numpy_speeds.tobytes()
     assert compiled.tobytes() == reference.tobytes()
     assert reference[-1] > reference[300] > 0.0  # a real table: longer stops from higher speeds
+
+
+def test_the_closing_deceleration_is_what_the_tilt_limit_allows() -> None:
+    """closing_brake_accel, bounded by closing_brake_tilt_share x g tan(tilt_max), by hand."""
+    sep = SeparationParams()  # 2 m/s^2, share 0.3
+    assert closing_deceleration(sep, math.radians(35.0), 9.8) == 2.0  # 0.3 x 9.8 x 0.7002 = 2.06: not bound
+    assert closing_deceleration(sep, math.radians(11.0), 9.8) == pytest.approx(0.3 * 9.8 * 0.19438, rel=1e-4)
+    assert closing_deceleration(replace(sep, closing_brake_tilt_share=0.0), math.radians(11.0), 9.8) == 2.0
+    assert closing_deceleration(replace(sep, closing_brake_accel=0.0), math.radians(11.0), 9.8) == 0.0  # off
+    with pytest.raises(ValueError, match="closing_brake_tilt_share"):
+        SeparationParams(closing_brake_tilt_share=1.5)
+
+
+def test_a_low_tilt_limit_lowers_the_controllers_closing_cap() -> None:
+    offsets = np.array([[0.0, 0.0, 0.0], [-10.0, 0.0, 0.0]])
+    goal = np.array([[100.0, 0.0, 10.0]])
+    steep = FleetController(2, 0, offsets, goal)
+    flat = FleetController(2, 0, offsets, goal, limits=Limits(tilt_max_deg=11.0))
+    assert steep.closing_accel == 2.0
+    assert flat.closing_accel == pytest.approx(0.5715, abs=1e-4)

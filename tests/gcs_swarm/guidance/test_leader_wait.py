@@ -109,7 +109,7 @@ def slot_errors(reference: ReferenceParams, seconds: float = 60.0) -> tuple[np.n
 
 
 def test_a_waiting_leader_keeps_followers_that_cannot_outrun_it_near_their_slots():
-    """(The compiled tick when numba is installed; tick_replay's grid_7_wait shows the numpy steps give the
+    """(The compiled tick when numba is installed; tick_replay's grid_7_slow shows the numpy steps give the
     same bytes.)"""
     plain, plain_arrival = slot_errors(ReferenceParams(), 80.0)
     waiting, waiting_arrival = slot_errors(ReferenceParams(leader_wait_m=3.0, leader_wait_span_m=10.0), 80.0)

@@ -107,8 +107,10 @@ def _grid_setup(n: int, k: int, seed: int, variant: str) -> Setup:
         topology = "relay"
     elif variant == "pid":
         controller = "pid"
-    elif variant == "wait":  # the leader waits for followers 1 m off their slots (leader_wait)
+    elif variant == "slow":  # the leader waits for followers 1 m off their slots (leader_wait), and a 12 deg
+        # tilt limit bounds the closing-speed cap's deceleration (separation.closing_deceleration)
         reference = replace(reference, leader_wait_m=1.0, leader_wait_span_m=4.0)
+        limits = replace(limits, tilt_max_deg=12.0)
     ctl = FleetController(
         n, 0, offsets, np.array([[400.0, 60.0, 50.0], [800.0, -40.0, 60.0]]),
         field=field, separation=separation, reference=reference, limits=limits,
@@ -118,7 +120,8 @@ def _grid_setup(n: int, k: int, seed: int, variant: str) -> Setup:
         dead_gcs=DeadGcsParams(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0),
     )  # fmt: skip
     pos = offsets + np.array([0.0, 0.0, 50.0]) + rng.normal(0.0, 0.8, (n, 3))
-    vel = np.tile([6.0, 0.5, 0.0], (n, 1)) + rng.normal(0.0, 0.5, (n, 3))
+    spread = 2.5 if variant == "slow" else 0.5  # m/s: "slow" has vehicles closing on each other at a few m/s
+    vel = np.tile([6.0, 0.5, 0.0], (n, 1)) + rng.normal(0.0, spread, (n, 3))
     att = np.zeros((n, 3))
     att[:, :2] = rng.normal(0.0, 0.05, (n, 2))
     lo, hi = pos.min(axis=0) - 15.0, pos.max(axis=0) + 15.0
@@ -146,7 +149,7 @@ SCENARIOS = {
     "grid_3_plain": lambda: _grid_setup(3, 4, 3, "plain"),
     "grid_6_formula": lambda: _grid_setup(6, 5, 4, "formula"),
     "grid_9_pid": lambda: _grid_setup(9, 0, 5, "pid"),
-    "grid_7_wait": lambda: _grid_setup(7, 4, 10, "wait"),
+    "grid_7_slow": lambda: _grid_setup(7, 4, 10, "slow"),
     "grid_12": lambda: _grid_setup(12, 10, 6, "default"),
     "grid_25": lambda: _grid_setup(25, 8, 7, "default"),
     "grid_100": lambda: _grid_setup(100, 20, 8, "default"),
