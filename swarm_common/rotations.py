@@ -17,6 +17,11 @@ def wrap_pi(angle: ArrayLike) -> FloatArray:
     return np.asarray((np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi, dtype=float)
 
 
+def wrap_pi_float(angle: float) -> float:
+    """`wrap_pi` of one angle in plain floats (the same bits: Python's float % is numpy's remainder)."""
+    return (float(angle) + math.pi) % (2.0 * math.pi) - math.pi
+
+
 def euler_to_quaternion(euler: ArrayLike) -> FloatArray:
     """ZYX Euler `(roll, pitch, yaw)` (..., 3) rad -> quaternion `(w, x, y, z)` (..., 4); R = Rz Ry Rx."""
     a = np.asarray(euler, dtype=float) * 0.5

@@ -27,6 +27,9 @@ from gcs_swarm.link.autopilots import ModeChoice, formation_mode
 from gcs_swarm.link.fleet import Fleet
 
 UNKNOWN_MODE = -1  # custom_mode before a HEARTBEAT, or a vehicle the ground station never commanded
+_NO_CENTRES = np.zeros((0, 3))  # `place` without a vehicle taken over (read-only, shared)
+_NO_RADII = np.zeros(0)
+_NO_CENTRES.flags.writeable = _NO_RADII.flags.writeable = False
 
 
 def newly_taken(
@@ -145,6 +148,8 @@ class TakeoverWatch:
         """Taken vehicles still heard, as moving obstacles at their measured state: (K, 3) ENU m centres and
         (K,) m radii (`radius` each); each also repels the others from where it is now (told to
         `controller`, as a lost vehicle's predicted position is)."""
+        if not self.taken.any():
+            return _NO_CENTRES, _NO_RADII
         fleet = self.fleet
         pos, vel = fleet.pos, fleet.vel
         rows = np.flatnonzero(self.taken & fleet.alive & np.isfinite(pos).all(axis=1))

@@ -3,7 +3,7 @@ handful of kernel calls and the tick's transcendental functions in numpy, instea
 calls. The same bits as the numpy steps in fleet_controller.py (tests/gcs_swarm/guidance/test_tick_replay.py
 flies both through whole recorded flights and compares every output and every internal state byte for byte).
 
-Every numpy function here (cos, sin, arctan2, arcsin, the powers, clearance's matrix product) is called on the
+Every numpy function here (cos, sin, arctan2, arcsin, the powers) is called on the
 very array the numpy steps call it on, same values and same memory layout, so its SIMD results are the same.
 A position controller other than the SMC (the PID, or any PositionController) is called as it is.
 
@@ -25,7 +25,6 @@ from gcs_swarm.guidance import tick_kernels as tk
 from gcs_swarm.guidance.attitude_slew import TiltSlew
 from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.failsafe_speed import _brake_table
-from gcs_swarm.guidance.obstacles import clearance
 from gcs_swarm.guidance.params import (
     DeadGcsParams,
     FieldParams,
@@ -94,7 +93,8 @@ NO_VALUES = np.zeros(0)
 
 @dataclass(frozen=True)
 class TickOutputs:
-    """What one compiled tick computed, the fields of fleet_controller.Command but the leader's."""
+    """What one compiled tick computed: the fields of fleet_controller.Command but the leader's and those
+    Command works out itself (clearance, collision)."""
 
     roll_d: np.ndarray
     pitch_d: np.ndarray
@@ -107,8 +107,6 @@ class TickOutputs:
     slots: np.ndarray
     u: np.ndarray
     emergency: np.ndarray
-    collision: np.ndarray
-    clearance: np.ndarray
 
 
 def _reference_config(gen: ReferenceGenerator) -> np.ndarray:
@@ -308,13 +306,9 @@ class CompiledTick:
         off = ~active
         yaw = np.array(psi_l, dtype=float)
         yaw[off] = np.nan
-        gap_obs = clearance(pos, obs_c, obs_r)
-        gap_out = np.array(gap_obs, dtype=float)
-        gap_out[off] = np.nan
         return TickOutputs(
             roll_d=roll_cmd, pitch_d=pitch_cmd, yaw_d=yaw, thrust_acc=thrust, ref_pos=x_d, ref_vel=xd_dot,
             ref_acc=xd_ddot, field_force=force, slots=targets, u=u_out, emergency=emergency & active,
-            collision=(gap_obs <= 0.0) & active, clearance=gap_out,
         )  # fmt: skip
 
     def _smc_step(

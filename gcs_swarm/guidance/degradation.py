@@ -67,7 +67,8 @@ class StaleTelemetryMonitor:
         if late.any():
             self.degraded_until = t + p.recover_s
         degraded = bool(late.any()) or t < self.degraded_until
-        horizon = np.where(held, 0.0, np.clip(np.nan_to_num(age, posinf=0.0), 0.0, p.hold_s))
+        # NaN and inf ages predict nothing (nan_to_num's result, without its cost)
+        horizon = np.where(held, 0.0, np.clip(np.where(np.isfinite(age), age, 0.0), 0.0, p.hold_s))
         predicted = np.asarray(pos, dtype=float) + np.asarray(vel, dtype=float) * horizon[:, None]
         return TelemetryAssessment(
             age=age,

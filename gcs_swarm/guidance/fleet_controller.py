@@ -9,7 +9,8 @@ SET_ATTITUDE_TARGET messages (the link converts frames and thrust).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -95,11 +96,28 @@ class Command:
     slots: np.ndarray
     u: np.ndarray
     emergency: np.ndarray
-    collision: np.ndarray
-    clearance: np.ndarray
     psi_leader: float
     waypoint_index: int
     leader_goal_distance: float
+    measured_pos: np.ndarray = field(repr=False)  # (N, 3) ENU m, the tick's input
+    obstacles: tuple[np.ndarray, np.ndarray] = field(repr=False)  # (K, 3) ENU m centres, (K,) m radii
+
+    @cached_property
+    def _surface_distance(self) -> np.ndarray:
+        """(N,) m from each measured position to the nearest obstacle surface (< 0 inside; inf: none)."""
+        return clearance(self.measured_pos, *self.obstacles)
+
+    @property
+    def clearance(self) -> np.ndarray:
+        """(N,) m smallest surface distance of each active vehicle to an obstacle, NaN rows inactive."""
+        gap = np.array(self._surface_distance, dtype=float)
+        gap[~self.active] = np.nan
+        return gap
+
+    @property
+    def collision(self) -> np.ndarray:
+        """(N,) bool: an active vehicle's measured position is at or inside an obstacle."""
+        return (self._surface_distance <= 0.0) & self.active
 
 
 def _as_array(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
@@ -366,8 +384,9 @@ class FleetController:
                 active=active, roll_d=out.roll_d, pitch_d=out.pitch_d, yaw_d=out.yaw_d,
                 thrust_acc=out.thrust_acc, ref_pos=out.ref_pos, ref_vel=out.ref_vel, ref_acc=out.ref_acc,
                 field_force=out.field_force, slots=out.slots, u=out.u, emergency=out.emergency,
-                collision=out.collision, clearance=out.clearance, psi_leader=self.heading.psi,
-                waypoint_index=self.waypoint_index, leader_goal_distance=goal_dist,
+                psi_leader=self.heading.psi, waypoint_index=self.waypoint_index,
+                leader_goal_distance=goal_dist, measured_pos=pos.copy(),
+                obstacles=(obs_c.copy(), obs_r.copy()),
             )  # fmt: skip
         p_l, v_l, psi_l, rate_l, a_l = heard[:, 0:3], heard[:, 3:6], heard[:, 6], heard[:, 7], heard[:, 8:11]
         world_off = rotate_z(self.offsets * self.spacing_scale, psi_l)
@@ -454,7 +473,6 @@ class FleetController:
 
         roll_cmd, pitch_cmd = self.slew(cmd.roll, cmd.pitch, dt, active)
         off = ~active
-        gap = clearance(pos, obs_c, obs_r)
 
         def masked(a: np.ndarray) -> np.ndarray:
             out = np.array(a, dtype=float)
@@ -474,9 +492,9 @@ class FleetController:
             slots=targets,
             u=masked(cmd.u_limited),
             emergency=emergency & active,
-            collision=(gap <= 0.0) & active,
-            clearance=masked(gap),
             psi_leader=self.heading.psi,
             waypoint_index=self.waypoint_index,
             leader_goal_distance=goal_dist,
+            measured_pos=pos.copy(),
+            obstacles=(obs_c.copy(), obs_r.copy()),
         )

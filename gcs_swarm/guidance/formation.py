@@ -12,8 +12,8 @@ import math
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from gcs_swarm.guidance.shaping import sqrt_controller
-from swarm_common.rotations import wrap_pi
+from gcs_swarm.guidance.shaping import sqrt_controller_scalar
+from swarm_common.rotations import wrap_pi, wrap_pi_float
 
 SHAPES = ("line", "v", "column", "grid")
 
@@ -167,28 +167,29 @@ class LeaderHeading:
         self.accel_max = accel_max
         self.filter_s = filter_s
         self.gain = gain
-        self.v_filtered: np.ndarray | None = None
+        self.v_filtered: tuple[float, float] | None = None  # m/s, the low-passed (x, y)
 
     def update(self, v_ref_xy: np.ndarray, distance_to_goal: float, dt: float) -> float:
-        """Advance psi_L by one step of dt s from the leader's reference velocity (2,) and goal distance m."""
-        v = np.asarray(v_ref_xy, dtype=float)[:2]
-        if self.v_filtered is None or self.filter_s <= 0.0:
-            self.v_filtered = v.copy()
-        else:
-            self.v_filtered = self.v_filtered + (v - self.v_filtered) * (dt / (self.filter_s + dt))
-        vx, vy = float(self.v_filtered[0]), float(self.v_filtered[1])
+        """Advance psi_L by one step of dt s from the leader's reference velocity (2,) and goal distance m.
+        Plain float arithmetic, the operations of the array form (a tick calls it once)."""
+        vx, vy, dt = float(v_ref_xy[0]), float(v_ref_xy[1]), float(dt)
+        if self.v_filtered is not None and self.filter_s > 0.0:
+            fx, fy = self.v_filtered
+            k = dt / (self.filter_s + dt)
+            vx, vy = fx + (vx - fx) * k, fy + (vy - fy) * k
+        self.v_filtered = (vx, vy)
         steering = math.hypot(vx, vy) > self.min_speed and distance_to_goal > self.hold_distance
-        error = float(wrap_pi(math.atan2(vy, vx) - self.psi)) if steering else 0.0
+        error = wrap_pi_float(math.atan2(vy, vx) - self.psi) if steering else 0.0
         if self.accel_max <= 0.0:
             rate = error / dt
         else:
-            rate = float(sqrt_controller(np.array([error]), self.gain, self.accel_max, dt)[0])
+            rate = sqrt_controller_scalar(error, float(self.gain), float(self.accel_max), dt)
         rate = min(max(rate, -self.rate_max), self.rate_max)
         if self.accel_max > 0.0:
             step = self.accel_max * dt
             rate = min(max(rate, self.rate - step), self.rate + step)
         if not steering and self.accel_max <= 0.0:
             rate = 0.0
-        self.psi = float(wrap_pi(self.psi + rate * dt))
+        self.psi = wrap_pi_float(self.psi + rate * dt)
         self.rate = rate
         return self.psi

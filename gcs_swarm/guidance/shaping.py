@@ -47,6 +47,36 @@ def sqrt_controller(
     return rate
 
 
+def sqrt_controller_scalar(error: float, p: float, second_order_limit: float, dt: float) -> float:
+    """`sqrt_controller` of one error, in plain float operations: the same bits, numpy's rules for NaN and
+    signed zeros included (np.maximum, np.sign, np.clip); tests/gcs_swarm/guidance/test_smoothing.py. For
+    the per-tick scalars (the leader's heading), where numpy's per-call cost is most of the work, and
+    compiled as it is into shaping_kernels (so it calls nothing but math)."""
+    size = abs(error)
+    linear = error * p
+    limit = second_order_limit
+    two_limit = 2.0 * (limit if (limit > 0.0 or limit != limit) else 0.0)  # np.maximum(limit, 0)
+    p_sq = p * p
+    linear_dist = limit / p_sq if p_sq > 0.0 else math.inf
+    direction = 1.0 if error > 0.0 else (-1.0 if error < 0.0 else (0.0 if error == 0.0 else error))  # np.sign
+    if limit <= 0.0:
+        rate = linear
+    elif p == 0.0:
+        rate = direction * math.sqrt(two_limit * size)
+    elif size > linear_dist:
+        beyond = size - 0.5 * linear_dist
+        rate = direction * math.sqrt(two_limit * (beyond if (beyond > 0.0 or beyond != beyond) else 0.0))
+    else:
+        rate = linear
+    if (
+        dt > 0.0 and rate == rate
+    ):  # np.clip(rate, -bound, bound): NaN wins, then max with -bound, min with bound
+        bound = size / dt
+        rate = rate if rate > -bound else -bound
+        rate = rate if rate < bound else bound
+    return rate
+
+
 def sqrt_controller_xy(
     error: np.ndarray, p: np.ndarray | float, second_order_limit: np.ndarray | float, dt: float
 ) -> np.ndarray:

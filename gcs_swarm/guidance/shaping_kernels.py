@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from gcs_swarm.guidance.shaping import CORNER_ACCELERATION_RATIO
+from gcs_swarm.guidance.shaping import CORNER_ACCELERATION_RATIO, sqrt_controller_scalar
 
 _scalar = njit(cache=True, error_model="numpy", inline="always")  # helpers, inlined into the kernel
 
@@ -74,27 +74,7 @@ def _sign(x: float) -> float:
     return x
 
 
-@_scalar
-def _sqrt_controller(error: float, p: float, limit: float, dt: float) -> float:
-    """shaping.sqrt_controller for one error (p, limit scalars)."""
-    size = abs(error)
-    linear = error * p
-    two_limit = 2.0 * _maximum(limit, 0.0)
-    p_sq = p * p
-    linear_dist = limit / p_sq if p_sq > 0.0 else math.inf
-    direction = _sign(error)
-    if limit <= 0.0:
-        rate = linear
-    elif p == 0.0:
-        rate = direction * math.sqrt(two_limit * size)
-    elif size > linear_dist:
-        rate = direction * math.sqrt(two_limit * _maximum(size - 0.5 * linear_dist, 0.0))
-    else:
-        rate = linear
-    if dt > 0.0:
-        bound = size / dt
-        rate = _clip(rate, -bound, bound)
-    return rate
+_sqrt_controller = _scalar(sqrt_controller_scalar)  # shaping.sqrt_controller for one error
 
 
 @_scalar

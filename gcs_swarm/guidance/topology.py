@@ -88,7 +88,7 @@ class LeaderRelay:
 
     def push(self, state: np.ndarray) -> None:
         """Enter the newest leader state (S,); the oldest falls out."""
-        self._history = np.roll(self._history, 1, axis=0)
+        self._history[1:] = self._history[:-1]  # numpy copies overlapping slices as if through a buffer
         self._history[0] = state
 
     def read(self) -> np.ndarray:

@@ -55,24 +55,33 @@ def guard_attitude_commands(
     r, p, y, t = (np.array(a, dtype=float) for a in (roll, pitch, yaw, thrust))
     hover = np.asarray(hover, dtype=float)
     bad = ~(np.isfinite(r) & np.isfinite(p) & np.isfinite(y) & np.isfinite(t))
-    r[bad], p[bad], t[bad] = 0.0, 0.0, hover[bad]
-    y[bad] = np.nan_to_num(np.asarray(measured_yaw, dtype=float)[bad])
+    if bad.any():
+        r[bad], p[bad], t[bad] = 0.0, 0.0, hover[bad]
+        y[bad] = np.nan_to_num(np.asarray(measured_yaw, dtype=float)[bad])
+    # Each rule below is skipped when no row meets its condition (most ticks): the same result, fewer calls.
     too_steep = np.arccos(np.clip(np.cos(r) * np.cos(p), -1.0, 1.0)) > limits.tilt_max + TILT_SLACK
-    scale = np.where(too_steep, limits.tilt_max / np.maximum(np.hypot(r, p), 1e-12), 1.0)
-    r, p = r * scale, p * scale
+    if too_steep.any():
+        scale = np.where(too_steep, limits.tilt_max / np.maximum(np.hypot(r, p), 1e-12), 1.0)
+        r, p = r * scale, p * scale
     x_e, y_n, z_u = (np.asarray(pos, dtype=float)[:, k] for k in range(3))
     with np.errstate(invalid="ignore"):
-        # horizontal thrust direction of ZYX (yaw, pitch, roll): Rz(yaw) (sin p cos r, -sin r)
-        h1, h2 = np.sin(p) * np.cos(r), -np.sin(r)
-        a_e, a_n = np.cos(y) * h1 - np.sin(y) * h2, np.sin(y) * h1 + np.cos(y) * h2
-        outward = (np.hypot(x_e, y_n) >= limits.geofence_radius) & (a_e * x_e + a_n * y_n > 0)
-        if vel is not None:
-            outward &= ~_braking(a_e, a_n, x_e, y_n, np.asarray(vel, dtype=float))
-        r[outward], p[outward] = 0.0, 0.0
-        t = np.where(z_u >= limits.geofence_max_alt, np.minimum(t, hover), t)
-        t = np.where(z_u <= limits.min_altitude, np.maximum(t, hover), t)
+        outside = np.hypot(x_e, y_n) >= limits.geofence_radius  # NaN rows: False
+        outward = outside
+        if outside.any():
+            # horizontal thrust direction of ZYX (yaw, pitch, roll): Rz(yaw) (sin p cos r, -sin r)
+            h1, h2 = np.sin(p) * np.cos(r), -np.sin(r)
+            a_e, a_n = np.cos(y) * h1 - np.sin(y) * h2, np.sin(y) * h1 + np.cos(y) * h2
+            outward = outside & (a_e * x_e + a_n * y_n > 0)
+            if vel is not None:
+                outward &= ~_braking(a_e, a_n, x_e, y_n, np.asarray(vel, dtype=float))
+            r[outward], p[outward] = 0.0, 0.0
+        high, low = z_u >= limits.geofence_max_alt, z_u <= limits.min_altitude
+        if high.any():
+            t = np.where(high, np.minimum(t, hover), t)
+        if low.any():
+            t = np.where(low, np.maximum(t, hover), t)
     t = np.clip(t, 0.0, np.minimum(1.0, hover * limits.thrust_max_g))
-    changed = bad | (scale < 1.0) | outward | (t != np.asarray(thrust, dtype=float))
+    changed = bad | too_steep | outward | (t != np.asarray(thrust, dtype=float))
     return r, p, y, t, changed
 
 

@@ -408,10 +408,12 @@ class Fleet:
         until the caller decides, e.g. BRAKE).
         """
         n = len(self.links)
-        euler = np.stack(
-            np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (roll, pitch, yaw))), axis=-1
-        )
-        thr = np.broadcast_to(np.asarray(thrust, dtype=float), (n,))
+        angles = [np.asarray(a, dtype=float) for a in (roll, pitch, yaw)]
+        if any(a.shape != (n,) for a in angles):  # scalars and other shapes (the tick's are (N,) already)
+            angles = list(np.broadcast_arrays(*angles))
+        euler = np.stack(angles, axis=-1)
+        thr = np.asarray(thrust, dtype=float)
+        thr = thr if thr.shape == (n,) else np.broadcast_to(thr, (n,))
         if euler.shape != (n, 3):
             raise ValueError(f"attitude targets need shape ({n},) per angle, got {euler.shape[:-1]}")
         selected = self._mask(mask)

@@ -19,7 +19,13 @@ from gcs_swarm.guidance.obstacles import push_out_horizontally
 from gcs_swarm.guidance.params import FieldParams, Limits, ReferenceParams, SeparationParams
 from gcs_swarm.guidance.reference import ReferenceGenerator
 from gcs_swarm.guidance.separation import uav_repulsion
-from gcs_swarm.guidance.shaping import shape_vel_accel, shape_vel_accel_xy, sqrt_controller
+from gcs_swarm.guidance.shaping import (
+    shape_vel_accel,
+    shape_vel_accel_xy,
+    sqrt_controller,
+    sqrt_controller_scalar,
+)
+from swarm_common.rotations import wrap_pi, wrap_pi_float
 
 DT = 0.02
 
@@ -296,6 +302,77 @@ def test_leader_heading_holds_when_slow_and_brakes_its_turn():
     assert turning > 0.0
     h.update(np.array([0.0, 1.0]), 100.0, DT)  # slow: no new course, the turn winds down smoothly
     assert 0.0 < h.rate < turning
+
+
+_ANY_FLOAT = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False, width=64),
+    st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 1e300, math.pi, -math.pi, 2.0 * math.pi]),
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    _ANY_FLOAT,
+    st.one_of(st.just(0.0), st.floats(0.0, 1e6)),
+    st.one_of(st.just(0.0), st.floats(-10.0, 1e6)),
+    st.one_of(st.just(0.0), st.floats(0.0, 10.0)),
+)
+def test_the_scalar_sqrt_controller_gives_the_array_bits(error, p, limit, dt):
+    """sqrt_controller_scalar (plain floats, the leader heading's) is sqrt_controller of a 1-row array, bit
+    for bit, on every branch: linear, braking curve, no gain, no second-order limit, the 1/dt bound."""
+    with np.errstate(over="ignore", invalid="ignore"):  # huge errors: numpy warns, plain floats do not
+        expected = sqrt_controller(np.array([error]), p, limit, dt)[0]
+    assert np.float64(sqrt_controller_scalar(error, p, limit, dt)).tobytes() == expected.tobytes()
+
+
+@given(_ANY_FLOAT)
+def test_the_scalar_wrap_gives_the_array_bits(angle):
+    assert np.float64(wrap_pi_float(angle)).tobytes() == wrap_pi(angle).tobytes()
+
+
+def _leader_heading_with_arrays(h: LeaderHeading, v_ref_xy: np.ndarray, distance: float, dt: float) -> None:
+    """LeaderHeading.update as it was written in numpy before it went to plain floats (commit 7534e3c)."""
+    v = np.asarray(v_ref_xy, dtype=float)[:2]
+    if h.v_filtered is None or h.filter_s <= 0.0:
+        h.v_filtered = v.copy()
+    else:
+        h.v_filtered = h.v_filtered + (v - h.v_filtered) * (dt / (h.filter_s + dt))
+    vx, vy = float(h.v_filtered[0]), float(h.v_filtered[1])
+    steering = math.hypot(vx, vy) > h.min_speed and distance > h.hold_distance
+    error = float(wrap_pi(math.atan2(vy, vx) - h.psi)) if steering else 0.0
+    rate = (
+        error / dt
+        if h.accel_max <= 0.0
+        else float(sqrt_controller(np.array([error]), h.gain, h.accel_max, dt)[0])
+    )
+    rate = min(max(rate, -h.rate_max), h.rate_max)
+    if h.accel_max > 0.0:
+        step = h.accel_max * dt
+        rate = min(max(rate, h.rate - step), h.rate + step)
+    if not steering and h.accel_max <= 0.0:
+        rate = 0.0
+    h.psi = float(wrap_pi(h.psi + rate * dt))
+    h.rate = rate
+
+
+@pytest.mark.parametrize(
+    ("accel_max", "filter_s"), [(0.0, 0.0), (math.radians(20), 0.0), (math.radians(20), 1.5)]
+)
+def test_the_leader_heading_gives_the_bits_of_its_array_form(accel_max, filter_s):
+    """Random velocities (slow, fast, reversing) and goal distances for 600 ticks: psi and its rate are the
+    bits of the numpy form, for the plain rate limit, the shaped turn and the filtered course."""
+    rng = np.random.default_rng(3)
+    scalar = LeaderHeading(0.3, 3.0, math.radians(30), 10.0, accel_max=accel_max, filter_s=filter_s, gain=1.0)
+    arrays = LeaderHeading(0.3, 3.0, math.radians(30), 10.0, accel_max=accel_max, filter_s=filter_s, gain=1.0)
+    for tick in range(600):
+        v = rng.normal(0.0, 6.0, 2) * (0.2 if tick % 97 < 20 else 1.0)
+        distance = float(rng.uniform(0.0, 40.0))
+        scalar.update(v, distance, DT)
+        _leader_heading_with_arrays(arrays, v, distance, DT)
+        assert (np.float64(scalar.psi).tobytes(), np.float64(scalar.rate).tobytes()) == (
+            np.float64(arrays.psi).tobytes(),
+            np.float64(arrays.rate).tobytes(),
+        )
 
 
 # ----- slots -----

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -199,7 +199,13 @@ def replay(name: str, ticks: int = 400, seed: int = 0) -> Iterator[dict[str, np.
             cmd.roll_d, cmd.pitch_d, cmd.yaw_d, thrust, meas_pos, meas_att[:, 2], s.hover, s.limits,
             vel=meas_vel if tick % 3 else None,
         )  # fmt: skip
-        record = {name: np.asarray(value) for name, value in vars(cmd).items()}
+        record = {f.name: np.asarray(getattr(cmd, f.name)) for f in fields(cmd) if f.name != "obstacles"}
+        record.update(
+            clearance=cmd.clearance,
+            collision=cmd.collision,
+            obstacle_centres=cmd.obstacles[0],
+            obstacle_radii=cmd.obstacles[1],
+        )
         record.update(
             unboosted=acc, thrust=thrust, guard_roll=g_roll, guard_pitch=g_pitch, guard_yaw=g_yaw,
             guard_thrust=g_thrust, guard_changed=changed,

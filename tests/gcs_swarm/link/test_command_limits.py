@@ -208,3 +208,57 @@ def test_guard_leaves_commands_within_limits_unchanged() -> None:
     r, p, y, t, changed = guard_attitude_commands(roll, pitch, yaw, thrust, pos, yaw, np.full(2, 0.5), limits)
     assert not changed.any()
     np.testing.assert_array_equal(np.stack([r, p, y, t]), np.stack([roll, pitch, yaw, thrust]))
+
+
+def _guard_every_rule_on_every_row(roll, pitch, yaw, thrust, pos, measured_yaw, hover, limits, vel):
+    """guard_attitude_commands as written before its rules were skipped when no row meets them (commit
+    7534e3c): every rule evaluated on every row."""
+    r, p, y, t = (np.array(a, dtype=float) for a in (roll, pitch, yaw, thrust))
+    bad = ~(np.isfinite(r) & np.isfinite(p) & np.isfinite(y) & np.isfinite(t))
+    r[bad], p[bad], t[bad] = 0.0, 0.0, hover[bad]
+    y[bad] = np.nan_to_num(np.asarray(measured_yaw, dtype=float)[bad])
+    too_steep = np.arccos(np.clip(np.cos(r) * np.cos(p), -1.0, 1.0)) > limits.tilt_max + 1e-9
+    scale = np.where(too_steep, limits.tilt_max / np.maximum(np.hypot(r, p), 1e-12), 1.0)
+    r, p = r * scale, p * scale
+    x_e, y_n, z_u = (pos[:, k] for k in range(3))
+    with np.errstate(invalid="ignore"):
+        h1, h2 = np.sin(p) * np.cos(r), -np.sin(r)
+        a_e, a_n = np.cos(y) * h1 - np.sin(y) * h2, np.sin(y) * h1 + np.cos(y) * h2
+        outward = (np.hypot(x_e, y_n) >= limits.geofence_radius) & (a_e * x_e + a_n * y_n > 0)
+        if vel is not None:
+            v_e, v_n = vel[:, 0], vel[:, 1]
+            opposes = a_e * v_e + a_n * v_n < 0
+            a_out, v_out = a_e * x_e + a_n * y_n, v_e * x_e + v_n * y_n
+            outward &= ~(opposes & (a_out * np.hypot(v_e, v_n) <= -v_out * np.hypot(a_e, a_n)))
+        r[outward], p[outward] = 0.0, 0.0
+        t = np.where(z_u >= limits.geofence_max_alt, np.minimum(t, hover), t)
+        t = np.where(z_u <= limits.min_altitude, np.maximum(t, hover), t)
+    t = np.clip(t, 0.0, np.minimum(1.0, hover * limits.thrust_max_g))
+    changed = bad | (scale < 1.0) | outward | (t != np.asarray(thrust, dtype=float))
+    return r, p, y, t, changed
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_skipping_rules_no_row_meets_changes_no_bit(seed: int) -> None:
+    """Random fleets (1-12 vehicles) where each rule fires on some draws and on none on others (NaN rows,
+    steep tilts, outside the fence and above or below it, with and without velocity): the guard gives the
+    bits of the version that evaluates every rule on every row."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 13))
+    limits = CommandLimits(math.radians(35), 2.0, 5.0, 400.0, 120.0)
+    spread = [0.3, 0.9][seed % 2]  # rad: steep rows on odd seeds only
+    roll, pitch, yaw = (rng.normal(0.0, s, n) for s in (spread, spread, 2.0))
+    thrust = rng.uniform(-0.2, 1.2, n)
+    far = [100.0, 500.0][(seed // 2) % 2]  # m: outside the 400 m fence on some seeds only
+    pos = np.column_stack([rng.normal(0.0, far, n), rng.normal(0.0, far, n), rng.uniform(0.0, 130.0, n)])
+    if seed % 3 == 0:
+        pos[:, 2] = 50.0  # no altitude rule fires
+    if seed % 5 == 0 and n > 1:
+        roll[0], pos[-1] = np.nan, np.nan
+    vel = rng.normal(0.0, 5.0, (n, 3)) if seed % 4 else None
+    hover = rng.uniform(0.3, 0.6, n)
+    measured_yaw = rng.normal(0.0, 1.0, n)
+    got = guard_attitude_commands(roll, pitch, yaw, thrust, pos, measured_yaw, hover, limits, vel=vel)
+    expected = _guard_every_rule_on_every_row(roll, pitch, yaw, thrust, pos, measured_yaw, hover, limits, vel)
+    for a, b in zip(got, expected, strict=True):
+        assert a.tobytes() == b.tobytes()
