@@ -12,7 +12,8 @@ batches: every `chunks_per_hand_over` chunks, and whatever waits when the thread
 `period_s` (wall; the thread takes it itself). A killed process loses at most the last `period_s` of chunks
 and what the thread had not written yet.
 
-Logs of rows (`write_rows`, the run record and truth log) batch about ROWS_PER_HAND_OVER rows per hand-over,
+Logs of rows (`write_rows`: the simulator's truth log; the run record's rows go to a formatting process,
+swarm_common.row_log_process, with the same batching) batch about ROWS_PER_HAND_OVER rows per hand-over,
 at most MAX_CHUNKS_PER_HAND_OVER chunks (ticks): one per tick at 200 vehicles, one per 10 ticks at 6, so that
 a killed ground station's record still ends within 0.2 s of vehicle time of its death
 (tests/e2e/test_gcs_killed.py asks 1.5 s). Each hand-over wakes the thread, which then takes the GIL from the

@@ -92,10 +92,11 @@ def note_formation(
     """Append (t, leader, (N, 3) offsets flown with degraded widening, NaN rows for the (N,) not `alive`) to
     the timeline when the formation changed."""
     offsets = np.where(alive[:, None], controller.offsets * controller.spacing_scale, np.nan)
-    if (
-        timeline
-        and timeline[-1][1] == controller.leader
-        and np.array_equal(timeline[-1][2], offsets, equal_nan=True)
-    ):
-        return
+    if timeline and timeline[-1][1] == controller.leader:
+        last = timeline[-1][2]
+        # np.array_equal(last, offsets, equal_nan=True), in fewer calls (once a tick)
+        if last.shape == offsets.shape and bool(
+            ((last == offsets) | (np.isnan(last) & np.isnan(offsets))).all()
+        ):
+            return
     timeline.append((t, controller.leader, offsets))

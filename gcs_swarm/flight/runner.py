@@ -43,6 +43,7 @@ from gcs_swarm.flight.stale_telemetry import StaleTelemetryWatch
 from gcs_swarm.flight.takeover import TakeoverWatch
 from gcs_swarm.flight.tick_timing import ASSESS, RECORD, SEND, MissedFramesByPhase, TickTiming
 from gcs_swarm.guidance.fleet_controller import Command
+from gcs_swarm.guidance.obstacles import centres_at
 from gcs_swarm.link.autopilots import formation_mode, launch_mode, takeoff_mode
 from gcs_swarm.link.command_limits import CommandLimits
 from gcs_swarm.link.connection import LinkError
@@ -94,6 +95,10 @@ class MissionRunner:
         self.position_hold = PositionHold(n)
         self._last_progress_wall = 0.0
         self._obstacle_radii = np.array([o.radius for o in mission.obstacles], dtype=float)
+        self._obstacle_centres0 = np.array([o.center for o in mission.obstacles], dtype=float).reshape(-1, 3)
+        self._obstacle_velocities = np.array([o.velocity for o in mission.obstacles], dtype=float).reshape(
+            -1, 3
+        )
         # the watches look `self.progress` up at each call: the console swaps it after construction
         self.telemetry = StaleTelemetryWatch(
             mission.safety.telemetry, n, self.result, lambda text: self.progress(text)
@@ -415,7 +420,7 @@ class MissionRunner:
         telemetry = self.mission.safety.telemetry
         ghosts, ghost_radii = self._lost.place(t, fleet.alive, ctl, telemetry)
         taken, taken_radii = self.takeover.place(ctl, telemetry.lost_radius)  # moving obstacles, as measured
-        centres = np.array([o.center_at(t) for o in self.mission.obstacles]).reshape(-1, 3)
+        centres = centres_at(self._obstacle_centres0, self._obstacle_velocities, t)  # Obstacle.center_at
         obstacles = (
             np.vstack([centres, ghosts, taken]),
             np.concatenate([self._obstacle_radii, ghost_radii, taken_radii]),

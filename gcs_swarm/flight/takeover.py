@@ -112,6 +112,8 @@ class TakeoverWatch:
         `progress`. A taken vehicle switched on to yet another mode is told too (still taken)."""
         fleet = self.fleet
         mode = fleet.mode
+        if not self.taken.any() and bool((mode == self.commanded_mode).all()):
+            return []  # every vehicle in the mode we commanded: nobody taken, nobody moved on
         taken_now = newly_taken(mode, self.commanded_mode, fleet.alive, self.taken, self.passing_mode)
         rows = [int(i) for i in np.flatnonzero(taken_now)]
         for i in rows:

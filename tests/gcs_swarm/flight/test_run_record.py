@@ -1,6 +1,6 @@
 """RunRecord writes the same bytes as the csv module with f"{v:.6g}" fields (the format report.py and
 evaluation/ read), for ordinary, extreme and non-finite values, each row with the values of its write_tick
-(its writer thread formats later)."""
+(its formatting process formats later)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ import pytest
 
 from gcs_swarm.evaluation.run_data import read_columns
 from gcs_swarm.flight.run_record import COLUMNS, RunRecord
-from tests.swarm_common.writer_gate import hold_writer_thread
 
 SPECIAL = [0.0, -0.0, math.nan, math.inf, -math.inf, 1e16, 1.5e-7, 123456.5, 2.5e-310, -1.7e308]
 
@@ -58,11 +57,10 @@ def test_rows_match_the_csv_module_byte_for_byte(tmp_path: Path, phase: str) -> 
     rng = np.random.default_rng(7)
     path, expected = tmp_path / "record.csv", tmp_path / "expected.csv"
     record = RunRecord(path)
-    gate = hold_writer_thread(record._writer)  # so that it renders only after the changes below
     with expected.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(COLUMNS)
-        for k, n in enumerate([1, 3, 9, 9, 40, 250, 7]):  # 250 rows: formatted by the writer thread
+        for k, n in enumerate([1, 3, 9, 9, 40, 250, 7]):  # 250 rows: a hand-over of their own
             t = 11.44 + 0.02 * k
             pos, vel, att = (rng.normal(scale=100.0, size=(n, 3)) for _ in range(3))
             att[0, 2] = math.nan
@@ -70,12 +68,11 @@ def test_rows_match_the_csv_module_byte_for_byte(tmp_path: Path, phase: str) -> 
             c = command(rng, n)
             record.write_tick(t, phase, pos, vel, att, c, thrust, active)
             writer.writerows(reference_rows(t, phase, pos, vel, att, c, thrust, active))
-            # the writer thread formats: later changes in place must not reach the rows handed over
+            # the process formats later: changes in place must not reach the rows written
             for a in (pos, vel, att, thrust, c.ref_pos, c.slots, c.roll_d):
                 a += 1.0
             active[:] = ~active
             c.emergency[:] = ~c.emergency
-    gate.set()
     record.close()
     assert path.read_bytes() == expected.read_bytes()
     if phase == "formation":  # what report.py reads back (it does not parse quoted fields)
