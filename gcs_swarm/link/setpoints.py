@@ -66,9 +66,8 @@ class Setpoints:
 
     def send_attitude_quaternion(self, q_ned_frd: ArrayLike, thrust: float) -> None:
         """SET_ATTITUDE_TARGET with a LOCAL_NED->BODY_FRD quaternion (w,x,y,z), thrust clipped to [0,1]."""
-        q = (
-            q_ned_frd if type(q_ned_frd) is list else np.asarray(q_ned_frd, dtype=float).tolist()
-        )  # fleet: a list
+        # Fleet.send_attitude_targets passes lists of floats: no numpy round trip for them
+        q = q_ned_frd if type(q_ned_frd) is list else np.asarray(q_ned_frd, dtype=float).tolist()
         thrust = min(max(float(thrust), 0.0), 1.0)
         ch = self.channel
         ch.send_packed(  # wire order: time_boot_ms, q, body rates, thrust, target, type_mask
