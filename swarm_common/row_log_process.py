@@ -99,26 +99,10 @@ class RowLogProcess:
         """Write everything written so far, let the child finish and close the file (idempotent)."""
         if self.closed:
             return
-        self.closed = True
         try:
             self._hand_over()
         finally:
-            with contextlib.suppress(OSError):
-                self._stdin.close()
-            try:
-                self._child.wait(timeout=_CLOSE_TIMEOUT_S)
-            except subprocess.TimeoutExpired:
-                self._child.kill()
-                self._child.wait()
-            stderr = self._child.stderr.read() if self._child.stderr is not None else b""
-            for pipe in (self._acks, self._child.stderr):
-                if pipe is not None:
-                    pipe.close()
-        if self._child.returncode != 0:
-            raise RowLogError(
-                f"{self.name}: the formatting process failed (exit {self._child.returncode}): "
-                f"{stderr.decode(errors='replace').strip()}"
-            )
+            self._end("failed")
 
     def _append(self, kind: bytes, payload: bytes) -> None:
         if self.closed:
@@ -147,10 +131,26 @@ class RowLogProcess:
             self._fail("is gone")
 
     def _fail(self, what: str) -> None:
+        self._end(what)
+        raise RowLogError(f"{self.name}: the formatting process {what} (exit {self._child.returncode})")
+
+    def _end(self, what: str) -> None:
+        """Close the child's input, wait for it (killed after _CLOSE_TIMEOUT_S), close its pipes; RowLogError
+        "the formatting process {what}" with its own words when it did not exit cleanly."""
         self.closed = True
-        self._child.wait()
+        with contextlib.suppress(OSError):
+            self._stdin.close()
+        try:
+            self._child.wait(timeout=_CLOSE_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self._child.kill()
+            self._child.wait()
         stderr = self._child.stderr.read() if self._child.stderr is not None else b""
-        raise RowLogError(
-            f"{self.name}: the formatting process {what} (exit {self._child.returncode}): "
-            f"{stderr.decode(errors='replace').strip()}"
-        )
+        for pipe in (self._acks, self._child.stderr):
+            if pipe is not None:
+                pipe.close()
+        if self._child.returncode != 0:
+            raise RowLogError(
+                f"{self.name}: the formatting process {what} (exit {self._child.returncode}): "
+                f"{stderr.decode(errors='replace').strip()}"
+            )
