@@ -41,6 +41,7 @@ class RunRecord:
         csv.writer(header).writerow(COLUMNS)
         self._log.write(header.getvalue().encode())
         self._numbers = ",".join(["%.6g"] * _NUMERIC_COLUMNS)
+        self._table: np.ndarray | None = None  # _block's table
 
     def write_tick(
         self,
@@ -56,30 +57,41 @@ class RunRecord:
         """One row per vehicle. `command` is a guidance Command (arrays of shape (N,...) as attributes)."""
         c: Any = command  # duck-typed: a Command or anything with its attributes
         n = len(pos)
-        block = np.column_stack(
-            [
-                np.full(n, t),
-                np.arange(n),
-                pos,
-                vel,
-                att,
-                c.ref_pos,
-                c.ref_vel,
-                c.slots,
-                c.field_force,
-                c.roll_d,
-                c.pitch_d,
-                c.yaw_d,
-                c.thrust_acc,
-                thrust,
-                c.emergency,
-                active,
-                np.full(n, float(c.psi_leader)),
-            ]
-        )
-        if block.shape[1] != len(COLUMNS) - 1:  # all but the phase, which the template holds
-            raise ValueError(f"a record row needs {_NUMERIC_COLUMNS} numbers, got {block.shape[1] - 6}")
+        block = self._block(n)
+        try:
+            block[:, 0] = t
+            for columns, values in (
+                (_POS, pos),
+                (_VEL, vel),
+                (_ATT, att),
+                (_REF_POS, c.ref_pos),
+                (_REF_VEL, c.ref_vel),
+                (_SLOT, c.slots),
+                (_FORCE, c.field_force),
+            ):
+                block[:, columns] = values
+            for column, value in (
+                (_ROLL_D, c.roll_d),
+                (_PITCH_D, c.pitch_d),
+                (_YAW_D, c.yaw_d),
+                (_THRUST_ACC, c.thrust_acc),
+                (_THRUST, thrust),
+                (_EMERGENCY, c.emergency),
+                (_ACTIVE, active),
+            ):
+                block[:, column] = value
+        except ValueError as err:  # an array of the wrong shape
+            raise ValueError(f"a record row needs {_NUMERIC_COLUMNS} numbers in its columns: {err}") from None
+        block[:, _PSI_L] = float(c.psi_leader)
         self._log.write_rows(self._template(phase), block)
+
+    def _block(self, n: int) -> np.ndarray:
+        """The (n, columns but the phase) float64 table a tick's rows are assembled in, reused from tick to
+        tick (RowLogProcess.write_rows copies it out); its vehicle column filled once."""
+        if self._table is None or len(self._table) != n:
+            self._table = np.empty((n, len(COLUMNS) - 1))
+            self._table[:, 1] = np.arange(n)
+        return self._table
 
     @functools.lru_cache(maxsize=32)  # noqa: B019 - a handful of phases per record, the record lives a flight
     def _template(self, phase: str) -> str:
@@ -94,6 +106,24 @@ class RunRecord:
 
 
 _NUMERIC_COLUMNS = len(COLUMNS) - 6  # all but t, vehicle, phase, emergency, active, psi_l
+
+
+def _column(name: str) -> int:
+    """Where COLUMNS' `name` sits in the numbers of a row (t, vehicle, then the phase, which is left out)."""
+    return COLUMNS.index(name) - 1
+
+
+def _columns3(first: str) -> slice:
+    """Where the three columns from COLUMNS' `first` sit in the numbers of a row."""
+    return slice(_column(first), _column(first) + 3)
+
+
+_POS, _VEL, _ATT = _columns3("x"), _columns3("vx"), _columns3("roll")
+_REF_POS, _REF_VEL = _columns3("ref_x"), _columns3("ref_vx")
+_SLOT, _FORCE = _columns3("slot_x"), _columns3("fx")
+_ROLL_D, _PITCH_D, _YAW_D = _column("roll_d"), _column("pitch_d"), _column("yaw_d")
+_THRUST_ACC, _THRUST = _column("thrust_acc"), _column("thrust")
+_EMERGENCY, _ACTIVE, _PSI_L = _column("emergency"), _column("active"), _column("psi_l")
 
 
 @functools.lru_cache(maxsize=32)

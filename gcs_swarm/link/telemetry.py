@@ -97,8 +97,7 @@ class TelemetryState:
     def pos(self) -> NDArray[np.float64]:
         """(N,3) ENU metres around the origin (NaN before the first GLOBAL_POSITION_INT)."""
         if self.pos_stale:
-            g = self.geodetic
-            self._pos = frames.geodetic_to_enu(g[:, 0], g[:, 1], g[:, 2], self.origin)
+            self._pos = frames.geodetic_rows_to_enu(self.geodetic, self.origin)
             self.pos_stale = False
         return self._pos
 

@@ -111,3 +111,64 @@ def test_geodetic_to_enu_gives_pymap3d_bits(lat0, lon0, h0, seed, shape):
     expected = np.stack(np.broadcast_arrays(e, n, u), axis=-1).astype(float)
     got = frames.geodetic_to_enu(lat, lon, alt, (lat0, lon0, h0))
     assert got.shape == expected.shape and got.tobytes() == expected.tobytes()
+
+
+def test_the_fleet_rows_are_converted_by_the_compiled_kernels() -> None:
+    """The test environment has numba (extra "fast" is in "test"): the bit comparisons below compare the
+    compiled loops, not the numpy fallback with itself."""
+    assert frames.frame_kernels is not None
+
+
+@given(
+    st.floats(-89.0, 89.0),
+    st.floats(-180.0, 180.0),
+    st.floats(-400.0, 5000.0),
+    st.integers(0, 2**32 - 1),
+    st.integers(0, 9),
+    st.floats(0.0, 0.5),
+)
+def test_geodetic_rows_to_enu_gives_pymap3d_bits(lat0, lon0, h0, seed, n, spread_deg):
+    """Every output bit of the compiled rows is pymap3d.geodetic2enu's: fleets of 0 to 9 vehicles, near the
+    origin and up to about 50 km away, unknown (NaN) rows included."""
+    rng = np.random.default_rng(seed)
+    rows = np.column_stack(
+        (
+            np.clip(lat0 + rng.normal(0.0, spread_deg, n), -90.0, 90.0),
+            lon0 + rng.normal(0.0, spread_deg, n),
+            h0 + rng.normal(0.0, 300.0, n),
+        )
+    )
+    if n > 2:
+        rows[1] = np.nan  # a vehicle not heard from yet
+    e, nn, u = pymap3d.geodetic2enu(rows[:, 0], rows[:, 1], rows[:, 2], lat0, lon0, h0)
+    expected = np.stack((e, nn, u), axis=-1).astype(float)
+    got = frames.geodetic_rows_to_enu(rows, (lat0, lon0, h0))
+    assert got.shape == (n, 3)
+    assert_same_bits(got, expected)
+
+
+edge_angles = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0.0, -0.0, math.pi, -math.pi, 0.5 * math.pi, -0.5 * math.pi, 2.0 * math.pi]),
+    st.floats(-10.0, 10.0),
+)
+
+
+@given(st.lists(st.tuples(edge_angles, edge_angles, edge_angles), max_size=9))
+def test_compiled_attitude_targets_give_the_numpy_bits(rows):
+    """A fleet's attitude targets from the compiled loop have the bits of the numpy conversion
+    (attitude_enu_to_ned, then euler_to_quaternion), NaN, infinities and signed zeros included."""
+    euler = np.array(rows, dtype=float).reshape(-1, 3)
+    with np.errstate(invalid="ignore"):  # inf % 2 pi
+        expected = rotations.euler_to_quaternion(frames.attitude_enu_to_ned(euler))
+    got = frames.attitude_target_quaternion(euler)
+    assert got.shape == expected.shape == (len(rows), 4)
+    assert_same_bits(got, expected)
+
+
+def assert_same_bits(got: np.ndarray, expected: np.ndarray) -> None:
+    """NaN where `expected` has NaN (of either sign: numpy's vector loops and libm set the sign of a NaN
+    differently, and no NaN is ever sent or logged); every other element bit for bit, signed zeros too."""
+    nan = np.isnan(expected)
+    assert (np.isnan(got) == nan).all()
+    assert got[~nan].tobytes() == expected[~nan].tobytes()
