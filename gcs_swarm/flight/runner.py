@@ -473,9 +473,12 @@ class MissionRunner:
         return float(alive.max() if alive.size else times.max()) / 1000.0
 
     def _note_lost(self) -> None:
+        alive = self.fleet.alive
+        if alive.all():  # every tick of a healthy flight: nothing to note
+            return
         newly_lost = False
         for i, name in enumerate(self.fleet.names):
-            if not self.fleet.alive[i] and name not in self.result.lost:
+            if not alive[i] and name not in self.result.lost:
                 self.result.lost.append(name)
                 self.result.lost_at[name] = self.vehicle_time()
                 self.result.events.append(f"{name} lost")

@@ -16,6 +16,7 @@ A vehicle's telemetry age is its newest time_boot_ms minus the time_boot_ms of i
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,17 +60,13 @@ class StaleTelemetryMonitor:
         age = np.asarray(age, dtype=float)
         alive = np.asarray(alive, dtype=bool)
         was = np.zeros(len(age), dtype=bool) if self.stale_held is None else self.stale_held
-        held = alive & (~(age <= p.hold_s) | (was & ~(age <= p.predict_s)))  # NaN/inf ages count as old
-        self.stale_held = held.copy()
-        if held[leader]:
-            held = alive.copy()
-        late = alive & ~(age <= p.predict_s)
-        if late.any():
+        pos, vel = np.asarray(pos, dtype=float), np.asarray(vel, dtype=float)
+        held, self.stale_held, late, predicted = stale_verdict(
+            age, alive, was, pos, vel, int(leader), float(p.hold_s), float(p.predict_s)
+        )
+        if late:
             self.degraded_until = t + p.recover_s
-        degraded = bool(late.any()) or t < self.degraded_until
-        # NaN and inf ages predict nothing (nan_to_num's result, without its cost)
-        horizon = np.where(held, 0.0, np.clip(np.where(np.isfinite(age), age, 0.0), 0.0, p.hold_s))
-        predicted = np.asarray(pos, dtype=float) + np.asarray(vel, dtype=float) * horizon[:, None]
+        degraded = late or t < self.degraded_until
         return TelemetryAssessment(
             age=age,
             pos=predicted,
@@ -78,3 +75,35 @@ class StaleTelemetryMonitor:
             speed_scale=p.degraded_speed if degraded else 1.0,
             spacing_scale=p.degraded_spacing if degraded else 1.0,
         )
+
+
+def stale_verdict_numpy(
+    age: np.ndarray,
+    alive: np.ndarray,
+    was: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    leader: int,
+    hold_s: float,
+    predict_s: float,
+) -> tuple[np.ndarray, np.ndarray, bool, np.ndarray]:
+    """The rule of the module doc for one tick, from ages (N,) s, the (N,) masks of live vehicles and of those
+    held for their own telemetry at the previous tick (`was`), pos (N, 3) ENU m, vel (N, 3) m/s and the
+    leader's index: (held (N,), held for their own telemetry (N,), any live vehicle older than predict_s,
+    positions predicted to now (N, 3))."""
+    held = alive & (~(age <= hold_s) | (was & ~(age <= predict_s)))  # NaN/inf ages count as old
+    own = held.copy()
+    if held[leader]:
+        held = alive.copy()
+    late = bool((alive & ~(age <= predict_s)).any())
+    # NaN and inf ages predict nothing (nan_to_num's result, without its cost)
+    horizon = np.where(held, 0.0, np.clip(np.where(np.isfinite(age), age, 0.0), 0.0, hold_s))
+    return held, own, late, pos + vel * horizon[:, None]
+
+
+stale_verdict: Callable[..., tuple[np.ndarray, np.ndarray, bool, np.ndarray]]
+"""`stale_verdict_numpy`, compiled when numba is there (guidance.degradation_kernels: the same bits)."""
+try:
+    from gcs_swarm.guidance.degradation_kernels import stale_verdict
+except ImportError:  # pragma: no cover - numba is optional
+    stale_verdict = stale_verdict_numpy

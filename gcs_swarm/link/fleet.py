@@ -40,7 +40,7 @@ from gcs_swarm.link import frames
 from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
-from gcs_swarm.link.lockstep import frame_ready
+from gcs_swarm.link.lockstep import frame_ready, take_new_frame
 from gcs_swarm.link.network import Network
 from gcs_swarm.link.operations import Operation, Timeout
 from gcs_swarm.link.streams import telemetry_rates
@@ -325,18 +325,12 @@ class Fleet:
         """
         deadline = time.monotonic() + timeout_s
         st = self.state
-        while True:
-            alive = st.alive
-            newest = np.maximum(st.position_ms, st.frame_ms)
-            last_tick = int(st.tick_ms[alive].max()) if alive.any() else -1
-            expected = alive | ((st.frame_ms >= 0) & (st.frame_ms >= last_tick) & (st.tick_ms >= last_tick))
-            if alive.any() and bool(np.all((newest > st.tick_ms) | ~expected)):
-                st.tick_ms[expected] = newest[expected]
-                return True
+        while not take_new_frame(st.alive, st.position_ms, st.frame_ms, st.tick_ms):
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
             self.pump(remaining)
+        return True
 
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
         """Pump (answering frames) until `predicate()`; LinkError "timed out after T s waiting for {what}"

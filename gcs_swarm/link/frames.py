@@ -24,9 +24,9 @@ from numpy.typing import ArrayLike, NDArray
 from swarm_common.rotations import euler_to_quaternion, quaternion_multiply, wrap_pi
 
 try:  # the fleet's rows converted by compiled loops (the same bits) when numba is there (extra "fast")
-    from gcs_swarm.link import frame_kernels
+    from gcs_swarm.link import link_kernels
 except ImportError:  # pragma: no cover - numba is optional
-    frame_kernels = None  # type: ignore[assignment]
+    link_kernels = None  # type: ignore[assignment]
 
 Origin = tuple[float, float, float]
 """Mission origin: latitude deg, longitude deg, altitude m."""
@@ -75,12 +75,12 @@ def _enu_origin_terms(origin: Origin) -> tuple[Any, ...]:
 
 def geodetic_rows_to_enu(geodetic: ArrayLike, origin: Origin) -> FloatArray:
     """(N, 3) rows of lat deg, lon deg, alt m -> (N, 3) ENU m around `origin`: `geodetic_to_enu` of the
-    columns, by frame_kernels when numba is there (the same bits, about a tenth of the time)."""
+    columns, by link_kernels when numba is there (the same bits, about a tenth of the time)."""
     g = np.asarray(geodetic, dtype=float)
-    if frame_kernels is None or g.ndim != 2 or g.shape[1] != 3:
+    if link_kernels is None or g.ndim != 2 or g.shape[1] != 3:
         return geodetic_to_enu(g[..., 0], g[..., 1], g[..., 2], origin)
     a2, a, b, b_over_a2 = _ELLIPSOID_TERMS
-    return frame_kernels.geodetic_rows_to_enu(
+    return link_kernels.geodetic_rows_to_enu(
         np.ascontiguousarray(g), a2, a, b, b_over_a2, _enu_origin_array(origin)
     )
 
@@ -96,7 +96,7 @@ _ELLIPSOID_TERMS = (
 
 @functools.lru_cache(maxsize=8)
 def _enu_origin_array(origin: Origin) -> FloatArray:
-    """`_enu_origin_terms` as a (7,) float64 array (frame_kernels.geodetic_rows_to_enu's argument)."""
+    """`_enu_origin_terms` as a (7,) float64 array (link_kernels.geodetic_rows_to_enu's argument)."""
     terms = np.array(_enu_origin_terms(origin), dtype=float)
     terms.setflags(write=False)
     return terms
@@ -143,8 +143,8 @@ def quaternion_enu_to_ned(q_flu_enu: ArrayLike) -> FloatArray:
 
 def attitude_target_quaternion(euler_flu_enu: ArrayLike) -> FloatArray:
     """Desired FLU/ENU Euler angles (..., 3) -> SET_ATTITUDE_TARGET quaternion NED -> body FRD (..., 4); a
-    fleet's (N, 3) rows by frame_kernels when numba is there (the same bits)."""
+    fleet's (N, 3) rows by link_kernels when numba is there (the same bits)."""
     e = np.asarray(euler_flu_enu, dtype=float)
-    if frame_kernels is not None and e.ndim == 2 and e.shape[1] == 3:
-        return frame_kernels.attitude_target_quaternions(np.ascontiguousarray(e))
+    if link_kernels is not None and e.ndim == 2 and e.shape[1] == 3:
+        return link_kernels.attitude_target_quaternions(np.ascontiguousarray(e))
     return euler_to_quaternion(attitude_enu_to_ned(e))

@@ -9,8 +9,9 @@ refuses UNIX times before 2022) and sends no clock ticks, so all this is always 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
+import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.channel import Channel
@@ -81,3 +82,29 @@ def frame_ready(answers: Sequence[LockstepAnswer], connected: Sequence[bool]) ->
         if c and not st.alive[a.index] and st.frame_ms[a.index] >= last >= 0
     ]
     return all(a.needs_answer for a in alive + clocked)
+
+
+def take_new_frame_numpy(
+    alive: np.ndarray, position_ms: np.ndarray, frame_ms: np.ndarray, tick_ms: np.ndarray
+) -> bool:
+    """Whether every vehicle expected in a new tick has a frame newer than its last tick: a
+    GLOBAL_POSITION_INT or a lockstep clock tick (position_ms, frame_ms: (N,) int64 time_boot_ms, -1 for
+    none) newer than tick_ms (N,), for every alive vehicle and every lost one whose clock ticks were current
+    at the fleet's last tick (a lockstep simulator waits for its answer). If so, that frame is consumed: each
+    expected vehicle's tick_ms becomes its newest frame's. `alive`: (N,) bool. False while nobody is alive.
+    """
+    newest = np.maximum(position_ms, frame_ms)
+    last_tick = int(tick_ms[alive].max()) if alive.any() else -1
+    expected = alive | ((frame_ms >= 0) & (frame_ms >= last_tick) & (tick_ms >= last_tick))
+    if alive.any() and bool(np.all((newest > tick_ms) | ~expected)):
+        tick_ms[expected] = newest[expected]
+        return True
+    return False
+
+
+take_new_frame: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], bool]
+"""`take_new_frame_numpy`, compiled when numba is there (link_kernels.take_new_frame: the same results)."""
+try:
+    from gcs_swarm.link.link_kernels import take_new_frame
+except ImportError:  # pragma: no cover - numba is optional
+    take_new_frame = take_new_frame_numpy

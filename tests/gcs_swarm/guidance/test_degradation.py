@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
+from gcs_swarm.guidance import degradation
 from gcs_swarm.guidance.degradation import StaleTelemetryMonitor
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.params import TelemetryParams
@@ -98,3 +101,35 @@ def test_degraded_controller_widens_slots_and_caps_the_reference_speed() -> None
     assert np.linalg.norm(a.ref_vel[0, :2]) > 0.9 * normal.limits.v_xy_leader
     with pytest.raises(ValueError):
         slow.set_degraded(0.0, 1.0)
+
+
+def test_the_rule_runs_compiled() -> None:
+    """The test environment has numba: the comparison below compares the compiled loop with numpy."""
+    assert degradation.stale_verdict is not degradation.stale_verdict_numpy
+
+
+ages = st.one_of(
+    st.floats(-1.0, 5.0),
+    st.sampled_from([0.0, -0.0, 0.3, 1.0, float("inf"), float("-inf"), float("nan")]),
+)
+
+
+@given(
+    st.lists(st.tuples(ages, st.booleans(), st.booleans()), min_size=1, max_size=9),
+    st.integers(0, 8),
+    st.integers(0, 2**32 - 1),
+)
+def test_compiled_rule_gives_the_numpy_bits(rows, leader, seed) -> None:
+    """Every output of the compiled rule has the numpy function's bits: ages at and around the limits,
+    negative, signed zeros, infinite and NaN, any mix of live and previously held vehicles, any leader."""
+    age = np.array([r[0] for r in rows])
+    alive, was = (np.array([r[k] for r in rows], dtype=bool) for k in (1, 2))
+    rng = np.random.default_rng(seed)
+    pos, vel = rng.normal(0.0, 100.0, (len(rows), 3)), rng.normal(0.0, 10.0, (len(rows), 3))
+    args = (age, alive, was, pos, vel, leader % len(rows), 1.0, 0.3)
+    expected = degradation.stale_verdict_numpy(*args)
+    got = degradation.stale_verdict(*args)
+    for e, g in zip(expected[:2], got[:2], strict=True):
+        assert g.dtype == bool and g.tolist() == e.tolist()
+    assert got[2] is expected[2]
+    assert got[3].tobytes() == expected[3].tobytes()

@@ -1,13 +1,18 @@
-"""Compiled twins of the two frame conversions every telemetry tick makes for the whole fleet
-(gcs_swarm.link.frames): positions geodetic -> ENU when telemetry arrives, attitude targets Euler FLU/ENU ->
-quaternion NED/FRD when commands leave. One scalar loop over the N rows instead of about 25 small numpy calls
-each: for 6 vehicles 25 -> 2 us and 23 -> 1 us alone (timeit), about 40 us less per formation tick in a flight
-(BENCHMARKS.md 2026-11-27 20:00).
+"""Compiled twins of what the link computes for the whole fleet on every telemetry tick, one scalar loop over
+the N vehicles instead of a dozen or more small numpy calls each:
 
-Same bits as the numpy functions (frames.geodetic_to_enu, which is pymap3d.geodetic2enu's arithmetic, and
-frames.attitude_target_quaternion): every operation is the numpy code's IEEE operation in the same order, and
-the sines, cosines and hypot are the C library's, which numpy's float64 ufuncs also call on the platforms we
-test (tests/gcs_swarm/link/test_frames.py compares every bit and says so where a numpy build differs).
+- the two frame conversions (gcs_swarm.link.frames): positions geodetic -> ENU when telemetry arrives,
+  attitude targets Euler FLU/ENU -> quaternion NED/FRD when commands leave. For 6 vehicles 25 -> 2 us and
+  23 -> 1 us (timeit);
+- the test whether a complete telemetry frame is in (lockstep.take_new_frame), 10 -> 0.5 us, made two or
+  three times per tick.
+
+Together about 70 us less per formation tick of 6 vehicles in a flight (BENCHMARKS.md 2026-11-27 20:00).
+
+Same results as the numpy functions (frames.geodetic_to_enu, which is pymap3d.geodetic2enu's arithmetic,
+frames.attitude_target_quaternion, lockstep.take_new_frame), bit for bit: every operation is the numpy code's
+IEEE operation in the same order, and the sines, cosines and hypot are the C library's, which numpy's float64
+ufuncs also call (tests/gcs_swarm/link/test_frames.py and test_fleet_lockstep.py compare them).
 No fastmath (it would reorder and contract); error_model "numpy" (no exceptions on x / 0).
 Importing requires numba (extra "fast"); frames falls back to numpy without it.
 """
@@ -76,3 +81,27 @@ def attitude_target_quaternions(euler_flu_enu: np.ndarray) -> np.ndarray:
         out[i, 2] = cr * sp * cy + sr * cp * sy
         out[i, 3] = cr * cp * sy - sr * sp * cy
     return out
+
+
+@_kernel
+def take_new_frame(
+    alive: np.ndarray, position_ms: np.ndarray, frame_ms: np.ndarray, tick_ms: np.ndarray
+) -> bool:
+    """lockstep.take_new_frame_numpy, compiled: the same answer and the same tick_ms afterwards."""
+    n = alive.shape[0]
+    last_tick = np.int64(-1)
+    any_alive = False
+    for i in range(n):
+        if alive[i] and (not any_alive or tick_ms[i] > last_tick):
+            last_tick = tick_ms[i]
+            any_alive = True
+    if not any_alive:
+        return False
+    for i in range(n):
+        expected = alive[i] or (frame_ms[i] >= 0 and frame_ms[i] >= last_tick and tick_ms[i] >= last_tick)
+        if expected and not max(position_ms[i], frame_ms[i]) > tick_ms[i]:
+            return False
+    for i in range(n):
+        if alive[i] or (frame_ms[i] >= 0 and frame_ms[i] >= last_tick and tick_ms[i] >= last_tick):
+            tick_ms[i] = max(position_ms[i], frame_ms[i])
+    return True
