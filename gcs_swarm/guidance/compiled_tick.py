@@ -24,6 +24,7 @@ from gcs_swarm.guidance import field_kernels as fk
 from gcs_swarm.guidance import tick_kernels as tk
 from gcs_swarm.guidance.attitude_slew import TiltSlew
 from gcs_swarm.guidance.controller import PositionController
+from gcs_swarm.guidance.degradation_kernels import stale_verdict
 from gcs_swarm.guidance.failsafe_speed import _brake_table
 from gcs_swarm.guidance.params import (
     DeadGcsParams,
@@ -365,3 +366,5 @@ def warm_up(make_controller: Callable[..., WarmUpController]) -> None:
     )  # the failsafe speed scheduling's kernel (its real table takes 0.3 s to build, 1.1 s without numba)
     fk.failsafe_speed_caps(pos, np.ones((3, 3)), pos[:1] + 3.0, np.ones(1), 1.0, table, table)
     fk.neighbour_pairs(np.zeros((fk.DENSE_PAIRS_MAX, 3)), np.zeros((2, 3)), 1.0, True)  # the hash grid's path
+    alive = np.ones(3, dtype=bool)  # the stale-telemetry rule (degradation.StaleTelemetryMonitor.assess)
+    stale_verdict(np.zeros(3), alive, ~alive, pos, np.ones((3, 3)), 0, 1.0, 0.3)

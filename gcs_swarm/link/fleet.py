@@ -218,6 +218,8 @@ class Fleet:
         """Open every endpoint and wait for each vehicle's HEARTBEAT; refuse sysid mismatches/duplicates."""
         if self.network.connected:
             raise RuntimeError("the fleet is already connected")
+        if frames.link_kernels is not None:  # compiled now, not in the first tick that needs them
+            frames.link_kernels.warm_up()
         try:
             self.network.open(min(timeout_s, 5.0), self.tlog_path)
             deadline = time.monotonic() + timeout_s

@@ -81,7 +81,7 @@ def geodetic_rows_to_enu(geodetic: ArrayLike, origin: Origin) -> FloatArray:
         return geodetic_to_enu(g[..., 0], g[..., 1], g[..., 2], origin)
     a2, a, b, b_over_a2 = _ELLIPSOID_TERMS
     return link_kernels.geodetic_rows_to_enu(
-        np.ascontiguousarray(g), a2, a, b, b_over_a2, _enu_origin_array(origin)
+        np.ascontiguousarray(g), a2, a, b, b_over_a2, _enu_origin_floats(origin)
     )
 
 
@@ -95,11 +95,9 @@ _ELLIPSOID_TERMS = (
 
 
 @functools.lru_cache(maxsize=8)
-def _enu_origin_array(origin: Origin) -> FloatArray:
-    """`_enu_origin_terms` as a (7,) float64 array (link_kernels.geodetic_rows_to_enu's argument)."""
-    terms = np.array(_enu_origin_terms(origin), dtype=float)
-    terms.setflags(write=False)
-    return terms
+def _enu_origin_floats(origin: Origin) -> tuple[float, ...]:
+    """`_enu_origin_terms` as 7 floats (link_kernels.geodetic_rows_to_enu's argument)."""
+    return tuple(float(term) for term in _enu_origin_terms(origin))
 
 
 def enu_to_geodetic(enu: ArrayLike, origin: Origin) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -13,8 +13,9 @@ Same results as the numpy functions (frames.geodetic_to_enu, which is pymap3d.ge
 frames.attitude_target_quaternion, lockstep.take_new_frame), bit for bit: every operation is the numpy code's
 IEEE operation in the same order, and the sines, cosines and hypot are the C library's, which numpy's float64
 ufuncs also call (tests/gcs_swarm/link/test_frames.py and test_fleet_lockstep.py compare them).
-No fastmath (it would reorder and contract); error_model "numpy" (no exceptions on x / 0).
-Importing requires numba (extra "fast"); frames falls back to numpy without it.
+No fastmath (it would reorder and contract); error_model "numpy" (no exceptions on x / 0). `warm_up` calls
+each once (Fleet.connect), so that no tick waits for numba to compile them or load them from its cache.
+Importing requires numba (extra "fast"); frames and lockstep fall back to numpy without it.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from numba import njit
 
 _kernel = njit(cache=True, error_model="numpy")
 
+
 _RAD_PER_DEG = math.pi / 180.0  # numpy.radians(x) = x * (pi / 180)
 
 
@@ -36,7 +38,7 @@ def geodetic_rows_to_enu(
     a: float,
     b: float,
     b_over_a2: float,
-    origin_terms: np.ndarray,
+    origin_terms: tuple[float, ...],
 ) -> np.ndarray:
     """(N, 3) lat deg, lon deg, alt m -> (N, 3) ENU m around the origin whose `origin_terms` are (x0, y0, z0
     ECEF m, cos lat0, sin lat0, cos lon0, sin lon0) (frames._enu_origin_terms); the ellipsoid's semimajor
@@ -105,3 +107,13 @@ def take_new_frame(
         if alive[i] or (frame_ms[i] >= 0 and frame_ms[i] >= last_tick and tick_ms[i] >= last_tick):
             tick_ms[i] = max(position_ms[i], frame_ms[i])
     return True
+
+
+def warm_up() -> None:
+    """Call every kernel once with the argument types the link gives it (compiles them, or loads them from
+    numba's cache: tens of ms once numba is loaded), so that no tick waits for the JIT."""
+    rows = np.zeros((2, 3))
+    geodetic_rows_to_enu(rows, 1.0, 1.0, 1.0, 1.0, (0.0,) * 7)
+    attitude_target_quaternions(rows)
+    times = np.zeros(2, dtype=np.int64)
+    take_new_frame(np.ones(2, dtype=np.bool_), times, times, times.copy())
