@@ -1,5 +1,5 @@
 """Compiled twin of the stale-telemetry rule (degradation.stale_verdict_numpy): one loop over the N vehicles
-instead of about twenty small numpy calls (6 vehicles: 14 -> 1 us, timeit).
+instead of about twenty small numpy calls (6 vehicles: 13 -> 2 us, timeit).
 
 The same bits as the numpy function (tests/gcs_swarm/guidance/test_degradation.py): the comparisons are
 numpy's, with NaN ages old (`not age <= limit`), np.clip's rule (shaping_kernels._clip) and the prediction

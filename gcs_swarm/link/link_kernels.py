@@ -4,10 +4,10 @@ the N vehicles instead of a dozen or more small numpy calls each:
 - the two frame conversions (gcs_swarm.link.frames): positions geodetic -> ENU when telemetry arrives,
   attitude targets Euler FLU/ENU -> quaternion NED/FRD when commands leave. For 6 vehicles 25 -> 2 us and
   23 -> 1 us (timeit);
-- the test whether a complete telemetry frame is in (lockstep.take_new_frame), 10 -> 0.5 us, made two or
+- the test whether a complete telemetry frame is in (lockstep.take_new_frame), 12 -> 0.6 us, made two or
   three times per tick.
 
-Together about 70 us less per formation tick of 6 vehicles in a flight (BENCHMARKS.md 2026-11-27 20:00).
+What that does to a flight's tick: BENCHMARKS.md, 2026-11-27 (20:00 UTC).
 
 Same results as the numpy functions (frames.geodetic_to_enu, which is pymap3d.geodetic2enu's arithmetic,
 frames.attitude_target_quaternion, lockstep.take_new_frame), bit for bit: every operation is the numpy code's
