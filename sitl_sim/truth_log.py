@@ -6,20 +6,20 @@ t simulated s since boot; vehicle 0-based; ENU m and m/s in the mission frame; q
 ENU; Euler ZYX rad; motor thrusts N (ArduCopter motor order); mode = ArduCopter custom_mode; flags 0/1
 (landed = the autopilot's land_complete). PATH with its suffix replaced by `.obstacles.csv`:
     t,obstacle,x,y,z,radius
-Numbers are printed with fixed precision so that identical runs give identical bytes. Samples go to a writer
-thread per file (swarm_common.background_writer) in batches of about 200 rows or 10 samples and at least
-every second: the simulator never waits on the disk, and from 200 vehicles on the thread also formats them
-(0.9 ms a sample).
+Numbers are printed with fixed precision so that identical runs give identical bytes. Each file's rows go as
+numbers to a formatting process of its own (swarm_common.row_log_process), which turns them into text on the
+other core, below the control loops: formatting them was about 60 us of a 6-vehicle simulator frame of 1 ms,
+the frame that sets the pace of take-off and landing (BENCHMARKS.md). Rows are handed over in batches of
+about 200 rows or 10 samples and at least every second: the simulator never waits on the disk.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from swarm_common.background_writer import BackgroundWriter
+from swarm_common.row_log_process import RowLogProcess
 
 VEHICLE_HEADER = (
     "t,vehicle,sysid,x,y,z,vx,vy,vz,qw,qx,qy,qz,roll,pitch,yaw,f1,f2,f3,f4,mode,armed,crashed,landed"
@@ -44,9 +44,12 @@ class TruthLog:
         self._table = np.empty((n, 24))  # one sample, the columns of VEHICLE_HEADER (filled in place)
         self._table[:, 1] = np.arange(n)
         self._table[:, 2] = self.sysids
-        self._rows = VEHICLE_ROW * n
-        self.vehicles = BackgroundWriter(path, "truth log")
-        self.obstacles = BackgroundWriter(obstacles_path(path), "truth obstacles")
+        self.vehicles = RowLogProcess(path, "truth log")
+        try:
+            self.obstacles = RowLogProcess(obstacles_path(path), "truth obstacles")
+        except BaseException:
+            self.vehicles.close()
+            raise
         self.vehicles.write((VEHICLE_HEADER + "\n").encode("ascii"))
         self.obstacles.write((OBSTACLE_HEADER + "\n").encode("ascii"))
 
@@ -72,11 +75,11 @@ class TruthLog:
         table[:, 13:16] = euler
         table[:, 16:20] = motor
         table[:, 20:24] = flags
-        self.vehicles.write_rows(_render(self._rows, tuple(table.ravel().tolist())), len(table))
+        self.vehicles.write_rows(VEHICLE_ROW, table)  # copied out: the table is refilled next sample
         k = len(obstacle_radii)
         if k:
             rows = np.column_stack((np.full(k, t), np.arange(k), obstacle_centers, obstacle_radii))
-            self.obstacles.write_rows(_render(OBSTACLE_ROW * k, tuple(rows.ravel().tolist())), k)
+            self.obstacles.write_rows(OBSTACLE_ROW, rows)
 
     def flush(self) -> None:
         """Return once every sample so far is in the files."""
@@ -85,10 +88,7 @@ class TruthLog:
 
     def close(self) -> None:
         """Write every sample and close both files (idempotent)."""
-        self.vehicles.close()
-        self.obstacles.close()
-
-
-def _render(template: str, values: tuple[float, ...]) -> Callable[[], bytes]:
-    """A sample's text: `template % values` as ASCII bytes (`values` a copy: the writer thread may do it)."""
-    return lambda: (template % values).encode("ascii")
+        try:
+            self.vehicles.close()
+        finally:
+            self.obstacles.close()

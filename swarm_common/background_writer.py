@@ -3,30 +3,26 @@
 A write() system call can block for tens of milliseconds when the kernel throttles a process that has many
 dirty pages (a 200-vehicle real-time flight writes about 6 MB/s of truth log, tlog and run record; one tick of
 such a flight spent 28 ms in its run-record phase, whose formatting takes 1.6 ms, BENCHMARKS.md 2026-11-27).
-The owner queues chunks (`write`) and goes on; the thread writes them, in order, straight to the OS (no
-user-space buffer). The write system call releases the GIL, so the owner keeps running while the thread waits.
+The owner queues chunks of bytes (`write`) and goes on; the thread writes them, in order, straight to the OS
+(no user-space buffer). The write system call releases the GIL, so the owner keeps running while the thread
+waits. The tlog uses it; logs of numeric rows, which must also be turned into text, go to a formatting process
+instead (swarm_common.row_log_process), since a thread would format them under the GIL its owner's control
+loop needs.
 
-A chunk is bytes, or a render function: the thread calls it, in order, and writes what it returns (it must
-only read values the owner will not change afterwards: copies, `array.tolist()`). Chunks reach the thread in
-batches: every `chunks_per_hand_over` chunks, and whatever waits when the thread has had nothing for
-`period_s` (wall; the thread takes it itself). A killed process loses at most the last `period_s` of chunks
-and what the thread had not written yet.
+Chunks reach the thread in batches: every `chunks_per_hand_over` chunks, and whatever waits when the thread
+has had nothing for `period_s` (wall; the thread takes it itself). A killed process loses at most the last
+`period_s` of chunks and what the thread had not written yet.
 
-Logs of rows (`write_rows`: the simulator's truth log; the run record's rows go to a formatting process,
-swarm_common.row_log_process, with the same batching) batch about ROWS_PER_HAND_OVER rows per hand-over,
-at most MAX_CHUNKS_PER_HAND_OVER chunks (ticks): one per tick at 200 vehicles, one per 10 ticks at 6, so that
-a killed ground station's record still ends within 0.2 s of vehicle time of its death
-(tests/e2e/test_gcs_killed.py asks 1.5 s). Each hand-over wakes the thread, which then takes the GIL from the
-owner and gives it back; in a 6-vehicle lockstep flight, where a tick takes about 1 ms, one hand-over per tick
-in both processes made whole runs about 20 % slower (BENCHMARKS.md 2026-11-27 12:00). Turning numbers into
-text is most of a log's cost (about 1.2 ms of a 200-vehicle tick for the run record): a chunk that is a whole
-hand-over (200 rows or more) is formatted by the thread, while the owner waits for its next packets; smaller
-chunks are formatted by the owner, since a batch formatted at once by the thread (34 ticks of 6 vehicles) held
-the GIL long enough to double a 6-vehicle flight's tick latency p99.
+Logs of rows (the run record, the truth log) batch about ROWS_PER_HAND_OVER rows per hand-over
+(`chunks_for_rows`), at most MAX_CHUNKS_PER_HAND_OVER chunks (ticks): one per tick at 200 vehicles, one per 10
+ticks at 6, so that a killed ground station's record still ends within 0.2 s of vehicle time of its death
+(tests/e2e/test_gcs_killed.py asks 1.5 s). Each hand-over wakes the reader, which then competes with the
+owner for the cores; in a 6-vehicle lockstep flight, where a tick takes about 1 ms, one hand-over per tick in
+both processes made whole runs about 20 % slower (BENCHMARKS.md 2026-11-27 12:00).
 
 `flush` hands over and waits until everything so far is written; `close` does that, then closes the file. An
-error the thread meets (disk full, or a render function that raises) is raised by the owner's next write,
-flush or close, and nothing more is written after it.
+error the thread meets (disk full) is raised by the owner's next write, flush or close, and nothing more is
+written after it.
 """
 
 from __future__ import annotations
@@ -34,12 +30,8 @@ from __future__ import annotations
 import math
 import queue
 import threading
-from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
-
-Chunk = bytes | Callable[[], bytes]
-"""What the owner writes: bytes, or a function the thread calls for them (see the module doc)."""
 
 ROWS_PER_HAND_OVER = 200  # log rows (vehicles x samples) an owner batches per hand-over (chunks_for_rows)
 MAX_CHUNKS_PER_HAND_OVER = 10  # at most this many chunks (ticks, samples) per hand-over: what a kill loses
@@ -56,8 +48,8 @@ def chunks_for_rows(rows_per_chunk: int) -> int:
 
 
 class BackgroundWriter:
-    """Writes the chunks given to `write` (bytes, or render functions called in the thread) to `path`
-    (created or truncated) from a thread named `name`, handed over in batches (see the module doc)."""
+    """Writes the chunks of bytes given to `write` to `path` (created or truncated) from a thread named
+    `name`, handed over in batches (see the module doc)."""
 
     def __init__(
         self, path: Path, name: str, chunks_per_hand_over: int = 1, period_s: float = HAND_OVER_PERIOD_S
@@ -68,17 +60,16 @@ class BackgroundWriter:
         self.chunks_per_hand_over = chunks_per_hand_over
         self.period_s = period_s
         self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - the thread owns it; close() closes it
-        self._pending: list[Chunk] = []  # written, not yet handed over
+        self._pending: list[bytes] = []  # written, not yet handed over
         self._lock = threading.Lock()  # guards _pending and keeps hand-overs in order (owner and thread)
-        self._queue: queue.SimpleQueue[list[Chunk] | threading.Event | None] = queue.SimpleQueue()
+        self._queue: queue.SimpleQueue[list[bytes] | threading.Event | None] = queue.SimpleQueue()
         self._error: Exception | None = None
         self.closed = False
         self._thread = threading.Thread(target=self._run, name=f"writer {name}", daemon=True)
         self._thread.start()
 
-    def write(self, data: Chunk) -> None:
-        """Queue `data` to be written after everything written before: bytes, or a function that returns
-        them, called in the writer's thread."""
+    def write(self, data: bytes) -> None:
+        """Queue `data` to be written after everything written before."""
         self._raise_error()
         if self.closed:
             raise ValueError(f"{self.path.name}: write after close")
@@ -87,13 +78,6 @@ class BackgroundWriter:
             full = len(self._pending) >= self.chunks_per_hand_over
         if full:
             self._hand_over()
-
-    def write_rows(self, render: Callable[[], bytes], rows: int) -> None:
-        """Write a chunk of `rows` log rows that `render` formats, batched to about ROWS_PER_HAND_OVER rows
-        per hand-over (chunks_for_rows); formatted by the thread when the chunk is a hand-over of its own,
-        else now (see the module doc)."""
-        self.chunks_per_hand_over = chunks_for_rows(rows)
-        self.write(render if rows >= ROWS_PER_HAND_OVER else render())
 
     def flush(self) -> None:
         """Return once everything written so far is written to the OS."""
@@ -147,8 +131,8 @@ class BackgroundWriter:
                 continue
             try:
                 for chunk in item:
-                    self._write_all(chunk() if callable(chunk) else chunk)
-            except Exception as err:  # noqa: BLE001 - the owner raises it (a disk error, a render error)
+                    self._write_all(chunk)
+            except Exception as err:  # noqa: BLE001 - the owner raises it (a disk error)
                 self._error, failed = err, True
 
     def _write_all(self, data: bytes) -> None:

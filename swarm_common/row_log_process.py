@@ -6,10 +6,12 @@ The owner (`RowLogProcess`) sends rows as float64 bytes with the printf-style ro
 (`python -m swarm_common.row_log_child PATH`, standard library only) writes `template % row` for each
 row, in order, straight to the file. In a 6-vehicle lockstep flight the formatting is about 60 us of the
 ground station's 1 ms tick; a writer thread cannot take it off the tick, since it needs the GIL the tick
-holds (swarm_common.background_writer), a process runs it on the other core. The run record uses it. The
-simulator's truth log does not: with its two files formatted by two such processes, 6-vehicle flights landed
-15 % faster (the simulator's pace) but flew formation 4 % slower (the ground station's pace, its tick slowed
-by the extra processes on two cores; BENCHMARKS.md 2026-11-27 17:00).
+holds (swarm_common.background_writer), a process runs it on the other core. The run record and the
+simulator's truth log (its two files) use it. The child runs below the control loops (Linux SCHED_IDLE,
+`row_log_child.run_below_the_control_loops`): with nice alone, the simulator's formatters made 6-vehicle
+flights land 15 % faster (the simulator's pace) but fly formation 4 % slower (the ground station's pace, its
+tick preempted by the waking formatters; BENCHMARKS.md 2026-11-27 17:00); under SCHED_IDLE formation is as
+fast as without them (BENCHMARKS.md 2026-11-27 22:00).
 
 Rows reach the child in batches, like background_writer's: about ROWS_PER_HAND_OVER rows and at most
 MAX_CHUNKS_PER_HAND_OVER chunks (ticks) per hand-over, and whatever waits once HAND_OVER_PERIOD_S (wall) has

@@ -1,5 +1,6 @@
 """Truth-log format: the documented columns, readable by numpy, obstacle sidecar path; each sample holds the
-values given at its write, whatever the caller does with its arrays afterwards (the writer thread formats)."""
+values given at its write, whatever the caller does with its arrays afterwards (a formatting process turns
+them into text later)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ import numpy as np
 import pytest
 
 from sitl_sim.truth_log import OBSTACLE_HEADER, VEHICLE_HEADER, TruthLog, obstacles_path
-from tests.swarm_common.writer_gate import hold_writer_thread
 
 CONTRACT = "t,vehicle,sysid,x,y,z,vx,vy,vz,qw,qx,qy,qz,roll,pitch,yaw,f1,f2,f3,f4,mode,armed,crashed,landed"
 
@@ -45,12 +45,12 @@ def test_columns_and_numpy_round_trip(tmp_path):
     assert obstacles.shape == (2,) and np.all(obstacles["radius"] == 3.0)
 
 
-@pytest.mark.parametrize("n", [3, 250])  # 250 rows a sample: formatted by the writer thread
+@pytest.mark.parametrize("n", [3, 250])  # 3: ten samples a hand-over; 250: one
 def test_each_sample_keeps_the_values_of_its_write(tmp_path, n):
-    """Samples reach the writer thread later (and from 200 vehicles it formats them): arrays changed in place
-    after `write` (the simulator's state arrays are) must not reach the samples already written."""
+    """Samples reach the formatting process later, in batches: arrays changed in place after `write` (the
+    simulator's state arrays are, and so is the log's own table) must not reach the samples already
+    written. The expected text is built here with f-strings, not with the log's templates."""
     log = TruthLog(tmp_path / "run.csv", np.arange(5, 5 + n))
-    gates = [hold_writer_thread(log.vehicles), hold_writer_thread(log.obstacles)]  # render after the changes
     rng = np.random.default_rng(3)
     arrays = [rng.normal(size=shape) for shape in ((n, 3), (n, 3), (n, 4), (n, 3), (n, 4))]
     flags, centers, radii = np.zeros((n, 4)), np.zeros((1, 3)), np.array([2.0])
@@ -72,10 +72,8 @@ def test_each_sample_keeps_the_values_of_its_write(tmp_path, n):
             )
         x, y, z = centers[0]
         expected_obstacles.append(f"{t:.4f},0,{x:.4f},{y:.4f},{z:.4f},2.0000")
-        for a in (*arrays, flags, centers):  # in place, at once: the writer thread may not have run yet
+        for a in (*arrays, flags, centers):  # in place, at once: the batch may not have been handed over yet
             a += rng.normal(size=a.shape) if a is not flags else 1.0
-    for gate in gates:
-        gate.set()
     log.close()
     assert (tmp_path / "run.csv").read_text().splitlines() == [CONTRACT, *expected_rows]
     assert (tmp_path / "run.obstacles.csv").read_text().splitlines() == [OBSTACLE_HEADER, *expected_obstacles]

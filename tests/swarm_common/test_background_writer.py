@@ -1,6 +1,6 @@
-"""swarm_common.background_writer: chunks land in order (batched or not, bytes or render functions), flush and
-close mean written, a batch waits for its last chunk or a quiet period, a disk or render error reaches the
-owner, and the owner does not wait for a slow disk."""
+"""swarm_common.background_writer: chunks land in order (batched or not), flush and close mean written, a
+batch waits for its last chunk or a quiet period, a disk error reaches the owner, and the owner does not wait
+for a slow disk."""
 
 from __future__ import annotations
 
@@ -80,36 +80,6 @@ def test_the_owner_does_not_wait_for_the_disk(tmp_path: Path) -> None:
     assert (tmp_path / "log.bin").read_bytes() == b"first" + b"more" * 100
 
 
-def test_render_functions_run_in_the_writer_thread_in_order(tmp_path: Path) -> None:
-    """A render function handed over is called by the writer's thread, between the chunks handed over before
-    and after it; what it returns lands in its place."""
-    path = tmp_path / "log.bin"
-    threads: list[threading.Thread] = []
-
-    def render(k: int) -> bytes:
-        threads.append(threading.current_thread())
-        return f"<{k}>".encode()
-
-    with BackgroundWriter(path, "test") as writer:
-        for k in range(50):
-            writer.write(b"a" if k % 2 else (lambda k=k: render(k)))  # type: ignore[misc]
-    expected = b"".join(b"a" if k % 2 else f"<{k}>".encode() for k in range(50))
-    assert path.read_bytes() == expected
-    assert len(threads) == 25 and all(thread is not threading.main_thread() for thread in threads)
-
-
-def test_a_render_error_reaches_the_owner(tmp_path: Path) -> None:
-    path = tmp_path / "log.bin"
-    writer = BackgroundWriter(path, "test")
-    writer.write(b"kept")
-    writer.write(lambda: b"x" + 1)  # type: ignore[operator]
-    with pytest.raises(TypeError, match="can't concat int to bytes"):
-        writer.flush()
-    writer.write(b"dropped")  # as after a disk error: nothing more is written
-    writer.close()
-    assert path.read_bytes() == b"kept"
-
-
 @settings(max_examples=30, deadline=None)
 @given(
     chunks=st.lists(st.binary(min_size=1, max_size=300), max_size=60),
@@ -123,7 +93,7 @@ def test_batched_chunks_land_in_order(
     path = tmp_path_factory.mktemp("w") / "log.bin"
     with BackgroundWriter(path, "test", chunks_per_hand_over=batch, period_s=period_s) as writer:
         for k, chunk in enumerate(chunks):
-            writer.write(chunk if k % 3 else (lambda chunk=chunk: chunk))  # type: ignore[misc]
+            writer.write(chunk)
             if k % 7 == 0:
                 time.sleep(0.002)
     assert path.read_bytes() == b"".join(chunks)
@@ -169,22 +139,3 @@ def test_chunks_for_rows() -> None:
     assert chunks_for_rows(0) == 10
     with pytest.raises(ValueError, match="chunks_per_hand_over"):
         BackgroundWriter(Path("/dev/null"), "test", chunks_per_hand_over=0)
-
-
-def test_rows_are_formatted_by_the_thread_only_in_whole_hand_overs(tmp_path: Path) -> None:
-    """write_rows: a chunk of ROWS_PER_HAND_OVER rows or more is rendered by the writer's thread; a smaller
-    one now, by the owner (a batch rendered at once would hold the GIL for the owner's next ticks)."""
-    path = tmp_path / "log.bin"
-    renderers: list[tuple[int, threading.Thread]] = []
-
-    def render(rows: int) -> bytes:
-        renderers.append((rows, threading.current_thread()))
-        return f"{rows};".encode()
-
-    sizes = [1, ROWS_PER_HAND_OVER - 1, ROWS_PER_HAND_OVER, 3, 5 * ROWS_PER_HAND_OVER]
-    with BackgroundWriter(path, "test") as writer:
-        for rows in sizes:
-            writer.write_rows(lambda rows=rows: render(rows), rows)  # type: ignore[misc]
-    assert path.read_bytes() == b"".join(f"{rows};".encode() for rows in sizes)
-    by_owner = [rows for rows, thread in renderers if thread is threading.main_thread()]
-    assert sorted(by_owner) == [1, 3, ROWS_PER_HAND_OVER - 1]

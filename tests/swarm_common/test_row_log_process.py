@@ -96,3 +96,20 @@ def _running(pid: int) -> bool:
     except OSError:
         os.kill(pid, 0)
         return True
+
+
+def test_the_child_runs_below_the_control_loops(tmp_path: Path) -> None:
+    """Niced, and on Linux under SCHED_IDLE where the machine allows it: a waking formatter must not
+    preempt the control loop it serves."""
+    log = RowLogProcess(tmp_path / "log.csv", "test log")
+    try:
+        log.flush()  # answered by the child's main loop: its priority is set by then
+        pid = log._child.pid
+        assert os.getpriority(os.PRIO_PROCESS, pid) >= os.getpriority(os.PRIO_PROCESS, 0) + 10
+        if hasattr(os, "SCHED_IDLE"):
+            idle = "import os; os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))"
+            probe = subprocess.run([sys.executable, "-c", idle], timeout=30)  # the child's call, on its own
+            if probe.returncode == 0:  # allowed on this machine: the formatter must use it
+                assert os.sched_getscheduler(pid) == os.SCHED_IDLE
+    finally:
+        log.close()
