@@ -16,8 +16,8 @@ from gcs_swarm.flight.tick_timing import GUIDANCE, TickTiming
 from gcs_swarm.guidance.degradation import TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.params import G
-from gcs_swarm.link.autopilots import ardupilot
-from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
+from gcs_swarm.link.attitude_commands import attitude_commands
+from gcs_swarm.link.command_limits import CommandLimits
 from gcs_swarm.link.fleet import Fleet
 
 
@@ -59,19 +59,11 @@ def send_formation_tick(
     if timing is not None:
         timing.mark(GUIDANCE)
     # ArduCopter adds its own 1/cos(tilt) to guided thrust when ATC_ANGLE_BOOST is on: not twice
-    acc = ardupilot.unboosted_thrust(cmd.thrust_acc, att[:, 0], att[:, 1], setup.angle_boost)
-    thrust = ardupilot.thrust_from_acc(np.nan_to_num(acc), setup.hover, G)
-    roll, pitch, yaw, thrust, limited = guard_attitude_commands(
-        cmd.roll_d,
-        cmd.pitch_d,
-        cmd.yaw_d,
-        thrust,
-        verdict.pos,
-        att[:, 2],
-        setup.hover,
-        limits,
-        vel=vel,
-    )
+    # (attitude_commands: thrust, then the final command guard)
+    roll, pitch, yaw, thrust, limited = attitude_commands(
+        cmd.roll_d, cmd.pitch_d, cmd.yaw_d, cmd.thrust_acc, att, verdict.pos, vel, setup.hover,
+        setup.angle_boost, G, limits,
+    )  # fmt: skip
     fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
     for i in np.flatnonzero(verdict.held & flown):
         fleet.vehicle(int(i)).setpoints.send_velocity_target(

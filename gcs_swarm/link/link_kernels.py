@@ -5,14 +5,19 @@ the N vehicles instead of a dozen or more small numpy calls each:
   attitude targets Euler FLU/ENU -> quaternion NED/FRD when commands leave. For 6 vehicles 25 -> 2 us and
   23 -> 1 us (timeit);
 - the test whether a complete telemetry frame is in (lockstep.take_new_frame), 12 -> 0.6 us, made two or
-  three times per tick.
+  three times per tick;
+- the send step of a formation tick (gcs_swarm.link.attitude_commands): thrust for ArduCopter from the
+  guidance's collective acceleration, then the final command guard, 45 -> 10 us (timeit, 6 vehicles).
 
 What that does to a flight's tick: BENCHMARKS.md, 2026-11-27 (20:00 UTC).
 
 Same results as the numpy functions (frames.geodetic_to_enu, which is pymap3d.geodetic2enu's arithmetic,
-frames.attitude_target_quaternion, lockstep.take_new_frame), bit for bit: every operation is the numpy code's
-IEEE operation in the same order, and the sines, cosines and hypot are the C library's, which numpy's float64
-ufuncs also call (tests/gcs_swarm/link/test_frames.py and test_fleet_lockstep.py compare them).
+frames.attitude_target_quaternion, lockstep.take_new_frame, attitude_commands.attitude_commands_numpy), bit
+for bit: every operation is the numpy code's IEEE operation in the same order, and the sines, cosines and
+hypot are the C library's, which numpy's float64 ufuncs also call (tests/gcs_swarm/link/test_frames.py,
+test_fleet_lockstep.py and test_attitude_commands.py compare them). Not numpy's arccos, which on AVX-512
+machines is its own and differs from the C library's acos in the last bit for about one value in ten: the
+send step's tilt comes from numpy.
 No fastmath (it would reorder and contract); error_model "numpy" (no exceptions on x / 0). `warm_up` calls
 each once (Fleet.connect), so that no tick waits for numba to compile them or load them from its cache.
 Importing requires numba (extra "fast"); frames and lockstep fall back to numpy without it.
@@ -29,6 +34,7 @@ _kernel = njit(cache=True, error_model="numpy")
 
 
 _RAD_PER_DEG = math.pi / 180.0  # numpy.radians(x) = x * (pi / 180)
+_FLOAT_MAX = float(np.finfo(np.float64).max)  # numpy.nan_to_num's value for +inf
 
 
 @_kernel
@@ -109,6 +115,126 @@ def take_new_frame(
     return True
 
 
+@_kernel
+def _clip(x: float, low: float, high: float) -> float:
+    """numpy.clip of one float64 between scalar bounds, numpy's vector loop (x NaN: x; a NaN bound: NaN;
+    x equal to a bound, as -0.0 to 0.0: x)."""
+    if x != x:
+        return x
+    if low != low:
+        return low
+    if high != high:
+        return high
+    if x < low:
+        return low
+    if x > high:
+        return high
+    return x
+
+
+@_kernel
+def _clip_to_array_bound(x: float, low: float, high: float) -> float:
+    """numpy.clip of one float64 whose upper bound is an array's element, numpy's generic loop, which
+    differs from the vector loop only in signed zeros: x equal to a bound gives the bound."""
+    if x != x:
+        return x
+    m = x if x > low else low
+    if m != m:
+        return m
+    return m if m < high else high
+
+
+@_kernel
+def _minimum(a: float, b: float) -> float:
+    """numpy.minimum of two float64: a NaN wins; of equal values (signed zeros) the second."""
+    return a if (a < b or a != a) else b
+
+
+@_kernel
+def _maximum(a: float, b: float) -> float:
+    """numpy.maximum of two float64: a NaN wins; of equal values (signed zeros) the second."""
+    return a if (a > b or a != a) else b
+
+
+@_kernel
+def _nan_to_num(x: float) -> float:
+    """numpy.nan_to_num of one float64: NaN -> 0, +-inf -> the largest finite float of its sign."""
+    if x != x:
+        return 0.0
+    if x == math.inf:
+        return _FLOAT_MAX
+    if x == -math.inf:
+        return -_FLOAT_MAX
+    return x
+
+
+@_kernel
+def attitude_commands(
+    roll: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    thrust_acc: np.ndarray,
+    commanded_tilt: np.ndarray,
+    att: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    hover: np.ndarray,
+    boost: np.ndarray,
+    g: float,
+    limits: tuple[float, float, float, float, float],
+    tilt_slack: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """attitude_commands.attitude_commands_numpy in one loop over the N vehicles: (roll, pitch, yaw, thrust,
+    changed), each (N,). `commanded_tilt` (N,) rad: numpy's arccos(clip(cos roll cos
+    pitch, -1, 1)) of the commands (see the module doc); `limits`: tilt_max, thrust_max_g, min_altitude,
+    geofence_radius, geofence_max_alt (command_limits.CommandLimits)."""
+    tilt_max, thrust_max_g, min_altitude, geofence_radius, geofence_max_alt = limits
+    n = roll.shape[0]
+    r_out, p_out, y_out, t_out = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    changed = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        # autopilots.ardupilot.unboosted_thrust, numpy.nan_to_num, autopilots.ardupilot.thrust_from_acc
+        acc = thrust_acc[i]
+        if boost[i]:
+            cos_tilt = _clip(math.cos(att[i, 0]) * math.cos(att[i, 1]), 0.1, 1.0)
+            if not math.isfinite(cos_tilt):
+                cos_tilt = 1.0
+            acc = acc * cos_tilt
+        t_in = _clip(hover[i] * _nan_to_num(acc) / g, 0.0, 1.0)
+        # command_limits.guard_attitude_commands
+        r, p, y, t = roll[i], pitch[i], yaw[i], t_in
+        bad = not (math.isfinite(r) and math.isfinite(p) and math.isfinite(y) and math.isfinite(t))
+        if bad:
+            r, p, t = 0.0, 0.0, hover[i]
+            y = _nan_to_num(att[i, 2])
+        steep = not bad and commanded_tilt[i] > tilt_max + tilt_slack  # a bad row is level: tilt 0
+        if steep:
+            scale = tilt_max / _maximum(math.hypot(r, p), 1e-12)
+            r, p = r * scale, p * scale
+        x_e, y_n, z_u = pos[i, 0], pos[i, 1], pos[i, 2]
+        outward = False
+        if math.hypot(x_e, y_n) >= geofence_radius:
+            h1, h2 = math.sin(p) * math.cos(r), -math.sin(r)
+            a_e = math.cos(y) * h1 - math.sin(y) * h2
+            a_n = math.sin(y) * h1 + math.cos(y) * h2
+            if a_e * x_e + a_n * y_n > 0:
+                v_e, v_n = vel[i, 0], vel[i, 1]
+                opposes = a_e * v_e + a_n * v_n < 0
+                a_out, v_out = a_e * x_e + a_n * y_n, v_e * x_e + v_n * y_n
+                not_steeper = a_out * math.hypot(v_e, v_n) <= -v_out * math.hypot(a_e, a_n)
+                outward = not (opposes and not_steeper)
+        if outward:
+            r, p = 0.0, 0.0
+        if z_u >= geofence_max_alt:
+            t = _minimum(t, hover[i])
+        if z_u <= min_altitude:
+            t = _maximum(t, hover[i])
+        t = _clip_to_array_bound(t, 0.0, _minimum(1.0, hover[i] * thrust_max_g))
+        r_out[i], p_out[i], y_out[i], t_out[i] = r, p, y, t
+        changed[i] = bad or steep or outward or t != t_in
+    return r_out, p_out, y_out, t_out, changed
+
+
 def warm_up() -> None:
     """Call every kernel once with the argument types the link gives it (compiles them, or loads them from
     numba's cache: tens of ms once numba is loaded), so that no tick waits for the JIT."""
@@ -117,3 +243,7 @@ def warm_up() -> None:
     attitude_target_quaternions(rows)
     times = np.zeros(2, dtype=np.int64)
     take_new_frame(np.ones(2, dtype=np.bool_), times, times, times.copy())
+    row = np.zeros(2)
+    attitude_commands(
+        row, row, row, row, row, rows, rows, rows, row, np.ones(2, dtype=np.bool_), 9.8, (1.0,) * 5, 0.0
+    )
