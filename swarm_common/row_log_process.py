@@ -11,7 +11,9 @@ simulator's truth log (its two files) use it. The child runs below the control l
 `row_log_child.run_below_the_control_loops`): with nice alone, the simulator's formatters made 6-vehicle
 flights land 15 % faster (the simulator's pace) but fly formation 4 % slower (the ground station's pace, its
 tick preempted by the waking formatters; BENCHMARKS.md 2026-11-27 17:00); under SCHED_IDLE formation is as
-fast as without them (BENCHMARKS.md 2026-11-27 22:00).
+fast as without them (BENCHMARKS.md 2026-11-27 22:00). A SCHED_IDLE child only gets the cores' idle time:
+where other programs keep them busy it could fall behind until its pipe is full and its owner waits, so the
+owner takes it back to the normal policy (niced) once its pipe is half full (`RowLogProcess.promoted`).
 
 Rows reach the child in batches, like background_writer's: about ROWS_PER_HAND_OVER rows and at most
 MAX_CHUNKS_PER_HAND_OVER chunks (ticks) per hand-over, and whatever waits once HAND_OVER_PERIOD_S (wall) has
@@ -27,8 +29,11 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import os
+import struct
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 from typing import IO
@@ -40,6 +45,14 @@ from swarm_common.row_log_child import HEAD, WIDTH
 
 _PIPE_BYTES = 1 << 20  # a 200-vehicle tick is 50 kB of rows; the default 64 kB pipe would block the owner
 _CLOSE_TIMEOUT_S = 60.0
+
+
+def _pipe_capacity(fd: int) -> int:
+    """Bytes the pipe `fd` holds (Linux F_GETPIPE_SZ; elsewhere the classic 64 kB)."""
+    try:
+        return int(fcntl.fcntl(fd, getattr(fcntl, "F_GETPIPE_SZ", 1032)))
+    except OSError:
+        return 1 << 16
 
 
 class RowLogError(RuntimeError):
@@ -64,6 +77,8 @@ class RowLogProcess:
         self._acks: IO[bytes] = self._child.stdout
         with contextlib.suppress(OSError):  # Linux: a larger pipe; elsewhere the default
             fcntl.fcntl(self._stdin.fileno(), getattr(fcntl, "F_SETPIPE_SZ", 1031), _PIPE_BYTES)
+        self._pipe_bytes = _pipe_capacity(self._stdin.fileno())
+        self.promoted = False  # the child was taken out of SCHED_IDLE (`_keep_up`)
         self._pending = bytearray()
         self._chunks = 0  # chunks pending
         self._chunks_per_hand_over = 1
@@ -126,11 +141,28 @@ class RowLogProcess:
         if not self._pending:
             return
         data, self._pending, self._chunks = bytes(self._pending), bytearray(), 0
+        self._keep_up(len(data))
         try:
             self._stdin.write(data)
             self._stdin.flush()
         except (BrokenPipeError, ValueError):
             self._fail("is gone")
+
+    def _keep_up(self, incoming: int) -> None:
+        """Take the child out of SCHED_IDLE (back to the normal policy, still niced) once its pipe would be
+        more than half full: a formatter starved by other programs' load must not make its owner, a control
+        loop, wait on a full pipe. Once, for good; where the pipe's fill or the policy cannot be read or
+        changed, nothing."""
+        if self.promoted or not hasattr(os, "SCHED_IDLE"):
+            return
+        try:
+            queued = struct.unpack("i", fcntl.ioctl(self._stdin.fileno(), termios.FIONREAD, b"\0\0\0\0"))[0]
+            if queued + incoming <= self._pipe_bytes // 2:
+                return
+            os.sched_setscheduler(self._child.pid, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:
+            return
+        self.promoted = True
 
     def _fail(self, what: str) -> None:
         self._end(what)

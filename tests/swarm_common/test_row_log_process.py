@@ -113,3 +113,29 @@ def test_the_child_runs_below_the_control_loops(tmp_path: Path) -> None:
                 assert os.sched_getscheduler(pid) == os.SCHED_IDLE
     finally:
         log.close()
+
+
+@pytest.mark.skipif(not hasattr(os, "SCHED_IDLE"), reason="Linux scheduling policies")
+def test_a_child_that_falls_behind_leaves_sched_idle(tmp_path: Path) -> None:
+    """A formatter that gets no CPU (stopped here, as by other programs' load under SCHED_IDLE) is taken back
+    to the normal policy once its pipe is half full, before the owner could block on it; nothing is lost."""
+    log = RowLogProcess(tmp_path / "log.csv", "test log")
+    pid = log._child.pid
+    try:
+        log.flush()  # the child has set its policy
+        os.kill(pid, signal.SIGSTOP)
+        fcntl = pytest.importorskip("fcntl")
+        capacity = fcntl.fcntl(log._stdin.fileno(), getattr(fcntl, "F_GETPIPE_SZ", 1032))
+        rows = np.arange(250 * 4, dtype=float).reshape(250, 4)  # 8 kB a chunk, a hand-over each
+        written = 0
+        while written * rows.nbytes <= 0.6 * capacity:  # past half the pipe, short of full
+            assert not log.promoted or written * rows.nbytes > capacity // 2 - rows.nbytes
+            log.write_rows(TEMPLATE, rows)
+            written += 1
+        assert log.promoted and os.sched_getscheduler(pid) == os.SCHED_OTHER
+        assert os.getpriority(os.PRIO_PROCESS, pid) >= os.getpriority(os.PRIO_PROCESS, 0) + 10  # still niced
+    finally:
+        os.kill(pid, signal.SIGCONT)
+        log.close()
+    lines = (tmp_path / "log.csv").read_bytes().split(b"\r\n")
+    assert len(lines) == written * len(rows) + 1  # every row, and the empty tail after the last \r\n
