@@ -40,6 +40,7 @@ from gcs_swarm.link import frames
 from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
+from gcs_swarm.link.housekeeping import Housekeeping
 from gcs_swarm.link.lockstep import frame_ready, take_new_frame
 from gcs_swarm.link.network import Network
 from gcs_swarm.link.operations import Operation, Timeout
@@ -93,6 +94,7 @@ class Fleet:
         ]
         self._by_name = {link.name: link for link in self.links}
         self.network = Network(self.links, signing_key, forwards)
+        self.housekeeping = Housekeeping(self.links, self.state)  # heartbeats, loss checks, stream watchdog
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
         # wall s every pump so far spent blocked in select for packets, and the rest of its time (decoding
         # what arrived, heartbeats, loss checks, on_pump): read as differences (flight.tick_timing)
@@ -279,11 +281,7 @@ class Fleet:
             raise RuntimeError("the fleet is not connected")
         start = time.monotonic()
         now = self.network.receive(timeout_s)  # time.monotonic() once select returned
-        for link in self.links:
-            if link.channel.endpoint is not None:
-                link.heartbeat.send_if_due(now)
-                link.telemetry.check_loss(now, self.loss_timeout_s, self.loss_wall_timeout_s)
-                link.streams.check()
+        self.housekeeping.run(now, self.loss_timeout_s, self.loss_wall_timeout_s)
         if self.on_pump is not None:
             self.on_pump()
         self.pump_wait_s += now - start

@@ -57,6 +57,11 @@ class GcsHeartbeat:
         self._wall = time.monotonic()
         self._time_ms = int(self.state.time_ms[self.index])
 
+    @property
+    def last_wall(self) -> float:
+        """time.monotonic() of the latest GCS HEARTBEAT (-inf: none yet); it only moves forward."""
+        return self._wall
+
     def send_if_due(self, now: float) -> None:
         """Send the wall-clock heartbeat when due (`now`: time.monotonic()), with a TIMESYNC request whose
         echo measures the link's round-trip time."""

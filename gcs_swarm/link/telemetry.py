@@ -165,6 +165,12 @@ class VehicleTelemetry:
         }
         """Message type -> decoder, for the telemetry messages this class turns into state."""
 
+    @property
+    def heard_clock_ms(self) -> int:
+        """The fleet clock (`TelemetryState.clock_ms`) at the last packet from this vehicle (0: none yet);
+        like that clock, it only moves forward."""
+        return self._heard_clock_ms
+
     def vehicle_clock(self) -> tuple[int, float]:
         """This vehicle's clock for a `Timeout`: (ms of its time_boot_ms progress since connect, wall time it
         last advanced)."""
