@@ -8,9 +8,13 @@ them may act, from three bounds taken at its last full pass over the links and t
 
     heartbeats   any send_if_due acts only if now - last_wall >= WALL_HEARTBEAT_S for some link; last_wall
                  only moves forward, so the oldest one at the last pass bounds them all
-    loss         check_loss acts only if (clock_ms - heard_clock_ms) / 1000 > loss timeout or
-                 now - last_rx_wall > wall loss timeout; both marks only move forward (a packet sets them to
-                 the current clock and wall time), so the oldest ones at the last pass bound them all
+    loss         check_loss acts only on an alive vehicle, and only if
+                 (clock_ms - heard_clock_ms) / 1000 > loss timeout or now - last_rx_wall > wall loss timeout;
+                 both marks only move forward (a packet sets them to the current clock and wall time), so the
+                 oldest ones of the vehicles alive at the last pass bound them all: a vehicle lost then is
+                 alive again only after a packet, which set its marks to at least the clock and wall time of
+                 that pass (the bounds when none was alive). A lost vehicle does not keep the pumps making
+                 full passes.
     streams      Streams.check acts only if time_ms - max(position_ms, asked_ms) > STREAM_QUIET_S * 1000 for
                  some vehicle, which needs time_ms - position_ms above it: checked over the state arrays
                  at each pump
@@ -42,8 +46,8 @@ class Housekeeping:
         self.state = state
         self.full_passes = 0  # pumps that called every link's checks (the rest were skipped by the bounds)
         self._oldest_heartbeat_wall = -np.inf  # min last_wall over the links at the last full pass
-        self._oldest_heard_clock_ms = 0  # min heard_clock_ms over the links at the last full pass
-        self._oldest_rx_wall = -np.inf  # min last_rx_wall over the links at the last full pass
+        self._oldest_heard_clock_ms = 0  # min heard_clock_ms over the links alive at the last full pass
+        self._oldest_rx_wall = -np.inf  # min last_rx_wall over the links alive at the last full pass
 
     def run(self, now: float, loss_timeout_s: float, loss_wall_timeout_s: float) -> None:
         """Send the wall-clock heartbeats due, mark silent vehicles lost, re-ask quiet streams (`now`:
@@ -57,8 +61,9 @@ class Housekeeping:
                 link.telemetry.check_loss(now, loss_timeout_s, loss_wall_timeout_s)
                 link.streams.check()
         self._oldest_heartbeat_wall = min(link.heartbeat.last_wall for link in self.links)
-        self._oldest_heard_clock_ms = min(link.telemetry.heard_clock_ms for link in self.links)
-        self._oldest_rx_wall = min(link.telemetry.last_rx_wall for link in self.links)
+        alive = [link.telemetry for link in self.links if self.state.alive[link.index]]
+        self._oldest_heard_clock_ms = min((t.heard_clock_ms for t in alive), default=self.state.clock_ms)
+        self._oldest_rx_wall = min((t.last_rx_wall for t in alive), default=now)
 
     def _may_act(self, now: float, loss_timeout_s: float, loss_wall_timeout_s: float) -> bool:
         """False only when no link's heartbeat, loss check or stream watchdog can act (module doc)."""

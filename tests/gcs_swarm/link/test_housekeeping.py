@@ -10,7 +10,7 @@ from __future__ import annotations
 import types
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
@@ -36,12 +36,12 @@ class Recorder:
         return True
 
 
-def _fleet() -> Fleet:
+def _fleet(loss_timeout_s: float = LOSS_TIMEOUT_S, loss_wall_timeout_s: float = LOSS_WALL_TIMEOUT_S) -> Fleet:
     fleet = Fleet(
         [VehicleConfig(f"v{i}", f"udpout:127.0.0.1:{9000 + i}", sysid=i + 1) for i in range(N)],
         (0, 0, 0),
-        loss_timeout_s=LOSS_TIMEOUT_S,
-        loss_wall_timeout_s=LOSS_WALL_TIMEOUT_S,
+        loss_timeout_s=loss_timeout_s,
+        loss_wall_timeout_s=loss_wall_timeout_s,
     )
     for i, link in enumerate(fleet.links):
         link.channel.endpoint = Recorder()  # type: ignore[assignment]
@@ -83,7 +83,7 @@ def _outcome(fleet: Fleet) -> object:
 
 
 STEP = st.tuples(
-    st.sampled_from([0.0, 0.02, 0.5, 1.0, 1.5, LOSS_WALL_TIMEOUT_S, 2.5]),  # wall s before the pump
+    st.sampled_from([0.0, 0.02, 0.3, 0.5, 0.6, 1.0, 1.5, 2.0, 2.5]),  # wall s before the pump
     st.lists(  # packets before the pump: (vehicle, kind, vehicle ms advanced before it; negative: reboot)
         st.tuples(
             st.integers(0, N - 1),
@@ -93,16 +93,41 @@ STEP = st.tuples(
         max_size=6,
     ),
 )
+TIMEOUTS = st.sampled_from(  # (loss_timeout_s, loss_wall_timeout_s): each bound the first to trip in some
+    [(LOSS_TIMEOUT_S, LOSS_WALL_TIMEOUT_S), (0.5, LOSS_WALL_TIMEOUT_S), (LOSS_TIMEOUT_S, 0.6), (0.5, 0.6)]
+)
 
 
-@settings(max_examples=300, deadline=None)
-@given(steps=st.lists(STEP, min_size=1, max_size=40))
-def test_skipped_pumps_act_as_the_full_pass(steps: list[tuple[float, list[tuple[int, str, int]]]]) -> None:
+EVERYONE_REPORTS = [(i, "position", 20) for i in range(N)]
+EXACT_S = 1 / 64  # a wall step that keeps the test's wall times exact in binary
+
+
+@settings(max_examples=400, deadline=None)
+@given(timeouts=TIMEOUTS, steps=st.lists(STEP, min_size=1, max_size=40))
+@example(  # the wall heartbeat due at exactly WALL_HEARTBEAT_S after the oldest one (>=, not >)
+    timeouts=(LOSS_TIMEOUT_S, LOSS_WALL_TIMEOUT_S), steps=[(0.25, EVERYONE_REPORTS), (1.0, EVERYONE_REPORTS)]
+)
+@example(  # everyone lost at a pass; then one back and lost again by the fleet clock, another's running on
+    timeouts=(0.5, 0.625),
+    steps=[
+        (0.25, EVERYONE_REPORTS),
+        (1.0, []),
+        (EXACT_S, [(0, "position", 20), (1, "position", 20)]),
+        (EXACT_S, [(1, "position", 2000)]),
+    ],
+)
+@example(  # everyone lost at a pass; then one back and lost again by the wall clock before a heartbeat is due
+    timeouts=(0.5, 0.625),
+    steps=[(0.25, EVERYONE_REPORTS), (1.0, []), (EXACT_S, [(0, "position", 20)]), (0.75, [])],
+)
+def test_skipped_pumps_act_as_the_full_pass(
+    timeouts: tuple[float, float], steps: list[tuple[float, list[tuple[int, str, int]]]]
+) -> None:
     wall = [START_WALL_S]
     clock = types.SimpleNamespace(monotonic=lambda: wall[0], monotonic_ns=lambda: 0)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(heartbeat_module, "time", clock)  # heartbeats stamped with the test's wall clock
-        skipping, plain = _fleet(), _fleet()
+        skipping, plain = _fleet(*timeouts), _fleet(*timeouts)
         vehicle_ms = [200_000] * N
         for dt, packets in steps:
             wall[0] += dt
@@ -111,7 +136,7 @@ def test_skipped_pumps_act_as_the_full_pass(steps: list[tuple[float, list[tuple[
                 for fleet in (skipping, plain):
                     msg = new_parser().parse_buffer(_packet(i + 1, kind, vehicle_ms[i]))[0]
                     fleet.network.accept(fleet.links[i], msg, wall[0])
-            skipping.housekeeping.run(wall[0], LOSS_TIMEOUT_S, LOSS_WALL_TIMEOUT_S)
+            skipping.housekeeping.run(wall[0], *timeouts)
             _plain_housekeeping(plain, wall[0])
             assert _outcome(skipping) == _outcome(plain)
 
@@ -137,3 +162,33 @@ def test_a_steady_fleet_skips_most_pumps() -> None:
     assert 1 + 9 <= fleet.housekeeping.full_passes <= 1 + 20
     assert all(messages.count("TIMESYNC") == 0 for messages in sent)  # the vehicle-time ones were enough
     assert fleet.state.alive.all()
+
+
+def test_a_lost_vehicle_does_not_keep_the_pumps_busy() -> None:
+    """Vehicle 0 goes silent while the others report each frame: it is marked lost once its wall silence
+    passes LOSS_WALL_TIMEOUT_S, after which the pumps skip again (its stale marks no longer count); when it
+    speaks again it is alive at once and nothing else happens."""
+    wall = [START_WALL_S]
+    clock = types.SimpleNamespace(monotonic=lambda: wall[0], monotonic_ns=lambda: 0)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(heartbeat_module, "time", clock)
+        fleet = _fleet()
+        passes_at = []
+        for frame in range(400):  # 8 s; vehicle 0 silent from 1 s to 5 s
+            wall[0] += 0.02
+            for i, link in enumerate(fleet.links):
+                if i == 0 and 50 <= frame < 250:
+                    continue
+                msg = new_parser().parse_buffer(_packet(i + 1, "position", 200_000 + 20 * frame))[0]
+                fleet.network.accept(link, msg, wall[0])
+            before = fleet.housekeeping.full_passes
+            fleet.housekeeping.run(wall[0], LOSS_TIMEOUT_S, LOSS_WALL_TIMEOUT_S)
+            if fleet.housekeeping.full_passes > before:
+                passes_at.append(frame)
+            if frame == 200:
+                assert not fleet.state.alive[0]
+        assert fleet.state.alive.all()
+        assert fleet.links[0].channel.stats.lost == 1
+    lost_at = 50 + round(LOSS_WALL_TIMEOUT_S / 0.02)  # the first pump past the wall timeout
+    assert lost_at in passes_at or lost_at + 1 in passes_at
+    assert len(passes_at) <= 1 + 2 * 8 + 2  # the first, about two a second for the heartbeat bound, the loss
