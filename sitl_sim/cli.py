@@ -90,6 +90,14 @@ def build_parser() -> OneLineParser:
         help="lockstep frames from telemetry to the commands answering it taking effect: 1 (default) "
         "pipelines the simulator with its clients, 0 alternates with them",
     )
+    add(
+        "--lockstep-spin-us",
+        type=float,
+        default=1000.0,
+        metavar="US",
+        help="in lockstep, poll this long for the clients' answers before blocking (default 1000; 0: block "
+        "at once)",
+    )
     add("--rate-hz", type=float, default=1000.0, metavar="HZ", help="physics rate (default 1000)")
     add("--outer-hz", type=float, default=100.0, metavar="HZ", help="autopilot outer-loop rate (default 100)")
     add("--home", metavar="LAT,LON,ALT", help="geodetic ENU origin (default: mission origin, else CMAC)")
@@ -328,6 +336,11 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
     )
     _check(parser, _finite_positive(args.lockstep_hz), "--lockstep-hz must be > 0")
     _check(parser, _finite_positive(args.lockstep_timeout), "--lockstep-timeout must be > 0 s")
+    _check(
+        parser,
+        0.0 <= args.lockstep_spin_us <= 20000.0,  # also refuses nan
+        "--lockstep-spin-us must be a number of microseconds in 0..20000",
+    )
     _check(parser, args.orphan_speedup > 0, "--orphan-speedup must be > 0 (inf: as fast as possible)")
     _check(parser, _finite_positive(args.orphan_grace), "--orphan-grace must be > 0 s")
     _check(
@@ -361,6 +374,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         lockstep=args.lockstep,
         lockstep_timeout=args.lockstep_timeout,
         lockstep_delay=args.lockstep_delay,
+        lockstep_spin_s=args.lockstep_spin_us * 1e-6,
         home=home or DEFAULT_HOME,
         start_pos=start_pos,
         start_vel=start_vel,

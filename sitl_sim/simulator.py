@@ -43,6 +43,7 @@ from sitl_sim.vehicle_model.airframe import QuadParams
 from sitl_sim.vehicle_model.dynamics import FleetDynamics, FleetState
 from sitl_sim.vehicle_model.wind import Wind
 from sitl_sim.world import Obstacles, find_collisions
+from swarm_common.spin_wait import select_spinning
 
 logger = logging.getLogger(__name__)
 KEEPALIVE_S = 1.0  # wall seconds between HEARTBEATs while paused for lockstep clients
@@ -88,6 +89,8 @@ class SimConfig:
     param_names: str = "4.7"  # ArduCopter release of the parameter names (autopilot/params.py)
     orphan_speedup: float = math.inf  # x real time once the parent is gone (sitl_sim.orphan); inf = at once
     orphan_grace_s: float = 300.0  # simulated s an orphan flies at most before it exits
+    # wall s each lockstep wait for answers polls before it blocks (swarm_common.spin_wait; CLI default 1 ms)
+    lockstep_spin_s: float = 0.0
     autopilots: tuple[str, ...] = ()  # "ardupilot"/"px4" per vehicle (autopilot.persona); (): all ArduPilot
 
     @property
@@ -407,8 +410,8 @@ class Simulator:
                     self._send_now(
                         i, (mavlink2.MAVLINK_MSG_ID_HEARTBEAT, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME)
                     )
-            # block in select: polling first made one flight 10 % faster but two at once (Monte Carlo --jobs
-            # 2 on 2 cores) 25 % slower (BENCHMARKS.md)
+            # poll for up to --lockstep-spin-us, yielding the CPU, then block: a poll that did not yield made
+            # two flights at once (Monte Carlo --jobs 2 on 2 cores) 25 % slower (BENCHMARKS.md)
             self._serve(min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
         return not stop()
 
@@ -420,7 +423,9 @@ class Simulator:
             for endpoint in self.endpoints:
                 if endpoint.inbox or endpoint.channel.pending(UP):
                     handled += endpoint.receive(wall, frame_ms)
-        events = self.selector.select(0.0 if handled else timeout)
+        # waiting for lockstep answers (frame_ms), which come within a fraction of a millisecond: poll first
+        spin_s = self.config.lockstep_spin_s if frame_ms is not None else 0.0
+        events = select_spinning(self.selector, 0.0 if handled else timeout, spin_s)
         wall = time.monotonic()
         for key, _ in events:
             if isinstance(key.fileobj, VehicleEndpoint):

@@ -20,6 +20,7 @@ from gcs_swarm.evaluation.report import write_report
 from gcs_swarm.flight.embedded_sim import EmbeddedSimulator, SimulatorError
 from gcs_swarm.flight.fly import (
     default_run_dir,
+    lockstep_spin_s,
     mission_fleet,
     signing_key,
     start_embedded_simulator,
@@ -95,7 +96,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         where = (
             f"embedded simulator on 127.0.0.1:{base_port}.." if embedded else "vehicles of the mission file"
         )
-        with mission_fleet(mission, base_port, run_dir, key) as fleet:
+        with mission_fleet(mission, base_port, run_dir, key, lockstep_spin_s(mission, embedded)) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             runner = MissionRunner(
                 mission,

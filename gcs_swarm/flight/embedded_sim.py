@@ -61,6 +61,7 @@ class EmbeddedSimulator:
         if time_mode == "lockstep":
             self.args += ["--lockstep", "--lockstep-hz", f"{mission.run.control_rate_hz:g}"]
             self.args += ["--lockstep-delay", str(mission.run.simulator.lockstep_delay_frames)]
+            self.args += ["--lockstep-spin-us", f"{mission.run.simulator.lockstep_spin_us:g}"]
         elif time_mode == "speedup":
             self.args += ["--speedup", f"{speedup:g}"]
         if truth_log is not None:

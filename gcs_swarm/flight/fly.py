@@ -146,9 +146,12 @@ def with_forwards(mission: Mission, forward: tuple[str, ...], forward_rw: bool) 
     return dataclasses.replace(mission, run=run)
 
 
-def mission_fleet(mission: Mission, base_port: int | None, run_dir: Path, key: bytes | None) -> Fleet:
+def mission_fleet(
+    mission: Mission, base_port: int | None, run_dir: Path, key: bytes | None, spin_s: float = 0.0
+) -> Fleet:
     """The (unconnected) Fleet that flies `mission`: its vehicles (see vehicle_configs), the run folder's
-    telemetry.tlog, the signing key, safety.telemetry.lost_s as the loss timeout, and run.forward."""
+    telemetry.tlog, the signing key, safety.telemetry.lost_s as the loss timeout, run.forward, and spin_s
+    (wall s each wait for packets polls first, see lockstep_spin_s)."""
     return Fleet(
         vehicle_configs(mission, base_port),
         mission.origin,
@@ -157,7 +160,18 @@ def mission_fleet(mission: Mission, base_port: int | None, run_dir: Path, key: b
         loss_timeout_s=mission.safety.telemetry.lost_s,
         stream_rate_hz=mission.run.control_rate_hz,
         forwards=[ForwardConfig(text, mission.run.forward_rw) for text in mission.run.forward],
+        spin_s=spin_s,
     )
+
+
+def lockstep_spin_s(mission: Mission, embedded: bool, time_mode: str | None = None) -> float:
+    """Wall s the ground station polls for packets before it blocks: run.simulator.lockstep_spin_us when it
+    flies its embedded simulator in lockstep (time_mode: the command line's override of the mission's),
+    whose next frame comes within a fraction of a millisecond; 0 (block at once) against anything else,
+    which sends its next packets milliseconds later."""
+    spec = mission.run.simulator
+    lockstep = embedded and (time_mode or spec.time_mode) == "lockstep"
+    return spec.lockstep_spin_us * 1e-6 if lockstep else 0.0
 
 
 def signing_key(mission: Mission) -> tuple[Path | None, bytes | None]:
@@ -252,7 +266,8 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
                 tuple(options.sim_args),
             )
             say(f"embedded simulator up: {len(mission.vehicles)} vehicles on 127.0.0.1:{base_port}..")
-        with mission_fleet(mission, base_port, run_dir, key) as fleet:
+        spin_s = lockstep_spin_s(mission, embedded, options.time_mode)
+        with mission_fleet(mission, base_port, run_dir, key, spin_s) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             try:
                 runner = MissionRunner(mission, fleet, record, progress=say)

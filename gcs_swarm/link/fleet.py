@@ -61,6 +61,8 @@ class Fleet:
     signing_key: 32-byte MAVLink 2 signing key; every packet sent is then signed (link.signing), and every
     packet received must be signed with it (swarm_common.signing; refusals counted in `stats`).
     forwards: other ground stations watching (and, read-write, commanding) through this one (link.forward).
+    spin_s: wall s each wait for packets polls before it blocks (swarm_common.spin_wait; worth it only
+    against a lockstep simulator, whose next frame comes within a fraction of a millisecond).
     """
 
     def __init__(
@@ -76,6 +78,7 @@ class Fleet:
         signing_key: bytes | None = None,
         stream_rate_hz: float = 50.0,
         forwards: Sequence[ForwardConfig] = (),
+        spin_s: float = 0.0,
     ) -> None:
         """`stream_rate_hz`: the rate of the state telemetry asked for as soon as a vehicle is heard
         (`telemetry_rates`; the control loop's rate)."""
@@ -93,7 +96,7 @@ class Fleet:
             for i, cfg in enumerate(self.configs)
         ]
         self._by_name = {link.name: link for link in self.links}
-        self.network = Network(self.links, signing_key, forwards)
+        self.network = Network(self.links, signing_key, forwards, spin_s=spin_s)
         self.housekeeping = Housekeeping(self.links, self.state)  # heartbeats, loss checks, stream watchdog
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
         # wall s every pump so far spent blocked in select for packets, and the rest of its time (decoding

@@ -38,6 +38,7 @@ from gcs_swarm.link.hot_telemetry import HotTelemetry, TakenPacket
 from gcs_swarm.link.tlog import TlogWriter
 from gcs_swarm.link.vehicle import VehicleLink
 from swarm_common.signing import is_signature_rejection, was_signed
+from swarm_common.spin_wait import select_spinning
 
 SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before the connection is refused
 
@@ -46,7 +47,9 @@ class Network:
     """Endpoints and routing for `links` (row i = links[i]) and `forward_configs`; every packet in and out
     goes to the tlog (a forward's frames when they reach a vehicle). `signing_key`: checked on every frame
     received (vehicles' and forwards'). `hot_intake`: take the 50 Hz telemetry from the bytes where possible
-    (HotTelemetry; False: every packet through pymavlink messages, the reference path)."""
+    (HotTelemetry; False: every packet through pymavlink messages, the reference path). `spin_s`: wall s
+    `receive` polls before it blocks (swarm_common.spin_wait; for a lockstep simulator, which answers
+    within a fraction of a millisecond)."""
 
     def __init__(
         self,
@@ -54,8 +57,10 @@ class Network:
         signing_key: bytes | None = None,
         forward_configs: Sequence[ForwardConfig] = (),
         hot_intake: bool = True,
+        spin_s: float = 0.0,
     ) -> None:
         self.links = list(links)
+        self.spin_s = spin_s  # wall s receive polls before it blocks (swarm_common.spin_wait)
         self.signing_key = signing_key
         self.hot_intake = hot_intake
         self._hot: dict[Endpoint, HotTelemetry] = {}  # the endpoints whose telemetry HotTelemetry takes
@@ -135,7 +140,7 @@ class Network:
         """Wait up to `timeout_s` for packets and route all that are readable; returns the time.monotonic() at
         which they were read."""
         if self._selector.get_map():
-            ready = self._selector.select(max(timeout_s, 0.0))
+            ready = select_spinning(self._selector, timeout_s, self.spin_s)
         else:  # every stream endpoint was closed by its peer
             ready = []
             time.sleep(max(timeout_s, 0.0))

@@ -371,6 +371,7 @@ class SimulatorSection(Section):
     embedded: bool = True
     time_mode: Annotated[str, one_of("lockstep", "realtime", "speedup")] = "lockstep"
     lockstep_delay_frames: Annotated[int, Range(ge=0, le=1, unit="frames")] = 1
+    lockstep_spin_us: Annotated[float, Range(ge=0, le=20000, unit="us")] = 1000.0
     speedup: Annotated[float, Range(gt=0, le=10000)] = 1.0
     seed: Annotated[int, Range(ge=0, le=2**32 - 1)] = 0
     rate_hz: Annotated[float, Range(le=100000, unit="Hz")] = 1000.0  # >= run.control_rate_hz (checks.py)

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from sitl_sim.cli import main
+from sitl_sim.cli import build_config, build_parser, main
 from tests.sitl_sim.sim_process import M
 
 
@@ -29,6 +29,9 @@ from tests.sitl_sim.sim_process import M
         (["--vehicles", "1", "--truth-log", "/nonexistent/dir/t.csv"], "does not exist"),
         (["--vehicles", "1", "--mission", "/nonexistent.yaml"], "mission"),
         (["--vehicles", "x"], "invalid int value"),
+        (["--vehicles", "1", "--lockstep", "--lockstep-spin-us", "-1"], "--lockstep-spin-us"),
+        (["--vehicles", "1", "--lockstep", "--lockstep-spin-us", "nan"], "--lockstep-spin-us"),
+        (["--vehicles", "1", "--lockstep", "--lockstep-spin-us", "20001"], "--lockstep-spin-us"),
     ],
 )
 def test_bad_arguments_give_one_line_and_status_2(argv, fragment, capsys):
@@ -100,3 +103,12 @@ def test_signal_exits_cleanly_with_the_truth_log_closed(sitl, tmp_path, sig):
     assert text.endswith("\n") and text.startswith("t,vehicle,sysid,")
     assert all(line.count(",") == 23 for line in text.splitlines())
     assert (tmp_path / "truth.obstacles.csv").read_text() == "t,obstacle,x,y,z,radius\n"
+
+
+def test_lockstep_spin_reaches_the_config() -> None:
+    parser = build_parser()
+    default = build_config(parser, parser.parse_args(["--vehicles", "1", "--lockstep"]))
+    assert default.lockstep_spin_s == pytest.approx(1e-3)  # the documented default, 1000 us
+    argv = ["--vehicles", "1", "--lockstep", "--lockstep-spin-us", "0"]
+    off = build_config(parser, parser.parse_args(argv))
+    assert off.lockstep_spin_s == 0.0

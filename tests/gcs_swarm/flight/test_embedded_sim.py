@@ -49,3 +49,14 @@ def test_a_failure_while_starting_stops_the_simulator(tmp_path):
     with pytest.raises(RuntimeError, match="no kernels"):
         sim.start(timeout_s=60.0, while_starting=fail)
     assert sim.proc is not None and sim.proc.poll() is not None  # stopped, not left running
+
+
+def test_the_mission_spin_goes_to_the_simulator_in_lockstep_only(tmp_path):
+    """run.simulator.lockstep_spin_us reaches `sitl-sim --lockstep-spin-us` (the simulator's own default is
+    the same 1000 us; the mission's value wins), and a real-time simulator gets none."""
+    mission = load_mission(ROOT / "missions" / "quickstart.yaml")
+    lockstep = EmbeddedSimulator(mission, base_port=20000, truth_log=None, time_mode="lockstep")
+    k = lockstep.args.index("--lockstep-spin-us")
+    assert float(lockstep.args[k + 1]) == mission.run.simulator.lockstep_spin_us == 1000.0
+    realtime = EmbeddedSimulator(mission, base_port=20000, truth_log=None, time_mode="realtime")
+    assert "--lockstep-spin-us" not in realtime.args
