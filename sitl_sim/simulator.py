@@ -410,8 +410,8 @@ class Simulator:
                     self._send_now(
                         i, (mavlink2.MAVLINK_MSG_ID_HEARTBEAT, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME)
                     )
-            # poll for up to --lockstep-spin-us, yielding the CPU, then block: a poll that did not yield made
-            # two flights at once (Monte Carlo --jobs 2 on 2 cores) 25 % slower (BENCHMARKS.md)
+            # _serve polls for up to --lockstep-spin-us, yielding the CPU, then blocks: polling without the
+            # yield made two flights at once (Monte Carlo --jobs 2 on 2 cores) slower (BENCHMARKS.md)
             self._serve(min(0.1, max(0.0, keepalive + KEEPALIVE_S - now)), frame_ms)
         return not stop()
 

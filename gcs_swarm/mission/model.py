@@ -159,7 +159,7 @@ class SimulatorSpec:
     embedded: bool
     time_mode: str  # "lockstep" | "realtime" | "speedup"
     lockstep_delay_frames: int  # lockstep frames before the answer to a frame takes effect (0 or 1)
-    lockstep_spin_us: float  # us the ground station polls for the next lockstep frame before it blocks
+    lockstep_spin_us: float  # us each side of a lockstep exchange polls for the other's packets, then blocks
     speedup: float  # simulated seconds per wall second in "speedup" mode
     seed: int
     rate_hz: float  # physics rate
