@@ -284,6 +284,16 @@ class MavutilEndpoint(Endpoint):
             chunk = self._conn.recv(4096)
         return [(msg, None) for msg in (self._stream_parser.parse_buffer(chunk) or [])] if chunk else []
 
+    @property
+    def datagram_socket(self) -> socket.socket | None:
+        """The udpout socket, which a caller may read whole datagrams from and hand to `parse_datagram`
+        (link.batch_intake); None for a stream or a serial port."""
+        return self._conn.port if self._datagrams else None
+
+    def parse_datagram(self, data: bytes, take: PacketTaker | None = None) -> list[MAVLinkMessage]:
+        """The messages of one datagram read from `datagram_socket`, as `receive` makes them."""
+        return self._udp_parser.parse(data, take)
+
     def send(self, packet: bytes | bytearray, sysid: int | None) -> bool:
         try:
             if self._datagrams:

@@ -227,6 +227,7 @@ class Fleet:
             frames.link_kernels.warm_up()
         try:
             self.network.open(min(timeout_s, 5.0), self.tlog_path)
+            self.network.warm_up()
             deadline = time.monotonic() + timeout_s
             while True:
                 self.network.check_identities()

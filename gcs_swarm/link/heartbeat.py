@@ -28,7 +28,6 @@ class GcsHeartbeat:
         self.channel = channel
         self.state = state
         self._wall = -math.inf  # time.monotonic() of the latest GCS HEARTBEAT
-        self._time_ms = -1  # time_boot_ms of the latest GCS HEARTBEAT
         self._phase_ms = index * HEARTBEAT_STAGGER_MS % GCS_HEARTBEAT_MS
         self._timesync_ns = -1  # ts1 of our latest TIMESYNC request (monotonic ns)
 
@@ -36,7 +35,7 @@ class GcsHeartbeat:
         """A GCS HEARTBEAT is due at time_boot_ms `t_ms`: the first one, then one per GCS_HEARTBEAT_MS period
         of vehicle time (vehicle i's periods start HEARTBEAT_STAGGER_MS * i ms later, modulo the period), and
         one after a reboot."""
-        last = self._time_ms
+        last = int(self.state.gcs_heartbeat_ms[self.index])
         if last < 0 or t_ms < last:
             return True
         shift = GCS_HEARTBEAT_MS - self._phase_ms
@@ -55,7 +54,7 @@ class GcsHeartbeat:
             )
         )
         self._wall = time.monotonic()
-        self._time_ms = int(self.state.time_ms[self.index])
+        self.state.gcs_heartbeat_ms[self.index] = self.state.time_ms[self.index]
 
     @property
     def last_wall(self) -> float:

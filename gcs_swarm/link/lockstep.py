@@ -16,7 +16,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import MAVLinkMessage
-from gcs_swarm.link.telemetry import TelemetryState, VehicleTelemetry
+from gcs_swarm.link.telemetry import CLOCK_KIND, TelemetryState, VehicleTelemetry
 from swarm_common.mavlink_codec import Packer
 
 _SYSTEM_TIME = Packer(mavlink2.MAVLink_system_time_message)
@@ -39,7 +39,7 @@ class LockstepAnswer:
 
     def on_clock_tick(self, m: MAVLinkMessage) -> None:
         """A clock tick (`is_clock_tick`): the frame it ends is complete."""
-        if self.telemetry.on_time(m.time_boot_ms, "clock"):
+        if self.telemetry.on_time(m.time_boot_ms, CLOCK_KIND):
             self.state.frame_ms[self.index] = max(int(self.state.frame_ms[self.index]), m.time_boot_ms)
 
     @property

@@ -9,8 +9,10 @@ own one), and the identity checks refuse two vehicles answering to one sysid.
 With a signing key every endpoint checks signatures (connection.py): what fails is counted per vehicle
 (`unsigned`, `bad_signature` in its LinkStats) and never reaches it. Without one, a vehicle on its own udpout
 endpoint has its 50 Hz telemetry taken straight from the datagram bytes (gcs_swarm.link.hot_telemetry), with
-the same effect as the general path. Forwards (gcs_swarm.link.forward) get every vehicle frame, and their own
-frames are routed to the vehicles by target system when they may pass.
+the same effect as the general path, and, with numba and no forwards, the whole fleet's at once by a compiled
+kernel (gcs_swarm.link.batch_intake), which hands what it does not take back to that path. Forwards
+(gcs_swarm.link.forward) get every vehicle frame, and their own frames are routed to the vehicles by target
+system when they may pass.
 """
 
 from __future__ import annotations
@@ -23,12 +25,14 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.link import batch_intake
 from gcs_swarm.link.autopilots import dialect_for, dialect_named
 from gcs_swarm.link.connection import (
     ConnectionSpec,
     Endpoint,
     LinkError,
     MAVLinkMessage,
+    MavutilEndpoint,
     UdpRouter,
     open_endpoint,
     parse_connection,
@@ -47,7 +51,8 @@ class Network:
     """Endpoints and routing for `links` (row i = links[i]) and `forward_configs`; every packet in and out
     goes to the tlog (a forward's frames when they reach a vehicle). `signing_key`: checked on every frame
     received (vehicles' and forwards'). `hot_intake`: take the 50 Hz telemetry from the bytes where possible
-    (HotTelemetry; False: every packet through pymavlink messages, the reference path). `spin_s`: wall s
+    (HotTelemetry, and BatchIntake for the whole fleet where it is available; False: every packet through
+    pymavlink messages, the reference path). `batch`: use BatchIntake where it can serve. `spin_s`: wall s
     `receive` polls before it blocks (swarm_common.spin_wait; for a lockstep simulator, which answers
     within a fraction of a millisecond)."""
 
@@ -58,8 +63,12 @@ class Network:
         forward_configs: Sequence[ForwardConfig] = (),
         hot_intake: bool = True,
         spin_s: float = 0.0,
+        batch: bool = True,
     ) -> None:
         self.links = list(links)
+        self.batch = batch
+        self._batch: batch_intake.BatchIntake | None = None  # set by `open` when it serves
+        self._batched: dict[Endpoint, tuple[Any, int]] = {}  # endpoints BatchIntake reads: (socket, vehicle)
         self.spin_s = spin_s  # wall s receive polls before it blocks (swarm_common.spin_wait)
         self.signing_key = signing_key
         self.hot_intake = hot_intake
@@ -120,6 +129,19 @@ class Network:
             self._tlog = TlogWriter(tlog_path)
             for link in self.links:
                 link.channel.tlog = self._tlog
+        if self.batch and self._hot and not self.forwards and batch_intake.available():
+            self._batch = batch_intake.BatchIntake(
+                self.links, self.links[0].state, lambda: self._tlog, self._per_packet
+            )
+            for endpoint, hot in self._hot.items():
+                assert isinstance(endpoint, MavutilEndpoint)
+                self._batched[endpoint] = (endpoint.datagram_socket, hot.link.index)
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the batch intake's kernel now, when the batch serves, rather
+        than in the first receive that needs it."""
+        if self._batch is not None:
+            batch_intake.warm_up()
 
     def close(self) -> None:
         """Close every endpoint and the tlog (idempotent)."""
@@ -127,6 +149,8 @@ class Network:
             endpoint.close()
         self._routes.clear()
         self._hot.clear()
+        self._batched.clear()
+        self._batch = None
         for forward in self.forwards:
             forward.endpoint.close()
         self.forwards.clear()
@@ -145,7 +169,14 @@ class Network:
             ready = []
             time.sleep(max(timeout_s, 0.0))
         now = time.monotonic()
+        batch, batched = self._batch, self._batched
         for key, _ in ready:
+            if batch is not None:
+                read_by_batch = batched.get(key.data)
+                if read_by_batch is not None:
+                    batch.read(read_by_batch[0], read_by_batch[1], now)
+                    continue
+                batch.flush(now)  # what came before this endpoint's packets is applied before them
             if isinstance(key.data, Forward):
                 self._from_forward(key.data)
                 if key.data.endpoint.closed:
@@ -166,11 +197,25 @@ class Network:
                 self._selector.unregister(key.fd)
                 for link in self._routes[endpoint]:
                     link.add_event(f"connection {endpoint.spec.text} closed by the peer")
+        if batch is not None:
+            batch.flush(now)
         if self._outgoing:
             for forward in self.forwards:
                 forward.send_frames(self._outgoing)
             self._outgoing = []
         return now
+
+    def _per_packet(self, index: int, datagram: bytes, now: float) -> None:
+        """One datagram of vehicle `index`'s hot endpoint that BatchIntake did not take, as `receive` handles
+        it without the batch."""
+        endpoint = self.links[index].channel.endpoint
+        assert isinstance(endpoint, MavutilEndpoint)
+        hot = self._hot[endpoint]
+        for item in endpoint.parse_datagram(datagram, hot.take):
+            if isinstance(item, TakenPacket):
+                hot.apply(item, now)
+            else:
+                self._deliver(endpoint, item, None, now)
 
     def _from_forward(self, forward: Forward) -> None:
         """Route what a forward sent to the vehicles its target_system names (0 or none: all), unchanged, when

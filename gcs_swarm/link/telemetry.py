@@ -26,6 +26,18 @@ from gcs_swarm.link.connection import MAVLinkMessage
 from swarm_common import rotations
 
 REBOOT_BACKSTEP_MS = 5000  # a time_boot_ms this much older than the latest means a reboot, not a late packet
+POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND = 0, 1, 2  # kinds of stamped packets whose lateness is judged
+# apart (VehicleTelemetry.on_time; CLOCK_KIND: the lockstep clock ticks, link.lockstep)
+TIMES_ROWS = (
+    "time_ms",
+    "position_ms",
+    "tick_ms",
+    "position_count",
+    "frames_missed",
+    "progress_ms",
+    "heard_clock_ms",
+    "gcs_heartbeat_ms",
+)  # TelemetryState.times, row by row
 
 # EKF_STATUS_REPORT.flags: a usable position estimate (as ArduCopter's ekf_position_ok, disarmed case).
 EKF_REQUIRED = (
@@ -63,7 +75,21 @@ class TelemetryState:
         self.geodetic = np.full((n, 3), np.nan)
         self.vel = np.full((n, 3), np.nan)
         self.att = np.full((n, 3), np.nan)
-        self.time_ms = np.full(n, -1, dtype=np.int64)
+        # the int64 rows link.intake_kernel reads and writes, one (8, N) matrix (TIMES_ROWS): views, never
+        # rebound
+        self.times = np.zeros((len(TIMES_ROWS), n), dtype=np.int64)
+        (
+            self.time_ms,  # latest time_boot_ms (-1 = none yet)
+            self.position_ms,  # time_boot_ms of the latest GLOBAL_POSITION_INT (-1 = none yet)
+            self.tick_ms,  # latest frame consumed by a tick or a lockstep answer (-1 = none yet)
+            self.position_count,  # GLOBAL_POSITION_INT messages received
+            # GLOBAL_POSITION_INT frames replaced by a newer one before a tick or a lockstep answer used them
+            self.frames_missed,
+            self.progress_ms,  # the vehicle's time progress since connect, ms (reboots do not count back)
+            self.heard_clock_ms,  # the fleet clock (clock_ms) at the vehicle's last packet
+            self.gcs_heartbeat_ms,  # its time_boot_ms when the latest GCS HEARTBEAT went (-1 = none yet)
+        ) = self.times
+        self.time_ms[:] = self.position_ms[:] = self.tick_ms[:] = self.gcs_heartbeat_ms[:] = -1
         self.alive = np.zeros(n, dtype=bool)
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.full(n, -1, dtype=np.int64)
@@ -78,14 +104,16 @@ class TelemetryState:
         self.prearm = np.full(n, -1, dtype=np.int8)  # SYS_STATUS pre-arm check: -1 unknown, 0 failing, 1 ok
         self.gps_fix = np.full(n, -1, dtype=np.int64)  # GPS_RAW_INT.fix_type (-1 = none received)
         self.rtt_ms = np.full(n, np.nan)  # round trip of the latest TIMESYNC exchange, wall ms
-        self.position_count = np.zeros(n, dtype=np.int64)  # GLOBAL_POSITION_INT messages received
-        self.position_ms = np.full(n, -1, dtype=np.int64)  # time_boot_ms of the latest GLOBAL_POSITION_INT
-        self.tick_ms = np.full(n, -1, dtype=np.int64)  # latest frame consumed by a tick or a lockstep answer
-        # GLOBAL_POSITION_INT frames replaced by a newer one before a tick or lockstep answer consumed them
-        self.frames_missed = np.zeros(n, dtype=np.int64)
         self.frame_ms = np.full(n, -1, dtype=np.int64)  # latest lockstep clock tick (link.lockstep)
         self.clock_ms = 0  # fleet vehicle clock: the largest time progress of any vehicle since connect
         self.clock_wall = -math.inf  # time.monotonic() at which clock_ms last advanced
+        # per vehicle, kept by VehicleTelemetry (arrays, so that link.batch_intake can take a whole fleet's
+        # telemetry in one compiled call): time.monotonic() at which progress_ms last advanced and of its last
+        # packet, one (2, N) matrix of views; the time_boot_ms of its newest packet of each kind (columns
+        # POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND; -1: none yet)
+        self.walls = np.full((2, n), -math.inf)
+        self.progress_wall, self.last_rx_wall = self.walls
+        self.latest_ms = np.full((n, 3), -1, dtype=np.int64)
         self._pos = np.full((n, 3), np.nan)
         self.pos_stale = False  # set by GLOBAL_POSITION_INT: `pos` recomputes lazily
 
@@ -146,11 +174,6 @@ class VehicleTelemetry:
         self.statustexts = 0  # STATUSTEXT messages received so far
         self.last_statustext = ""
         self.last_prearm = ""  # the latest "PreArm: ..." / "Arm: ..." STATUSTEXT (ArduPilot's own reason)
-        self.last_rx_wall = -math.inf  # time.monotonic() of the last packet from the autopilot
-        self._progress_ms = 0  # this vehicle's time progress since connect (reboots do not count back)
-        self._progress_wall = -math.inf  # time.monotonic() at which _progress_ms last advanced
-        self._heard_clock_ms = 0  # fleet clock at the last packet from this vehicle
-        self._latest_ms: dict[str, int] = {}  # time_boot_ms of the newest packet of each kind (see on_time)
         self.handlers: dict[str, Callable[[MAVLinkMessage], None]] = {
             "HEARTBEAT": self._on_heartbeat,
             "GLOBAL_POSITION_INT": self._on_global_position_int,
@@ -169,12 +192,18 @@ class VehicleTelemetry:
     def heard_clock_ms(self) -> int:
         """The fleet clock (`TelemetryState.clock_ms`) at the last packet from this vehicle (0: none yet);
         like that clock, it only moves forward."""
-        return self._heard_clock_ms
+        return int(self.state.heard_clock_ms[self.index])
+
+    @property
+    def last_rx_wall(self) -> float:
+        """time.monotonic() of the last packet from the autopilot (-inf: none yet)."""
+        return float(self.state.last_rx_wall[self.index])
 
     def vehicle_clock(self) -> tuple[int, float]:
         """This vehicle's clock for a `Timeout`: (ms of its time_boot_ms progress since connect, wall time it
         last advanced)."""
-        return self._progress_ms, self._progress_wall
+        st, i = self.state, self.index
+        return int(st.progress_ms[i]), float(st.progress_wall[i])
 
     def add_event(self, text: str, severity: int = mavlink2.MAV_SEVERITY_WARNING) -> None:
         """Append an event for this vehicle, stamped with its latest time since boot."""
@@ -185,43 +214,44 @@ class VehicleTelemetry:
     def heard(self, now: float) -> None:
         """A packet from the autopilot arrived at `now` (time.monotonic()): the link is alive."""
         st, i = self.state, self.index
-        self.last_rx_wall = now
-        self._heard_clock_ms = st.clock_ms
+        st.last_rx_wall[i] = now
+        st.heard_clock_ms[i] = st.clock_ms
         if not st.alive[i]:
             st.alive[i] = True
             if self.stats.lost:
                 self.add_event("link regained", mavlink2.MAV_SEVERITY_NOTICE)
 
-    def on_time(self, t_ms: int, kind: str | None = None) -> bool:
+    def on_time(self, t_ms: int, kind: int | None = None) -> bool:
         """A packet stamped with the vehicle's time_boot_ms: advance clocks, call `on_time` (the heartbeat).
 
-        False for a late packet of `kind` (older than the latest of that kind: delayed or reordered on the
-        way), whose data must not overwrite newer data. Lateness is per kind: a
-        delayed position report older than the latest attitude is still the newest position. A stamp older
-        than the vehicle's newest by more than REBOOT_BACKSTEP_MS is a reboot.
+        False for a late packet of `kind` (POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND: older than the latest
+        of that kind, delayed or reordered on the way), whose data must not overwrite newer data. Lateness is
+        per kind: a delayed position report older than the latest attitude is still the newest position. A
+        stamp older than the vehicle's newest by more than REBOOT_BACKSTEP_MS is a reboot.
         """
         st, i = self.state, self.index
         prev = int(st.time_ms[i])
         if t_ms > prev or t_ms < prev - REBOOT_BACKSTEP_MS:
             if t_ms > prev and prev >= 0:
-                self._progress_ms += t_ms - prev
-                self._progress_wall = time.monotonic()
-                if self._progress_ms > st.clock_ms:
-                    st.clock_ms, st.clock_wall = self._progress_ms, self._progress_wall
+                progress = int(st.progress_ms[i]) + t_ms - prev
+                wall = time.monotonic()
+                st.progress_ms[i], st.progress_wall[i] = progress, wall
+                if progress > st.clock_ms:
+                    st.clock_ms, st.clock_wall = progress, wall
             elif t_ms < prev:  # rebooted: frames start again from zero, and its stream rates are gone
                 st.tick_ms[i] = -1
                 st.frame_ms[i] = -1
                 st.position_ms[i] = -1
-                self._latest_ms.clear()
+                st.latest_ms[i] = -1
                 self._on_reboot_hook()
             st.time_ms[i] = t_ms
             self._on_time_hook(t_ms)
         if kind is None:
             return True
-        if t_ms < self._latest_ms.get(kind, -1):
+        if t_ms < st.latest_ms[i, kind]:
             self.stats.late += 1
             return False
-        self._latest_ms[kind] = t_ms
+        st.latest_ms[i, kind] = t_ms
         return True
 
     def _on_heartbeat(self, m: MAVLinkMessage) -> None:
@@ -240,7 +270,7 @@ class VehicleTelemetry:
         """GLOBAL_POSITION_INT's fields: time_boot_ms, lat, lon degE7, alt mm AMSL, vx, vy, vz cm/s NED."""
         if abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000:
             return self._invalid()
-        if not self.on_time(t_ms, "position"):
+        if not self.on_time(t_ms, POSITION_KIND):
             return
         st, i = self.state, self.index
         st.geodetic[i] = (lat * 1e-7, lon * 1e-7, alt * 1e-3)  # degE7, degE7, mm AMSL
@@ -258,7 +288,7 @@ class VehicleTelemetry:
         """ATTITUDE's fields: time_boot_ms, roll, pitch, yaw rad (FRD body in NED)."""
         if not (math.isfinite(roll) and math.isfinite(pitch) and math.isfinite(yaw)):
             return self._invalid()
-        if not self.on_time(t_ms, "attitude"):
+        if not self.on_time(t_ms, ATTITUDE_KIND):
             return
         enu_yaw = (0.5 * math.pi - yaw + math.pi) % (2.0 * math.pi) - math.pi
         self.state.att[self.index] = (roll, -pitch, enu_yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
@@ -267,7 +297,7 @@ class VehicleTelemetry:
         q = (m.q1, m.q2, m.q3, m.q4)
         if not all(math.isfinite(c) for c in q) or not 0.5 < math.hypot(*q) < 1.5:
             return self._invalid()
-        if not self.on_time(m.time_boot_ms, "attitude"):
+        if not self.on_time(m.time_boot_ms, ATTITUDE_KIND):
             return
         q_enu = frames.quaternion_ned_to_enu((m.q1, m.q2, m.q3, m.q4))
         self.state.att[self.index] = rotations.quaternion_to_euler(q_enu)
@@ -310,8 +340,8 @@ class VehicleTelemetry:
         st, i = self.state, self.index
         if not st.alive[i]:
             return
-        silent_vehicle_s = (st.clock_ms - self._heard_clock_ms) / 1000.0
-        silent_wall_s = now - self.last_rx_wall
+        silent_vehicle_s = (st.clock_ms - int(st.heard_clock_ms[i])) / 1000.0
+        silent_wall_s = now - float(st.last_rx_wall[i])
         if silent_vehicle_s > timeout_s:
             reason = f"no message for {silent_vehicle_s:.1f} s of vehicle time"
         elif silent_wall_s > wall_timeout_s:
