@@ -338,10 +338,19 @@ class Simulator:
         self._held_frame = False
 
     def _pace(self, stop: Callable[[], bool]) -> None:
-        """Serve the network until the current simulated time is due on the (sped-up) wall clock."""
+        """Serve the network until the current simulated time is due on the (sped-up) wall clock.
+
+        Sleeps to the deadline, then reads what arrived: once per physics step, as an autopilot's scheduler
+        reads its links once per loop (ArduCopter at 400 Hz), rather than waking for every datagram. What
+        arrived acts on the same step either way; a reply leaves up to one step later. Waking per datagram
+        made a client's burst of commands wake this process up to once per command, and a sendto that wakes
+        a blocked process costs the sender about 40 us against 3 us (benchmarks/bench_wakeup.py): the ground
+        station's send step at 200 vehicles in real time had a p99 of 5.4-6.0 ms, 2.0 ms with this
+        (BENCHMARKS.md, 2026-11-28 05:00 UTC)."""
         deadline = self.pacer.deadline(self.t, time.monotonic())
         while True:
-            self._serve(max(0.0, deadline - time.monotonic()))
+            time.sleep(max(0.0, deadline - time.monotonic()))
+            self._serve(0.0)
             if time.monotonic() >= deadline or stop():
                 return
 

@@ -1,4 +1,5 @@
-"""RealTimePacer: wall deadlines for simulated time, and the lag it reports when the simulator is behind."""
+"""RealTimePacer: wall deadlines for simulated time, and the lag it reports when the simulator is behind; how
+the simulator waits for them."""
 
 from __future__ import annotations
 
@@ -48,3 +49,28 @@ def test_an_unpaced_run_is_due_at_once_and_never_behind():
     assert pacer.deadline(0.0, 7.0) == 7.0
     assert pacer.deadline(100.0, 7.5) == 7.5
     assert pacer.lag == PacingLag()  # nothing paced, nothing to report
+
+
+def test_a_paced_simulator_reads_its_sockets_once_per_step_after_sleeping(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Between physics steps the simulator sleeps to the step's deadline and then reads what arrived
+    without blocking, rather than waking for each datagram (Simulator._pace): a client's burst of commands
+    does not wake it once per command. A fake clock advanced only by sleeping."""
+    from types import SimpleNamespace
+
+    from sitl_sim import simulator
+
+    clock = [100.0]
+    calls: list[tuple[str, float]] = []
+
+    def sleep(s: float) -> None:
+        calls.append(("sleep", s))
+        clock[0] += s
+
+    monkeypatch.setattr(simulator, "time", SimpleNamespace(monotonic=lambda: clock[0], sleep=sleep))
+    pacer = RealTimePacer(speedup=1.0)
+    pacer.deadline(0.0, 100.0)  # anchored: simulated 0 s is wall 100 s
+    fake = SimpleNamespace(pacer=pacer, t=0.001, _serve=lambda timeout: calls.append(("serve", timeout)))
+    simulator.Simulator._pace(fake, lambda: False)  # type: ignore[arg-type]
+    assert calls == [("sleep", pytest.approx(0.001)), ("serve", 0.0)]
