@@ -99,8 +99,8 @@ class BatchIntake:
             self.refresh_identity(link.index)
 
     def refresh_identity(self, index: int) -> None:
-        """Vehicle `index`'s bound sysid and component, as its channel has them (binding happens in the
-        per-packet path, Network._bind)."""
+        """Vehicle `index`'s bound sysid and component, as its channel has them (Network._bind calls this
+        when it binds the vehicle)."""
         channel = self.links[index].channel
         self.ids[0, index] = -1 if channel.sysid is None else channel.sysid
         self.ids[1, index] = channel.compid
@@ -172,7 +172,6 @@ class BatchIntake:
                 break
             index = int(self._vehicles[stop])
             self._per_packet(index, bytes(self._view[self._starts[stop] : self._ends[stop]]), now)
-            self.refresh_identity(index)
             self.datagrams_passed += 1
             first = stop + 1
         self._count = 0

@@ -292,6 +292,8 @@ class Network:
         channel = link.channel
         if channel.sysid is None and link.config.sysid in (None, sysid):
             channel.sysid, channel.compid = sysid, msg.get_srcComponent()
+            if self._batch is not None:
+                self._batch.refresh_identity(link.index)
             heard = dialect_for(msg.autopilot)
             named = link.config.autopilot
             channel.autopilot = heard if named == "auto" else dialect_named(named)
