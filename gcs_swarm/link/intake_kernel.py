@@ -45,14 +45,12 @@ _POSITION_CRC_EXTRA = mavlink2.MAVLink_global_position_int_message.crc_extra
 _ATTITUDE_CRC_EXTRA = mavlink2.MAVLink_attitude_message.crc_extra
 _POSITION_SIZE = mavlink2.MAVLink_global_position_int_message.unpacker.size  # 28 payload bytes
 _ATTITUDE_SIZE = mavlink2.MAVLink_attitude_message.unpacker.size  # 28 payload bytes
-_SCRATCH = 32  # bytes: the longer payload, padded to whole 4-byte words
+_SCRATCH = -(-max(_POSITION_SIZE, _ATTITUDE_SIZE) // 4) * 4  # bytes: the longer payload in whole 4-byte words
 # GLOBAL_POSITION_INT wire order (pymavlink's unpacker): time_boot_ms u32, lat, lon, alt, relative_alt i32,
 # vx, vy, vz i16, hdg u16. ATTITUDE: time_boot_ms u32, roll, pitch, yaw, and three rates f32.
 _LAT, _LON, _ALT = 1, 2, 3  # int32 words
 _VX, _VY, _VZ = 10, 11, 12  # int16 halves
 _ROLL, _PITCH, _YAW = 1, 2, 3  # float32 words
-
-TAKEN, STOPPED = 0, 1
 
 
 @_kernel
