@@ -9,6 +9,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from swarm_common.jit import kernel
+
 FloatArray = NDArray[np.float64]
 
 
@@ -20,6 +22,14 @@ def wrap_pi(angle: ArrayLike) -> FloatArray:
 def wrap_pi_float(angle: float) -> float:
     """`wrap_pi` of one angle in plain floats (the same bits: Python's float % is numpy's remainder)."""
     return (float(angle) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@kernel
+def yaw_ned_enu(yaw: float) -> float:
+    """A yaw (heading) in rad between the two world frames, either way: NED (clockwise from North) <-> ENU
+    (counter-clockwise from East), wrap_pi(pi/2 - yaw) in [-pi, pi); the map is its own inverse (spec 1.1).
+    The one spelling of this conversion: compiled, and callable from Python and from other kernels."""
+    return ((0.5 * math.pi - yaw) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def euler_to_quaternion(euler: ArrayLike) -> FloatArray:
