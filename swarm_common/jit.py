@@ -32,7 +32,7 @@ def kernel_with(signature: str) -> Callable[[F], F]:
     """Compile eagerly for one numba `signature` (e.g. "float64(float64, float64)"), at import."""
 
     def decorate(function: F) -> F:
-        return njit(signature, **_SETTINGS)(function)  # type: ignore[no-any-return]
+        return njit(signature, **_SETTINGS)(function)  # type: ignore[return-value]
 
     return decorate
 

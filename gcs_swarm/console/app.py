@@ -31,6 +31,7 @@ from prompt_toolkit.widgets import TextArea
 from gcs_swarm.console.commands import CommandError, Request, complete, help_lines, parse, vocabulary_for
 from gcs_swarm.console.session import FlightSession
 from gcs_swarm.console.view import Line, event_line, fleet_table, mission_line, status_lines
+from gcs_swarm.flight.phase import Phase
 from gcs_swarm.mission import Mission
 
 EXIT_OK, EXIT_USER_ERROR = 0, 2
@@ -161,7 +162,7 @@ class ConsoleApp:
         snapshot = self.session.snapshot()
         if self._landing_to_quit and snapshot.settled:
             self._exit()
-        if snapshot.state == "failed" and snapshot.mission.phase == "connect":
+        if snapshot.state == "failed" and snapshot.mission.phase is Phase.CONNECT:
             self._exit()
 
     def _exit(self) -> None:

@@ -15,11 +15,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from gcs_swarm.console.snapshot import Snapshot
+from gcs_swarm.flight.phase import Phase
 from gcs_swarm.guidance.formation import SHAPES
 from gcs_swarm.link.autopilots import MODE_NAMES
 from gcs_swarm.mission import Mission
 
-PHASE_NAMES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")
+PHASE_NAMES = tuple(Phase)
 KNOWN_PARAMS = (
     "ANGLE_MAX",
     "ARMING_CHECK",

@@ -39,6 +39,7 @@ from gcs_swarm.console.snapshot import (
     vehicle_warnings,
 )
 from gcs_swarm.evaluation.error_log import log_exception, traceback_note
+from gcs_swarm.flight.phase import Phase
 from gcs_swarm.flight.preflight import PreflightError
 from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.connection import LinkError
@@ -117,7 +118,7 @@ class FlightSession:
         self._busy_since = 0.0  # time.monotonic() when the running request began
         self._serving: Ticket | None = None  # the request being run, finished on the way out if it raised
         self._started = False
-        self._phases = ["connect"]
+        self._phases: list[str] = [Phase.CONNECT]
         self._min_separation = math.inf
         self._crashed = np.zeros(n, dtype=bool)
         self._loss = StreamLoss(n)
@@ -248,7 +249,7 @@ class FlightSession:
             if str(exc) != self._last_tick_error:  # the same failure on every tick is reported once
                 self._event("mission", f"flight tick failed: {exc}", "error", self._vt())
             self._last_tick_error = str(exc)
-            if runner.phase in ("launch", "formation", "hold"):
+            if runner.phase.airborne:
                 self._event("mission", "landing every vehicle", "error", self._vt())
                 runner.abort()
 
@@ -328,7 +329,7 @@ class FlightSession:
         pos, vel, alive = fleet.pos, fleet.vel, fleet.alive
         has_time = bool((st.time_ms >= 0).any())
         t = runner.vehicle_time() if has_time else 0.0
-        cmd = runner.last_command if runner.phase in ("formation", "hold") else None
+        cmd = runner.last_command if runner.phase.in_formation else None
         centres = np.array([o.center_at(t) for o in mission.obstacles]).reshape(-1, 3)
         clearance = obstacle_clearance(pos, centres, self._obstacle_radii)
         neighbour = nearest_neighbour(pos)
@@ -339,7 +340,7 @@ class FlightSession:
             slot_error = None
             if cmd is not None and i != leader and np.isfinite(cmd.slots[i]).all():
                 slot_error = float(np.linalg.norm(pos[i] - cmd.slots[i]))
-            emergency = cmd is not None and runner.phase == "formation" and bool(cmd.emergency[i])
+            emergency = cmd is not None and runner.phase is Phase.FORMATION and bool(cmd.emergency[i])
             age = now - link.telemetry.last_rx_wall
             rows.append(
                 VehicleRow(
@@ -432,7 +433,7 @@ class FlightSession:
             runner.begin()
         except (PreflightError, LinkError) as exc:
             self._refuse(f"start failed: {exc}")
-            if runner.phase == "launch":
+            if runner.phase is Phase.LAUNCH:
                 self._event("mission", "landing (disarming) the vehicles that were launched", "warning")
                 runner.abort()
             return False
@@ -440,26 +441,26 @@ class FlightSession:
 
     def _hold(self, request: Request) -> bool:
         phase = self.runner.phase
-        if phase == "hold":
+        if phase is Phase.HOLD:
             return self._reply("already holding")
-        if phase != "formation":
+        if phase is not Phase.FORMATION:
             return self._refuse(f"hold needs formation flight; the mission is in phase {phase}")
         self.runner.hold()
         return self._reply("holding: every vehicle brakes and holds its position (resume to go on)")
 
     def _resume(self, request: Request) -> bool:
         phase = self.runner.phase
-        if phase != "hold":
+        if phase is not Phase.HOLD:
             return self._refuse(f"resume needs phase hold; the mission is in phase {phase}")
         self.runner.resume()
         return self._reply("resumed formation flight")
 
     def _abort(self, request: Request) -> bool:
         runner = self.runner
-        if runner.phase in ("launch", "formation", "hold"):
+        if runner.phase.airborne:
             runner.abort()
             return self._reply("aborting: every vehicle lands now")
-        if runner.phase == "land":
+        if runner.phase is Phase.LAND:
             return self._reply("already landing")
         taken = runner.takeover.taken  # left to their operator: never landed by the console's abort
         armed = [
@@ -470,15 +471,15 @@ class FlightSession:
         return self._vehicle_ops(armed, lambda link: link.commands.op_land(), "landing (mode LAND)")
 
     def _goal(self, request: Request) -> bool:
-        if self.runner.phase in ("land", "done"):
+        if self.runner.phase in (Phase.LAND, Phase.DONE):
             return self._refuse(f"the mission is in phase {self.runner.phase}; the goal can no longer change")
         assert request.point is not None
         self.runner.set_goal(np.array(request.point, dtype=float))
-        note = " (resume to fly there)" if self.runner.phase == "hold" else ""
+        note = " (resume to fly there)" if self.runner.phase is Phase.HOLD else ""
         return self._reply(f"goal set to {_xyz(request.point)}{note}")
 
     def _formation(self, request: Request) -> bool:
-        if self.runner.phase in ("land", "done"):
+        if self.runner.phase in (Phase.LAND, Phase.DONE):
             return self._refuse(
                 f"the mission is in phase {self.runner.phase}; the formation can no longer change"
             )
@@ -503,7 +504,7 @@ class FlightSession:
         verb, runner = request.verb, self.runner
         if request.every and self._flying():
             if verb == "land":
-                if runner.phase != "land":
+                if runner.phase is not Phase.LAND:
                     runner.abort()
                 return self._reply("landing every vehicle (the mission is aborted)")
             return self._refuse(

@@ -13,10 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from gcs_swarm.flight.phase import Phase
+
 MAV_STATE_CRITICAL = 5  # HEARTBEAT system_status in a failsafe (ArduCopter)
 MAV_STATE_EMERGENCY = 6  # ... crashed / lost control
 LANDED_IN_AIR = (2, 3, 4)  # MAV_LANDED_STATE in air, taking off, landing
-FLYING_PHASES = ("launch", "formation", "hold", "land")
+FLYING_PHASES = frozenset({Phase.LAUNCH, Phase.FORMATION, Phase.HOLD, Phase.LAND})
 """Runner phases in which `runner.step()` drives the vehicles."""
 STALE_AFTER_S = 1.0  # wall seconds without any packet before a vehicle's telemetry counts as stale
 
@@ -51,7 +53,7 @@ class VehicleRow:
 class MissionLine:
     """The mission at a glance."""
 
-    phase: str
+    phase: Phase
     started: bool
     vehicle_time: float  # s since the vehicles booted
     leader_goal_distance: float  # m from the leader to the final goal
@@ -100,8 +102,8 @@ def empty_snapshot(names: list[str]) -> Snapshot:
         )
         for n in names
     )
-    mission = MissionLine("connect", False, 0.0, math.nan, nan3, math.nan, math.nan, "")
-    return Snapshot("connecting", rows, mission, ("connect",), ())
+    mission = MissionLine(Phase.CONNECT, False, 0.0, math.nan, nan3, math.nan, math.nan, "")
+    return Snapshot("connecting", rows, mission, (Phase.CONNECT,), ())
 
 
 def nearest_neighbour(pos: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -11,6 +11,7 @@ import math
 
 from gcs_swarm.console.session import ConsoleEvent
 from gcs_swarm.console.snapshot import MissionLine, Snapshot, VehicleRow
+from gcs_swarm.flight.phase import Phase
 
 Fragment = tuple[str, str]
 Line = list[Fragment]
@@ -60,8 +61,8 @@ def _cells(values: list[str], name_width: int) -> str:
     return " ".join(out)
 
 
-def _vehicle_line(row: VehicleRow, name_width: int, phase: str) -> Line:
-    leader_slot = "lead" if row.slot_error is None and phase in ("formation", "hold") else None
+def _vehicle_line(row: VehicleRow, name_width: int, phase: Phase) -> Line:
+    leader_slot = "lead" if row.slot_error is None and phase.in_formation else None
     values = [
         row.name,
         "-" if row.sysid is None else str(row.sysid),
@@ -96,7 +97,7 @@ def mission_line(snapshot: Snapshot) -> Line:
         return [("class:warning", "connecting to the vehicles ...")]
     if snapshot.state == "failed":
         return [("class:error", f"session failed: {snapshot.error}")]
-    phase = m.phase if m.started or m.phase != "connect" else "ready"
+    phase = m.phase if m.started or m.phase is not Phase.CONNECT else "ready"
     goal = ", ".join(f"{c:g}" for c in m.goal)
     line: Line = [("class:phase", f"phase {phase}")]
     if m.busy:  # early in the line, so a narrow terminal does not cut it off

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_swarm.flight.embedded_sim import EmbeddedSimulator, SimulatorError
+from gcs_swarm.flight.phase import Phase
 from gcs_swarm.flight.preflight import PreflightError
 from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE
@@ -286,9 +287,8 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
         error, status = str(exc), EXIT_USER_ERROR
     except LinkError as exc:
         error = str(exc)
-        status = (
-            EXIT_USER_ERROR if result.phase_reached in ("connect", "preflight", "launch") else EXIT_FAILED
-        )
+        nothing_flew = result.phase_reached in (Phase.CONNECT, Phase.PREFLIGHT, Phase.LAUNCH)
+        status = EXIT_USER_ERROR if nothing_flew else EXIT_FAILED
         result.events.append(str(exc))
     except KeyboardInterrupt:
         say("interrupted: stopping")

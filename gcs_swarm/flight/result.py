@@ -7,12 +7,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gcs_swarm.flight.phase import Phase
+
 
 @dataclass
 class FlightResult:
     """What the run did, from the ground station's point of view (metrics come from report.py)."""
 
-    phase_reached: str = "connect"
+    phase_reached: Phase = Phase.CONNECT
     arrived: bool = False
     t_formation_start: float | None = None
     t_arrival: float | None = None

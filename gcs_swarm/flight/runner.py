@@ -36,6 +36,7 @@ from gcs_swarm.flight.formation_tick import end_targets, formation_rms, send_for
 from gcs_swarm.flight.landing import PositionHold, command_landing, land_and_wait, landed
 from gcs_swarm.flight.launch import command_launch, home_positions, launched
 from gcs_swarm.flight.lost_vehicles import LostVehicleTracks
+from gcs_swarm.flight.phase import Phase
 from gcs_swarm.flight.preflight import VehicleSetup, preflight_fleet
 from gcs_swarm.flight.result import FlightResult
 from gcs_swarm.flight.run_record import RunRecord
@@ -52,8 +53,6 @@ from gcs_swarm.link.flight_params import FlightParams
 from gcs_swarm.mission import Mission
 
 log = logging.getLogger(__name__)
-
-PHASES = ("connect", "preflight", "launch", "formation", "hold", "land", "done")
 
 
 class MissionRunner:
@@ -74,7 +73,7 @@ class MissionRunner:
         self.progress = progress
         self.progress_period_s = progress_period_s
         self.result = FlightResult()
-        self.phase = "connect"
+        self.phase = Phase.CONNECT
         self.setup = VehicleSetup.assumed(n)  # hover thrust, angle boost, failsafe params: read in preflight
         self.controller = build_controller(mission)
         # live reshape (console): shape and spacing; None: the mission's
@@ -136,25 +135,25 @@ class MissionRunner:
         flying = reattach.flying(self.fleet)
         if flying.any() and not expect_flying:
             self._reattach(flying)
-            if self.phase == "done":
+            if self.phase is Phase.DONE:
                 return self.result
         else:
             self.launch()
         self.start_formation()
-        while self.phase in ("formation", "hold"):
+        while self.phase.in_formation:
             self.step()
         self.land()
         return self.result
 
     def connect(self, timeout_s: float = 30.0) -> None:
         """Wait up to timeout_s for every vehicle's HEARTBEAT (LinkError naming the silent ones)."""
-        self._set_phase("connect")
+        self._set_phase(Phase.CONNECT)
         self.fleet.connect(timeout_s=timeout_s)
         self.result.autopilots = {link.name: link.channel.autopilot.name for link in self.fleet.links}
 
     def preflight(self) -> None:
         """Wait for position estimates and pre-arm health; set and verify params; hover thrust; streams."""
-        self._set_phase("preflight")
+        self._set_phase(Phase.PREFLIGHT)
         self.setup = preflight_fleet(
             self.fleet, self.mission, self.flight_params, self.result.events, self.progress
         )
@@ -182,7 +181,7 @@ class MissionRunner:
     def command_launch(self) -> None:
         """Phase 'launch': each autopilot's launch mode, arm and take off (each acknowledged; the modes the
         takeoff passes through on its own are ours too); the climb itself is not awaited."""
-        self._set_phase("launch")
+        self._set_phase(Phase.LAUNCH)
         self._home = home_positions(self.fleet, self.mission)
         if self.mission.run.airborne_start:
             self.takeover.commanded(formation_mode)
@@ -206,7 +205,7 @@ class MissionRunner:
             return
         self.progress(f"vehicles already flying: {found}: finishing the mission from here")
         self.result.reattached = "finish"
-        self._set_phase("launch")
+        self._set_phase(Phase.LAUNCH)
         self._home = self.fleet.pos
         self._home[:, 2] = 0.0
         reattach.take_back(self.fleet, self.takeover)
@@ -219,7 +218,7 @@ class MissionRunner:
         self._enter_formation()
         # act on the tick just consumed, then answer it (lockstep rule); a leader taken over during the
         # climb: the others hold
-        if self.phase == "formation":
+        if self.phase is Phase.FORMATION:
             self._formation_tick()
         else:
             self.position_hold.tick(self.fleet, self.takeover.flown)
@@ -247,14 +246,14 @@ class MissionRunner:
         except LinkError as exc:
             self.result.events.append(f"formation not started: {exc}")
             self.progress(f"! formation not started: {exc}")
-            self._set_phase("land")
+            self._set_phase(Phase.LAND)
             return
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
         self._assign_slots()
         self.telemetry.reset()
         t = self.vehicle_time()
         self.result.t_formation_start = t
-        self._set_phase("formation")
+        self._set_phase(Phase.FORMATION)
         self._fly_without([int(i) for i in np.flatnonzero(self.takeover.taken)], t)  # taken during the climb
 
     def begin(self) -> None:
@@ -272,9 +271,9 @@ class MissionRunner:
         if not fleet.wait_tick(timeout_s=timeout_s):
             fleet.answer_frame()  # a silent vehicle must not stall the others' lockstep frames
             self._note_lost()
-            if self.phase in ("formation", "hold") and not fleet.alive.any():
+            if self.phase.in_formation and not fleet.alive.any():
                 self.result.events.append("every vehicle stopped answering")
-                self._set_phase("land")
+                self._set_phase(Phase.LAND)
             return False
         tick_in = time.perf_counter()
         if self.crash_at_s is not None and self.vehicle_time() >= self.crash_at_s:
@@ -283,17 +282,17 @@ class MissionRunner:
             )
             os.kill(os.getpid(), signal.SIGKILL)  # rehearsal of a ground-station crash (--crash-at)
         self._note_lost()
-        if self.phase in ("launch", "formation", "hold"):
+        if self.phase.airborne:
             self._note_takeovers()
-        if self.phase == "launch":
+        if self.phase is Phase.LAUNCH:
             self._launch_tick()
-        elif self.phase == "formation":
+        elif self.phase is Phase.FORMATION:
             self._formation_tick()
             self.tick_latency_s.append(time.perf_counter() - tick_in)
-        elif self.phase == "hold":
+        elif self.phase is Phase.HOLD:
             self.position_hold.tick(fleet, self.takeover.flown)
             self._wait_for_leader_decision()
-        elif self.phase == "land":
+        elif self.phase is Phase.LAND:
             self._landing_tick()
         fleet.answer_frame()  # vehicles not commanded this tick
         self.tick_timing.end(fleet)
@@ -313,12 +312,12 @@ class MissionRunner:
 
     def land(self) -> None:
         """LAND every reachable vehicle and wait until they disarm (auto-disarm after touchdown)."""
-        if self.phase != "land":
-            self._set_phase("land")
+        if self.phase is not Phase.LAND:
+            self._set_phase(Phase.LAND)
         ours = ~self.takeover.taken  # vehicles taken over are left to their operator
         self.takeover.commanded_landing(ours & self.fleet.alive)
         land_and_wait(self.fleet, self.mission.run.land_timeout_s, self.result.events, ours)
-        self._set_phase("done")
+        self._set_phase(Phase.DONE)
 
     def restore_params(self) -> None:
         """Put back the parameters the run changed, on every vehicle now disarmed
@@ -340,25 +339,25 @@ class MissionRunner:
 
     def hold(self) -> None:
         """Every vehicle brakes and holds its position (GUIDED position targets) until resume()."""
-        if self.phase == "formation":
+        if self.phase is Phase.FORMATION:
             self.position_hold.clear()
-            self._set_phase("hold")
+            self._set_phase(Phase.HOLD)
 
     def resume(self) -> None:
         """Back to formation flight from the current state; ValueError while the leader is taken over
         (promote another with `promote` or hand it back with `rejoin` first)."""
-        if self.phase == "hold":
+        if self.phase is Phase.HOLD:
             self._check_leader_flown()
             fleet = self.fleet
             self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
             self._hold_since = None
-            self._set_phase("formation")
+            self._set_phase(Phase.FORMATION)
 
     def abort(self) -> None:
         """Stop the mission: phase 'land' (the caller's `land()` or the next `step()` lands every vehicle)."""
-        if self.phase in ("launch", "formation", "hold"):
+        if self.phase.airborne:
             self.result.events.append("aborted by the operator")
-            self._set_phase("land")
+            self._set_phase(Phase.LAND)
 
     def set_goal(self, goal: np.ndarray) -> None:
         """Move the leader's goal (3,) ENU m live."""
@@ -371,7 +370,7 @@ class MissionRunner:
         self.shape = (shape, spacing)
         flown = self.takeover.flown
         self.controller.set_offsets(live_offsets(self.mission, flown, self.controller.leader, shape, spacing))
-        if self.phase in ("formation", "hold"):
+        if self.phase.in_formation:
             self._assign_slots()
         self._hold_since = None
         self.result.events.append(f"formation changed to {shape} {spacing or ''}".strip())
@@ -389,7 +388,7 @@ class MissionRunner:
             self.result.events.append(
                 f"timed out after {timeout:g} s waiting for every vehicle at its takeoff altitude"
             )
-            self._set_phase("land")
+            self._set_phase(Phase.LAND)
 
     def _landing_tick(self) -> None:
         t = self.vehicle_time()
@@ -399,13 +398,13 @@ class MissionRunner:
             self.takeover.commanded_landing(ours & self.fleet.alive)
             command_landing(self.fleet, self.result.events, ours)
         if landed(self.fleet, ours):
-            self._set_phase("done")
+            self._set_phase(Phase.DONE)
         elif t - self._land_since > self.mission.run.land_timeout_s:
             self.result.events.append(
                 f"timed out after {self.mission.run.land_timeout_s:g} s waiting for every vehicle disarmed "
                 "after landing"
             )
-            self._set_phase("done")
+            self._set_phase(Phase.DONE)
 
     # ----- formation tick -----
 
@@ -450,14 +449,14 @@ class MissionRunner:
             if t - self._hold_since >= run.hold_s:
                 self.result.arrived = True
                 self.result.t_arrival = self._hold_since
-                self._set_phase("land")
+                self._set_phase(Phase.LAND)
                 return
         else:
             self._hold_since = None
         self._report_progress(t - (self.result.t_formation_start or t), cmd)
         if t - (self.result.t_formation_start or t) > run.time_limit_s:
             self.result.events.append(f"time limit {run.time_limit_s:g} s reached before arrival")
-            self._set_phase("land")
+            self._set_phase(Phase.LAND)
 
     def _assign_slots(self) -> None:
         """Give the current slots to the live followers by least total travel from where they are now."""
@@ -484,7 +483,7 @@ class MissionRunner:
                 self.result.events.append(f"{name} lost")
                 self.progress(f"! {name} lost: the rest keep flying")
                 newly_lost = True
-                if self.phase in ("formation", "hold"):
+                if self.phase.in_formation:
                     self._lost.start(
                         self.fleet,
                         i,
@@ -492,7 +491,7 @@ class MissionRunner:
                         self.setup.failsafe_params[i],
                         self.mission.safety.gcs_failsafe,
                     )
-        if newly_lost and self.phase in ("formation", "hold") and self.fleet.alive.any():
+        if newly_lost and self.phase.in_formation and self.fleet.alive.any():
             self._reform()
 
     def _reform(self, change: str = "without the lost vehicles") -> None:
@@ -534,7 +533,7 @@ class MissionRunner:
         climb they are only marked: the formation starts without them (_enter_formation)."""
         t = self.vehicle_time()
         taken = self.takeover.detect(t)
-        if self.phase != "launch":
+        if self.phase is not Phase.LAUNCH:
             self._fly_without(taken, t)
 
     def _fly_without(self, taken: list[int], t: float) -> None:
@@ -548,10 +547,10 @@ class MissionRunner:
     def _leader_taken(self, t: float) -> None:
         name = self.fleet.names[self.controller.leader]
         self._leader_taken_since = t
-        if self.phase == "formation":
+        if self.phase is Phase.FORMATION:
             self._held_for_leader = True
             self.position_hold.clear()
-            self._set_phase("hold")
+            self._set_phase(Phase.HOLD)
         timeout = self.leader_takeover_timeout_s
         then = "" if timeout is None else f"; the others land after {timeout:g} s without a decision"
         decide = f"leader NAME promotes another, rejoin {name} hands it back"
@@ -568,7 +567,7 @@ class MissionRunner:
         text = f"leader taken over and no decision within {timeout:g} s: landing the others"
         self.result.events.append(f"t={self.vehicle_time():.2f} s {text}")
         self.progress(f"! {text}")
-        self._set_phase("land")
+        self._set_phase(Phase.LAND)
 
     def _check_leader_flown(self) -> None:
         if self._leader_taken_since is not None:
@@ -578,7 +577,7 @@ class MissionRunner:
     def _decided(self) -> None:
         """The operator decided about a leader taken over: fly on if that is what the hold was for."""
         self._leader_taken_since = None
-        if self._held_for_leader and self.phase == "hold":
+        if self._held_for_leader and self.phase is Phase.HOLD:
             self._held_for_leader = False
             self.resume()
         self._held_for_leader = False
@@ -588,7 +587,7 @@ class MissionRunner:
         remaining waypoints; a formation held for its leader taken over flies on. ValueError (one sentence)
         when it cannot."""
         name = self.fleet.names[row]
-        if self.phase not in ("formation", "hold"):
+        if not self.phase.in_formation:
             raise ValueError(f"leader needs formation flight or hold; the mission is in phase {self.phase}")
         if row == self.controller.leader:
             raise ValueError(f"{name} already leads")
@@ -605,7 +604,7 @@ class MissionRunner:
         ValueError (one sentence) when it is not taken over; LinkError when it refuses GUIDED (it stays
         taken over)."""
         name = self.fleet.names[row]
-        if self.phase not in ("formation", "hold"):
+        if not self.phase.in_formation:
             raise ValueError(f"rejoin needs formation flight or hold; the mission is in phase {self.phase}")
         if not self.takeover.taken[row]:
             raise ValueError(f"{name} is not taken over")
@@ -623,23 +622,23 @@ class MissionRunner:
         ground station's own change, never a takeover; while the mission flies, a mode other than GUIDED
         hands the vehicle to the operator (no longer flown, as if taken over; `rejoin` hands it back; during
         the climb the formation then starts without it)."""
-        if self.phase not in ("launch", "formation", "hold"):
+        if not self.phase.airborne:
             self.takeover.commanded(mode, [row])
             return
         was_taken = bool(self.takeover.taken[row])
         self.takeover.release(row, mode, self.vehicle_time())
-        if self.phase == "launch":
+        if self.phase is Phase.LAUNCH:
             return
         if self.takeover.taken[row] and not was_taken and self.takeover.flown.any():
             self._reform("without the vehicles taken over")
             if row == self.controller.leader:
                 self._leader_taken(self.vehicle_time())
 
-    def _set_phase(self, name: str) -> None:
-        self.frames_missed.enter(name)
-        self.phase = name
-        self.result.phase_reached = name
-        self.progress(f"phase {name}")
+    def _set_phase(self, phase: Phase) -> None:
+        self.frames_missed.enter(phase)
+        self.phase = phase
+        self.result.phase_reached = phase
+        self.progress(f"phase {phase}")
 
     def _report_progress(self, t: float, cmd: Command) -> None:
         now = time.monotonic()

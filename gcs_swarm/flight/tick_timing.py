@@ -32,6 +32,8 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from gcs_swarm.flight.phase import Phase
+
 TICK_PHASES = ("receive", "assess", "guidance", "send", "record", "rest")
 RECEIVE, ASSESS, GUIDANCE, SEND, RECORD, REST = range(len(TICK_PHASES))
 
@@ -137,17 +139,17 @@ class MissedFramesByPhase:
     def __init__(self, names: Sequence[str], counts: NDArray[np.int64]) -> None:
         self.names = list(names)
         self.counts = counts
-        self._phase: str | None = None
+        self._phase: Phase | None = None
         self._since = counts.copy()
-        self._by_phase: dict[str, NDArray[np.int64]] = {}
+        self._by_phase: dict[Phase, NDArray[np.int64]] = {}
 
-    def enter(self, phase: str) -> None:
+    def enter(self, phase: Phase) -> None:
         """The mission enters `phase`: what was missed since the last change belongs to the previous one."""
         self._by_phase = self._with_current()
         self._phase = phase
         self._since = self.counts.copy()
 
-    def _with_current(self) -> dict[str, NDArray[np.int64]]:
+    def _with_current(self) -> dict[Phase, NDArray[np.int64]]:
         by_phase = dict(self._by_phase)
         if self._phase is not None:
             before = by_phase.get(self._phase, np.zeros_like(self.counts))

@@ -21,6 +21,7 @@ from gcs_swarm.console.snapshot import (
     vehicle_warnings,
 )
 from gcs_swarm.console.view import event_line, fleet_table, mission_line, plain, status_lines
+from gcs_swarm.flight.phase import Phase
 
 
 def row(name: str, **changes: object) -> VehicleRow:
@@ -43,9 +44,9 @@ def row(name: str, **changes: object) -> VehicleRow:
     return replace(base, **changes)
 
 
-def snapshot(rows: tuple[VehicleRow, ...], phase: str = "formation") -> Snapshot:
+def snapshot(rows: tuple[VehicleRow, ...], phase: Phase = Phase.FORMATION) -> Snapshot:
     line = MissionLine(phase, True, 23.4, 45.2, (160.0, 120.0, 10.0), 1.23, 7.54, "")
-    return Snapshot("ready", rows, line, ("connect", phase), ())
+    return Snapshot("ready", rows, line, (Phase.CONNECT, phase), ())
 
 
 def test_nearest_neighbour_ignores_unknown_positions() -> None:
@@ -125,7 +126,7 @@ def test_mission_line_and_states() -> None:
     assert "no HEARTBEAT from a" in plain(mission_line(failed))
     idle = replace(
         snapshot((row("lead"),), "connect"),
-        mission=replace(snapshot(()).mission, phase="connect", started=False),
+        mission=replace(snapshot(()).mission, phase=Phase.CONNECT, started=False),
     )
     assert plain(mission_line(idle)).startswith("phase ready")
     assert "busy" not in text
