@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from sitl_sim.vehicle_model.jit import njit
+from swarm_common.jit import kernel
 
 FUSELAGE_RADIUS = 0.175  # m (the paper's arm length, Table 2)
 
@@ -35,7 +35,7 @@ class Obstacles:
         return self.centers + self.velocities * t
 
 
-@njit(cache=True)
+@kernel
 def closest_approach(rx0: float, ry0: float, rz0: float, rx1: float, ry1: float, rz1: float) -> float:
     """Minimum norm of the segment (rx0, ry0, rz0) -> (rx1, ry1, rz1): relative positions moving linearly."""
     dx, dy, dz = rx1 - rx0, ry1 - ry0, rz1 - rz0
@@ -44,7 +44,7 @@ def closest_approach(rx0: float, ry0: float, rz0: float, rx1: float, ry1: float,
     return math.sqrt((rx0 + s * dx) ** 2 + (ry0 + s * dy) ** 2 + (rz0 + s * dz) ** 2)
 
 
-@njit(cache=True)
+@kernel
 def swept_hits(
     pos0: np.ndarray, pos1: np.ndarray, c0: np.ndarray, c1: np.ndarray, radii: np.ndarray, ignore: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:

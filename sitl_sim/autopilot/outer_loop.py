@@ -13,14 +13,14 @@ import math
 import numpy as np
 
 from sitl_sim.autopilot.modes import ALT_HOLD, BRAKE, GUIDED, GUIDED_NOGPS, LAND, RTL, STABILIZE
-from sitl_sim.vehicle_model.jit import njit
+from swarm_common.jit import kernel
+from swarm_common.shaping import sqrt_controller
 from sitl_sim.vehicle_model.position_control import (
     I_MAX_XY,
     I_MAX_Z,
     MIN_UP_ACCEL,
     attitude_from_accel,
     brake_shaping_step,
-    sqrt_controller,
     velocity_demand,
     velocity_pi,
 )
@@ -67,13 +67,13 @@ LOOP_PARAMS = (
 ) = range(len(LOOP_PARAMS))  # fmt: skip
 
 
-@njit(cache=True)
+@kernel
 def _set_level(quats: np.ndarray, i: int, yaw: float) -> None:
     """Row i of (N,4) quaternions := level attitude at heading yaw (rad)."""
     quats[i, 0], quats[i, 1], quats[i, 2], quats[i, 3] = math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)
 
 
-@njit(cache=True)
+@kernel
 def px4_land_speed(
     height: float,
     alt1: float,
@@ -105,14 +105,14 @@ def px4_land_speed(
     return min(speed, auto_down)
 
 
-@njit(cache=True)
+@kernel
 def jerk_limited_step(
     vel: float, acc: float, target: float, accel_max: float, jerk_max: float, dt: float
 ) -> tuple[float, float]:
     """(velocity, acceleration) one step dt towards the velocity `target` (m/s, m/s^2): acceleration at most
     accel_max, changing by at most jerk_max per s, never overshooting: the stand-in for PX4's jerk-limited
     PositionSmoothing (SMOOTH_P) in the PX4 persona's descents (_smooth_vertical) and climbs (px4.py)."""
-    want = min(max(sqrt_controller(target - vel, SMOOTH_P, jerk_max), -accel_max), accel_max)
+    want = min(max(sqrt_controller(target - vel, SMOOTH_P, jerk_max, 0.0), -accel_max), accel_max)
     acc += min(max(want - acc, -jerk_max * dt), jerk_max * dt)
     new_vel = vel + acc * dt
     if (new_vel - target) * (vel - target) <= 0.0:
@@ -120,7 +120,7 @@ def jerk_limited_step(
     return new_vel, acc
 
 
-@njit(cache=True)
+@kernel
 def _smooth_vertical(
     nav_vel: np.ndarray,
     nav_acc: np.ndarray,
@@ -137,7 +137,7 @@ def _smooth_vertical(
     )
 
 
-@njit(cache=True)
+@kernel
 def outer_loop(
     t, dt, g, params, columns,
     pos, vel, quat, landed, crashed, home,

@@ -21,7 +21,7 @@ import pymap3d
 from fastcrc.crc16 import mcrf4xx as _mcrf4xx  # pymavlink's x25crc: CRC-16/MCRF4XX from 0xFFFF
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from sitl_sim.vehicle_model.jit import njit
+from swarm_common.jit import kernel
 
 if TYPE_CHECKING:
     from sitl_sim.autopilot.copter import Autopilot
@@ -82,7 +82,7 @@ def swap_quat_enu_ned(q: Sequence[float]) -> tuple[float, float, float, float]:
     return SQRT_HALF * (w + z), SQRT_HALF * (x + y), SQRT_HALF * (x - y), SQRT_HALF * (w - z)
 
 
-@njit(cache=True)
+@kernel
 def ned_telemetry(
     pos: np.ndarray, vel: np.ndarray, quat: np.ndarray, omega: np.ndarray, origin: np.ndarray
 ) -> np.ndarray:
@@ -118,7 +118,7 @@ WGS84_B = WGS84_A * (1.0 - WGS84_F)
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
 
 
-@njit(cache=True)
+@kernel
 def enu_to_geodetic(enu: np.ndarray, lat0: float, lon0: float, alt0: float) -> np.ndarray:
     """(N,3) ENU m around (lat0, lon0 deg, alt0 m) -> (N,3) lat, lon (deg), alt (m), WGS84, exact.
 

@@ -1,8 +1,5 @@
-"""The quadrotor airframe: its parameters (SI units) and the wrench its four motors produce.
-
-X-quad torques from thrusts in ArduCopter's motor order (see attitude_control.MOTOR_*_SIGN): roll/pitch arm
-= arm/sqrt(2); yaw reaction torque = (k_D/k_T) * f_i (Table 6: thrust k_T w^2, torque k_D w^2).
-"""
+"""The quadrotor airframe's parameters (SI units) and the quantities derived from them; the wrench its motors
+produce is computed in the physics step (sitl_sim.vehicle_model.dynamics.advance)."""
 
 from __future__ import annotations
 
@@ -10,8 +7,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from sitl_sim.vehicle_model.attitude_control import MOTOR_PITCH_SIGN, MOTOR_ROLL_SIGN, MOTOR_YAW_SIGN
 
 
 @dataclass(frozen=True)
@@ -71,17 +66,3 @@ class QuadParams:
     def inertia(self) -> np.ndarray:
         """(3,) principal inertias Ixx, Iyy, Izz, kg m^2."""
         return np.array([self.ixx, self.iyy, self.izz])
-
-
-def motor_wrench(motor: np.ndarray, params: QuadParams) -> tuple[np.ndarray, np.ndarray]:
-    """Total thrust (N,) N and body FLU torques (N,3) N m of motor thrusts (N,4), X quad, ArduCopter order."""
-    arm_xy = params.arm * math.sqrt(0.5)
-    torque = np.stack(
-        (
-            (motor * MOTOR_ROLL_SIGN).sum(axis=1) * arm_xy,
-            (motor * MOTOR_PITCH_SIGN).sum(axis=1) * arm_xy,
-            (motor * MOTOR_YAW_SIGN).sum(axis=1) * params.yaw_coef,
-        ),
-        axis=1,
-    )
-    return motor.sum(axis=1), torque

@@ -1,15 +1,15 @@
-"""ArduCopter-like attitude controller for N quadrotors: numpy reference implementation.
+"""ArduCopter-like attitude controller of one quadrotor, compiled (swarm_common.jit): the one implementation,
+which the physics step (sitl_sim.vehicle_model.dynamics.advance) runs at the physics rate.
 
 Spec 5 leaves the attitude loop open [add]; this follows ArduCopter's AC_AttitudeControl cascade:
 quaternion attitude error (thrust-vector tilt first, heading second, no Euler singularity) -> sqrt/P angle
-controller -> desired body rates (+ feed-forward), limited -> rate PID -> body torques -> X-quad mixer whose
-saturation handling keeps roll/pitch authority first, yaw last, and moves the collective instead.
+controller (swarm_common.shaping.sqrt_controller) -> desired body rates (+ feed-forward), limited ->
+rate PID -> body torques -> X-quad mixer whose saturation handling keeps roll/pitch authority first, yaw
+last, and moves the collective instead.
 
-`sitl_sim.vehicle_model.kernels` holds a fused numba transcription of exactly this arithmetic (the fast
-backend); the backend-agreement test keeps the two equal, so change both together.
-
-Quaternions are [w, x, y, z] (Hamilton product) and rotate body FLU vectors into world ENU (spec 1.1).
-Every function is vectorised over leading dimensions; shapes below use N for the vehicle count.
+Quaternions are [w, x, y, z] (Hamilton product) and rotate body FLU vectors into world ENU (spec 1.1); the
+kernels take and return their components as scalars. The numpy helpers at the top (Euler angles, level
+attitudes) are vectorised over leading dimensions, N the vehicle count.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_common.rotations import quaternion_multiply
+from swarm_common.jit import kernel
 
 # X-quad layout in ArduCopter's motor order (AP_MotorsMatrix QUAD X): 1 front-right CCW, 2 rear-left CCW,
 # 3 front-left CW, 4 rear-right CW. Signs of each motor's contribution to the body FLU torques: roll = +y arm
@@ -30,28 +30,7 @@ MOTOR_PITCH_SIGN = np.array([-1.0, 1.0, -1.0, 1.0])
 MOTOR_YAW_SIGN = np.array([-1.0, -1.0, 1.0, 1.0])
 
 
-# --- quaternion algebra ([w, x, y, z], body FLU -> world ENU) ---------------------------------------------
-
-
-def quat_conjugate(q: np.ndarray) -> np.ndarray:
-    """Inverse rotation of unit (..., 4) quaternions."""
-    return np.asarray(q, dtype=float) * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate (..., 3) body vectors v into the world frame by unit quaternions q (..., 4)."""
-    q = np.asarray(q, dtype=float)
-    v = np.asarray(v, dtype=float)
-    u = q[..., 1:]
-    t = 2.0 * cross(u, v)
-    return v + q[..., :1] * t + cross(u, t)
-
-
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of (..., 3) vectors (np.cross is slow for small arrays)."""
-    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
-    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack((ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx), axis=-1)
+# --- Euler angles and level attitudes (numpy, [w, x, y, z], body FLU -> world ENU) --------------------------
 
 
 def euler_from_quat(q: np.ndarray) -> np.ndarray:
@@ -85,56 +64,6 @@ def level_quat(yaw: np.ndarray) -> np.ndarray:
     return np.stack((np.cos(half), zero, zero, np.sin(half)), axis=-1)
 
 
-def _swing_twist(q: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Split q = swing * twist (twist about body z, swing about a horizontal body axis).
-
-    Returns (cw, cz) the unit twist (w, z) pair, (sx, sy) the swing's x/y components (its z is 0 and its w is
-    n = |(w, z)|), n, and h = |(x, y)|; tilt angle = 2 atan2(h, n). At exactly 180 deg of tilt the twist is
-    undefined and taken as identity.
-    """
-    w, x, y, z = _components(q)
-    n = np.hypot(w, z)
-    degenerate = n < 1e-12
-    safe_n = np.where(degenerate, 1.0, n)
-    cw = np.where(degenerate, 1.0, w / safe_n)
-    cz = np.where(degenerate, 0.0, z / safe_n)
-    sx = x * cw - y * cz
-    sy = y * cw + x * cz
-    return cw, cz, sx, sy, n, np.hypot(x, y)
-
-
-def limit_tilt(quat_sp: np.ndarray, tilt_max: np.ndarray) -> np.ndarray:
-    """Shorten the tilt of target attitudes (N, 4) to at most tilt_max (rad, scalar or (N,)), keeping heading.
-
-    Tilt = angle between the target thrust axis and world up (ArduCopter ANGLE_MAX). The target is split into
-    a heading twist about z and a tilt swing about a horizontal axis; only the swing angle is reduced.
-    """
-    cw, cz, sx, sy, n, h = _swing_twist(quat_sp)
-    tilt = 2.0 * np.arctan2(h, n)
-    half = 0.5 * np.minimum(tilt, tilt_max)
-    safe_h = np.where(h > 0.0, h, 1.0)
-    scale = np.sin(half) / safe_h
-    swing = np.stack((np.cos(half), sx * scale, sy * scale, np.zeros_like(h)), axis=-1)
-    twist = np.stack((cw, np.zeros_like(cw), np.zeros_like(cw), cz), axis=-1)
-    limited = quaternion_multiply(swing, twist)
-    return np.where((tilt > tilt_max)[..., None], limited, quat_sp)
-
-
-def attitude_error(quat: np.ndarray, quat_target: np.ndarray) -> np.ndarray:
-    """Rotation-vector attitude error (N, 3) in the current body frame, rad.
-
-    x, y: thrust-vector (tilt) correction about a horizontal body axis; z: remaining heading error, wrapped
-    to [-pi, pi]. Same split as ArduCopter's thrust_heading_rotation_angles; singularity-free.
-    """
-    e = quaternion_multiply(quat_conjugate(quat), quat_target)
-    cw, cz, sx, sy, n, h = _swing_twist(e)
-    tilt = 2.0 * np.arctan2(h, n)
-    factor = np.where(h > 1e-12, tilt / np.where(h > 1e-12, h, 1.0), 2.0)
-    sign = np.where(cw < 0.0, -1.0, 1.0)
-    yaw = 2.0 * np.arctan2(cz * sign, cw * sign)
-    return np.stack((sx * factor, sy * factor, yaw), axis=-1)
-
-
 # --- controller -------------------------------------------------------------------------------------------
 
 
@@ -144,9 +73,9 @@ class AttitudeGains:
 
     Angle loop (ArduCopter ATC_ANG_*_P with ATC_ACCEL_*_MAX through the sqrt controller): rad/s per rad and
     rad/s^2. Rate loop in physical units: P in N m per rad/s, I in N m per rad (integral of rate error),
-    D in N m per rad/s^2, integrator limit in N m; per axis (roll, pitch, yaw), body FLU. Tuned (at 1 kHz and
-    250 Hz) so a 30 deg roll/pitch step reaches 90 % in 0.21 s and a 30 deg yaw step in 0.45 s, both with
-    < 1 % overshoot (tests/sitl_sim/vehicle_model/test_attitude_control.py).
+    D in N m per rad/s^2, integrator limit in N m; per axis (roll, pitch, yaw), body FLU. Tuned at 1 kHz and
+    250 Hz for quick, well-damped roll/pitch and yaw steps (tests/sitl_sim/vehicle_model/
+    test_attitude_control.py states the bounds).
     """
 
     angle_p_rp: float = 9.0
@@ -190,75 +119,146 @@ class AttitudeGains:
         """Smoothing factor of the first-order D-term filter for a step dt (s)."""
         return dt / (dt + 1.0 / (2.0 * math.pi * self.d_filter_hz))
 
-
-def sqrt_controller(error: np.ndarray, p: np.ndarray, accel_max: np.ndarray) -> np.ndarray:
-    """ArduCopter's sqrt_controller: P near zero, constant-deceleration sqrt law beyond accel_max / p^2."""
-    linear_dist = accel_max / (p * p)
-    magnitude = np.abs(error)
-    sqrt_law = np.sqrt(2.0 * accel_max * np.maximum(magnitude - 0.5 * linear_dist, 0.0))
-    return np.where(magnitude > linear_dist, np.copysign(sqrt_law, error), p * error)
-
-
-def angle_rate_demand(
-    quat: np.ndarray, quat_target: np.ndarray, rate_ff: np.ndarray, gains: AttitudeGains
-) -> np.ndarray:
-    """Desired body rates (N, 3) rad/s from the angle loop plus feed-forward, limited to gains.rate_max."""
-    error = attitude_error(quat, quat_target)
-    rates = sqrt_controller(error, gains.angle_p, gains.accel_max) + rate_ff
-    return np.clip(rates, -gains.rate_max, gains.rate_max)
+    def packed(self, dt: float) -> np.ndarray:
+        """The gains as the kernels' float64 vector (indices C_*; D filter alpha for a step dt s)."""
+        return np.concatenate(
+            (
+                self.angle_p,
+                self.accel_max,
+                self.rate_max,
+                self.rate_p,
+                self.rate_i,
+                self.rate_d,
+                self.i_max,
+                [self.d_alpha(dt)],
+            )
+        ).astype(np.float64)
 
 
-def rate_pid(
-    rate_sp: np.ndarray,
-    omega: np.ndarray,
-    integrator: np.ndarray,
-    d_state: np.ndarray,
-    prev_error: np.ndarray,
-    reset: np.ndarray,
-    gains: AttitudeGains,
-    dt: float,
-) -> np.ndarray:
-    """Body torques (N, 3) N m from the rate PID; updates integrator, d_state, prev_error (N, 3) in place.
+# Indices into AttitudeGains.packed: angle P, accel max, rate max, rate P, I, D, I limit (a triple each:
+# roll, pitch, yaw), then the D filter alpha.
+C_ANGLE_P, C_ACCEL_MAX, C_RATE_MAX, C_KP, C_KI, C_KD, C_I_MAX, C_D_ALPHA = 0, 3, 6, 9, 12, 15, 18, 21
 
-    reset (N,) bool (landed or motors off): integrator and D term are cleared (ArduCopter resets the rate
-    I terms on the ground) so no wind-up carries into the next take-off.
+
+@kernel
+def attitude_error(
+    qw: float, qx: float, qy: float, qz: float, tw: float, tx: float, ty: float, tz: float
+) -> tuple[float, float, float]:
+    """Rotation-vector error (rad, current body frame) from attitude q to target t, both unit quaternions.
+
+    x, y: thrust-vector (tilt) correction about a horizontal body axis; z: the remaining heading error,
+    wrapped to [-pi, pi]. The split of ArduCopter's thrust_heading_rotation_angles: e = conj(q) * t =
+    swing * twist (twist about body z), singularity-free; at exactly 180 deg of tilt the twist is identity.
     """
-    error = rate_sp - omega
-    d_raw = (error - prev_error) / dt
-    d_new = d_state + gains.d_alpha(dt) * (d_raw - d_state)
-    i_max = np.asarray(gains.i_max)
-    i_new = np.clip(integrator + np.asarray(gains.rate_i) * error * dt, -i_max, i_max)
-    keep = ~reset[:, None]
-    integrator[:] = np.where(keep, i_new, 0.0)
-    d_state[:] = np.where(keep, d_new, 0.0)
-    prev_error[:] = error
-    return np.asarray(gains.rate_p) * error + integrator + np.asarray(gains.rate_d) * d_state
+    ew = qw * tw + qx * tx + qy * ty + qz * tz  # conj(q) * t
+    ex = qw * tx - qx * tw - qy * tz + qz * ty
+    ey = qw * ty + qx * tz - qy * tw - qz * tx
+    ez = qw * tz - qx * ty + qy * tx - qz * tw
+    n = math.hypot(ew, ez)
+    if n < 1e-12:
+        cw, cz = 1.0, 0.0
+    else:
+        cw, cz = ew / n, ez / n
+    sx = ex * cw - ey * cz
+    sy = ey * cw + ex * cz
+    h = math.hypot(ex, ey)
+    factor = 2.0 * math.atan2(h, n) / h if h > 1e-12 else 2.0
+    sign = -1.0 if cw < 0.0 else 1.0
+    return sx * factor, sy * factor, 2.0 * math.atan2(cz * sign, cw * sign)
 
 
+@kernel
+def limit_tilt(w: float, x: float, y: float, z: float, tilt_max: float) -> tuple[float, float, float, float]:
+    """Unit target attitude (w, x, y, z) with its tilt shortened to at most tilt_max rad, heading kept.
+
+    Tilt = angle between the target thrust axis and world up (ArduCopter ANGLE_MAX). The target is split into
+    a heading twist about z and a tilt swing about a horizontal axis; only the swing angle is reduced.
+    """
+    n = math.hypot(w, z)
+    if n < 1e-12:
+        cw, cz = 1.0, 0.0
+    else:
+        cw, cz = w / n, z / n
+    h = math.hypot(x, y)
+    tilt = 2.0 * math.atan2(h, n)
+    if tilt <= tilt_max:
+        return w, x, y, z
+    half = 0.5 * tilt_max
+    scale = math.sin(half) / (h if h > 0.0 else 1.0)
+    sx, sy, sw = (x * cw - y * cz) * scale, (y * cw + x * cz) * scale, math.cos(half)
+    return sw * cw, sx * cw + sy * cz, sy * cw - sx * cz, sw * cz
+
+
+@kernel
+def rate_pid_axis(
+    error: float,
+    prev_error: float,
+    integrator: float,
+    d_state: float,
+    gains: np.ndarray,
+    k: int,
+    reset: bool,
+    dt: float,
+) -> tuple[float, float, float]:
+    """One body axis k (0 roll, 1 pitch, 2 yaw) of the rate PID: (torque N m, new integrator, new D state).
+
+    error, prev_error: rate error now and one step dt (s) earlier, rad/s; gains: AttitudeGains.packed. reset
+    (landed or motors off): integrator and D term cleared (ArduCopter resets the rate I terms on the ground),
+    so no wind-up carries into the next take-off.
+    """
+    if reset:
+        integrator = 0.0
+        d_state = 0.0
+    else:
+        d_state = d_state + gains[C_D_ALPHA] * ((error - prev_error) / dt - d_state)
+        i_max = gains[C_I_MAX + k]
+        integrator = min(max(integrator + gains[C_KI + k] * error * dt, -i_max), i_max)
+    return gains[C_KP + k] * error + integrator + gains[C_KD + k] * d_state, integrator, d_state
+
+
+@kernel
 def mix_x_quad(
-    collective: np.ndarray, torque: np.ndarray, arm: float, yaw_coef: float, f_max: float
-) -> np.ndarray:
-    """Per-motor thrust commands (N, 4) N in [0, f_max] for total thrust (N,) N and body torques (N, 3) N m.
+    torque_x: float,
+    torque_y: float,
+    torque_z: float,
+    collective: float,
+    inv_4d: float,
+    yaw_coef: float,
+    f_max: float,
+    rp: np.ndarray,
+    yaw: np.ndarray,
+    f_cmd: np.ndarray,
+) -> None:
+    """Per-motor thrust commands f_cmd (4,) N in [0, f_max] for the total thrust `collective` N and body FLU
+    torques (N m); inv_4d = 1 / (4 arm / sqrt(2)), yaw_coef = k_D/k_T (m); rp, yaw: (4,) scratch.
 
-    arm: motor distance from the centre (m); yaw_coef = k_D/k_T (m): reaction torque per newton.
     Saturation (like AP_MotorsMatrix::output_armed_stabilizing): roll/pitch are scaled down only if they alone
     exceed the motor range; yaw then gets what range is left (scaled by the largest factor that fits); last,
     the collective is shifted into the remaining band so the torques are produced exactly.
     """
-    inv_4d = 1.0 / (4.0 * arm * math.sqrt(0.5))
-    rp = (MOTOR_ROLL_SIGN * torque[:, :1] + MOTOR_PITCH_SIGN * torque[:, 1:2]) * inv_4d
-    rp_span = rp.max(axis=1) - rp.min(axis=1)
-    rp_saturated = rp_span > f_max
-    rp = rp * np.where(rp_saturated, f_max / np.where(rp_saturated, rp_span, 1.0), 1.0)[:, None]
-    yaw = MOTOR_YAW_SIGN * torque[:, 2:3] * (0.25 / yaw_coef)
-    dy = yaw[:, :, None] - yaw[:, None, :]
-    drp = rp[:, :, None] - rp[:, None, :]
-    rising = dy > 0.0
-    limits = np.where(rising, (f_max - drp) / np.where(rising, dy, 1.0), np.inf)
-    yaw_scale = np.maximum(np.minimum(limits.min(axis=(1, 2)), 1.0), 0.0)
-    yaw_scale = np.where(rp_saturated, 0.0, yaw_scale)
-    diff = rp + yaw * yaw_scale[:, None]
-    low = -diff.min(axis=1)
-    high = f_max - diff.max(axis=1)
-    per_motor = np.minimum(np.maximum(0.25 * collective, low), high)
-    return np.clip(per_motor[:, None] + diff, 0.0, f_max)
+    rp_hi, rp_lo = -np.inf, np.inf
+    for j in range(4):
+        rp[j] = (MOTOR_ROLL_SIGN[j] * torque_x + MOTOR_PITCH_SIGN[j] * torque_y) * inv_4d
+        rp_hi, rp_lo = max(rp_hi, rp[j]), min(rp_lo, rp[j])
+    rp_span = rp_hi - rp_lo
+    yaw_scale = 1.0
+    if rp_span > f_max:
+        for j in range(4):
+            rp[j] = rp[j] * (f_max / rp_span)
+        yaw_scale = 0.0
+    for j in range(4):
+        yaw[j] = MOTOR_YAW_SIGN[j] * torque_z * (0.25 / yaw_coef)
+    if yaw_scale > 0.0:
+        for a in range(4):
+            for b in range(4):
+                dy = yaw[a] - yaw[b]
+                if dy > 0.0:
+                    yaw_scale = min(yaw_scale, (f_max - (rp[a] - rp[b])) / dy)
+        yaw_scale = max(yaw_scale, 0.0)
+    d_hi, d_lo = -np.inf, np.inf
+    for j in range(4):
+        f_cmd[j] = rp[j] + yaw[j] * yaw_scale  # the differential part first
+        d_hi, d_lo = max(d_hi, f_cmd[j]), min(d_lo, f_cmd[j])
+    per_motor = min(max(0.25 * collective, -d_lo), f_max - d_hi)
+    for j in range(4):
+        f_cmd[j] = min(max(per_motor + f_cmd[j], 0.0), f_max)

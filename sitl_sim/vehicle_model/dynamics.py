@@ -17,34 +17,40 @@ Ground (plane z = 0): a vehicle never sinks below it. Touching down with vertica
 `landed` (velocity and rates zeroed, attitude levelled keeping yaw, attitude loop relaxed); it lifts off when
 total thrust exceeds its weight. Crashed vehicles have their motors off (they fall and lie on the ground).
 
-Two interchangeable backends advance all vehicles: a fused numba kernel (sitl_sim.vehicle_model.kernels, the
-default when numba imports) and the numpy reference below. SWARM_SIM_BACKEND=numpy forces the reference.
+`advance` is the one implementation of this step, compiled (swarm_common.jit): per vehicle and physics step
+the attitude controller (sitl_sim.vehicle_model.attitude_control), the motor lag, the rigid body and the
+ground; FleetDynamics holds the arrays and calls it.
 """
 
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
-from sitl_sim.vehicle_model.airframe import QuadParams, motor_wrench
+from sitl_sim.vehicle_model.airframe import QuadParams
 from sitl_sim.vehicle_model.attitude_control import (
+    C_ACCEL_MAX,
+    C_ANGLE_P,
+    C_RATE_MAX,
+    MOTOR_PITCH_SIGN,
+    MOTOR_ROLL_SIGN,
+    MOTOR_YAW_SIGN,
     AttitudeGains,
-    angle_rate_demand,
-    cross,
+    attitude_error,
     euler_from_quat,
     level_quat,
     limit_tilt,
     mix_x_quad,
-    quat_rotate,
-    rate_pid,
-    yaw_from_quat,
+    rate_pid_axis,
 )
-from swarm_common.rotations import quaternion_multiply
+from swarm_common.jit import kernel
+from swarm_common.shaping import sqrt_controller
 
 DEFAULT_TILT_MAX = math.radians(30.0)  # ArduCopter ANGLE_MAX default, 3000 cdeg
-BACKEND_ENV = "SWARM_SIM_BACKEND"
+# Indices into the packed airframe vector (pack_physics)
+P_MASS, P_G, P_IXX, P_IYY, P_IZZ, P_ARM_XY = range(6)
+P_YAW_COEF, P_F_MAX, P_MOTOR_ALPHA, P_DRAG_LIN, P_DRAG_ROT, P_DT = range(6, 12)
 
 
 class FleetState:
@@ -127,7 +133,6 @@ class FleetDynamics:
         params: QuadParams = QuadParams(),  # noqa: B008 - frozen dataclass, safe as a default
         rate_hz: float = 1000.0,
         attitude_gains: AttitudeGains | None = None,
-        backend: str | None = None,
         state: FleetState | None = None,
     ) -> None:
         if not (isinstance(n, int | np.integer) and n >= 1):
@@ -138,7 +143,6 @@ class FleetDynamics:
         self.params = params
         self.gains = attitude_gains or AttitudeGains()
         self.dt = 1.0 / float(rate_hz)
-        self.backend = _choose_backend(backend)
         self._targets_quat = np.zeros((self.n, 4))
         self._rate_ff = np.zeros((self.n, 3))
         self._thrust_sp = np.zeros(self.n)
@@ -150,13 +154,8 @@ class FleetDynamics:
         self._prev_error = np.zeros((self.n, 3))
         self.last_sanitised = np.zeros(self.n, dtype=bool)
         """(N,) bool: vehicles whose last set_targets/set_rate_targets input had non-finite values."""
-        if self.backend == "numba":
-            from sitl_sim.vehicle_model import kernels
-
-            self._kernel = kernels.advance
-            self._store_targets = kernels.store_targets
-            self._phys = kernels.pack_physics(params, self.dt)
-            self._ctl = kernels.pack_gains(self.gains, self.dt)
+        self._phys = pack_physics(params, self.dt)
+        self._ctl = self.gains.packed(self.dt)
         if state is None:
             state = FleetState.at_rest(np.zeros((self.n, 3)), np.zeros(self.n), params=params)
         self.state = state
@@ -202,25 +201,11 @@ class FleetDynamics:
             raise ValueError(f"tilt_max must be a scalar or have shape ({n},), not {tilt.shape}")
         tilt = np.full(n, tilt) if tilt.shape == () else np.ascontiguousarray(tilt)
         hover = self.params.mass * self.params.g
-        if self.backend == "numba":
-            self._store_targets(
-                quat, rate_ff, thrust, motors_on, tilt, self._state.quat, hover, self.params.thrust_max,
-                DEFAULT_TILT_MAX, self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on,
-                self.last_sanitised,
-            )  # fmt: skip
-            return
-        norm = np.linalg.norm(quat, axis=1)
-        bad_quat = ~np.isfinite(norm) | (norm < 1e-6)
-        bad_rate = ~np.all(np.isfinite(rate_ff), axis=1)
-        bad_thrust = ~np.isfinite(thrust)
-        bad_tilt = ~np.isfinite(tilt)
-        self.last_sanitised[:] = bad_quat | bad_rate | bad_thrust | bad_tilt
-        quat = np.where(bad_quat[:, None], self._state.quat, quat / np.where(bad_quat, 1.0, norm)[:, None])
-        tilt = np.clip(np.where(bad_tilt, DEFAULT_TILT_MAX, tilt), 0.0, math.pi)
-        self._targets_quat[:] = limit_tilt(quat, tilt)
-        self._rate_ff[:] = np.where(bad_rate[:, None], 0.0, rate_ff)
-        self._thrust_sp[:] = np.clip(np.where(bad_thrust, hover, thrust), 0.0, self.params.thrust_max)
-        self._motors_on[:] = motors_on
+        store_targets(
+            quat, rate_ff, thrust, motors_on, tilt, self._state.quat, hover, self.params.thrust_max,
+            DEFAULT_TILT_MAX, self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on,
+            self.last_sanitised,
+        )  # fmt: skip
 
     def set_rate_targets(self, mask: np.ndarray, rates: np.ndarray) -> None:
         """Select rate-only control: vehicles with mask (N,) True track body rates (N,3) FLU rad/s directly.
@@ -245,17 +230,13 @@ class FleetDynamics:
             wind = np.where(np.isfinite(wind), wind, 0.0)
         if not (isinstance(nsteps, int | np.integer) and nsteps >= 0):
             raise ValueError(f"nsteps must be an integer >= 0, not {nsteps!r}")
-        if self.backend == "numba":
-            s = self._state
-            self._kernel(
-                int(nsteps), self._phys, self._ctl,
-                s.pos, s.vel, s.quat, s.omega, s.motor, s.landed, s.crashed, s.world_accel,
-                self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on, self._rate_mode,
-                self._rate_cmd, self._integrator, self._d_state, self._prev_error, wind,
-            )  # fmt: skip
-        else:
-            for _ in range(nsteps):
-                self._step_numpy(wind)
+        s = self._state
+        advance(
+            int(nsteps), self._phys, self._ctl,
+            s.pos, s.vel, s.quat, s.omega, s.motor, s.landed, s.crashed, s.world_accel,
+            self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on, self._rate_mode,
+            self._rate_cmd, self._integrator, self._d_state, self._prev_error, wind,
+        )  # fmt: skip
 
     def reset_vehicle(self, i: int, pos: np.ndarray, yaw: float, vel: np.ndarray | None = None) -> None:
         """Put vehicle i back at rest like FleetState.at_rest (crash cleared, controller reset)."""
@@ -282,78 +263,187 @@ class FleetDynamics:
         self._d_state[i] = 0.0
         self._prev_error[i] = 0.0
 
-    def _step_numpy(self, wind: np.ndarray) -> None:
-        """One dt of the numpy reference: control, mixing, motors, rigid body, ground (= the kernel)."""
-        s, p, dt = self._state, self.params, self.dt
-        active = self._motors_on & ~s.crashed
-        rate_sp = np.where(
-            self._rate_mode[:, None],
-            self._rate_cmd,
-            angle_rate_demand(s.quat, self._targets_quat, self._rate_ff, self.gains),
-        )
-        reset = s.landed | ~active
-        memory = (self._integrator, self._d_state, self._prev_error)
-        torque_cmd = rate_pid(rate_sp, s.omega, *memory, reset, self.gains, dt)
-        torque_cmd = np.where(s.landed[:, None], 0.0, torque_cmd)  # attitude loop relaxed on the ground
-        f_cmd = mix_x_quad(np.where(active, self._thrust_sp, 0.0), torque_cmd, p.arm, p.yaw_coef, p.f_max)
-        f_cmd = np.where(active[:, None], f_cmd, 0.0)
-        alpha = math.exp(-dt / p.motor_tau)
-        s.motor[:] = np.where(s.crashed[:, None], 0.0, f_cmd + (s.motor - f_cmd) * alpha)
 
-        thrust, torque = motor_wrench(s.motor, p)
-        weight = p.mass * p.g
-        s.landed &= ~(thrust > weight)
-        free = ~s.landed[:, None]
-        thrust_axis = quat_rotate(s.quat, np.array([0.0, 0.0, 1.0]))
-        accel = thrust_axis * (thrust / p.mass)[:, None] - (p.drag_lin / p.mass) * (s.vel - wind)
-        accel[:, 2] -= p.g
-        inertia = p.inertia
-        omega_dot = (torque - cross(s.omega, inertia * s.omega) - p.drag_rot * s.omega) / inertia
-        vel = s.vel + accel * dt
-        omega = s.omega + omega_dot * dt
-        s.pos[:] = np.where(free, s.pos + vel * dt, s.pos)
-        s.vel[:] = np.where(free, vel, 0.0)
-        s.omega[:] = np.where(free, omega, 0.0)
-        s.world_accel[:] = np.where(free, accel, 0.0)
-        s.quat[:] = np.where(free, integrate_attitude(s.quat, omega, dt), s.quat)
-
-        below = ~s.landed & (s.pos[:, 2] < 0.0)
-        touchdown = below & (thrust * thrust_axis[:, 2] <= weight)
-        s.pos[:, 2] = np.where(below, 0.0, s.pos[:, 2])
-        s.vel[:, 2] = np.where(below, np.maximum(s.vel[:, 2], 0.0), s.vel[:, 2])
-        s.vel[:] = np.where(touchdown[:, None], 0.0, s.vel)
-        s.omega[:] = np.where(touchdown[:, None], 0.0, s.omega)
-        s.world_accel[:] = np.where(touchdown[:, None], 0.0, s.world_accel)
-        s.quat[:] = np.where(touchdown[:, None], level_quat(yaw_from_quat(s.quat)), s.quat)
-        s.landed |= touchdown
+def pack_physics(params: QuadParams, dt: float) -> np.ndarray:
+    """Airframe parameters and step dt (s) as the kernel's float64 vector."""
+    return np.array(
+        [
+            params.mass,
+            params.g,
+            params.ixx,
+            params.iyy,
+            params.izz,
+            params.arm * math.sqrt(0.5),
+            params.yaw_coef,
+            params.f_max,
+            math.exp(-dt / params.motor_tau),
+            params.drag_lin,
+            params.drag_rot,
+            dt,
+        ]
+    )
 
 
-def integrate_attitude(quat: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:
-    """q * exp(omega dt / 2): exact rotation for body rates (N,3) held over dt, renormalised."""
-    rate = np.linalg.norm(omega, axis=1)
-    half = 0.5 * rate * dt
-    small = half < 1e-6
-    scale = np.where(small, 0.5 * dt * (1.0 - half * half / 6.0), np.sin(half) / np.where(small, 1.0, rate))
-    delta = np.concatenate((np.cos(half)[:, None], omega * scale[:, None]), axis=1)
-    q = quaternion_multiply(quat, delta)
-    return q / np.linalg.norm(q, axis=1)[:, None]
+@kernel
+def advance(
+    nsteps, phys, ctl, pos, vel, quat, omega, motor, landed, crashed, accel_out,
+    quat_t, rate_ff, thrust_sp, motors_on, rate_mode, rate_cmd, integ, d_state, prev_err, wind,
+):  # fmt: skip  # noqa: ANN001, ANN201 - numba kernel over FleetDynamics' arrays
+    """Advance all vehicles nsteps physics steps of phys[P_DT] s; state and controller memory are updated in
+    place. phys: pack_physics; ctl: AttitudeGains.packed; the arrays as FleetState and FleetDynamics hold them
+    (targets quat_t (N,4), rate_ff (N,3) rad/s, thrust_sp (N,) N, motors_on, rate_mode (N,) bool, rate_cmd
+    (N,3) rad/s; rate PID memory integ, d_state, prev_err (N,3); wind (N,3) ENU m/s). Vehicles are
+    independent, so each one is advanced all nsteps in a row."""
+    mass, g, dt = phys[P_MASS], phys[P_G], phys[P_DT]
+    inertia = np.array([phys[P_IXX], phys[P_IYY], phys[P_IZZ]])
+    arm_xy, yaw_coef, f_max = phys[P_ARM_XY], phys[P_YAW_COEF], phys[P_F_MAX]
+    alpha, drag_lin, drag_rot = phys[P_MOTOR_ALPHA], phys[P_DRAG_LIN], phys[P_DRAG_ROT]
+    inv_4d = 1.0 / (4.0 * arm_xy)
+    weight = mass * g
+    rate_sp = np.empty(3)
+    err = np.empty(3)
+    torque = np.empty(3)
+    rp = np.empty(4)
+    yaw = np.empty(4)
+    f_cmd = np.empty(4)
+    w_dot = np.empty(3)
+
+    for i in range(pos.shape[0]):
+        for _ in range(nsteps):
+            qw, qx, qy, qz = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+            active = motors_on[i] and not crashed[i]
+
+            # --- attitude controller: angle loop (or a rate-only command), rate PID, mixer
+            if rate_mode[i]:
+                for k in range(3):
+                    rate_sp[k] = rate_cmd[i, k]
+            else:
+                err[0], err[1], err[2] = attitude_error(
+                    qw, qx, qy, qz, quat_t[i, 0], quat_t[i, 1], quat_t[i, 2], quat_t[i, 3]
+                )
+                for k in range(3):
+                    r = sqrt_controller(err[k], ctl[C_ANGLE_P + k], ctl[C_ACCEL_MAX + k], 0.0) + rate_ff[i, k]
+                    rate_sp[k] = min(max(r, -ctl[C_RATE_MAX + k]), ctl[C_RATE_MAX + k])
+            reset = landed[i] or not active
+            for k in range(3):
+                e = rate_sp[k] - omega[i, k]
+                torque[k], integ[i, k], d_state[i, k] = rate_pid_axis(
+                    e, prev_err[i, k], integ[i, k], d_state[i, k], ctl, k, reset, dt
+                )
+                prev_err[i, k] = e
+                if landed[i]:
+                    torque[k] = 0.0  # the attitude loop is relaxed on the ground
+            if active:
+                tx, ty, tz, collective = torque[0], torque[1], torque[2], thrust_sp[i]
+                mix_x_quad(tx, ty, tz, collective, inv_4d, yaw_coef, f_max, rp, yaw, f_cmd)
+            else:
+                for j in range(4):
+                    f_cmd[j] = 0.0
+
+            # --- motor lag (exact first order) and the wrench of the motors
+            thrust = 0.0
+            tau_x, tau_y, tau_z = 0.0, 0.0, 0.0
+            for j in range(4):
+                f = 0.0 if crashed[i] else f_cmd[j] + (motor[i, j] - f_cmd[j]) * alpha
+                motor[i, j] = f
+                thrust += f
+                tau_x += f * MOTOR_ROLL_SIGN[j]
+                tau_y += f * MOTOR_PITCH_SIGN[j]
+                tau_z += f * MOTOR_YAW_SIGN[j]
+            tau_x *= arm_xy
+            tau_y *= arm_xy
+            tau_z *= yaw_coef
+
+            # --- rigid body
+            if landed[i] and thrust > weight:
+                landed[i] = False
+            if landed[i]:
+                for k in range(3):
+                    vel[i, k] = 0.0
+                    omega[i, k] = 0.0
+                    accel_out[i, k] = 0.0
+                continue
+            ax_t = 2.0 * (qw * qy + qx * qz)  # R e3, the thrust axis in the world
+            ay_t = 2.0 * (qy * qz - qw * qx)
+            az_t = 1.0 - 2.0 * (qx * qx + qy * qy)
+            k_drag = drag_lin / mass
+            a_x = ax_t * (thrust / mass) - k_drag * (vel[i, 0] - wind[i, 0])
+            a_y = ay_t * (thrust / mass) - k_drag * (vel[i, 1] - wind[i, 1])
+            a_z = az_t * (thrust / mass) - k_drag * (vel[i, 2] - wind[i, 2]) - g
+            wx, wy, wz = omega[i, 0], omega[i, 1], omega[i, 2]
+            lx, ly, lz = inertia[0] * wx, inertia[1] * wy, inertia[2] * wz
+            w_dot[0] = (tau_x - (wy * lz - wz * ly) - drag_rot * wx) / inertia[0]
+            w_dot[1] = (tau_y - (wz * lx - wx * lz) - drag_rot * wy) / inertia[1]
+            w_dot[2] = (tau_z - (wx * ly - wy * lx) - drag_rot * wz) / inertia[2]
+            vel[i, 0] += a_x * dt
+            vel[i, 1] += a_y * dt
+            vel[i, 2] += a_z * dt
+            for k in range(3):
+                pos[i, k] += vel[i, k] * dt
+                omega[i, k] += w_dot[k] * dt
+            accel_out[i, 0], accel_out[i, 1], accel_out[i, 2] = a_x, a_y, a_z
+
+            # q * exp(omega dt / 2): the exact rotation for the body rates held over dt, renormalised
+            wx, wy, wz = omega[i, 0], omega[i, 1], omega[i, 2]
+            rate = math.sqrt(wx * wx + wy * wy + wz * wz)
+            half = 0.5 * rate * dt
+            scale = 0.5 * dt * (1.0 - half * half / 6.0) if half < 1e-6 else math.sin(half) / rate
+            dw, dx, dy_, dz = math.cos(half), wx * scale, wy * scale, wz * scale
+            nw = qw * dw - qx * dx - qy * dy_ - qz * dz
+            nx = qw * dx + qx * dw + qy * dz - qz * dy_
+            ny = qw * dy_ - qx * dz + qy * dw + qz * dx
+            nz = qw * dz + qx * dy_ - qy * dx + qz * dw
+            norm = math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+            nw, nx, ny, nz = nw / norm, nx / norm, ny / norm, nz / norm
+
+            # --- ground plane z = 0
+            if pos[i, 2] < 0.0:
+                pos[i, 2] = 0.0
+                vel[i, 2] = max(vel[i, 2], 0.0)
+                if thrust * az_t <= weight:
+                    landed[i] = True
+                    for k in range(3):
+                        vel[i, k] = 0.0
+                        omega[i, k] = 0.0
+                        accel_out[i, k] = 0.0
+                    yaw_angle = math.atan2(2.0 * (nw * nz + nx * ny), 1.0 - 2.0 * (ny * ny + nz * nz))
+                    nw, nx, ny, nz = math.cos(0.5 * yaw_angle), 0.0, 0.0, math.sin(0.5 * yaw_angle)
+            quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = nw, nx, ny, nz
 
 
-def _choose_backend(backend: str | None) -> str:
-    """Resolve "numba" | "numpy" | None (= SWARM_SIM_BACKEND, else numba when importable)."""
-    requested = backend if backend is not None else os.environ.get(BACKEND_ENV, "").strip().lower() or None
-    if requested not in (None, "numba", "numpy"):
-        source = "backend" if backend is not None else BACKEND_ENV
-        raise ValueError(f"{source} must be 'numba' or 'numpy', not {requested!r}")
-    if requested == "numpy":
-        return "numpy"
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        if requested == "numba":
-            raise ValueError("backend 'numba' requested but numba is not installed") from None
-        return "numpy"
-    return "numba"
+@kernel
+def store_targets(
+    quat_sp, rate_ff, thrust_sp, motors_on, tilt_max, current_quat, hover, thrust_max, default_tilt,
+    out_quat, out_rate_ff, out_thrust, out_motors_on, out_sanitised,
+):  # fmt: skip  # noqa: ANN001, ANN201 - numba kernel over FleetDynamics' arrays
+    """Sanitise, normalise and tilt-limit new targets into the out_* arrays (FleetDynamics.set_targets)."""
+    for i in range(quat_sp.shape[0]):
+        w, x, y, z = quat_sp[i, 0], quat_sp[i, 1], quat_sp[i, 2], quat_sp[i, 3]
+        norm = math.sqrt(w * w + x * x + y * y + z * z)
+        bad_quat = not math.isfinite(norm) or norm < 1e-6
+        if bad_quat:
+            w, x, y, z = current_quat[i, 0], current_quat[i, 1], current_quat[i, 2], current_quat[i, 3]
+        else:
+            w, x, y, z = w / norm, x / norm, y / norm, z / norm
+        tilt_lim = tilt_max[i]
+        bad_tilt = not math.isfinite(tilt_lim)
+        if bad_tilt:
+            tilt_lim = default_tilt
+        w, x, y, z = limit_tilt(w, x, y, z, min(max(tilt_lim, 0.0), math.pi))
+        out_quat[i, 0], out_quat[i, 1], out_quat[i, 2], out_quat[i, 3] = w, x, y, z
+        bad_rate = False
+        for k in range(3):
+            if not math.isfinite(rate_ff[i, k]):
+                bad_rate = True
+        for k in range(3):
+            out_rate_ff[i, k] = 0.0 if bad_rate else rate_ff[i, k]
+        thrust = thrust_sp[i]
+        bad_thrust = not math.isfinite(thrust)
+        if bad_thrust:
+            thrust = hover
+        out_thrust[i] = min(max(thrust, 0.0), thrust_max)
+        out_motors_on[i] = motors_on[i]
+        out_sanitised[i] = bad_quat or bad_rate or bad_thrust or bad_tilt
 
 
 def _float_array(value: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:

@@ -3,8 +3,7 @@
 Cascade as AC_PosControl: position error -> sqrt controller -> velocity demand (speed limited) -> velocity PI
 -> acceleration demand -> thrust vector (spec 5 inversion: U = a + g e3, tilt limited altitude first) ->
 attitude target and collective in units of g (times MOT_THST_HOVER = fraction of full thrust).
-Scalar functions over one vehicle, called from the autopilot's fused outer loop; without numba they run as
-plain (slow) Python.
+Scalar functions over one vehicle, compiled (swarm_common.jit), called from the autopilot's outer loop.
 """
 
 from __future__ import annotations
@@ -13,7 +12,8 @@ import math
 
 import numpy as np
 
-from sitl_sim.vehicle_model.jit import njit
+from swarm_common.jit import kernel
+from swarm_common.shaping import sqrt_controller
 
 ACCEL_Z_MAX = 2.5  # m/s^2, vertical acceleration of the sqrt shaping (PILOT_ACCEL_Z 250 cm/s^2)
 I_MAX_XY = 2.0  # m/s^2, horizontal velocity integrator limit
@@ -21,16 +21,7 @@ I_MAX_Z = 4.0  # m/s^2, vertical velocity integrator limit (covers a MOT_THST_HO
 MIN_UP_ACCEL = 0.3  # fraction of g: U_z floor, no free-fall commands (spec 5, limit 1)
 
 
-@njit(cache=True)
-def sqrt_controller(error: float, p: float, accel_max: float) -> float:
-    """ArduCopter's sqrt_controller: P near zero error, constant deceleration beyond accel_max/p^2."""
-    linear_dist = accel_max / (p * p)
-    if abs(error) <= linear_dist:
-        return p * error
-    return math.copysign(math.sqrt(2.0 * accel_max * (abs(error) - 0.5 * linear_dist)), error)
-
-
-@njit(cache=True)
+@kernel
 def velocity_demand(
     pos: np.ndarray,
     pos_sp: np.ndarray,
@@ -50,11 +41,11 @@ def velocity_demand(
         ex, ey = pos_sp[0] - pos[0], pos_sp[1] - pos[1]
         dist = math.hypot(ex, ey)
         if dist > 1e-9:
-            speed = min(sqrt_controller(dist, p_xy, accel_xy), speed_xy)
+            speed = min(sqrt_controller(dist, p_xy, accel_xy, 0.0), speed_xy)
             vx += ex * speed / dist
             vy += ey * speed / dist
     if not math.isnan(pos_sp[2]):
-        vz += sqrt_controller(pos_sp[2] - pos[2], p_z, ACCEL_Z_MAX)
+        vz += sqrt_controller(pos_sp[2] - pos[2], p_z, ACCEL_Z_MAX, 0.0)
     horizontal = math.hypot(vx, vy)
     if horizontal > speed_xy:
         vx *= speed_xy / horizontal
@@ -62,7 +53,7 @@ def velocity_demand(
     return vx, vy, min(max(vz, -speed_dn), speed_up)
 
 
-@njit(cache=True)
+@kernel
 def velocity_pi(
     error: float, integrator: float, kp: float, ki: float, i_max: float, dt: float
 ) -> tuple[float, float]:
@@ -71,7 +62,7 @@ def velocity_pi(
     return kp * error + integrator, integrator
 
 
-@njit(cache=True)
+@kernel
 def attitude_from_accel(
     ax: float, ay: float, az: float, yaw: float, tilt_max: float, g: float
 ) -> tuple[float, float, float, float, float]:
@@ -102,7 +93,7 @@ def attitude_from_accel(
     )
 
 
-@njit(cache=True)
+@kernel
 def brake_shaping_step(
     nav_pos: np.ndarray,
     nav_vel: np.ndarray,
@@ -127,7 +118,7 @@ def brake_shaping_step(
         return
     want = 0.0
     if speed > 1e-6:
-        want = min(sqrt_controller(speed, jerk_max / accel_max, jerk_max), accel_max) / speed
+        want = min(sqrt_controller(speed, jerk_max / accel_max, jerk_max, 0.0), accel_max) / speed
     dax, day = -vx * want - nav_acc[0], -vy * want - nav_acc[1]  # towards the correction acceleration
     step = math.hypot(dax, day)
     if step > jerk_max * dt:

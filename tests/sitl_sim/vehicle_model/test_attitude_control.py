@@ -1,29 +1,76 @@
-"""Attitude controller: quaternion errors, tilt limit, mixer saturation, closed-loop step responses."""
+"""Attitude controller: quaternion errors, tilt limit, mixer saturation, closed-loop step responses.
+
+The controller's kernels take one vehicle's scalars; the helpers below apply them row by row and hold the
+independent references (rotation matrices from quaternions, the X-quad wrench of four motor thrusts)."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
 import pytest
 
-from sitl_sim.vehicle_model.airframe import QuadParams, motor_wrench
+from sitl_sim.vehicle_model.airframe import QuadParams
 from sitl_sim.vehicle_model.attitude_control import (
+    C_I_MAX,
+    C_KI,
+    MOTOR_PITCH_SIGN,
+    MOTOR_ROLL_SIGN,
+    MOTOR_YAW_SIGN,
     AttitudeGains,
-    attitude_error,
-    limit_tilt,
     mix_x_quad,
-    quat_rotate,
-    rate_pid,
-    sqrt_controller,
+    rate_pid_axis,
 )
+from sitl_sim.vehicle_model.attitude_control import attitude_error as attitude_error_kernel
+from sitl_sim.vehicle_model.attitude_control import limit_tilt as limit_tilt_kernel
 from sitl_sim.vehicle_model.dynamics import FleetDynamics, FleetState
 from swarm_common.rotations import euler_to_quaternion, quaternion_multiply
 
-FAST = "numba" if importlib.util.find_spec("numba") is not None else "numpy"
 P = QuadParams()
 HOVER = P.mass * P.g
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) [w, x, y, z] through the rotation matrix."""
+    q = np.asarray(q, dtype=float)[..., None, :]
+    q, v = np.broadcast_arrays(q, np.asarray(v, dtype=float)[..., None])
+    w, x, y, z = q[..., 0, 0], q[..., 0, 1], q[..., 0, 2], q[..., 0, 3]
+    vx, vy, vz = v[..., 0, 0], v[..., 1, 0], v[..., 2, 0]
+    return np.stack(
+        (
+            (1 - 2 * (y * y + z * z)) * vx + 2 * (x * y - w * z) * vy + 2 * (x * z + w * y) * vz,
+            2 * (x * y + w * z) * vx + (1 - 2 * (x * x + z * z)) * vy + 2 * (y * z - w * x) * vz,
+            2 * (x * z - w * y) * vx + 2 * (y * z + w * x) * vy + (1 - 2 * (x * x + y * y)) * vz,
+        ),
+        axis=-1,
+    )
+
+
+def attitude_error(quat: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The kernel over rows: (N, 4), (N, 4) -> (N, 3)."""
+    quat, target = np.broadcast_arrays(np.atleast_2d(quat), np.atleast_2d(target))
+    return np.array([attitude_error_kernel(*q, *t) for q, t in zip(quat, target, strict=True)])
+
+
+def limit_tilt(target: np.ndarray, tilt_max: float | np.ndarray) -> np.ndarray:
+    """The kernel over rows: (N, 4), tilt_max scalar or (N,) -> (N, 4)."""
+    tilt = np.broadcast_to(tilt_max, (len(target),))
+    return np.array([limit_tilt_kernel(*q, float(t)) for q, t in zip(target, tilt, strict=True)])
+
+
+def motor_wrench(motor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Total thrust (N,) N and body FLU torques (N,3) N m of motor thrusts (N,4): X quad, ArduCopter order,
+    roll/pitch arm = arm / sqrt(2), yaw reaction torque = (k_D/k_T) f per motor."""
+    arm_xy = P.arm * math.sqrt(0.5)
+    torque = np.stack(
+        (
+            (motor * MOTOR_ROLL_SIGN).sum(axis=1) * arm_xy,
+            (motor * MOTOR_PITCH_SIGN).sum(axis=1) * arm_xy,
+            (motor * MOTOR_YAW_SIGN).sum(axis=1) * P.yaw_coef,
+        ),
+        axis=1,
+    )
+    return motor.sum(axis=1), torque
 
 
 def tilt_of(q: np.ndarray) -> np.ndarray:
@@ -88,16 +135,6 @@ def test_limit_tilt_caps_tilt_and_keeps_heading():
     assert np.allclose(limit_tilt(target, np.full(300, math.pi)), target)
 
 
-def test_sqrt_controller_is_linear_near_zero_and_continuous():
-    p, accel = 9.0, 60.0
-    linear_dist = accel / p**2
-    assert sqrt_controller(np.array(0.1 * linear_dist), p, accel) == pytest.approx(0.1 * linear_dist * p)
-    just_in, just_out = sqrt_controller(np.array([linear_dist, linear_dist * (1 + 1e-9)]), p, accel)
-    assert just_in == pytest.approx(just_out, rel=1e-6)
-    big = sqrt_controller(np.array([-2.0]), p, accel)[0]
-    assert big == pytest.approx(-math.sqrt(2 * accel * (2.0 - linear_dist / 2)))
-
-
 def test_gains_validation():
     with pytest.raises(ValueError, match="angle_p_rp"):
         AttitudeGains(angle_p_rp=0.0)
@@ -107,27 +144,36 @@ def test_gains_validation():
         AttitudeGains(i_max=(0.1, -0.1, 0.1))
 
 
-def test_rate_pid_integrates_and_resets():
+def test_rate_pid_integrates_clamps_and_resets():
     gains = AttitudeGains()
-    integ, d_state, prev = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
-    rate_sp = np.ones((2, 3))
-    for _ in range(100):
-        rate_pid(rate_sp, np.zeros((2, 3)), integ, d_state, prev, np.array([False, True]), gains, 1e-3)
-    assert np.allclose(integ[0], np.minimum(np.array(gains.rate_i) * 0.1, gains.i_max))
-    assert np.all(integ[1] == 0.0) and np.all(d_state[1] == 0.0)
+    packed = gains.packed(1e-3)
+    for k in range(3):
+        integ = d_state = 0.0
+        for _ in range(100):  # a constant error of 1 rad/s for 0.1 s
+            torque, integ, d_state = rate_pid_axis(1.0, 1.0, integ, d_state, packed, k, False, 1e-3)
+        assert integ == pytest.approx(min(gains.rate_i[k] * 0.1, gains.i_max[k]))
+        assert d_state == 0.0  # a constant error has no derivative
+        assert torque == pytest.approx(gains.rate_p[k] * 1.0 + integ)
+        big = rate_pid_axis(1e6, 1e6, integ, 0.0, packed, k, False, 1e-3)[1]
+        assert big == packed[C_I_MAX + k] or packed[C_KI + k] == 0.0  # the integrator is clamped
+        assert rate_pid_axis(1.0, 0.0, integ, 5.0, packed, k, True, 1e-3) == (gains.rate_p[k], 0.0, 0.0)
 
 
 # --- mixer -----------------------------------------------------------------------------------------------
 
 
-def mix(collective, torque):
-    return mix_x_quad(np.atleast_1d(collective), np.atleast_2d(torque), P.arm, P.yaw_coef, P.f_max)
+def mix(collective: float, torque: np.ndarray) -> np.ndarray:
+    """Motor thrusts (1, 4) of the mixer kernel for one collective N and torques (1, 3) N m."""
+    f_cmd = np.empty(4)
+    inv_4d = 1.0 / (4.0 * P.arm * math.sqrt(0.5))
+    mix_x_quad(*np.ravel(torque), collective, inv_4d, P.yaw_coef, P.f_max, np.empty(4), np.empty(4), f_cmd)
+    return f_cmd[None]
 
 
 def test_mixer_reproduces_unsaturated_wrench():
     torque = np.array([[0.2, -0.1, 0.03]])
     f = mix(HOVER, torque)
-    thrust, produced = motor_wrench(f, P)
+    thrust, produced = motor_wrench(f)
     assert thrust[0] == pytest.approx(HOVER)
     assert np.allclose(produced, torque)
 
@@ -136,7 +182,7 @@ def test_mixer_keeps_roll_pitch_at_full_collective_and_yaw_last():
     torque = np.array([[0.5, 0.3, 0.3]])  # yaw beyond the range left at this roll/pitch demand
     f = mix(P.thrust_max, torque)
     assert np.all((f >= 0) & (f <= P.f_max))
-    thrust, produced = motor_wrench(f, P)
+    thrust, produced = motor_wrench(f)
     assert np.allclose(produced[0, :2], torque[0, :2])  # roll and pitch exactly
     assert 0.0 < produced[0, 2] < torque[0, 2]  # yaw reduced, same sign
     assert thrust[0] < P.thrust_max  # collective gave way
@@ -144,7 +190,7 @@ def test_mixer_keeps_roll_pitch_at_full_collective_and_yaw_last():
 
 def test_mixer_scales_excessive_roll_pitch_keeping_direction():
     torque = np.array([[5.0, 2.5, 0.1]])
-    thrust, produced = motor_wrench(mix(HOVER, torque), P)
+    thrust, produced = motor_wrench(mix(HOVER, torque))
     assert produced[0, 0] / produced[0, 1] == pytest.approx(2.0)
     # the motor pair spread is exactly f_max: roll = arm_xy * (7.5 + 7.5 + 2.5 + 2.5) / 15 * f_max
     assert produced[0, 0] == pytest.approx(4 / 3 * P.f_max * P.arm * math.sqrt(0.5))
@@ -156,15 +202,15 @@ def test_mixer_raises_low_collective_for_attitude_authority():
     torque = np.array([[0.2, 0.0, 0.0]])
     f = mix(0.0, torque)
     assert np.all(f >= 0)
-    assert np.allclose(motor_wrench(f, P)[1], torque)
+    assert np.allclose(motor_wrench(f)[1], torque)
 
 
 # --- closed loop -----------------------------------------------------------------------------------------
 
 
-def hovering(n: int, rate_hz: float = 1000.0, backend: str = FAST) -> FleetDynamics:
+def hovering(n: int, rate_hz: float = 1000.0) -> FleetDynamics:
     pos = np.column_stack((np.arange(n) * 5.0, np.zeros(n), np.full(n, 50.0)))
-    return FleetDynamics(n, rate_hz=rate_hz, backend=backend, state=FleetState.at_rest(pos, np.zeros(n)))
+    return FleetDynamics(n, rate_hz=rate_hz, state=FleetState.at_rest(pos, np.zeros(n)))
 
 
 def step_response(angles, rate_hz=1000.0, thrust=HOVER, seconds=2.0, tilt_max=0.8):
@@ -237,7 +283,7 @@ def test_rate_only_mode_tracks_body_rates_then_returns_to_attitude():
 
 
 def test_integrator_reset_while_motors_off():
-    dyn = hovering(1, backend="numpy")
+    dyn = hovering(1)
     roll_03 = euler_to_quaternion([0.3, 0.0, 0.0])[None]
     dyn.set_targets(roll_03, np.zeros((1, 3)), np.array([HOVER]), [True], 1.0)
     dyn.step(np.zeros((1, 3)), 50)

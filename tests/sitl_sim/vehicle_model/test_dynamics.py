@@ -1,31 +1,28 @@
-"""Rigid body, motors, drag, wind and ground contact of sitl_sim.vehicle_model.dynamics, on both backends."""
+"""Rigid body, motors, drag, wind and ground contact of sitl_sim.vehicle_model.dynamics."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
 import pytest
 
 from sitl_sim.vehicle_model.airframe import QuadParams
-from sitl_sim.vehicle_model.attitude_control import euler_from_quat, quat_rotate
+from sitl_sim.vehicle_model.attitude_control import euler_from_quat
 from sitl_sim.vehicle_model.dynamics import FleetDynamics, FleetState
 from sitl_sim.vehicle_model.wind import Wind
 from swarm_common.rotations import euler_to_quaternion
+from tests.sitl_sim.vehicle_model.test_attitude_control import quat_rotate
 
-HAVE_NUMBA = importlib.util.find_spec("numba") is not None
-BACKENDS = ["numpy", pytest.param("numba", marks=pytest.mark.skipif(not HAVE_NUMBA, reason="numba missing"))]
-FAST = "numba" if HAVE_NUMBA else "numpy"  # long simulations
 P = QuadParams()
 HOVER = P.mass * P.g
 
 
-def make(n: int, z: float = 10.0, yaw: float | np.ndarray = 0.0, backend: str = FAST, **kw) -> FleetDynamics:
+def make(n: int, z: float = 10.0, yaw: float | np.ndarray = 0.0, **kw) -> FleetDynamics:
     pos = np.zeros((n, 3))
     pos[:, 2] = z
     state = FleetState.at_rest(pos, np.broadcast_to(yaw, (n,)))
-    return FleetDynamics(n, backend=backend, state=state, **kw)
+    return FleetDynamics(n, state=state, **kw)
 
 
 def attitude_targets(dyn: FleetDynamics, roll=0.0, pitch=0.0, yaw=0.0, thrust=HOVER, on=True, tilt=1.5):
@@ -85,9 +82,7 @@ def test_bad_construction_and_inputs_raise_clear_errors():
         FleetDynamics(0)
     with pytest.raises(ValueError, match="rate_hz"):
         FleetDynamics(1, rate_hz=0.0)
-    with pytest.raises(ValueError, match="backend"):
-        FleetDynamics(1, backend="cuda")
-    dyn = make(2, backend="numpy")
+    dyn = make(2)
     with pytest.raises(ValueError, match="quat_sp"):
         dyn.set_targets(np.zeros((3, 4)), still(2), np.zeros(2), np.ones(2, bool), 0.5)
     with pytest.raises(ValueError, match="wind"):
@@ -98,20 +93,11 @@ def test_bad_construction_and_inputs_raise_clear_errors():
         dyn.reset_vehicle(2, [0, 0, 0], 0.0)
 
 
-def test_env_var_selects_numpy_backend(monkeypatch):
-    monkeypatch.setenv("SWARM_SIM_BACKEND", "numpy")
-    assert FleetDynamics(1).backend == "numpy"
-    monkeypatch.setenv("SWARM_SIM_BACKEND", "gpu")
-    with pytest.raises(ValueError, match="SWARM_SIM_BACKEND"):
-        FleetDynamics(1)
-
-
 # --- free flight -------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_hover_at_hover_thrust_stays_put(backend):
-    dyn = make(3, yaw=np.array([0.0, 1.0, -2.5]), backend=backend)
+def test_hover_at_hover_thrust_stays_put():
+    dyn = make(3, yaw=np.array([0.0, 1.0, -2.5]))
     start = dyn.state.pos.copy()
     attitude_targets(dyn, yaw=np.array([0.0, 1.0, -2.5]))
     dyn.step(still(3), 5000)
@@ -119,9 +105,8 @@ def test_hover_at_hover_thrust_stays_put(backend):
     assert not dyn.state.landed.any()
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_free_fall_with_motors_off_accelerates_at_g(backend):
-    dyn = make(1, z=100.0, backend=backend, params=QuadParams(drag_lin=0.0))
+def test_free_fall_with_motors_off_accelerates_at_g():
+    dyn = make(1, z=100.0, params=QuadParams(drag_lin=0.0))
     attitude_targets(dyn, thrust=0.0, on=False)
     t = 1.0
     dyn.step(still(1), 1000)
@@ -132,9 +117,8 @@ def test_free_fall_with_motors_off_accelerates_at_g(backend):
     assert np.all(dyn.state.motor == pytest.approx(0.0, abs=1e-12))
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_free_fall_with_linear_drag_follows_the_analytic_solution(backend):
-    dyn = make(1, z=100.0, backend=backend)
+def test_free_fall_with_linear_drag_follows_the_analytic_solution():
+    dyn = make(1, z=100.0)
     attitude_targets(dyn, thrust=0.0, on=False)
     dyn.step(still(1), 200)  # 0.2 s = 10 motor time constants: the motors are off
     k = P.drag_lin / P.mass  # v' = -g - k v
@@ -147,9 +131,8 @@ def test_free_fall_with_linear_drag_follows_the_analytic_solution(backend):
     assert dyn.state.pos[0, 2] == pytest.approx(z_expected, abs=0.02)
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_level_target_with_thrust_above_weight_climbs(backend):
-    dyn = make(1, backend=backend)
+def test_level_target_with_thrust_above_weight_climbs():
+    dyn = make(1)
     attitude_targets(dyn, thrust=1.2 * HOVER)
     dyn.step(still(1), 1000)
     assert dyn.state.pos[0, 2] > 10.0 + 0.5 * 0.2 * P.g * 0.8
@@ -206,10 +189,9 @@ def test_body_rates_integrate_the_quaternion():
     assert np.linalg.norm(dyn.state.quat[0]) == pytest.approx(1.0, abs=1e-12)
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_torque_free_spin_conserves_world_angular_momentum(backend):
+def test_torque_free_spin_conserves_world_angular_momentum():
     """Gyroscopic term: with motors off and no rotational drag, R I w is constant while w nutates."""
-    dyn = make(1, z=1000.0, backend=backend, params=QuadParams(drag_rot=0.0))
+    dyn = make(1, z=1000.0, params=QuadParams(drag_rot=0.0))
     dyn.state.crashed[0] = True  # motors off
     dyn.state.omega[0] = [2.0, 0.0, 6.0]
     inertia = P.inertia
@@ -226,9 +208,8 @@ def test_torque_free_spin_conserves_world_angular_momentum(backend):
 # --- ground contact and crashes ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_ground_contact_cannot_sink_then_lands_level_keeping_yaw(backend):
-    dyn = make(1, z=3.0, yaw=0.7, backend=backend)
+def test_ground_contact_cannot_sink_then_lands_level_keeping_yaw():
+    dyn = make(1, z=3.0, yaw=0.7)
     attitude_targets(dyn, roll=0.2, yaw=0.7, thrust=0.5 * HOVER)
     lowest = math.inf
     for _ in range(300):
@@ -248,9 +229,8 @@ def test_ground_contact_cannot_sink_then_lands_level_keeping_yaw(backend):
     assert s.landed[0] and np.all(s.pos[0] == x_landed)
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_lift_off_when_thrust_exceeds_weight(backend):
-    dyn = make(1, z=0.0, backend=backend)
+def test_lift_off_when_thrust_exceeds_weight():
+    dyn = make(1, z=0.0)
     assert dyn.state.landed[0]
     attitude_targets(dyn, thrust=0.95 * HOVER)
     dyn.step(still(1), 500)
@@ -262,9 +242,8 @@ def test_lift_off_when_thrust_exceeds_weight(backend):
     assert np.linalg.norm(dyn.state.pos[0, :2]) < 0.01
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_crashed_vehicle_motors_off_falls_and_lies_on_ground(backend):
-    dyn = make(2, z=20.0, backend=backend)
+def test_crashed_vehicle_motors_off_falls_and_lies_on_ground():
+    dyn = make(2, z=20.0)
     attitude_targets(dyn, thrust=P.thrust_max)
     dyn.state.crashed[0] = True
     dyn.state.omega[0] = [3.0, -2.0, 1.0]  # tumbling
@@ -278,31 +257,29 @@ def test_crashed_vehicle_motors_off_falls_and_lies_on_ground(backend):
     assert np.allclose(dyn.state.pos[0], [5.0, 5.0, 0.0]) and dyn.state.euler()[0, 2] == pytest.approx(1.0)
 
 
-# --- vectorisation, robustness, backends --------------------------------------------------------------------
+# --- vectorisation, robustness, compiled and interpreted ----------------------------------------------------
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_hundred_vehicles_match_single_vehicle_runs(backend):
+def test_hundred_vehicles_match_single_vehicle_runs():
     n = 100
     rng = np.random.default_rng(7)
     roll, pitch, yaw = rng.uniform(-0.4, 0.4, n), rng.uniform(-0.4, 0.4, n), rng.uniform(-3, 3, n)
     thrust = rng.uniform(0.6, 1.5, n) * HOVER
     wind = rng.normal(0, 3, (n, 3))
-    fleet = make(n, backend=backend)
+    fleet = make(n)
     attitude_targets(fleet, roll, pitch, yaw, thrust)
     fleet.step(wind, 300)
     for i in (0, 37, 99):
-        single = make(1, backend=backend)
+        single = make(1)
         attitude_targets(single, roll[i], pitch[i], yaw[i], thrust[i])
         single.step(wind[i : i + 1], 300)
         assert np.allclose(single.state.pos[0], fleet.state.pos[i], atol=1e-12)
         assert np.allclose(single.state.quat[0], fleet.state.quat[i], atol=1e-12)
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_extreme_and_nan_inputs_never_produce_nan(backend):
+def test_extreme_and_nan_inputs_never_produce_nan():
     n = 6
-    dyn = make(n, backend=backend)
+    dyn = make(n)
     quat = euler_to_quaternion(np.stack((np.zeros(n), np.zeros(n), np.zeros(n)), axis=-1))
     quat[0] = np.nan
     quat[1] = 0.0
@@ -329,13 +306,13 @@ def test_extreme_and_nan_inputs_never_produce_nan(backend):
     assert dyn.last_sanitised.all() and np.all(np.isfinite(s.quat))
 
 
-def _scripted_run(backend: str, rate_hz: float = 1000.0) -> FleetState:
+def _scripted_run(rate_hz: float = 1000.0) -> FleetState:
     """500 steps exercising every branch: tilt, yaw, saturation, rate mode, NaN targets, ground, crash."""
     n = 7
     pos = np.zeros((n, 3))
     pos[:, 2] = [10.0, 0.3, 10.0, 0.0, 0.3, 10.0, 10.0]
     state = FleetState.at_rest(pos, np.linspace(-3, 3, n))
-    dyn = FleetDynamics(n, rate_hz=rate_hz, backend=backend, state=state)
+    dyn = FleetDynamics(n, rate_hz=rate_hz, state=state)
     roll = np.array([0.5, -0.3, 0.0, 0.0, 0.2, 1.2, 0.0])
     pitch = np.array([0.2, 0.5, 0.0, 0.0, 0.0, -0.4, 0.0])
     yaw = np.array([1.0, -2.0, 3.0, 0.0, 0.5, 0.0, 0.0])
@@ -358,12 +335,32 @@ def _scripted_run(backend: str, rate_hz: float = 1000.0) -> FleetState:
     return dyn.state
 
 
-@pytest.mark.skipif(not HAVE_NUMBA, reason="numba missing")
+FIELDS = ("pos", "vel", "quat", "omega", "motor", "world_accel")
+
+if __name__ == "__main__":  # the interpreted run of test_compiled_and_interpreted_physics_agree
+    import sys
+
+    final = _scripted_run(float(sys.argv[2]))
+    np.savez(sys.argv[1], landed=final.landed, **{name: getattr(final, name) for name in FIELDS})
+
+
 @pytest.mark.parametrize("rate_hz", [1000.0, 250.0])
-def test_numba_and_numpy_backends_agree(rate_hz):
-    a, b = _scripted_run("numpy", rate_hz), _scripted_run("numba", rate_hz)
-    assert a.landed.tolist() == b.landed.tolist()
-    assert a.landed[1] and a.landed[3]  # the scenario did exercise the crash, lift-off and touchdown
-    for name in ("pos", "vel", "quat", "omega", "motor"):
-        assert np.allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-9), name
-    assert np.allclose(a.accel(), b.accel(), rtol=0, atol=1e-9)
+def test_compiled_and_interpreted_physics_agree(rate_hz, tmp_path):
+    """The one physics kernel flies the same compiled (the default) and as plain Python (NUMBA_DISABLE_JIT=1),
+    within rounding of the math library: every branch of the scripted run."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "interpreted.npz"
+    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
+    subprocess.run(
+        [sys.executable, "-m", "tests.sitl_sim.vehicle_model.test_dynamics", str(out), str(rate_hz)],
+        check=True, env=env, timeout=300,
+    )  # fmt: skip
+    compiled = _scripted_run(rate_hz)
+    interpreted = np.load(out)
+    assert compiled.landed.tolist() == interpreted["landed"].tolist()
+    assert compiled.landed[1] and compiled.landed[3]  # the run did exercise the crash, lift-off, touchdown
+    for name in FIELDS:
+        assert np.allclose(getattr(compiled, name), interpreted[name], rtol=0, atol=1e-9), name

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from sitl_sim.vehicle_model.attitude_control import euler_from_quat
-from sitl_sim.vehicle_model.position_control import attitude_from_accel, sqrt_controller, velocity_demand
+from sitl_sim.vehicle_model.position_control import attitude_from_accel, velocity_demand
+from swarm_common.shaping import sqrt_controller
 
 G = 9.8
 TILT = math.radians(30.0)
@@ -30,9 +31,21 @@ def test_inversion_levels_hovers_and_limits_tilt():
     assert euler_of(0.0, 0.0, -50.0, 0.0)[1] == pytest.approx(0.3)  # no free-fall commands
 
 
-def test_sqrt_controller_is_linear_then_square_root():
-    assert sqrt_controller(0.5, 1.0, 2.5) == pytest.approx(0.5)
-    assert sqrt_controller(-10.0, 1.0, 2.5) == pytest.approx(-math.sqrt(2 * 2.5 * (10.0 - 1.25)))
+@pytest.mark.parametrize("p, limit", [(1.0, 2.5), (9.0, 60.0), (4.5, 5.0), (10.0, 4.0), (0.5, 7.5)])
+def test_shared_sqrt_controller_is_the_simulators_law_to_the_bit(p, limit):
+    """The simulator's loops call swarm_common.shaping.sqrt_controller(e, p, limit, 0.0); for p, limit > 0 it
+    is ArduPilot's law as the simulator wrote it (control.cpp): p e up to limit / p^2, beyond it
+    sign(e) sqrt(2 limit (|e| - limit / (2 p^2))), continuous at the knee, to the last bit."""
+    linear_dist = limit / (p * p)
+    for error in np.concatenate((np.linspace(-40.0, 40.0, 801), [linear_dist, -linear_dist, 0.0, -0.0])):
+        error = float(error)
+        if abs(error) <= linear_dist:
+            expected = p * error
+        else:
+            expected = math.copysign(math.sqrt(2.0 * limit * (abs(error) - 0.5 * linear_dist)), error)
+        got = sqrt_controller(error, p, limit, 0.0)
+        assert got == expected and math.copysign(1.0, got) == math.copysign(1.0, expected), error
+    assert sqrt_controller(linear_dist * (1 + 1e-12), p, limit, 0.0) == pytest.approx(p * linear_dist)
 
 
 def test_velocity_demand_is_speed_limited_and_nan_means_no_position_control():
