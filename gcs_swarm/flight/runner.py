@@ -33,6 +33,7 @@ from gcs_swarm.flight.formation_plan import (
     note_formation,
 )
 from gcs_swarm.flight.formation_tick import end_targets, formation_rms, send_formation_tick
+from gcs_swarm.flight.jit_watch import JitWatch
 from gcs_swarm.flight.landing import PositionHold, command_landing, land_and_wait, landed
 from gcs_swarm.flight.launch import command_launch, home_positions, launched
 from gcs_swarm.flight.lost_vehicles import LostVehicleTracks
@@ -74,6 +75,7 @@ class MissionRunner:
         self.progress_period_s = progress_period_s
         self.result = FlightResult()
         self.phase = Phase.CONNECT
+        self.jit_watch = JitWatch()  # numba's work once the vehicles arm: flight.json jit_after_arming
         self.setup = VehicleSetup.assumed(n)  # hover thrust, angle boost, failsafe params: read in preflight
         self.controller = build_controller(mission)
         # live reshape (console): shape and spacing; None: the mission's
@@ -182,6 +184,7 @@ class MissionRunner:
         """Phase 'launch': each autopilot's launch mode, arm and take off (each acknowledged; the modes the
         takeoff passes through on its own are ours too); the climb itself is not awaited."""
         self._set_phase(Phase.LAUNCH)
+        self.jit_watch.start()
         self._home = home_positions(self.fleet, self.mission)
         if self.mission.run.airborne_start:
             self.takeover.commanded(formation_mode)
@@ -206,12 +209,17 @@ class MissionRunner:
         self.progress(f"vehicles already flying: {found}: finishing the mission from here")
         self.result.reattached = "finish"
         self._set_phase(Phase.LAUNCH)
+        self.jit_watch.start()
         self._home = self.fleet.pos
         self._home[:, 2] = 0.0
         reattach.take_back(self.fleet, self.takeover)
 
     def start_formation(self) -> None:
-        """Initialise the guidance at the measured state and enter formation flight."""
+        """Bring every vehicle into its formation mode (`_take_control`: PX4's OFFBOARD needs a setpoint
+        stream first, streamed here, before the first formation tick, while the vehicles still hold in
+        their launch mode), then initialise the guidance at the measured state and fly the first tick."""
+        if not self._take_control():
+            return
         self.tick_timing.begin(self.fleet)
         if not self.fleet.wait_tick(timeout_s=10.0):
             raise LinkError("no telemetry tick arrived after launch")
@@ -225,29 +233,29 @@ class MissionRunner:
         self.fleet.answer_frame()
         self.tick_timing.end(self.fleet)
 
-    def _take_control(self) -> None:
+    def _take_control(self) -> bool:
         """Vehicles that launch in another mode than their formation mode (PX4 holds in LOITER after its
         takeoff) enter it now (Fleet.take_control_all: OFFBOARD after a setpoint stream); an ArduCopter
         launched in GUIDED already flies in it (one that left it was taken over). A refusal lands the
-        fleet."""
+        fleet: False, phase land."""
         fleet = self.fleet
         separate = np.array([d.launch_mode != d.formation_mode for d in fleet.dialects], dtype=bool)
         waiting = self.takeover.flown & separate & ~fleet.in_mode(formation_mode)
         rows = [int(i) for i in np.flatnonzero(waiting)]
         if not rows:
-            return
+            return True
         self.takeover.commanded(formation_mode, rows)
-        fleet.take_control_all(rows)
-
-    def _enter_formation(self) -> None:
-        fleet = self.fleet
         try:
-            self._take_control()
+            fleet.take_control_all(rows)
         except LinkError as exc:
             self.result.events.append(f"formation not started: {exc}")
             self.progress(f"! formation not started: {exc}")
             self._set_phase(Phase.LAND)
-            return
+            return False
+        return True
+
+    def _enter_formation(self) -> None:
+        fleet = self.fleet
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
         self._assign_slots()
         self.telemetry.reset()
@@ -301,7 +309,11 @@ class MissionRunner:
     def timing_summary(self) -> dict[str, object]:
         """flight.json's tick timing: the worst formation tick, the time per phase and the frames missed
         (flight.tick_timing)."""
-        return {**self.tick_timing.summary(), "frames_missed": self.frames_missed.summary()}
+        return {
+            **self.tick_timing.summary(),
+            "frames_missed": self.frames_missed.summary(),
+            "jit_after_arming": self.jit_watch.figures(),
+        }
 
     def idle(self, timeout_s: float = 0.02) -> None:
         """Keep the links served while the mission is not flying (before `begin`, after 'done'): receive for
@@ -379,7 +391,8 @@ class MissionRunner:
 
     def _launch_tick(self) -> None:
         if launched(self.fleet, self.mission, ~self.takeover.taken):
-            self._enter_formation()
+            if self._take_control():
+                self._enter_formation()
             return
         t0 = self._launch_since if self._launch_since is not None else self.vehicle_time()
         self._launch_since = t0
