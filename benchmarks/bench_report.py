@@ -10,11 +10,6 @@ its cost is the pair distances (every pair of vehicles at every truth sample). T
     python benchmarks/bench_report.py --fleet N [--leg 300] [--repeats 3]
         the same for a run folder flown first (in lockstep, into a temporary folder) with
         benchmarks/bench_fleet_capacity.py's grid mission of N vehicles and a `--leg` m leg.
-
-    python benchmarks/bench_report.py --pair-distances [--repeats 3]
-        wall s of metrics.closest_pair_distance over random positions (T samples, N vehicles) with each of
-        its two ways forced (whole-array numpy; scipy's pdist per sample): median (min-max) over repeats.
-        metrics.PDIST_MIN_VEHICLES is chosen from this table.
 """
 
 from __future__ import annotations
@@ -27,50 +22,16 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench_fleet_capacity import grid_mission  # noqa: E402
 
-from gcs_swarm.evaluation import metrics  # noqa: E402
 from swarm_common.ports import free_udp_base  # noqa: E402
-
-SHAPES = (
-    (40_000, 6),
-    (40_000, 9),
-    (20_000, 12),
-    (20_000, 16),
-    (20_000, 24),
-    (5000, 50),
-    (3000, 200),
-    (3000, 500),
-)
-NUMPY_MAX_BYTES = 2e9  # whole-array numpy holds T x N(N-1)/2 x 3 floats several times over: not beyond this
 
 
 def spread(values: list[float]) -> str:
     return f"{statistics.median(values):.3f} ({min(values):.3f}-{max(values):.3f})"
-
-
-def pair_distances(repeats: int) -> None:
-    print("| samples T | vehicles N | numpy s | pdist s |")
-    print("|---|---|---|---|")
-    rng = np.random.default_rng(0)
-    for t, n in SHAPES:
-        p = rng.normal(scale=100.0, size=(t, n, 3))
-        times: dict[int, list[float]] = {10**9: [], 2: []}  # PDIST_MIN_VEHICLES forcing numpy, pdist
-        if t * n * (n - 1) / 2 * 3 * 8 > NUMPY_MAX_BYTES:
-            del times[10**9]
-        for _ in range(repeats):
-            for threshold, spent in times.items():
-                metrics.PDIST_MIN_VEHICLES = threshold
-                start = time.perf_counter()
-                metrics.closest_pair_distance(p)
-                spent.append(time.perf_counter() - start)
-        numpy_s = spread(times[10**9]) if 10**9 in times else "- (too large)"
-        print(f"| {t} | {n} | {numpy_s} | {spread(times[2])} |")
 
 
 def report_run(run_dir: Path, repeats: int) -> None:
@@ -104,13 +65,10 @@ def main() -> None:
     mode = parser.add_mutually_exclusive_group(required=True)
     mode.add_argument("--run", type=Path, help="a flown run folder to rebuild the report of")
     mode.add_argument("--fleet", type=int, help="fly the capacity grid of this many vehicles, then time it")
-    mode.add_argument("--pair-distances", action="store_true", help="time the two pair-distance paths")
     parser.add_argument("--leg", type=float, default=300.0, help="m the grid's leader flies (--fleet)")
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
-    if args.pair_distances:
-        pair_distances(args.repeats)
-    elif args.fleet:
+    if args.fleet:
         with tempfile.TemporaryDirectory() as tmp:
             report_run(fly_grid(args.fleet, args.leg, Path(tmp)), args.repeats)
     else:

@@ -1,8 +1,8 @@
 """A log file written by a thread of its own, so that a control loop never waits on the disk.
 
-A write() system call can block for tens of milliseconds when the kernel throttles a process that has many
-dirty pages (a 200-vehicle real-time flight writes about 6 MB/s of truth log, tlog and run record; one tick of
-such a flight spent 28 ms in its run-record phase, whose formatting takes 1.6 ms, BENCHMARKS.md 2026-11-27).
+A write() system call can block for much longer than a control tick when the kernel throttles a process that
+has many dirty pages (a 200-vehicle real-time flight writes megabytes a second of truth log, tlog and run
+record; docs/benchmarks-archive.md 2026-11-27 shows such a stall).
 The owner queues chunks of bytes (`write`) and goes on; the thread writes them, in order, straight to the OS
 (no user-space buffer). The write system call releases the GIL, so the owner keeps running while the thread
 waits. The tlog uses it; logs of numeric rows, which must also be turned into text, go to a formatting process
@@ -17,8 +17,8 @@ Logs of rows (the run record, the truth log) batch about ROWS_PER_HAND_OVER rows
 (`chunks_for_rows`), at most MAX_CHUNKS_PER_HAND_OVER chunks (ticks): one per tick at 200 vehicles, one per 10
 ticks at 6, so that a killed ground station's record still ends within 0.2 s of vehicle time of its death
 (tests/e2e/test_gcs_killed.py asks 1.5 s). Each hand-over wakes the reader, which then competes with the
-owner for the cores; in a 6-vehicle lockstep flight, where a tick takes about 1 ms, one hand-over per tick in
-both processes made whole runs about 20 % slower (BENCHMARKS.md 2026-11-27 12:00).
+owner for the cores; in a 6-vehicle lockstep flight one hand-over per tick in both processes made whole runs
+measurably slower (docs/benchmarks-archive.md 2026-11-27 12:00).
 
 `flush` hands over and waits until everything so far is written; `close` does that, then closes the file. An
 error the thread meets (disk full) is raised by the owner's next write, flush or close, and nothing more is

@@ -69,8 +69,8 @@ def _write_all(fd: int, data: bytes) -> None:
 
 def run_below_the_control_loops() -> None:
     """Lower this process's priority: nice NICENESS, and on Linux the SCHED_IDLE policy, under which a waking
-    formatter never preempts a control loop (with nice alone it did: 6-vehicle formation flight was slower in
-    all 5 pairs of an A/B beside the simulator's truth-log formatters, BENCHMARKS.md 2026-11-27 22:00). It
+    formatter never preempts a control loop (with nice alone it did: docs/benchmarks-archive.md 2026-11-27
+    22:00). It
     only gets idle time then: its owner takes it back to the normal policy if it falls behind
     (swarm_common.row_log_process)."""
     os.nice(NICENESS)

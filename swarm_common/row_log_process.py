@@ -2,16 +2,15 @@
 process's GIL pays for turning numbers into text.
 
 The owner (`RowLogProcess`) sends rows as float64 bytes with the printf-style row template they fill
-("%.6g,%d,...\\r\\n", one conversion per column; integer columns take their float values); the child
-(`python -m swarm_common.row_log_child PATH`, standard library only) writes `template % row` for each
-row, in order, straight to the file. In a 6-vehicle lockstep flight the formatting is about 60 us of the
-ground station's 1 ms tick; a writer thread cannot take it off the tick, since it needs the GIL the tick
-holds (swarm_common.background_writer), a process runs it on the other core. The run record and the
-simulator's truth log (its two files) use it. The child runs below the control loops (Linux SCHED_IDLE,
-`row_log_child.run_below_the_control_loops`): with nice alone, the simulator's formatters made 6-vehicle
-flights land 15 % faster (the simulator's pace) but fly formation 4 % slower (the ground station's pace, its
-tick preempted by the waking formatters; BENCHMARKS.md 2026-11-27 17:00); under SCHED_IDLE formation is as
-fast as without them (BENCHMARKS.md 2026-11-27 22:00). A SCHED_IDLE child only gets the cores' idle time:
+("%.6g,%d,...\\r\\n", one conversion per column; integer columns take their float values); the child (`python
+-m swarm_common.row_log_child PATH`, standard library only) writes `template % row` for each row, in order,
+straight to the file. In a small lockstep flight the formatting is a noticeable share of the ground station's
+tick; a writer thread cannot take it off the tick, since it needs the GIL the tick holds
+(swarm_common.background_writer), a process runs it on the other core. The run record and the simulator's
+truth log (its two files) use it. The child runs below the control loops (Linux SCHED_IDLE,
+`row_log_child.run_below_the_control_loops`): with nice alone, the simulator's waking formatters preempted the
+ground station's tick and slowed formation flight; under SCHED_IDLE formation is as fast as without them (A/Bs
+in docs/benchmarks-archive.md, 2026-11-27 17:00 and 22:00). A SCHED_IDLE child only gets the cores' idle time:
 where other programs keep them busy it could fall behind until its pipe is full and its owner waits, so the
 owner takes it back to the normal policy (niced) once its pipe is half full (`RowLogProcess.promoted`).
 

@@ -1,15 +1,15 @@
 """Wait for readable sockets by polling briefly before blocking (two-phase waiting), for both ends of a
 lockstep exchange.
 
-In lockstep the simulator and the ground station hand each frame to each other every few hundred
-microseconds, and a process woken from a blocking `select` on this kind of machine takes about 50 us to run
-again: a UDP ping-pong between two Python processes took about 100 us a round trip blocking and 8 us polling,
-and the `sendto` that wakes a blocked peer cost the sender about 40 us, against 3 us when the peer was awake
-(BENCHMARKS.md). `select_spinning` polls first, for at most `spin_s`, giving the CPU to any other runnable
-thread or process between two polls (`os.sched_yield`), and only then blocks for the rest of the timeout.
+In lockstep the simulator and the ground station hand each frame to each other many times a millisecond of
+wall time, and a process woken from a blocking `select` takes long to run again compared with that; waking a
+blocked peer also costs the sender far more than a `sendto` to an awake one (measured by
+benchmarks/bench_wakeup.py, figures in docs/benchmarks-archive.md). `select_spinning` polls first, for at most
+`spin_s`, giving the CPU to any other runnable thread or process between two polls (`os.sched_yield`), and
+only then blocks for the rest of the timeout.
 
-The yield is what keeps the spin harmless when the cores are shared: two Monte Carlo flights at once on two
-cores ran faster with the spin than without, and a spin that does not yield made them slower (BENCHMARKS.md).
+The yield is what keeps the spin harmless when the cores are shared: measured with two Monte Carlo flights at
+once on two cores, the yielding spin helped and a spin that does not yield hurt (docs/benchmarks-archive.md).
 """
 
 from __future__ import annotations

@@ -74,25 +74,15 @@ def path_length(p: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(np.asarray(p, dtype=float), axis=0), axis=1).sum())
 
 
-PDIST_MIN_VEHICLES = 16
-"""Fleets of at least this many vehicles get their pair distances from scipy's pdist, one sample at a time;
-smaller ones from whole-array numpy, faster there but holding T x N(N-1)/2 x 3 floats (crossover measured
-with `python benchmarks/bench_report.py --pair-distances`, BENCHMARKS.md 2026-11-27: 12 vehicles x 20 000
-samples 0.07 s numpy, 0.25 s pdist; 16: 0.39 s and 0.26 s; 200 x 3000: 3.9 s and 0.19 s)."""
-
-
 def closest_pair_distance(p: np.ndarray) -> np.ndarray:
     """(T,) m: the smallest distance between two vehicles at each sample of p (T, N, D) m. A pair with a NaN
     coordinate is left out; NaN at a sample without any finite pair; inf everywhere for fewer than 2
-    vehicles. Both ways of computing it give the same bits (tests/gcs_swarm/evaluation/test_metrics.py)."""
+    vehicles. scipy's pdist, one sample at a time (memory stays O(N^2) however long the flight)."""
     p = np.asarray(p, dtype=float)
     n = p.shape[1]
     if n < 2:
         return np.full(len(p), math.inf)
-    if n >= PDIST_MIN_VEHICLES:
-        return np.array([np.fmin.reduce(pdist(sample)) for sample in p]).reshape(len(p))
-    iu, ju = np.triu_indices(n, k=1)
-    return np.fmin.reduce(np.linalg.norm(p[:, iu] - p[:, ju], axis=-1), axis=1)
+    return np.array([np.fmin.reduce(pdist(sample)) for sample in p]).reshape(len(p))
 
 
 def nearest_neighbour_distance(p: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ class RunRecord:
 
     Each tick's rows go as numbers to a formatting process (swarm_common.row_log_process), which writes them
     with printf-style formats ("%.6g" per number): the same text as csv.writer with f"{v:.6g}" fields, and
-    none of the formatting on the control loop (about 60 us of a 6-vehicle tick).
+    none of the formatting on the control loop.
     """
 
     def __init__(self, path: Path) -> None:

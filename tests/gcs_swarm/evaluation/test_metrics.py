@@ -137,7 +137,7 @@ def _brute_force_closest(p: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("n", [2, 3, 9, 16, 40])
-def test_closest_pair_distance_is_the_definition_on_both_paths(monkeypatch, n):
+def test_closest_pair_distance_is_the_definition(n):
     rng = np.random.default_rng(n)
     p = rng.normal(scale=50.0, size=(30, n, 3))
     p[3, 0] = np.nan  # a vehicle out of the log at one sample: its pairs are left out
@@ -146,11 +146,6 @@ def test_closest_pair_distance_is_the_definition_on_both_paths(monkeypatch, n):
     got = metrics.closest_pair_distance(p)
     np.testing.assert_allclose(got, expected, rtol=1e-12)
     assert np.isnan(got[5])
-    monkeypatch.setattr(metrics, "PDIST_MIN_VEHICLES", 2)  # every fleet through scipy's pdist
-    by_pdist = metrics.closest_pair_distance(p)
-    monkeypatch.setattr(metrics, "PDIST_MIN_VEHICLES", 10**6)  # every fleet through whole-array numpy
-    by_numpy = metrics.closest_pair_distance(p)
-    assert np.array_equal(by_pdist, by_numpy, equal_nan=True)  # the same bits: reports do not move
     assert metrics.min_separation(p) == pytest.approx(float(np.nanmin(expected)), rel=1e-12)
 
 
