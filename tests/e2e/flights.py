@@ -34,8 +34,15 @@ class RunOutcome:
         return json.loads((self.run_dir / "report.json").read_text())
 
 
-def fly(mission: Path, run_dir: Path, timeout_s: float = 400.0, extra: list[str] | None = None) -> RunOutcome:
-    """Run `python -m gcs_swarm run` to completion (killed after timeout_s)."""
+def fly(
+    mission: Path,
+    run_dir: Path,
+    timeout_s: float = 400.0,
+    extra: list[str] | None = None,
+    env: dict[str, str] | None = None,
+) -> RunOutcome:
+    """Run `python -m gcs_swarm run` to completion (killed after timeout_s); `env` replaces the environment
+    (None: this process's)."""
     n = len(yaml.safe_load(mission.read_text())["vehicles"])
     cmd = [
         sys.executable,
@@ -49,7 +56,7 @@ def fly(mission: Path, run_dir: Path, timeout_s: float = 400.0, extra: list[str]
         str(free_udp_base(n)),
         *(extra or []),
     ]
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout_s)
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout_s, env=env)
     return RunOutcome(proc.returncode, proc.stdout + proc.stderr, run_dir)
 
 
