@@ -2,7 +2,9 @@
 
 Step rule per sample: "proportional" `v = F/|F| * min(speed, |F|/k_att * K_v)` or "constant"
 `v = speed * F/|F|`.
-2-D or 3-D by the length of `start`. Obstacles may move at constant velocity.
+2-D or 3-D by the length of `start`. Obstacles may move at constant velocity. The field is the flight's own
+(gcs_swarm.guidance.field, 3-D): a 2-D world is its z = 0 plane, with the [add] circulation off (the plane
+has no "horizontal side" of its own to pass on).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_swarm.evaluation import metrics
-from gcs_swarm.guidance import field as fieldmod
+from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.obstacles import centres_at
 from gcs_swarm.guidance.params import FieldParams
 
@@ -89,21 +91,27 @@ def plan_path(
     steps = int(round(settings.time_limit_s / settings.dt))
     path = np.empty((steps + 1, dim))
     path[0] = start
-    q = start[None, :].copy()
+    q = np.zeros((1, 3))
+    q[0, :dim] = start
+    goal_3d = np.zeros((1, 3))
+    goal_3d[0, :dim] = goal
+    centres_3d = np.zeros((len(radii), 3))
+    circulation = None if dim == 3 else 0.0
     hold_steps = int(round(settings.hold_s / settings.dt))
     inside_for = -1
     last = steps
     for k in range(steps):
-        c = centres_at(centres, velocities, k * settings.dt)
-        force = fieldmod.attraction(q, goal, fp, d_g) + fieldmod.obstacle_repulsion(q, goal, c, radii, fp)[0]
+        centres_3d[:, :dim] = centres_at(centres, velocities, k * settings.dt)
+        repulsion = obstacle_repulsion(q, q, goal_3d, centres_3d, radii, fp, circulation)
+        force = (attraction(q, goal_3d, fp, d_g) + repulsion)[:, :dim]
         size = float(np.linalg.norm(force))
         if size > 0.0:
             speed = settings.speed
             if settings.step == "proportional":
                 speed = min(speed, size / fp.k_att * settings.k_v)
-            q = q + force * (speed * settings.dt / size)
-        path[k + 1] = q[0]
-        inside_for = inside_for + 1 if np.linalg.norm(q[0] - goal) <= settings.goal_radius else -1
+            q[:, :dim] = q[:, :dim] + force * (speed * settings.dt / size)
+        path[k + 1] = q[0, :dim]
+        inside_for = inside_for + 1 if np.linalg.norm(path[k + 1] - goal) <= settings.goal_radius else -1
         if inside_for >= hold_steps:
             last = k + 1
             break

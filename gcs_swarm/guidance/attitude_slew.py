@@ -3,12 +3,17 @@ controller's demand at most `rate_max` rad/s, so no command steps (an autopilot'
 a step, and a real airframe would not fly it the way a model does).
 
 The limit acts on the (roll, pitch) pair as a vector: a change of direction is slewed as one rotation of the
-tilt, not axis by axis. Shapes (N,), rad, FLU body / ENU world ZYX Euler (spec 1.1).
+tilt, not axis by axis; one compiled step per tick (swarm_common.jit). Shapes (N,), rad, FLU body / ENU
+world ZYX Euler (spec 1.1).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from swarm_common.jit import kernel
 
 
 class TiltSlew:
@@ -33,17 +38,39 @@ class TiltSlew:
     def __call__(
         self, roll_d: np.ndarray, pitch_d: np.ndarray, dt: float, rows: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Commanded (roll, pitch) (N,) rad after one step of dt s toward the demand (N,) for the selected
+        """Commanded (roll, pitch) (N,) rad after one step of dt s toward the demand (N,) for the (N,) bool
         rows; other rows keep their last command."""
-        unknown = ~(np.isfinite(self.roll) & np.isfinite(self.pitch))
-        self.roll = np.where(unknown, roll_d, self.roll)
-        self.pitch = np.where(unknown, pitch_d, self.pitch)
-        d_roll, d_pitch = roll_d - self.roll, pitch_d - self.pitch
-        if self.rate_max > 0.0:
-            step = np.hypot(d_roll, d_pitch)
-            limit = self.rate_max * dt
-            scale = np.divide(limit, step, out=np.ones_like(step), where=step > limit)
-            d_roll, d_pitch = d_roll * scale, d_pitch * scale
-        self.roll = np.where(rows, self.roll + d_roll, self.roll)
-        self.pitch = np.where(rows, self.pitch + d_pitch, self.pitch)
+        self.roll, self.pitch = slew_step(
+            roll_d, pitch_d, self.roll, self.pitch, float(self.rate_max * dt), rows
+        )
         return self.roll.copy(), self.pitch.copy()
+
+
+@kernel
+def slew_step(
+    roll_d: np.ndarray,
+    pitch_d: np.ndarray,
+    roll: np.ndarray,
+    pitch: np.ndarray,
+    limit: float,
+    rows: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The next commands (roll, pitch) (N,) rad from the last ones (N,) (non-finite: start at the demand)
+    toward the demand roll_d, pitch_d (N,): the (roll, pitch) change at most `limit` rad long (rate_max dt;
+    <= 0: no limit), only in the (N,) bool rows."""
+    n = roll_d.shape[0]
+    next_roll = np.empty(n)
+    next_pitch = np.empty(n)
+    for i in range(n):
+        r, q = roll[i], pitch[i]
+        if not (np.isfinite(r) and np.isfinite(q)):
+            r, q = roll_d[i], pitch_d[i]
+        d_roll, d_pitch = roll_d[i] - r, pitch_d[i] - q
+        if limit > 0.0:
+            step = math.hypot(d_roll, d_pitch)
+            scale = limit / step if step > limit else 1.0
+            d_roll, d_pitch = d_roll * scale, d_pitch * scale
+        if rows[i]:
+            r, q = r + d_roll, q + d_pitch
+        next_roll[i], next_pitch[i] = r, q
+    return next_roll, next_pitch

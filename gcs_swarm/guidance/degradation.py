@@ -16,12 +16,14 @@ A vehicle's telemetry age is its newest time_boot_ms minus the time_boot_ms of i
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from gcs_swarm.guidance.numpy_rules import clip
 from gcs_swarm.guidance.params import TelemetryParams
+from swarm_common.jit import kernel
 
 
 @dataclass(frozen=True)
@@ -77,7 +79,8 @@ class StaleTelemetryMonitor:
         )
 
 
-def stale_verdict_numpy(
+@kernel
+def stale_verdict(
     age: np.ndarray,
     alive: np.ndarray,
     was: np.ndarray,
@@ -90,20 +93,17 @@ def stale_verdict_numpy(
     """The rule of the module doc for one tick, from ages (N,) s, the (N,) masks of live vehicles and of those
     held for their own telemetry at the previous tick (`was`), pos (N, 3) ENU m, vel (N, 3) m/s and the
     leader's index: (held (N,), held for their own telemetry (N,), any live vehicle older than predict_s,
-    positions predicted to now (N, 3))."""
-    held = alive & (~(age <= hold_s) | (was & ~(age <= predict_s)))  # NaN/inf ages count as old
-    own = held.copy()
-    if held[leader]:
-        held = alive.copy()
-    late = bool((alive & ~(age <= predict_s)).any())
-    # NaN and inf ages predict nothing (nan_to_num's result, without its cost)
-    horizon = np.where(held, 0.0, np.clip(np.where(np.isfinite(age), age, 0.0), 0.0, hold_s))
-    return held, own, late, pos + vel * horizon[:, None]
-
-
-stale_verdict: Callable[..., tuple[np.ndarray, np.ndarray, bool, np.ndarray]]
-"""`stale_verdict_numpy`, compiled when numba is there (guidance.degradation_kernels: the same bits)."""
-try:
-    from gcs_swarm.guidance.degradation_kernels import stale_verdict
-except ImportError:  # pragma: no cover - numba is optional
-    stale_verdict = stale_verdict_numpy
+    positions predicted to now (N, 3)). NaN and inf ages count as old and predict nothing."""
+    n = age.shape[0]
+    own = np.empty(n, dtype=np.bool_)
+    late = False
+    for i in range(n):
+        own[i] = alive[i] and (not age[i] <= hold_s or (was[i] and not age[i] <= predict_s))
+        late = late or (alive[i] and not age[i] <= predict_s)
+    held = alive.copy() if own[leader] else own.copy()
+    predicted = np.empty((n, 3))
+    for i in range(n):
+        horizon = 0.0 if held[i] else clip(age[i] if math.isfinite(age[i]) else 0.0, 0.0, hold_s)
+        for k in range(3):
+            predicted[i, k] = pos[i, k] + vel[i, k] * horizon
+    return held, own, late, predicted

@@ -20,51 +20,49 @@ Shapes: pos, vel (N, 3) ENU m, m/s; centres (K, 3), radii (K,) m.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
 from functools import lru_cache
 
 import numpy as np
 
+from gcs_swarm.guidance.numpy_rules import maximum, minimum
 from gcs_swarm.guidance.shaping import shape_vel_accel
-
-# The compiled stopping-distance table (numba, extra "fast"): 0.3 s instead of numpy's 1.1 s at every mission
-# start, where the ground station builds it before its first formation tick; the same bits
-# (test_failsafe_speed.py). None: numpy.
-compiled_brake_distances: Callable[[np.ndarray, float, float, float, int], np.ndarray] | None
-try:
-    from gcs_swarm.guidance.shaping_kernels import brake_distances as compiled_brake_distances
-except ImportError:  # pragma: no cover - numba not installed
-    compiled_brake_distances = None
+from swarm_common.jit import kernel
 
 SPEED_TABLE_MAX = 60.0  # m/s, the largest speed of the stopping-distance table (beyond: extrapolated)
+TABLE_DT = 0.002  # s, the integration step of the stopping-distance table
 
 
-def distance_along_course(
-    pos: np.ndarray, vel: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float
-) -> np.ndarray:
-    """(N,) m: how far each vehicle can go along its horizontal course (the direction of vel's x, y; at its
-    altitude) before it enters an obstacle's sphere grown by `clearance` (at its altitude: the circle of that
-    sphere's cross-section); 0 if already inside one; inf if the course meets none or the vehicle hovers."""
-    n = len(pos)
-    out = np.full(n, np.inf)
-    speed = np.hypot(vel[:, 0], vel[:, 1])
-    moving = speed > 1e-6
-    if not len(radii) or not moving.any():
-        return out
-    direction = np.zeros((n, 2))
-    direction[moving] = vel[moving, :2] / speed[moving, None]
-    rel = centres[None, :, :2] - pos[:, None, :2]  # (N, K, 2) vehicle -> centre
-    dz = pos[:, None, 2] - centres[None, :, 2]
-    grown_sq = (radii[None, :] + clearance) ** 2 - dz * dz  # squared radius of the cross-section circle
-    along = np.einsum("nkd,nd->nk", rel, direction)
-    miss_sq = np.einsum("nkd,nkd->nk", rel, rel) - along * along  # squared distance of centre from the ray
-    half_chord_sq = grown_sq - miss_sq
-    inside = np.einsum("nkd,nkd->nk", rel, rel) < grown_sq
-    hit = (grown_sq > 0.0) & (half_chord_sq >= 0.0) & (along > 0.0)
-    entry = np.where(hit, along - np.sqrt(np.maximum(half_chord_sq, 0.0)), np.inf)
-    entry = np.where(inside & (grown_sq > 0.0), 0.0, entry)
-    out[moving] = entry[moving].min(axis=1)
+@kernel
+def brake_distances(speeds: np.ndarray, accel: float, jerk: float, dt: float, steps: int) -> np.ndarray:
+    """(S,) m: the distance each start speed of `speeds` (S,) m/s covers until the BRAKE shaping
+    (`shaping.shape_vel_accel` toward 0 with the limits accel m/s^2, jerk m/s^3) brings it to rest, never
+    through it (update_vel_accel's limit), integrated at dt s for at most `steps` steps."""
+    out = np.empty(speeds.shape[0])
+    for i in range(speeds.shape[0]):
+        v = speeds[i]
+        a = 0.0
+        x = 0.0
+        for _ in range(steps):
+            if not v > 0.0:  # at rest
+                break
+            a = shape_vel_accel(0.0, 0.0, v, a, accel, jerk, dt)
+            v = maximum(v + a * dt, 0.0)
+            if x + v * dt == x:  # a <= 0 from here on: v never grows, so x will not change again
+                break
+            x += v * dt
+        out[i] = x
     return out
+
+
+@lru_cache(maxsize=8)
+def _brake_table(accel: float, jerk: float) -> tuple[np.ndarray, np.ndarray]:
+    """(speeds, stopping distances) (S,) each of the BRAKE shaping for start speeds 0 to SPEED_TABLE_MAX."""
+    if not (accel > 0 and jerk > 0):
+        raise ValueError("accel and jerk must be > 0")
+    speeds = np.linspace(0.0, SPEED_TABLE_MAX, 601)
+    steps = int((SPEED_TABLE_MAX / accel + 27.0 * accel / jerk) / TABLE_DT)
+    return speeds, brake_distances(speeds, accel, jerk, TABLE_DT, steps)
 
 
 def brake_distance(speed: np.ndarray | float, accel: float, jerk: float) -> np.ndarray:
@@ -80,26 +78,84 @@ def brake_distance(speed: np.ndarray | float, accel: float, jerk: float) -> np.n
 
 
 @lru_cache(maxsize=8)
-def _brake_table(accel: float, jerk: float) -> tuple[np.ndarray, np.ndarray]:
-    """(speeds, stopping distances) of the BRAKE shaping integrated at 2 ms for start speeds 0 to
-    SPEED_TABLE_MAX: the ground station's own ArduPilot shaping (`shaping.shape_vel_accel`, AP_Math
-    shape_vel_accel) driving each speed to zero, never through it (update_vel_accel's limit)."""
-    if not (accel > 0 and jerk > 0):
-        raise ValueError("accel and jerk must be > 0")
-    speeds = np.linspace(0.0, SPEED_TABLE_MAX, 601)
-    dt = 0.002
-    steps = int((SPEED_TABLE_MAX / accel + 27.0 * accel / jerk) / dt)
-    if compiled_brake_distances is not None:
-        return speeds, compiled_brake_distances(speeds, accel, jerk, dt, steps)
-    v, a, x = speeds.copy(), np.zeros_like(speeds), np.zeros_like(speeds)
-    zero = np.zeros_like(speeds)
-    for _ in range(steps):
-        if not (v > 0.0).any():
-            break
-        a = np.where(v > 0.0, shape_vel_accel(zero, zero, v, a, accel, jerk, dt), 0.0)
-        v = np.maximum(v + a * dt, 0.0)
-        x += v * dt
-    return speeds, x
+def stopping_table(reaction_s: float, accel: float, jerk: float) -> tuple[np.ndarray, np.ndarray]:
+    """(total (S,) m, speeds (S,) m/s): the distance v T + D(v) covered from each speed v of the table
+    (T = reaction_s, D the BRAKE distance), increasing in v, so that it can be inverted by interpolation."""
+    speeds, distances = _brake_table(accel, jerk)
+    return speeds * reaction_s + distances, speeds
+
+
+@kernel
+def distance_along_course(
+    pos: np.ndarray, vel: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float
+) -> np.ndarray:
+    """(N,) m: how far each vehicle can go along its horizontal course (the direction of vel's x, y; at its
+    altitude) before it enters an obstacle's sphere grown by `clearance` m (at its altitude: the circle of
+    that sphere's cross-section); 0 if already inside one; inf if the course meets none or the vehicle
+    hovers (horizontal speed <= 1e-6 m/s)."""
+    n, k_obs = pos.shape[0], radii.shape[0]
+    out = np.full(n, np.inf)
+    for i in range(n):
+        speed = math.hypot(vel[i, 0], vel[i, 1])
+        if not speed > 1e-6:
+            continue
+        u0, u1 = vel[i, 0] / speed, vel[i, 1] / speed
+        entry_min = np.inf
+        for k in range(k_obs):
+            r0, r1 = centres[k, 0] - pos[i, 0], centres[k, 1] - pos[i, 1]
+            dz = pos[i, 2] - centres[k, 2]
+            grown = radii[k] + clearance
+            grown_sq = grown * grown - dz * dz  # squared radius of the cross-section circle
+            along = 0.0 + r0 * u0 + r1 * u1
+            rel_sq = 0.0 + r0 * r0 + r1 * r1
+            half_chord_sq = grown_sq - (rel_sq - along * along)
+            if rel_sq < grown_sq and grown_sq > 0.0:
+                entry = 0.0
+            elif grown_sq > 0.0 and half_chord_sq >= 0.0 and along > 0.0:
+                entry = along - math.sqrt(maximum(half_chord_sq, 0.0))
+            else:
+                entry = np.inf
+            entry_min = minimum(entry_min, entry)
+        out[i] = entry_min
+    return out
+
+
+@kernel
+def _interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
+    """np.interp of one x on an increasing table xp, fp (numpy's compiled_base.c arr_interp): fp[0] left of
+    the table, fp[-1] right of it and at its last point, fp[j] at a table point, else the slope
+    (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]) times (x - xp[j]) plus fp[j]."""
+    last = xp.shape[0] - 1
+    if x != x:
+        return x
+    if x < xp[0]:
+        return fp[0]
+    if x > xp[last]:
+        return fp[last]
+    j = np.searchsorted(xp, x, side="right") - 1
+    if j == last or xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    out = slope * (x - xp[j]) + fp[j]
+    if out != out:
+        out = slope * (x - xp[j + 1]) + fp[j + 1]
+        if out != out and fp[j] == fp[j + 1]:
+            out = fp[j]
+    return out
+
+
+@kernel
+def speed_caps_from_table(
+    pos: np.ndarray, vel: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float,
+    total: np.ndarray, speeds: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """(N,) m/s: the speed whose stopping distance `total` (S,) (stopping_table) equals each vehicle's
+    distance along its course (clearance m), inf where the course is clear."""
+    caps = distance_along_course(pos, vel, centres, radii, clearance)
+    for i in range(caps.shape[0]):
+        if np.isfinite(caps[i]):
+            caps[i] = _interp(caps[i], total, speeds)
+    return caps
 
 
 def failsafe_speed_caps(
@@ -114,8 +170,5 @@ def failsafe_speed_caps(
 ) -> np.ndarray:
     """(N,) m/s horizontal speed caps (module docstring); inf where the course is clear. `reaction_s` T s
     (FS_GCS_TIMEOUT), `brake_accel` m/s^2 and `brake_jerk` m/s^3 the BRAKE shaping's limits, `clearance` m."""
-    d = distance_along_course(pos, vel, centres, radii, clearance)
-    speeds, distances = _brake_table(float(brake_accel), float(brake_jerk))
-    total = speeds * reaction_s + distances  # increasing in the speed: invert it by interpolation
-    cap = np.interp(np.where(np.isfinite(d), d, 0.0), total, speeds)
-    return np.where(np.isfinite(d), cap, np.inf)
+    total, speeds = stopping_table(float(reaction_s), float(brake_accel), float(brake_jerk))
+    return speed_caps_from_table(pos, vel, centres, radii, float(clearance), total, speeds)

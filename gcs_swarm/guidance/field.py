@@ -1,112 +1,174 @@
-"""The potential field of the configured method (APF baseline or IAAPF) at many points at once.
+"""The potential field of the configured method (FieldParams.law: the APF baseline, spec 2, or the IAAPF,
+spec 3), 3-D, for N points at once; the potentials whose gradients these forces are sit in apf.py and
+iaapf.py.
 
-Obstacle terms are evaluated only for the (vehicle, obstacle) pairs inside the influence distance l0,
-so N vehicles x K obstacles costs one N x K matrix product plus work proportional to the close pairs.
-Shapes: `q` (N, D), `target`/`dest` (N, D) or (D,), `centres` (K, D), `radii` (K,).
+Obstacle terms are evaluated for the (vehicle, obstacle) pairs whose evaluation point lies within l0 of the
+obstacle's surface. With `ahead` [add], the evaluation point of obstacle k for vehicle i is the point of the
+segment q[i] -> ahead[i] (the reference's braking path, gcs_swarm.guidance.reference) nearest to k's centre:
+an obstacle ahead is felt as soon as the vehicle could no longer stop short of it, one alongside or behind
+exactly as at q.
+
+The pairs and the forces are compiled kernels (swarm_common.jit); between them `obstacle_repulsion` raises
+rho to the power n with numpy. Shapes: N points, K obstacles, P pairs; ENU m; forces in field units
+(k_att m).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from gcs_swarm.guidance import apf, iaapf
-from gcs_swarm.guidance.obstacles import squared_distances
-from gcs_swarm.guidance.params import FieldParams
-from gcs_swarm.guidance.vector_ops import row_norms
+from gcs_swarm.guidance.numpy_rules import clip_to_scalars, dot3, maximum, norm3
+from gcs_swarm.guidance.params import FieldMethod, FieldParams
+from swarm_common.jit import kernel
 
 HEAD_ON_BIAS = 0.05  # share of the right-hand side mixed into the way round, so a dead-ahead obstacle has one
 
 
-def attraction(q: np.ndarray, target: np.ndarray, fp: FieldParams, d_g: float) -> np.ndarray:
-    """F_att (APF, spec 2) or F*_att (IAAPF, spec 3.1) toward `target`, (N, D)."""
-    if fp.method == "apf":
-        return apf.attraction_force(q, target, fp.k_att)
-    return iaapf.segmented_attraction_force(q, target, fp.k_att, d_g)
+@kernel
+def attraction_force(
+    q: np.ndarray, target: np.ndarray, k_att: float, d_g: float, segmented: bool
+) -> np.ndarray:
+    """(N, 3) toward target (N, 3): F*_att = -k_att (q - q_g) min(1, d_g / rho) (IAAPF, spec 3.1 Eq 8,
+    `segmented`), or F_att = -k_att (q - q_g) (APF, spec 2 Eq 2)."""
+    n = q.shape[0]
+    out = np.empty((n, 3))
+    for i in range(n):
+        d0, d1, d2 = q[i, 0] - target[i, 0], q[i, 1] - target[i, 1], q[i, 2] - target[i, 2]
+        if segmented:
+            rho = norm3(d0, d1, d2)
+            scale = -k_att * (1.0 if rho <= d_g else d_g / maximum(rho, d_g))
+            out[i, 0], out[i, 1], out[i, 2] = scale * d0, scale * d1, scale * d2
+        else:
+            out[i, 0], out[i, 1], out[i, 2] = -k_att * d0, -k_att * d1, -k_att * d2
+    return out
 
 
-def nearest_on_segments(start: np.ndarray, end: np.ndarray, i: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    """For pairs (i, k): the point (P, D) of segment i, from start[i] to end[i] (N, D), nearest to centres
-    (P, D) (the pair's obstacle centre)."""
-    seg = end[i] - start[i]
-    length_sq = np.einsum("pd,pd->p", seg, seg)
-    along = np.einsum("pd,pd->p", centres - start[i], seg)
-    frac = np.clip(np.divide(along, length_sq, out=np.zeros_like(along), where=length_sq > 0.0), 0.0, 1.0)
-    return start[i] + seg * frac[:, None]
+@kernel
+def obstacle_pairs(
+    q: np.ndarray, ahead: np.ndarray, dest: np.ndarray, centres: np.ndarray, radii: np.ndarray, l0: float,
+    l_min: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The (vehicle, obstacle) pairs whose evaluation point (module docstring; ahead = q: q itself) is within
+    l0 m of the surface, in (i, k) order: the vehicle index i (P,), l = max(surface distance, l_min) (P,),
+    the unit vectors n_o centre -> point (P, 3) (+z on the centre, spec 2.1) and n_g point -> dest[i]
+    (P, 3) (zero at dest), and rho (P,) the point's distance to dest[i] (spec 3.2)."""
+    n, k_obs = q.shape[0], radii.shape[0]
+    size = n * k_obs
+    vehicle = np.empty(size, dtype=np.intp)
+    l_out = np.empty(size)
+    rho_out = np.empty(size)
+    n_o = np.empty((size, 3))
+    n_g = np.empty((size, 3))
+    p = 0
+    for i in range(n):
+        s0, s1, s2 = q[i, 0], q[i, 1], q[i, 2]
+        g0, g1, g2 = ahead[i, 0] - s0, ahead[i, 1] - s1, ahead[i, 2] - s2
+        length_sq = dot3(g0, g1, g2, g0, g1, g2)
+        for k in range(k_obs):
+            c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
+            along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
+            frac = clip_to_scalars(along / length_sq if length_sq > 0.0 else 0.0, 0.0, 1.0)
+            a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
+            d0, d1, d2 = a0 - c0, a1 - c1, a2 - c2
+            d = math.sqrt(dot3(d0, d1, d2, d0, d1, d2))
+            raw = d - radii[k]
+            if not raw <= l0:
+                continue
+            vehicle[p] = i
+            l_out[p] = maximum(raw, l_min)
+            safe = 1.0 if d == 0.0 else d
+            n_o[p, 0], n_o[p, 1], n_o[p, 2] = d0 / safe, d1 / safe, d2 / safe
+            if d == 0.0:
+                n_o[p, 2] = 1.0
+            e0, e1, e2 = dest[i, 0] - a0, dest[i, 1] - a1, dest[i, 2] - a2
+            rho = norm3(e0, e1, e2)
+            div = rho if rho > 0.0 else 1.0
+            n_g[p, 0], n_g[p, 1], n_g[p, 2] = e0 / div, e1 / div, e2 / div
+            rho_out[p] = rho
+            p += 1
+    return vehicle[:p], l_out[:p], n_o[:p], n_g[:p], rho_out[:p]
+
+
+@kernel
+def obstacle_forces(
+    n: int, vehicle: np.ndarray, l: np.ndarray, n_o: np.ndarray, n_g: np.ndarray, rho: np.ndarray,
+    rho_n: np.ndarray, adaptive: bool, k_rep: float, l0: float, n_exp: float, rho_eps: float,
+    circulation: float, obstacle_vertical: float,
+) -> np.ndarray:  # fmt: skip
+    """The summed obstacle repulsion (n, 3) of the pairs of `obstacle_pairs`, rho_n = rho^n (P,).
+
+    `adaptive` (IAAPF, spec 3.2 Eqs 10-12): F*_rep1 = k_rep (1/l - 1/l0) rho^n / l^2 along n_o plus
+    F*_rep2 = 0.5 n k_rep (1/l - 1/l0)^2 rho^(n-1) along n_g (0 closer than rho_eps to dest); else (APF,
+    spec 2 Eq 4) F_rep = k_rep (1/l - 1/l0) / l^2 along n_o. Both 0 beyond l0.
+    [add] `circulation` > 0: a tangential companion, gain * |F_rep1| * max(0, -n_o . n_g) along the
+    horizontal unit vector across n_o on the side where the goal lies, i.e. only while the obstacle stands
+    between the vehicle and its goal. The paper's repulsion pushes straight back from an obstacle ahead, so
+    a goal behind it is a saddle where the vehicle stalls (head-on, for ever); this turns the push into a way
+    round, as a vortex field does; an obstacle dead ahead is passed on the right (HEAD_ON_BIAS keeps the
+    side continuous). [add] The vertical component is weighted by `obstacle_vertical` (1: the paper's)."""
+    force = np.zeros((n, 3))
+    bracket_scale = 0.5 * n_exp * k_rep
+    for p in range(vehicle.shape[0]):
+        lp = l[p]
+        o0, o1, o2 = n_o[p, 0], n_o[p, 1], n_o[p, 2]
+        g0, g1, g2 = n_g[p, 0], n_g[p, 1], n_g[p, 2]
+        if adaptive:
+            bracket = 1.0 / lp - 1.0 / l0 if lp <= l0 else 0.0
+            f1 = k_rep * bracket * rho_n[p] / (lp * lp)
+            if rho[p] < rho_eps:
+                f2 = 0.0
+            else:
+                f2 = bracket_scale * bracket * bracket * rho_n[p] / rho[p]
+            x0, x1, x2 = f1 * o0 + f2 * g0, f1 * o1 + f2 * g1, f1 * o2 + f2 * g2
+        else:
+            f1 = k_rep * (1.0 / lp - 1.0 / l0) / (lp * lp) if lp <= l0 else 0.0
+            x0, x1, x2 = f1 * o0, f1 * o1, f1 * o2
+        if circulation > 0.0:
+            r0, r1, r2 = -o1, o0, 0.0  # right of the travel, -n_o
+            dot = dot3(g0, g1, g2, o0, o1, o2)
+            t0, t1, t2 = g0 - dot * o0, g1 - dot * o1, 0.0  # the goal direction across n_o, horizontal
+            bias = HEAD_ON_BIAS * dot3(r0, r1, r2, r0, r1, r2)
+            w0, w1, w2 = t0 + bias * r0, t1 + bias * r1, t2 + bias * r2
+            length = norm3(w0, w1, w2)
+            if length > 0.0:
+                w0, w1, w2 = w0 / length, w1 / length, w2 / length
+            else:
+                w0, w1, w2 = 0.0, 0.0, 0.0
+            blocking = maximum(-dot3(o0, o1, o2, g0, g1, g2), 0.0)
+            c = circulation * f1 * blocking
+            x0, x1, x2 = x0 + c * w0, x1 + c * w1, x2 + c * w2
+        x2 = x2 * obstacle_vertical
+        i = vehicle[p]
+        force[i, 0] += x0
+        force[i, 1] += x1
+        force[i, 2] += x2
+    return force
 
 
 def obstacle_repulsion(
     q: np.ndarray,
+    ahead: np.ndarray,
     dest: np.ndarray,
     centres: np.ndarray,
     radii: np.ndarray,
     fp: FieldParams,
-    ahead: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Summed obstacle repulsion (N, D) and the collision flag (N,): an evaluation point (q, or with `ahead`
-    a point of the braking path) at or inside an obstacle (spec 2.1).
-
-    APF: F_rep (spec 2); IAAPF: F*_rep1 + F*_rep2 with the adaptive factor rho^n of the distance to
-    `dest` (spec 3.2). With `ahead` (N, D) [add], each obstacle's force on vehicle i is evaluated at the
-    point of the segment q[i] -> ahead[i] nearest to that obstacle's centre (the braking path,
-    gcs_swarm.guidance.reference.ReferenceGenerator.lookahead_points): an obstacle ahead is felt as soon
-    as the vehicle could no longer stop short of it, one alongside or behind exactly as at q.
-    """
-    n_pts, dim = q.shape
-    force = np.zeros((n_pts, dim))
-    if len(radii) == 0 or n_pts == 0:
-        return force, np.zeros(n_pts, dtype=bool)
-    reach = radii + fp.l0 + 1e-6  # slack for the rounding of the matrix-product distances
-    if ahead is None:
-        i, k = np.nonzero(squared_distances(q, centres) <= (reach * reach)[None, :])
-        at = q[i]
-    else:
-        # candidates: obstacles within reach of the segment's bounding sphere, then the exact nearest point
-        middle, half = 0.5 * (q + ahead), 0.5 * row_norms(ahead - q)
-        bound = reach[None, :] + half[:, None]
-        i, k = np.nonzero(squared_distances(middle, centres) <= bound * bound)
-        at = nearest_on_segments(q, ahead, i, centres[k])
-    diff = at - centres[k]
-    d = np.sqrt(np.einsum("pd,pd->p", diff, diff))
-    raw = d - radii[k]
-    inside = np.zeros(n_pts, dtype=bool)
-    inside[i[raw <= 0.0]] = True
-    near = raw <= fp.l0
-    i, k, diff, d, raw = i[near], k[near], diff[near], d[near], raw[near]
-    if len(i) == 0:
-        return force, inside
-    l = np.maximum(raw, fp.l_min)
-    on_centre = d == 0.0
-    n_o = diff / np.where(on_centre, 1.0, d)[:, None]
-    n_o[on_centre, -1] = 1.0
-    rho, n_g = iaapf.goal_distance(at[near], dest[i] if dest.ndim == 2 else dest)
-    if fp.method == "apf":
-        f1 = apf.repulsion_scale(l, fp.k_rep, fp.l0)
-        pair = f1[:, None] * n_o
-    else:
-        f1, f2 = iaapf.adaptive_repulsion_scales(l, rho, fp.k_rep, fp.l0, fp.n, fp.rho_eps)
-        pair = f1[:, None] * n_o + f2[:, None] * n_g
-    if fp.circulation > 0.0 and dim == 3:
-        pair += circulation(f1, n_o, n_g, fp.circulation)
-    if dim == 3:
-        pair[:, 2] *= fp.obstacle_vertical  # [add] 1 = the paper's 3-D repulsion
-    for axis in range(dim):
-        force[:, axis] = np.bincount(i, weights=pair[:, axis], minlength=n_pts)
-    return force, inside
+    circulation: float | None = None,
+) -> np.ndarray:
+    """Summed obstacle repulsion (N, 3) at the points q (N, 3) of the method fp.law, evaluated along the
+    segments to `ahead` (N, 3) (q itself: at q), with the adaptive factor's destinations dest (N, 3); K
+    obstacles centres (K, 3), radii (K,). `circulation` overrides fp.circulation (the 2-D planner: 0)."""
+    adaptive = fp.law is FieldMethod.IAAPF
+    vehicle, l, n_o, n_g, rho = obstacle_pairs(q, ahead, dest, centres, radii, float(fp.l0), float(fp.l_min))
+    rho_n = rho**fp.n if adaptive else rho
+    gain = fp.circulation if circulation is None else circulation
+    return obstacle_forces(
+        len(q), vehicle, l, n_o, n_g, rho, rho_n, adaptive, float(fp.k_rep), float(fp.l0), float(fp.n),
+        float(fp.rho_eps), float(gain), float(fp.obstacle_vertical),
+    )  # fmt: skip
 
 
-def circulation(f1: np.ndarray, n_o: np.ndarray, n_g: np.ndarray, gain: float) -> np.ndarray:
-    """[add] Tangential companion of the obstacle repulsion, (P, 3) for P (vehicle, obstacle) pairs: the
-    horizontal unit vector across n_o (P, 3) on the side where the goal direction n_g (P, 3) leads,
-    scaled by gain * |F_rep1| (f1 (P,)) * max(0, -n_o . n_g), i.e. only while the obstacle stands between the
-    vehicle and its goal. The paper's repulsion pushes straight back from an obstacle ahead, so a goal behind
-    it is a saddle where the vehicle stalls (exactly head-on, for ever); this turns the push into a way
-    round, as a vortex field does. An obstacle dead ahead is passed on the right (a small fixed bias keeps
-    the side continuous)."""
-    across = np.stack([-n_o[:, 1], n_o[:, 0], np.zeros(len(n_o))], axis=1)  # right of the travel, -n_o
-    toward_goal = n_g - np.einsum("pd,pd->p", n_g, n_o)[:, None] * n_o
-    toward_goal[:, 2] = 0.0
-    side = toward_goal + HEAD_ON_BIAS * np.einsum("pd,pd->p", across, across)[:, None] * across
-    length = row_norms(side)
-    unit = np.divide(side, length[:, None], out=np.zeros_like(side), where=length[:, None] > 0.0)
-    blocking = np.maximum(-np.einsum("pd,pd->p", n_o, n_g), 0.0)
-    return (gain * f1 * blocking)[:, None] * unit
+def attraction(q: np.ndarray, target: np.ndarray, fp: FieldParams, d_g: float) -> np.ndarray:
+    """The attraction (N, 3) of the method fp.law toward target (N, 3), segment boundary d_g m."""
+    return attraction_force(q, target, float(fp.k_att), float(d_g), fp.law is FieldMethod.IAAPF)

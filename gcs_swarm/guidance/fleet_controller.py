@@ -9,24 +9,20 @@ SET_ATTITUDE_TARGET messages (the link converts frames and thrust).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
-from gcs_swarm.guidance import field as fieldmod
 from gcs_swarm.guidance.attitude_slew import TiltSlew
 from gcs_swarm.guidance.controller import PositionController
-from gcs_swarm.guidance.failsafe_speed import brake_distance, failsafe_speed_caps
-from gcs_swarm.guidance.formation import (
-    LeaderHeading,
-    check_offsets,
-    rotate_z,
-    turn_velocity,
-)
+from gcs_swarm.guidance.degradation import stale_verdict
+from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_caps, speed_caps_from_table
+from gcs_swarm.guidance.field import attraction, obstacle_repulsion
+from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.leader_wait import leader_cap_scale
-from gcs_swarm.guidance.obstacles import clearance, push_out_horizontally
+from gcs_swarm.guidance.obstacles import clearance
 from gcs_swarm.guidance.params import (
     DeadGcsParams,
     FieldParams,
@@ -38,38 +34,52 @@ from gcs_swarm.guidance.params import (
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
 from gcs_swarm.guidance.separation import (
+    DENSE_PAIRS_MAX,
     closing_deceleration,
+    closing_range,
     closing_speed_caps,
+    neighbour_pairs,
     repulsion_range,
     uav_repulsion,
 )
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
 
-# Steps 1-7 run compiled when numba is there (extra "fast"; the same bits, tests/gcs_swarm/guidance/
-# test_tick_replay.py); None selects the numpy steps below (tests and benchmarks switch it to compare).
-compiled_steps: type[CompiledTick] | None
-try:
-    from gcs_swarm.guidance.compiled_tick import CompiledTick, warm_up
-
-    compiled_steps = CompiledTick
-except ImportError:  # pragma: no cover - numba is optional
-    compiled_steps = None
-_warmed_up = False  # the kernels were called once in this process (compiled_tick.warm_up)
+NO_ROWS = np.zeros((0, 3))
+_prepared = False  # every kernel was called once in this process (prepare_kernels)
 
 
 def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
-    """What a FleetController needs before its first tick, built ahead (idempotent, both are kept for the
-    process): the stopping-distance table of `dead_gcs`'s speed scheduling (0.3 s; 1.1 s without numba)
-    and one call of every compiled kernel (compiled_tick.warm_up: loads them from numba's cache).
-    gcs_swarm.flight.fly calls it while the embedded simulator starts, on the other core; every
+    """What a FleetController needs before its first tick, done ahead (idempotent; both are kept for the
+    process): the stopping-distance table of `dead_gcs`'s speed scheduling, and one call of every guidance
+    kernel, so that each is compiled, or loaded from numba's cache, now and no tick waits for it.
+    gcs_swarm.flight.fly calls it while the embedded simulator starts, before the vehicles arm; every
     FleetController calls it."""
     if dead_gcs is not None and dead_gcs.speed_scheduling:
-        brake_distance(0.0, float(dead_gcs.brake_accel or 0.0), float(dead_gcs.brake_jerk or 0.0))
-    global _warmed_up
-    if compiled_steps is not None and not _warmed_up:
-        _warmed_up = True
-        warm_up(FleetController)
+        failsafe_speed_caps(
+            np.zeros((1, 3)), np.zeros((1, 3)), NO_ROWS, np.zeros(0),
+            float(dead_gcs.failsafe_timeout_s or 0.0), float(dead_gcs.brake_accel or 0.0), dead_gcs.clearance,
+            float(dead_gcs.brake_jerk or 0.0),
+        )  # fmt: skip
+    global _prepared
+    if _prepared:
+        return
+    _prepared = True
+    offsets = np.array([[0.0, 0.0, 0.0], [-5.0, 2.0, 0.0], [-5.0, -2.0, 0.0]])
+    pos = offsets + np.array([0.0, 0.0, 10.0])
+    obstacle_c, obstacle_r = pos[:1] + 3.0, np.ones(1)
+    for mode in ("constant", "formula"):
+        ctl = FleetController(
+            3, 0, offsets, np.array([[100.0, 0.0, 10.0]]), separation=SeparationParams(mode=mode), z_min=1.0
+        )
+        ctl.reset(pos, np.zeros((3, 3)), np.zeros(3))
+        ctl.tick(0.0, pos, np.ones((3, 3)), np.zeros((3, 3)), obstacle_c, obstacle_r, np.ones(3, dtype=bool))
+    table = np.array([0.0, 1.0])  # the failsafe speed scheduling's kernels, on a small table
+    brake_distances(table, 7.5, 5.0, 0.002, 2)
+    speed_caps_from_table(pos, np.ones((3, 3)), obstacle_c, obstacle_r, 1.0, table, table)
+    neighbour_pairs(np.zeros((DENSE_PAIRS_MAX, 3)), np.zeros((2, 3)), 1.0, True)  # the hash grid's path
+    alive = np.ones(3, dtype=bool)  # the stale-telemetry rule (degradation.StaleTelemetryMonitor.assess)
+    stale_verdict(np.zeros(3), alive, ~alive, pos, np.ones((3, 3)), 0, 1.0, 0.3)
 
 
 @dataclass(frozen=True)
@@ -207,7 +217,6 @@ class FleetController:
         ):
             raise ValueError("dead_gcs timeout and stop limits must be set (the mission loader sets them)")
         self.dead_gcs = dead_gcs
-        self._compiled = None if compiled_steps is None else compiled_steps()
         prepare_kernels(dead_gcs)  # now, not in the first formation tick, where it stalled the control loop
 
     # ----- live changes (operator console) -----
@@ -349,6 +358,7 @@ class FleetController:
         pos, vel, att, obs_c, obs_r, active = self._check_tick_inputs(
             pos, vel, att, obstacles_c, obstacles_r, active
         )
+        pos, vel = np.ascontiguousarray(pos), np.ascontiguousarray(vel)
         dt = self._tick_dt(t)
         returning = active & ~self.was_active
         self.last_pos[active] = pos[active]
@@ -378,99 +388,62 @@ class FleetController:
         # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
         self.relay.push(self._leader_state())
         heard = self.relay.read()
-        if compiled_steps is not None and self._compiled is not None:
-            out = self._compiled(self, heard, goal, dt, pos, vel, att, obs_c, obs_r, active)
-            return Command(
-                active=active, roll_d=out.roll_d, pitch_d=out.pitch_d, yaw_d=out.yaw_d,
-                thrust_acc=out.thrust_acc, ref_pos=out.ref_pos, ref_vel=out.ref_vel, ref_acc=out.ref_acc,
-                field_force=out.field_force, slots=out.slots, u=out.u, emergency=out.emergency,
-                psi_leader=self.heading.psi, waypoint_index=self.waypoint_index,
-                leader_goal_distance=goal_dist, measured_pos=pos.copy(),
-                obstacles=(obs_c.copy(), obs_r.copy()),
-            )  # fmt: skip
-        p_l, v_l, psi_l, rate_l, a_l = heard[:, 0:3], heard[:, 3:6], heard[:, 6], heard[:, 7], heard[:, 8:11]
-        world_off = rotate_z(self.offsets * self.spacing_scale, psi_l)
-        targets = p_l + world_off
-        v_ff = v_l + turn_velocity(world_off, rate_l)
-        # [add] slot acceleration: the leader's reference acceleration plus the centripetal term of the
-        # turning frame, fed forward to the shaped reference (spec 8 step 4): followers accelerate with the
-        # leader
-        a_ff = a_l - (rate_l * rate_l)[:, None] * np.column_stack([world_off[:, :2], np.zeros(self.n)])
-        if self.reference.slot_margin > 0.0 and len(obs_r):
-            # [add] a slot inside an obstacle's shell is moved out of it, so the follower is not torn between
-            # its slot's attraction and the obstacle's repulsion
-            targets = push_out_horizontally(targets, obs_c, obs_r, self.reference.slot_margin)
-        targets[lead] = goal
-        v_ff[lead] = 0.0
-        a_ff[lead] = 0.0
-        dest = goal + world_off if self.follower_targets is None else self.follower_targets.copy()
-        dest[lead] = goal
-
-        literal = self.reference.paper_literal & ~self.is_leader
-        if self.reference.paper_literal:
-            self.generator.reset_rows(literal & active, pos, vel)
-
-        # Step 6 (leash) then step 2: field at the reference points; other vehicles repel from where they
-        # are (or were).
-        self.generator.leash(pos, active)
-        p_r = self.generator.p
-        known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
-        f_obs, _ = fieldmod.obstacle_repulsion(
-            p_r, dest, obs_c, obs_r, self.field, ahead=self.generator.lookahead_points()
-        )
-        wide = self.spacing_scale
-        separation = (
-            self.separation
-            if wide == 1.0
-            else replace(self.separation, d_emg=self.separation.d_emg * wide, s_s=self.separation.s_s * wide)
-        )
-        f_uav, emergency = uav_repulsion(
-            p_r, self.last_pos, self.last_vel, self.field.k_uav, self.field.n_uav, self.d_max * wide,
-            separation, self.field.l_min, src_valid=known,
-            at_vel=self.generator.v, brake_accel=self.reference.brake_accel,
+        psi_l = heard[:, 6]
+        centres, radii = np.ascontiguousarray(obs_c), np.ascontiguousarray(obs_r)
+        destinations = NO_ROWS if self.follower_targets is None else self.follower_targets
+        targets, v_ff, a_ff, dest = formation_targets(
+            heard, np.cos(psi_l), np.sin(psi_l), self.offsets, float(self.spacing_scale), centres, radii,
+            float(ref.slot_margin), int(lead), goal, destinations,
         )  # fmt: skip
-        f_att = fieldmod.attraction(p_r, targets, self.field, self.d_g)
-        force = f_att + f_obs + f_uav
+        gen = self.generator
+        literal = ref.paper_literal & ~self.is_leader
+        if ref.paper_literal:
+            gen.reset_rows(literal & active, pos, vel)
 
-        # Steps 3-5 (or the paper-literal follower reference), step 7: controller and inversion.
+        # Step 6 (leash) then step 2: the field at the reference points (obstacles along their braking paths);
+        # the other vehicles repel from where they are (or were).
+        ahead = gen.leash_and_lookahead(pos, active)
+        p_r = gen.p
+        f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, self.field)
+        wide = self.spacing_scale
+        sep = self.separation
+        d_emg, s_s = (sep.d_emg, sep.s_s) if wide == 1.0 else (sep.d_emg * wide, sep.s_s * wide)
+        d_max = self.d_max * wide
+        known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
+        f_uav, emergency = uav_repulsion(
+            p_r, self.last_pos, self.last_vel, known, gen.v, float(ref.brake_accel), self.field, d_max,
+            sep.mode == "formula", min(d_emg, d_max), sep.a_e, s_s,
+        )  # fmt: skip
+        force = attraction(p_r, targets, self.field, self.d_g) + f_obs + f_uav
+
+        # Steps 3-5 (or the paper-literal follower reference)
         speed_cap = self.speed_caps()
         if self.closing_accel > 0.0:  # nobody closes on another faster than it could stop
-            speed_cap = np.minimum(
-                speed_cap,
-                closing_speed_caps(
-                    self.last_pos, self.last_vel, known,
-                    separation.d_emg if separation.mode == "constant" else separation.s_s,
-                    self.closing_accel,
-                    float(np.max(self.v_xy_cap)),
-                ),
-            )  # fmt: skip
+            gap = d_emg if sep.mode == "constant" else s_s
+            radius = closing_range(gap, self.closing_accel, float(np.max(self.v_xy_cap)))
+            caps = closing_speed_caps(
+                self.last_pos, self.last_vel, known, float(gap), self.closing_accel, radius
+            )
+            speed_cap = np.minimum(speed_cap, caps)
         if self.dead_gcs is not None and self.dead_gcs.speed_scheduling:
             fs = self.dead_gcs
             caps = failsafe_speed_caps(
-                pos, vel, obs_c, obs_r, float(fs.failsafe_timeout_s or 0.0), float(fs.brake_accel or 0.0),
+                pos, vel, centres, radii, float(fs.failsafe_timeout_s or 0.0), float(fs.brake_accel or 0.0),
                 fs.clearance, float(fs.brake_jerk or 0.0),
             )  # fmt: skip
             speed_cap = np.minimum(speed_cap, caps)
-        x_d, xd_dot, xd_ddot = self.generator.step(
-            force,
-            v_ff,
-            speed_cap,
-            dt,
-            active,
-            a_ff=a_ff,
-            targets=targets,
-            evasive=emergency,
-        )
-        if self.reference.paper_literal:
+        x_d, xd_dot, xd_ddot = gen.step(force, v_ff, speed_cap, dt, active, a_ff, targets, emergency)
+        if ref.paper_literal:
             lit = paper_literal_reference(targets, v_ff, f_obs + f_uav, self.field.k_att, self.field.l0)
             for arr, lit_arr in zip((x_d, xd_dot, xd_ddot), lit, strict=True):
                 arr[literal] = lit_arr[literal]
+
+        # Step 7: position control, inversion, tilt slew
         u = self.position_controller(x_d, xd_dot, xd_ddot, pos, vel, dt)
         if self.thrust_mode == "measured":
             cmd = invert(u, att[:, 2], self.limits, self.g, att[:, 0], att[:, 1])
         else:
             cmd = invert(u, att[:, 2], self.limits, self.g)
-
         roll_cmd, pitch_cmd = self.slew(cmd.roll, cmd.pitch, dt, active)
         off = ~active
 
@@ -480,21 +453,9 @@ class FleetController:
             return out
 
         return Command(
-            active=active,
-            roll_d=masked(roll_cmd),
-            pitch_d=masked(pitch_cmd),
-            yaw_d=masked(psi_l),
-            thrust_acc=masked(cmd.thrust_acc),
-            ref_pos=x_d,
-            ref_vel=xd_dot,
-            ref_acc=xd_ddot,
-            field_force=force,
-            slots=targets,
-            u=masked(cmd.u_limited),
-            emergency=emergency & active,
-            psi_leader=self.heading.psi,
-            waypoint_index=self.waypoint_index,
-            leader_goal_distance=goal_dist,
-            measured_pos=pos.copy(),
-            obstacles=(obs_c.copy(), obs_r.copy()),
-        )
+            active=active, roll_d=masked(roll_cmd), pitch_d=masked(pitch_cmd), yaw_d=masked(psi_l),
+            thrust_acc=masked(cmd.thrust_acc), ref_pos=x_d, ref_vel=xd_dot, ref_acc=xd_ddot,
+            field_force=force, slots=targets, u=masked(cmd.u_limited), emergency=emergency & active,
+            psi_leader=self.heading.psi, waypoint_index=self.waypoint_index, leader_goal_distance=goal_dist,
+            measured_pos=pos.copy(), obstacles=(obs_c.copy(), obs_r.copy()),
+        )  # fmt: skip

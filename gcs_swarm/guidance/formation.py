@@ -12,8 +12,10 @@ import math
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from gcs_swarm.guidance.shaping import sqrt_controller_scalar
+from gcs_swarm.guidance.obstacles import push_out_horizontally
+from swarm_common.jit import kernel
 from swarm_common.rotations import wrap_pi, wrap_pi_float
+from swarm_common.shaping import sqrt_controller
 
 SHAPES = ("line", "v", "column", "grid")
 
@@ -54,7 +56,7 @@ def formation_offsets(shape: str, n_followers: int, spacing: float, angle_deg: f
 
 def check_offsets(offsets: np.ndarray, n: int, leader: int) -> np.ndarray:
     """Validate explicit offsets: finite, shape (N, 3), leader row zero. Returns them as a float array."""
-    arr = np.asarray(offsets, dtype=float)
+    arr = np.ascontiguousarray(offsets, dtype=float)
     if arr.shape != (n, 3):
         raise ValueError(f"formation offsets must have shape ({n}, 3), got {arr.shape}")
     if not np.isfinite(arr).all():
@@ -81,27 +83,64 @@ def rotate_to_world(offsets: np.ndarray, psi: np.ndarray | float) -> np.ndarray:
     return rotate_z(offsets, np.asarray(psi, dtype=float)[..., None])
 
 
-def turn_velocity(world_offsets: np.ndarray, psi_rate: np.ndarray | float) -> np.ndarray:
-    """Velocity psi_L_dot * z_hat x (world offset) of offsets (..., 3) turning at psi_rate (...) rad/s."""
-    rate = np.asarray(psi_rate, dtype=float)
-    out = np.zeros(np.broadcast_shapes(np.shape(world_offsets), rate.shape + (3,)))
-    out[..., 0] = -rate * world_offsets[..., 1]
-    out[..., 1] = rate * world_offsets[..., 0]
-    return out
-
-
 def slot_positions(p_leader: np.ndarray, psi_leader: np.ndarray | float, offsets: np.ndarray) -> np.ndarray:
     """Slots X_i^s (..., N, 3) from the leader position (..., 3) and heading (...,) (spec 6, Eqs 26-28)."""
     return np.asarray(p_leader, dtype=float)[..., None, :] + rotate_to_world(offsets, psi_leader)
 
 
-def slot_velocities(
-    v_leader: np.ndarray, psi_leader: np.ndarray | float, psi_rate: np.ndarray | float, offsets: np.ndarray
-) -> np.ndarray:
-    """Slot velocity feed-forward v_i^s = v_L + psi_L_dot * z_hat x R(psi_L) delta_i, (..., N, 3) (spec 6)."""
-    world = rotate_to_world(offsets, psi_leader)
-    rate = np.asarray(psi_rate, dtype=float)[..., None]
-    return np.asarray(v_leader, dtype=float)[..., None, :] + turn_velocity(world, rate)
+@kernel
+def formation_targets(
+    heard: np.ndarray, cos_psi: np.ndarray, sin_psi: np.ndarray, offsets: np.ndarray, spacing: float,
+    centres: np.ndarray, radii: np.ndarray, slot_margin: float, lead: int, goal: np.ndarray,
+    follower_targets: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """Spec 8 step 1 for every vehicle from the leader state it heard (N, 11) (p (3), v (3), psi, psi rate,
+    a (3)) and cos, sin of that psi (N,); offsets (N, 3) in the leader frame, scaled by `spacing`:
+
+    - the slot X_i^s = p_L + R(psi_L) delta_i (N, 3) (spec 6, Eqs 26-28); [add] with slot_margin > 0 moved
+      horizontally out of the obstacles (obstacles.push_out_horizontally), so a follower is not torn between
+      its slot's attraction and an obstacle's repulsion; the leader's row is its goal (3,);
+    - the velocity feed-forward v_L + psi_L_dot z x R(psi_L) delta_i (N, 3);
+    - [add] the acceleration feed-forward a_L minus the centripetal psi_L_dot^2 R(psi_L) delta_i (horizontal)
+      (N, 3): followers accelerate with the leader; both feed-forwards zero in the leader's row;
+    - the adaptive factor's destinations (N, 3): goal + R(psi_L) delta_i, or `follower_targets` (N, 3)
+      when it has rows; the leader's row its goal."""
+    n = heard.shape[0]
+    targets = np.empty((n, 3))
+    v_ff = np.empty((n, 3))
+    a_ff = np.empty((n, 3))
+    dest = np.empty((n, 3))
+    for i in range(n):
+        c, s = cos_psi[i], sin_psi[i]
+        o0, o1, o2 = offsets[i, 0] * spacing, offsets[i, 1] * spacing, offsets[i, 2] * spacing
+        w0, w1, w2 = o0 * c - o1 * s, o0 * s + o1 * c, o2  # R(psi_L) delta_i
+        rate = heard[i, 7]
+        targets[i, 0], targets[i, 1], targets[i, 2] = heard[i, 0] + w0, heard[i, 1] + w1, heard[i, 2] + w2
+        v_ff[i, 0] = heard[i, 3] + -rate * w1
+        v_ff[i, 1] = heard[i, 4] + rate * w0
+        v_ff[i, 2] = heard[i, 5] + 0.0
+        rate_sq = rate * rate
+        a_ff[i, 0] = heard[i, 8] - rate_sq * w0
+        a_ff[i, 1] = heard[i, 9] - rate_sq * w1
+        a_ff[i, 2] = heard[i, 10] - rate_sq * 0.0
+        if follower_targets.shape[0] == 0:
+            dest[i, 0], dest[i, 1], dest[i, 2] = goal[0] + w0, goal[1] + w1, goal[2] + w2
+        else:
+            dest[i, 0], dest[i, 1], dest[i, 2] = (
+                follower_targets[i, 0],
+                follower_targets[i, 1],
+                follower_targets[i, 2],
+            )
+        if slot_margin > 0.0:
+            targets[i, 0], targets[i, 1] = push_out_horizontally(
+                targets[i, 0], targets[i, 1], targets[i, 2], centres, radii, slot_margin
+            )
+    for d in range(3):
+        targets[lead, d] = goal[d]
+        v_ff[lead, d] = 0.0
+        a_ff[lead, d] = 0.0
+        dest[lead, d] = goal[d]
+    return targets, v_ff, a_ff, dest
 
 
 def leader_frame_offsets(p: np.ndarray, p_leader: np.ndarray, psi_leader: np.ndarray | float) -> np.ndarray:
@@ -143,7 +182,7 @@ class LeaderHeading:
 
     [add] Smoothing, so that the slot frame swings neither with every swerve of the leader nor in steps:
     the course is taken from the reference velocity low-passed with time constant `filter_s`, and psi_L
-    follows it with ArduPilot's angle shaping (sqrt controller, gcs_swarm.guidance.shaping): turn rate at
+    follows it with ArduPilot's angle shaping (swarm_common.shaping.sqrt_controller): turn rate at
     most `rate_max`, changing at most `accel_max` rad/s^2. `accel_max` = 0 and `filter_s` = 0 give the
     spec's plain rate limit (the rate steps between -rate_max and +rate_max)."""
 
@@ -183,7 +222,7 @@ class LeaderHeading:
         if self.accel_max <= 0.0:
             rate = error / dt
         else:
-            rate = sqrt_controller_scalar(error, float(self.gain), float(self.accel_max), dt)
+            rate = sqrt_controller(error, float(self.gain), float(self.accel_max), dt)
         rate = min(max(rate, -self.rate_max), self.rate_max)
         if self.accel_max > 0.0:
             step = self.accel_max * dt

@@ -1,5 +1,6 @@
 """From thrust acceleration U = (U_x, U_y, U_z) and yaw to roll, pitch and collective thrust (spec 5,
-paper Eqs 22-25, 36), with the command limits in the spec's order.
+paper Eqs 22-25, 36), with the command limits in the spec's order; compiled (swarm_common.jit) up to the
+inverse trigonometry, which `invert` evaluates with numpy.
 
 Angles in rad, ENU world / FLU body, ZYX Euler (spec 1.1); thrust as U1/m in m/s^2 (mass-free; the link
 scales it to the vehicle's normalised thrust). Shapes: U (N, 3), angles (N,).
@@ -7,14 +8,17 @@ scales it to the vehicle's normalised thrust). Shapes: U (N, 3), angles (N,).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from gcs_swarm.guidance.numpy_rules import clip_to_scalars, maximum, minimum, norm3
 from gcs_swarm.guidance.params import G, Limits
-from gcs_swarm.guidance.vector_ops import row_norms
+from swarm_common.jit import kernel
 
 THRUST_MODES = ("measured", "norm")
+NO_VALUES = np.zeros(0)
 
 
 @dataclass(frozen=True)
@@ -35,15 +39,45 @@ def thrust_vector(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, thrust_a
     return thrust_acc[..., None] * axis
 
 
-def limit_thrust_vector(u: np.ndarray, limits: Limits, g: float = G) -> np.ndarray:
-    """Spec 5 limits 1-2: U_z >= uz_min_g g, then shorten U_xy to U_z tan(tilt_max) keeping its direction."""
-    out = np.array(u, dtype=float)
-    out[:, 2] = np.maximum(out[:, 2], limits.uz_min_g * g)
-    u_xy = np.hypot(out[:, 0], out[:, 1])
-    cap = out[:, 2] * np.tan(limits.tilt_max)
-    over = u_xy > cap
-    out[over, :2] *= (cap[over] / u_xy[over])[:, None]
-    return out
+@kernel
+def limited_thrust(
+    u0: float, u1: float, u2: float, uz_floor: float, tan_tilt: float
+) -> tuple[float, float, float]:
+    """Spec 5 limits 1-2 on one U (m/s^2): U_z >= uz_floor, then U_xy shortened to U_z tan(tilt_max) keeping
+    its direction."""
+    z = maximum(u2, uz_floor)
+    u_xy = math.hypot(u0, u1)
+    cap = z * tan_tilt
+    if u_xy > cap:
+        scale = cap / u_xy
+        return u0 * scale, u1 * scale, z
+    return u0, u1, z
+
+
+@kernel
+def inversion_terms(
+    u: np.ndarray, cos_yaw: np.ndarray, sin_yaw: np.ndarray, uz_floor: float, tan_tilt: float,
+    tilt_cos: np.ndarray, cos_tilt_max: float, thrust_cap: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """`invert` up to its inverse trigonometry: the limited U (N, 3), the arctan2 numerator
+    U_x cos psi + U_y sin psi (N,) (its denominator is U_z), the arcsin argument
+    (U_x sin psi - U_y cos psi) / |U| clipped to [-1, 1] (N,), and the thrust U1/m (N,): Eq 36
+    U_z / max(tilt_cos, cos_tilt_max) from tilt_cos = cos phi cos theta of the measured attitude (N,), or |U|
+    when tilt_cos is empty; at most thrust_cap (limit 3)."""
+    n = u.shape[0]
+    ul = np.empty((n, 3))
+    pitch_num = np.empty(n)
+    roll_arg = np.empty(n)
+    thrust = np.empty(n)
+    for i in range(n):
+        l0, l1, l2 = limited_thrust(u[i, 0], u[i, 1], u[i, 2], uz_floor, tan_tilt)
+        ul[i, 0], ul[i, 1], ul[i, 2] = l0, l1, l2
+        norm = norm3(l0, l1, l2)
+        pitch_num[i] = l0 * cos_yaw[i] + l1 * sin_yaw[i]
+        roll_arg[i] = clip_to_scalars((l0 * sin_yaw[i] - l1 * cos_yaw[i]) / norm, -1.0, 1.0)
+        t = l2 / maximum(tilt_cos[i], cos_tilt_max) if tilt_cos.shape[0] else norm
+        thrust[i] = minimum(t, thrust_cap)
+    return ul, pitch_num, roll_arg, thrust
 
 
 def invert(
@@ -54,20 +88,20 @@ def invert(
     measured_roll: np.ndarray | None = None,
     measured_pitch: np.ndarray | None = None,
 ) -> AttitudeThrust:
-    """Limited U -> (roll_d, pitch_d, U1/m) for the measured yaw (spec 5, Eqs 23-25).
+    """Limited U (N, 3) -> (roll_d, pitch_d, U1/m) for the measured yaw (N,) (spec 5, Eqs 23-25).
 
-    Thrust: with measured roll/pitch given, Eq 36 `U_z / (cos phi cos theta)` (the cosine product floored at
-    cos(tilt_max)), else `|U|`; then capped at thrust_max_g * g (limit 3).
+    Thrust: with measured roll/pitch (N,) given, Eq 36 `U_z / (cos phi cos theta)` (the cosine product
+    floored at cos(tilt_max)), else `|U|`; then capped at thrust_max_g * g (limit 3).
     """
-    ul = limit_thrust_vector(u, limits, g)
-    cy, sy = np.cos(yaw), np.sin(yaw)
-    norm = row_norms(ul)
-    pitch = np.arctan2(ul[:, 0] * cy + ul[:, 1] * sy, ul[:, 2])
-    roll = np.arcsin(np.clip((ul[:, 0] * sy - ul[:, 1] * cy) / norm, -1.0, 1.0))
     if measured_roll is None or measured_pitch is None:
-        thrust = norm
+        tilt_cos = NO_VALUES
     else:
-        tilt_cos = np.maximum(np.cos(measured_roll) * np.cos(measured_pitch), np.cos(limits.tilt_max))
-        thrust = ul[:, 2] / tilt_cos
-    thrust = np.minimum(thrust, limits.thrust_max_g * g)
+        tilt_cos = np.cos(measured_roll) * np.cos(measured_pitch)
+    ul, pitch_num, roll_arg, thrust = inversion_terms(
+        np.ascontiguousarray(u), np.cos(yaw), np.sin(yaw), float(limits.uz_min_g * g),
+        float(np.tan(limits.tilt_max)), tilt_cos, float(np.cos(limits.tilt_max)),
+        float(limits.thrust_max_g * g),
+    )  # fmt: skip
+    pitch = np.arctan2(pitch_num, ul[:, 2])
+    roll = np.arcsin(roll_arg)
     return AttitudeThrust(roll=roll, pitch=pitch, thrust_acc=thrust, u_limited=ul)

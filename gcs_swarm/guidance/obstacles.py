@@ -1,15 +1,19 @@
-"""Spherical obstacles: surface distance, its gradient direction and the inside case (spec 2.1).
+"""Spherical obstacles: surface distance, its gradient direction and the inside case (spec 2.1), the
+measured clearance, and the push of a formation slot out of an obstacle (compiled, for the tick's
+formation kernel).
 
 Shapes: `q` (N, D) query points, `centres` (K, D), `radii` (K,), D = 2 (circles) or 3 (spheres).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_swarm.guidance.vector_ops import column_mean
+from gcs_swarm.guidance.numpy_rules import maximum
+from swarm_common.jit import kernel
 
 
 @dataclass(frozen=True)
@@ -48,7 +52,7 @@ def squared_distances(q: np.ndarray, points: np.ndarray) -> np.ndarray:
     """|q_i - points_k|^2 (N, K) by one matrix product about the points' centroid, so the cancellation error
     stays near 1e-16 * (extent of the scene)^2; callers recompute exact differences for the pairs that matter.
     NaN rows of q give NaN rows."""
-    origin = column_mean(points) if len(points) else 0.0
+    origin = points.mean(axis=0) if len(points) else 0.0
     a = q - origin
     b = points - origin
     d2 = np.einsum("nd,nd->n", a, a)[:, None] + np.einsum("kd,kd->k", b, b)[None, :] - 2.0 * (a @ b.T)
@@ -62,24 +66,25 @@ def clearance(q: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarr
     return (np.sqrt(squared_distances(q, centres)) - radii[None, :]).min(axis=1)
 
 
+@kernel
 def push_out_horizontally(
-    points: np.ndarray, centres: np.ndarray, radii: np.ndarray, margin: float
-) -> np.ndarray:
-    """Points (N, 3) moved horizontally out of every obstacle's sphere grown by `margin` m: a point closer
-    than r + margin to a centre (in x, y, at any height the grown sphere covers) goes radially out to that
-    circle at its own height (one pass over the obstacles in order). Continuous in the point; (N, 3)."""
-    out = np.array(points, dtype=float)
-    for c, r in zip(centres, radii, strict=True):
-        dz = out[:, 2] - c[2]
-        grown = r + margin
+    x: float, y: float, z: float, centres: np.ndarray, radii: np.ndarray, margin: float
+) -> tuple[float, float]:
+    """The point (x, y, z) moved horizontally out of every obstacle's sphere grown by `margin` m: a point
+    closer than r + margin to a centre (in x, y, at any height the grown sphere covers) goes radially out to
+    that circle at its own height (one pass over the obstacles in order; a point on the centre's vertical
+    goes out along +x). Continuous in the point; returns the new (x, y)."""
+    for k in range(radii.shape[0]):
+        dz = z - centres[k, 2]
+        grown = radii[k] + margin
         reach_sq = grown * grown - dz * dz
-        horiz = out[:, :2] - c[:2]
-        dist = np.hypot(horiz[:, 0], horiz[:, 1])
-        inside = (reach_sq > 0.0) & (dist * dist < reach_sq)
-        if not inside.any():
-            continue
-        ring = np.sqrt(np.maximum(reach_sq, 0.0))
-        direction = np.divide(horiz, dist[:, None], out=np.zeros_like(horiz), where=dist[:, None] > 0.0)
-        direction[inside & (dist == 0.0), 0] = 1.0
-        out[inside, :2] = c[:2] + direction[inside] * ring[inside, None]
-    return out
+        h0, h1 = x - centres[k, 0], y - centres[k, 1]
+        dist = math.hypot(h0, h1)
+        if reach_sq > 0.0 and dist * dist < reach_sq:
+            ring = math.sqrt(maximum(reach_sq, 0.0))
+            if dist > 0.0:
+                d0, d1 = h0 / dist, h1 / dist
+            else:
+                d0, d1 = 1.0, 0.0
+            x, y = centres[k, 0] + d0 * ring, centres[k, 1] + d1 * ring
+    return x, y

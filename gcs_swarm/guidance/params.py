@@ -9,8 +9,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import Enum
 
 G = 9.8  # m/s^2, Table 2
+
+
+class FieldMethod(Enum):
+    """The potential-field laws (FieldParams.method names one by its value)."""
+
+    APF = "apf"  # spec 2, the baseline: quadratic attraction, plain repulsion
+    IAAPF = "iaapf"  # spec 3-4: segmented attraction, adaptive repulsion rho^n
 
 
 @dataclass(frozen=True)
@@ -31,8 +39,7 @@ class FieldParams:
     circulation: float = 0.6  # tangential share of an obstacle-ahead repulsion [add]; 0 = the paper's
 
     def __post_init__(self) -> None:
-        if self.method not in ("apf", "iaapf"):
-            raise ValueError(f"field method must be 'apf' or 'iaapf', not {self.method!r}")
+        self.law  # noqa: B018 - refuses an unknown method now
         for name in ("k_att", "l0", "n", "l_min", "rho_eps"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"field parameter {name} must be > 0")
@@ -43,6 +50,15 @@ class FieldParams:
             raise ValueError("n_uav must lie in (0, 2) so the inter-UAV force stays repulsive (spec 4)")
         if self.d_g is not None and not self.d_g > 0:
             raise ValueError("d_g must be > 0 (or omitted for v_max / K_v)")
+
+    @property
+    def law(self) -> FieldMethod:
+        """The field law `method` names; ValueError for a name that is none of FieldMethod's."""
+        try:
+            return FieldMethod(self.method)
+        except ValueError:
+            names = ", ".join(repr(m.value) for m in FieldMethod)
+            raise ValueError(f"field method must be one of {names}, not {self.method!r}") from None
 
 
 @dataclass(frozen=True)

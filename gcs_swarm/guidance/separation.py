@@ -1,8 +1,15 @@
-"""Inter-UAV repulsion and the emergency vertical force (spec 4, paper Eqs 13-20).
+"""Inter-UAV repulsion and the emergency vertical force (spec 4, paper Eqs 13-20), and the closing-speed
+caps [add].
 
-Vehicle i feels the others j != i as point sources. Positions `p_at` (N, D) are where the force on each
-vehicle is evaluated (its reference point, spec 8 step 2), `p_src` (N, D) where the vehicles are; row i of
-both belongs to vehicle i. D = 2 or 3; the emergency force needs D = 3 (z up).
+Vehicle i feels the others j != i as point sources. Positions `p_at` (N, 3) are where the force on each
+vehicle is evaluated (its reference point, spec 8 step 2), `p_src` (N, 3) where the vehicles are; row i of
+both belongs to vehicle i. ENU m, m/s; z up. The pair search, the forces and the caps are compiled kernels
+(swarm_common.jit); `uav_repulsion` raises the distances to the power n - 2 with numpy between them. The
+potentials (`pair_potential`, `uav_potential`) are the spec's, for tests that difference them.
+
+Pair search: small fleets test every (i, j) pair; above DENSE_PAIRS_MAX candidate pairs a horizontal hash
+grid with cells of the search radius gives the candidates (own and the 8 surrounding cells), so the cost
+grows with N times the neighbours per cell instead of N^2. The forces are summed in pair order either way.
 """
 
 from __future__ import annotations
@@ -11,21 +18,18 @@ import math
 
 import numpy as np
 
-from gcs_swarm.guidance.obstacles import squared_distances
-from gcs_swarm.guidance.params import SeparationParams
-from gcs_swarm.guidance.vector_ops import row_norms
+from gcs_swarm.guidance.numpy_rules import clip, dot3, maximum, minimum, norm3
+from gcs_swarm.guidance.params import FieldParams, SeparationParams
+from swarm_common.jit import kernel
 
-DENSE_PAIRS_MAX = 40_000  # above this many (i, j) candidates, use the hash grid instead of a dense product
+DENSE_PAIRS_MAX = 40_000  # above this many (i, j) candidates, use the hash grid instead of testing all
+CLOSING_MARGIN_M = 1.0  # m kept beyond d_emg by the closing-speed cap
+CLOSING_RANGE_MAX_M = 200.0  # m, pairs farther apart than this are not checked
 
 
 def d_max_formula(v_max: float, t_r: float, a_max: float, s_s: float) -> float:
     """D_max = v_max t_r + v_max^2 / (2 a_max) + s_s, m (spec 4, Eq 17)."""
     return v_max * t_r + v_max * v_max / (2.0 * a_max) + s_s
-
-
-def d_emg_formula(v_re: np.ndarray, a_e: float, s_s: float) -> np.ndarray:
-    """D_Emg = v_re^2 / (2 a_e) + s_s per pair, m (spec 4, Eq 20)."""
-    return v_re * v_re / (2.0 * a_e) + s_s
 
 
 def repulsion_range(sep: SeparationParams, v_max: float, a_max: float) -> float:
@@ -41,63 +45,11 @@ def pair_potential(l: np.ndarray, k_uav: float, n: float, d_max: float) -> np.nd
     return np.where(inside, 0.5 * k_uav * bracket * bracket * l_in**n, 0.0)
 
 
-def pair_force_scale(l: np.ndarray, k_uav: float, n: float, d_max: float) -> np.ndarray:
-    """|F_ij| = k_uav (1/l - 1/D_max) l^(n-2) (1 - n/2 (1 - l/D_max)) along e_ji, > 0 for 0 < n < 2
-    (spec 4, F1 + F2)."""
-    bracket = np.where(l < d_max, 1.0 / l - 1.0 / d_max, 0.0)
-    return k_uav * bracket * l ** (n - 2.0) * (1.0 - 0.5 * n * (1.0 - l / d_max))
-
-
-def _grid_candidates(p_at: np.ndarray, p_src: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
-    """Candidate pairs from a horizontal hash grid of cell size `cell`: each point against the sources of
-    its own and the 8 surrounding cells. Rows of p_at must be finite."""
-    src_cell = np.floor(p_src[:, :2] / cell).astype(np.int64)
-    at_cell = np.floor(p_at[:, :2] / cell).astype(np.int64)
-    low = np.minimum(src_cell.min(axis=0), at_cell.min(axis=0)) - 1
-    width = int(max(src_cell[:, 1].max(), at_cell[:, 1].max()) - low[1]) + 2
-    src_key = (src_cell[:, 0] - low[0]) * width + (src_cell[:, 1] - low[1])
-    order = np.argsort(src_key, kind="stable")
-    keys = src_key[order]
-    at_key = (at_cell[:, 0] - low[0]) * width + (at_cell[:, 1] - low[1])
-    shifts = np.array([dx * width + dy for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
-    query = (at_key[:, None] + shifts[None, :]).ravel()
-    lo = np.searchsorted(keys, query, side="left")
-    counts = np.searchsorted(keys, query, side="right") - lo
-    i = np.repeat(np.arange(len(p_at)).repeat(len(shifts)), counts)
-    first = np.repeat(lo - (np.cumsum(counts) - counts), counts)
-    return i, order[np.arange(len(i)) + first]
-
-
-def neighbour_pairs(
-    p_at: np.ndarray, p_src: np.ndarray, radius: float, same_rows: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """Index pairs (i, j) with |p_at[i] - p_src[j]| < radius; `same_rows`: row i of p_at and row i of p_src
-    are the same vehicle, so pairs i == j are left out (when p_src is a subset of the vehicles, the caller
-    drops self-pairs by vehicle). Rows of p_src must be finite; NaN rows of p_at match nothing.
-
-    Small fleets: one dense matrix product. Large ones: a horizontal hash grid with cells of `radius`, so
-    the cost grows with N times the neighbours per cell instead of N^2.
-    """
-    n_at, n_src = len(p_at), len(p_src)
-    if n_at == 0 or n_src == 0:
-        empty = np.zeros(0, dtype=np.intp)
-        return empty, empty
-    if n_at * n_src <= DENSE_PAIRS_MAX:
-        i, j = np.nonzero(squared_distances(p_at, p_src) < (radius + 1e-6) ** 2)
-    else:
-        finite = np.flatnonzero(np.isfinite(p_at).all(axis=1))
-        i, j = _grid_candidates(p_at[finite], p_src, radius)
-        i = finite[i]
-    if same_rows:
-        keep = i != j
-        i, j = i[keep], j[keep]
-    d = p_at[i] - p_src[j]
-    near = np.einsum("pd,pd->p", d, d) < radius * radius
-    return i[near], j[near]
-
-
-CLOSING_MARGIN_M = 1.0  # m kept beyond d_emg by the closing-speed cap
-CLOSING_RANGE_MAX_M = 200.0  # m, pairs farther apart than this are not checked
+def uav_potential(p_at: np.ndarray, p_src: np.ndarray, k_uav: float, n: float, d_max: float) -> np.ndarray:
+    """Sum over j != i of U_ij(|p_at[i] - p_src[j]|), (N,) (dense; for tests and small N)."""
+    d = np.linalg.norm(p_at[:, None, :] - p_src[None, :, :], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    return pair_potential(d, k_uav, n, d_max).sum(axis=1)
 
 
 def closing_deceleration(sep: SeparationParams, tilt_max: float, g: float) -> float:
@@ -110,123 +62,252 @@ def closing_deceleration(sep: SeparationParams, tilt_max: float, g: float) -> fl
     return accel
 
 
+def closing_range(d_emg: float, accel: float, speed_max: float) -> float:
+    """m: how far apart `closing_speed_caps` checks pairs: d_emg + 1 m plus the distance two vehicles
+    closing at 2 speed_max m/s need to stop at accel m/s^2, at most CLOSING_RANGE_MAX_M."""
+    reach = d_emg + CLOSING_MARGIN_M + (2.0 * speed_max) ** 2 / (2.0 * accel)
+    return min(reach, CLOSING_RANGE_MAX_M)
+
+
+@kernel
+def _row_norms(v: np.ndarray) -> np.ndarray:
+    """|v| of each row of (N, 3), (N,)."""
+    out = np.empty(v.shape[0])
+    for r in range(v.shape[0]):
+        out[r] = norm3(v[r, 0], v[r, 1], v[r, 2])
+    return out
+
+
+@kernel
+def _grid_order(p_at: np.ndarray, rows: np.ndarray, p_src: np.ndarray, cell: float) -> np.ndarray:
+    """The hash grid's candidates: for each at-row of `rows`, in order, the source indices of its own and
+    the 8 surrounding horizontal cells of size `cell` m, cell by cell (dx, then dy, from -1), each cell's
+    sources in index order. Returns (candidates, 2) index pairs (at row, source)."""
+    n_src = p_src.shape[0]
+    src_cell = np.empty((n_src, 2), dtype=np.int64)
+    for j in range(n_src):
+        src_cell[j, 0] = np.int64(np.floor(p_src[j, 0] / cell))
+        src_cell[j, 1] = np.int64(np.floor(p_src[j, 1] / cell))
+    at_cell = np.empty((rows.shape[0], 2), dtype=np.int64)
+    for r in range(rows.shape[0]):
+        at_cell[r, 0] = np.int64(np.floor(p_at[rows[r], 0] / cell))
+        at_cell[r, 1] = np.int64(np.floor(p_at[rows[r], 1] / cell))
+    low0 = min(src_cell[:, 0].min(), at_cell[:, 0].min()) - 1
+    low1 = min(src_cell[:, 1].min(), at_cell[:, 1].min()) - 1
+    width = max(src_cell[:, 1].max(), at_cell[:, 1].max()) - low1 + 2
+    src_key = (src_cell[:, 0] - low0) * width + (src_cell[:, 1] - low1)
+    order = np.argsort(src_key, kind="mergesort")
+    keys = src_key[order]
+    pairs = []
+    for r in range(rows.shape[0]):
+        at_key = (at_cell[r, 0] - low0) * width + (at_cell[r, 1] - low1)
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                query = at_key + dx * width + dy
+                lo = np.searchsorted(keys, query, side="left")
+                hi = np.searchsorted(keys, query, side="right")
+                for m in range(lo, hi):
+                    pairs.append((rows[r], order[m]))
+    out = np.empty((len(pairs), 2), dtype=np.intp)
+    for m in range(len(pairs)):
+        out[m, 0], out[m, 1] = pairs[m]
+    return out
+
+
+@kernel
+def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float, same_rows: bool) -> np.ndarray:
+    """Index pairs (P, 2) (i, j) (j indexes p_src (M, 3)) with |p_at[i] - p_src[j]| < radius m, in (i, j)
+    order (the hash grid's visiting order above DENSE_PAIRS_MAX candidates); `same_rows`: row i of both is
+    one vehicle, so i == j is left out. Rows of p_src must be finite; NaN rows of p_at match nothing."""
+    n_at, n_src = p_at.shape[0], p_src.shape[0]
+    if n_at * n_src <= DENSE_PAIRS_MAX:
+        candidates = np.empty((n_at * n_src, 2), dtype=np.intp)
+        m = 0
+        for i in range(n_at):
+            for j in range(n_src):
+                candidates[m, 0], candidates[m, 1] = i, j
+                m += 1
+    else:
+        finite = np.empty(n_at, dtype=np.intp)
+        f = 0
+        for i in range(n_at):
+            if np.isfinite(p_at[i, 0]) and np.isfinite(p_at[i, 1]) and np.isfinite(p_at[i, 2]):
+                finite[f] = i
+                f += 1
+        if f == 0:
+            return np.empty((0, 2), dtype=np.intp)
+        candidates = _grid_order(p_at, finite[:f], p_src, radius)
+    out = np.empty_like(candidates)
+    r_sq = radius * radius
+    p = 0
+    for m in range(candidates.shape[0]):
+        i, j = candidates[m, 0], candidates[m, 1]
+        if same_rows and i == j:
+            continue
+        d0, d1, d2 = p_at[i, 0] - p_src[j, 0], p_at[i, 1] - p_src[j, 1], p_at[i, 2] - p_src[j, 2]
+        if dot3(d0, d1, d2, d0, d1, d2) < r_sq:
+            out[p, 0], out[p, 1] = i, j
+            p += 1
+    return out[:p]
+
+
+@kernel
+def uav_pairs(
+    p_at: np.ndarray, p_src: np.ndarray, vel: np.ndarray, at_vel: np.ndarray, src_valid: np.ndarray,
+    d_max: float, l_min: float, brake_accel: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The pairs (P, 2) (i, j), j != i a valid source (src_valid (N,)), closer than d_max m, with the unit
+    vectors e_ji (P, 3) from j to i and l = max(distance, l_min) (P,). Two vehicles at one point
+    (distance < l_min) get the direction sgn(i - j) z.
+
+    [add] With brake_accel a_b > 0, a closing pair is felt at its closest approach along the relative
+    braking path: the separation d = p_at[i] - p_src[j] moving at w = at_vel[i] - vel[j] for
+    |w| / (4 a_b) s (both braking at a_b), so two vehicles heading for each other start to give way while
+    they can still stop, and sideways (at the separation they would pass at) rather than head-on. Pairs
+    moving apart are felt where they are."""
+    n = p_at.shape[0]
+    src_index = np.flatnonzero(src_valid)
+    sweep = brake_accel > 0.0
+    if sweep:
+        rel_speed_max = np.nanmax(_row_norms(at_vel)) + np.nanmax(_row_norms(vel))
+        reach = d_max + rel_speed_max * rel_speed_max / (4.0 * brake_accel)
+    else:
+        reach = d_max
+    src = np.empty((src_index.shape[0], 3))
+    for m in range(src_index.shape[0]):
+        src[m] = p_src[src_index[m]]
+    candidates = (
+        neighbour_pairs(p_at, src, reach, False) if n > 0 and src.shape[0] > 0 else np.empty((0, 2), np.intp)
+    )
+    pairs = np.empty_like(candidates)
+    e_ji = np.empty((candidates.shape[0], 3))
+    l_out = np.empty(candidates.shape[0])
+    p = 0
+    for m in range(candidates.shape[0]):
+        i, j = candidates[m, 0], src_index[candidates[m, 1]]
+        if i == j:
+            continue
+        d0, d1, d2 = p_at[i, 0] - p_src[j, 0], p_at[i, 1] - p_src[j, 1], p_at[i, 2] - p_src[j, 2]
+        if sweep:
+            w0, w1, w2 = at_vel[i, 0] - vel[j, 0], at_vel[i, 1] - vel[j, 1], at_vel[i, 2] - vel[j, 2]
+            w_sq = dot3(w0, w1, w2, w0, w1, w2)
+            length = math.sqrt(w_sq) / (4.0 * brake_accel)
+            closing = -dot3(d0, d1, d2, w0, w1, w2)
+            t_cpa = clip(closing / w_sq if w_sq > 0.0 else 0.0, 0.0, length)
+            d0, d1, d2 = d0 + w0 * t_cpa, d1 + w1 * t_cpa, d2 + w2 * t_cpa
+        dist = math.sqrt(dot3(d0, d1, d2, d0, d1, d2))
+        if not dist < d_max:
+            continue
+        pairs[p, 0], pairs[p, 1] = i, j
+        if dist < l_min:
+            e_ji[p, 0], e_ji[p, 1], e_ji[p, 2] = 0.0, 0.0, 1.0 if i > j else -1.0
+        else:
+            e_ji[p, 0], e_ji[p, 1], e_ji[p, 2] = d0 / dist, d1 / dist, d2 / dist
+        l_out[p] = maximum(dist, l_min)
+        p += 1
+    return pairs[:p], e_ji[:p], l_out[:p]
+
+
+@kernel
+def uav_forces(
+    n: int, pairs: np.ndarray, e_ji: np.ndarray, l: np.ndarray, l_pow: np.ndarray, vel: np.ndarray,
+    k_uav: float, n_exp: float, d_max: float, formula: bool, d_emg: float, a_e: float, s_s: float,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The force (n, 3) and emergency flags (n,) of the pairs of `uav_pairs` (l_pow = l^(n-2) (P,)):
+    |F_ij| = k_uav (1/l - 1/D_max) l^(n-2) (1 - n/2 (1 - l/D_max)) along e_ji (spec 4, F1 + F2), plus
+    |F_ij| sgn(i - j) z inside D_Emg (Eq 18: the larger index pushed up), which also flags vehicle i.
+    D_Emg: `formula` Eq 20 from the velocities (N, 3), at most d_max, else the constant `d_emg`."""
+    force = np.zeros((n, 3))
+    emergency = np.zeros(n, dtype=np.bool_)
+    half_n = 0.5 * n_exp
+    for p in range(pairs.shape[0]):
+        i, j = pairs[p, 0], pairs[p, 1]
+        lp = l[p]
+        bracket = 1.0 / lp - 1.0 / d_max if lp < d_max else 0.0
+        scale = k_uav * bracket * l_pow[p] * (1.0 - half_n * (1.0 - lp / d_max))
+        sign = 1.0 if i > j else -1.0
+        if formula:
+            v_re = norm3(vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1], vel[i, 2] - vel[j, 2])
+            limit = minimum(v_re * v_re / (2.0 * a_e) + s_s, d_max)
+        else:
+            limit = d_emg
+        in_emg = lp <= limit
+        force[i, 0] += scale * e_ji[p, 0]
+        force[i, 1] += scale * e_ji[p, 1]
+        force[i, 2] += scale * e_ji[p, 2] + (scale * sign if in_emg else 0.0)
+        if in_emg:
+            emergency[i] = True
+    return force, emergency
+
+
+@kernel
 def closing_speed_caps(
-    pos: np.ndarray, vel: np.ndarray, valid: np.ndarray, d_emg: float, accel: float, speed_max: float
+    pos: np.ndarray, vel: np.ndarray, valid: np.ndarray, d_emg: float, accel: float, radius: float
 ) -> np.ndarray:
     """(N,) m/s horizontal speed caps [add]: vehicle i closing on vehicle j at c = (v_i - v_j) . u_ij
-    (u_ij the unit vector from i to j) faster than it could stop at `accel` m/s^2 before `d_emg` + 1 m,
+    (u_ij the unit vector from i to j) faster than it could stop at `accel` m/s^2 before d_emg + 1 m,
     c > sqrt(2 accel (d - d_emg - 1)), is capped at |v_i,xy| - (c - that), but only while its own velocity
     points at j (v_i . u_ij > 0): the vehicle behind slows down, the one ahead is left alone. inf where
-    nothing closes in; pairs with an invalid row (`valid` (N,) bool False) are skipped. pos, vel (N, 3) ENU.
-    `speed_max` m/s bounds the relative speeds that set the range checked."""
-    n = len(pos)
+    nothing closes in; rows not `valid` (N,) or not finite are skipped; pairs farther apart than `radius`
+    m (closing_range) are not checked. pos, vel (N, 3) ENU."""
+    n = pos.shape[0]
     caps = np.full(n, np.inf)
     if n < 2 or accel <= 0:
         return caps
-    reach = d_emg + CLOSING_MARGIN_M + (2.0 * speed_max) ** 2 / (2.0 * accel)
-    rows = np.flatnonzero(valid & np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1))
-    i, j = neighbour_pairs(pos[rows], pos[rows], min(reach, CLOSING_RANGE_MAX_M), same_rows=True)
-    if not len(i):
-        return caps
-    i, j = rows[i], rows[j]
-    rel = pos[j] - pos[i]
-    dist = np.sqrt(np.einsum("pd,pd->p", rel, rel))
-    unit = rel / np.maximum(dist, 1e-9)[:, None]
-    own = np.einsum("pd,pd->p", vel[i], unit)
-    closing = own - np.einsum("pd,pd->p", vel[j], unit)
-    allowed = np.sqrt(2.0 * accel * np.maximum(dist - d_emg - CLOSING_MARGIN_M, 0.0))
-    excess = closing - allowed
-    hit = (own > 0.0) & (excess > 0.0)
-    speed = np.hypot(vel[i, 0], vel[i, 1])
-    np.minimum.at(caps, i[hit], np.maximum(speed[hit] - excess[hit], 0.0))
+    rows = np.empty(n, dtype=np.intp)
+    m = 0
+    for r in range(n):
+        ok = valid[r]
+        for d in range(3):
+            ok = ok and np.isfinite(pos[r, d]) and np.isfinite(vel[r, d])
+        if ok:
+            rows[m] = r
+            m += 1
+    rows = rows[:m]
+    sub = np.empty((m, 3))
+    for r in range(m):
+        sub[r] = pos[rows[r]]
+    pairs = neighbour_pairs(sub, sub, radius, True)
+    for p in range(pairs.shape[0]):
+        i, j = rows[pairs[p, 0]], rows[pairs[p, 1]]
+        r0, r1, r2 = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
+        dist = math.sqrt(dot3(r0, r1, r2, r0, r1, r2))
+        floor = maximum(dist, 1e-9)
+        u0, u1, u2 = r0 / floor, r1 / floor, r2 / floor
+        own = dot3(vel[i, 0], vel[i, 1], vel[i, 2], u0, u1, u2)
+        closing = own - dot3(vel[j, 0], vel[j, 1], vel[j, 2], u0, u1, u2)
+        allowed = math.sqrt(2.0 * accel * maximum(dist - d_emg - CLOSING_MARGIN_M, 0.0))
+        excess = closing - allowed
+        if own > 0.0 and excess > 0.0:
+            speed = math.hypot(vel[i, 0], vel[i, 1])
+            caps[i] = minimum(caps[i], maximum(speed - excess, 0.0))
     return caps
-
-
-def uav_potential(p_at: np.ndarray, p_src: np.ndarray, k_uav: float, n: float, d_max: float) -> np.ndarray:
-    """Sum over j != i of U_ij(|p_at[i] - p_src[j]|), (N,) (dense; for tests and small N)."""
-    d = np.linalg.norm(p_at[:, None, :] - p_src[None, :, :], axis=-1)
-    np.fill_diagonal(d, np.inf)
-    return pair_potential(d, k_uav, n, d_max).sum(axis=1)
 
 
 def uav_repulsion(
     p_at: np.ndarray,
     p_src: np.ndarray,
     vel: np.ndarray,
-    k_uav: float,
-    n: float,
+    src_valid: np.ndarray,
+    at_vel: np.ndarray,
+    brake_accel: float,
+    fp: FieldParams,
     d_max: float,
-    sep: SeparationParams,
-    l_min: float,
-    src_valid: np.ndarray | None = None,
-    at_vel: np.ndarray | None = None,
-    brake_accel: float = 0.0,
+    formula: bool,
+    d_emg: float,
+    a_e: float,
+    s_s: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Total inter-UAV force F_uav,i = sum_j F_uav,ij (N, D) and the emergency flag (N,) (spec 4, Eq 19).
-
-    `vel` (N, D) measured velocities give v_re = |v_i - v_j| in formula mode (Eq 20, D_Emg clamped to
-    D_max). Inside D_Emg the pair adds |F_ij| sgn(i - j) z_hat (Eq 18: larger index pushed up). Two vehicles
-    at one point (l < l_min) use l_min and direction sgn(i - j) along the last axis. Sources with
-    `src_valid` False are ignored.
-
-    [add] With `at_vel` (N, D), the velocities of the evaluation points, and `brake_accel` a_b > 0, a closing
-    pair is felt at its closest approach along the relative braking path: the separation
-    d = p_at[i] - p_src[j] moving at w = at_vel[i] - vel[j] for |w|^2 / (4 a_b) (both braking at a_b), so two
-    vehicles heading for each other start to give way while they can still stop, and sideways (at the
-    separation they would pass at) rather than head-on. Pairs moving apart are felt where they are.
-    """
-    n_veh, dim = p_at.shape
-    force = np.zeros((n_veh, dim))
-    emergency = np.zeros(n_veh, dtype=bool)
-    if src_valid is None:
-        src_index = np.arange(n_veh)
-    else:
-        src_index = np.flatnonzero(src_valid)
-    sweep = at_vel is not None and brake_accel > 0.0
-    if sweep:
-        assert at_vel is not None
-        rel_speed_max = np.nanmax(row_norms(at_vel)) + np.nanmax(row_norms(vel))
-        reach = d_max + rel_speed_max * rel_speed_max / (4.0 * brake_accel)
-    else:
-        reach = d_max
-    # src_index maps the valid sources back to vehicles; a self-pair is one whose vehicles are equal
-    i, jj = neighbour_pairs(p_at, p_src[src_index], reach, same_rows=False)
-    j = src_index[jj]
-    keep = i != j
-    i, j = i[keep], j[keep]
-    if len(i) == 0:
-        return force, emergency
-    diff = p_at[i] - p_src[j]
-    if sweep:
-        assert at_vel is not None
-        w = at_vel[i] - vel[j]
-        w_sq = np.einsum("pd,pd->p", w, w)
-        length = np.sqrt(w_sq) / (4.0 * brake_accel)  # s of relative motion until both have stopped
-        closing = -np.einsum("pd,pd->p", diff, w)
-        t_cpa = np.clip(np.divide(closing, w_sq, out=np.zeros_like(closing), where=w_sq > 0.0), 0.0, length)
-        diff = diff + w * t_cpa[:, None]
-    l = np.sqrt(np.einsum("pd,pd->p", diff, diff))
-    near = l < d_max
-    i, j, diff, l = i[near], j[near], diff[near], l[near]
-    if len(i) == 0:
-        return force, emergency
-    sign = np.sign(i - j).astype(float)
-    coincident = l < l_min
-    e_ji = diff / np.where(coincident, 1.0, l)[:, None]
-    e_ji[coincident] = 0.0
-    e_ji[coincident, -1] = sign[coincident]
-    l = np.maximum(l, l_min)
-    scale = pair_force_scale(l, k_uav, n, d_max)
-    pair_force = scale[:, None] * e_ji
-    if sep.mode == "constant":
-        d_emg = np.full(len(i), min(sep.d_emg, d_max))
-    else:
-        v_re = row_norms(vel[i] - vel[j])
-        d_emg = np.minimum(d_emg_formula(v_re, sep.a_e, sep.s_s), d_max)
-    in_emg = l <= d_emg
-    if dim == 3:
-        pair_force[:, 2] += np.where(in_emg, scale * sign, 0.0)
-    for axis in range(dim):
-        force[:, axis] = np.bincount(i, weights=pair_force[:, axis], minlength=n_veh)
-    emergency[i[in_emg]] = True
-    return force, emergency
+    """Total inter-UAV force F_uav,i = sum_j F_uav,ij (N, 3) and the emergency flags (N,) (spec 4, Eq 19),
+    gains fp.k_uav, exponent fp.n_uav, range d_max m, floor fp.l_min; sources with src_valid (N,) False are
+    ignored. Emergency range D_Emg: `formula` Eq 20 v_re^2 / (2 a_e) + s_s from the velocities vel (N, 3)
+    (at most d_max), else the constant d_emg (already at most d_max). [add] The braking sweep with at_vel,
+    brake_accel (uav_pairs)."""
+    pairs, e_ji, l = uav_pairs(
+        p_at, p_src, vel, at_vel, src_valid, float(d_max), float(fp.l_min), brake_accel
+    )
+    l_pow = l ** (fp.n_uav - 2.0)
+    return uav_forces(
+        len(p_at), pairs, e_ji, l, l_pow, vel, float(fp.k_uav), float(fp.n_uav), float(d_max), formula,
+        float(d_emg), float(a_e), float(s_s),
+    )  # fmt: skip

@@ -25,80 +25,122 @@ the term does nothing. c_hat is kept in [0, drag_max] and does not adapt while t
 
 from __future__ import annotations
 
+import math
+from typing import NamedTuple
+
 import numpy as np
 
-from gcs_swarm.guidance.inversion import limit_thrust_vector
+from gcs_swarm.guidance.inversion import limited_thrust
+from gcs_swarm.guidance.numpy_rules import clip_to_scalars, maximum, norm3, sign
 from gcs_swarm.guidance.params import G, Limits, SMCAxisGains, SMCParams
-from gcs_swarm.guidance.vector_ops import row_norms
+from swarm_common.jit import kernel
 
 
 def _per_axis(params: SMCParams, name: str) -> np.ndarray:
+    """(3,) the gain `name` of the x, y, z channels."""
     gains: tuple[SMCAxisGains, ...] = (params.xy, params.xy, params.z)
     return np.array([getattr(a, name) for a in gains])
 
 
-def power_term(s: np.ndarray, xi: np.ndarray, boundary_layer: float) -> np.ndarray:
-    """|s|^xi sgn(s), or |s|^xi sat(s/Phi) with a boundary layer Phi > 0 (spec 7.4)."""
-    switch = np.sign(s) if boundary_layer <= 0.0 else np.clip(s / boundary_layer, -1.0, 1.0)
-    return np.abs(s) ** xi * switch
+class SMCSettings(NamedTuple):
+    """The scalar settings of `smc_output`, from SMCParams and Limits (SMCController)."""
+
+    boundary_layer: float  # m/s, Phi; 0: sgn
+    g: float  # m/s^2
+    drag_adaptation: float  # 1/m^2, gamma; 0: off
+    drag_max: float  # 1/s, c_hat's bound
+    has_limits: bool  # the spec 5 limits hold the estimates
+    tan_tilt: float  # tan(tilt_max)
+    uz_floor: float  # m/s^2, uz_min_g g
+    thrust_cap: float  # m/s^2, thrust_max_g g
+    d_max_xy: float  # m/s^2, |d_hat_xy| bound
+    d_max_z: float  # m/s^2, |d_hat_z| bound
+    estimate: bool  # any k_d > 0: the disturbance estimate is on
 
 
-def reaching_law(s: np.ndarray, params: SMCParams) -> np.ndarray:
-    """s_dot = -k1 s - k2 |s|^xi1 sgn(s) - k3 |s|^xi2 sgn(s), (N, 3) (spec 7.1)."""
-    k1, k2, k3 = (_per_axis(params, k) for k in ("k1", "k2", "k3"))
-    xi1, xi2 = _per_axis(params, "xi1"), _per_axis(params, "xi2")
-    phi = params.boundary_layer
-    return -k1 * s - k2 * power_term(s, xi1, phi) - k3 * power_term(s, xi2, phi)
+@kernel
+def smc_sliding(
+    x_d: np.ndarray, xd_dot: np.ndarray, x: np.ndarray, v: np.ndarray, c1: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """e1 = x_d - x, s = e2 = c1 e1 + xd_dot - v (spec 7.1) and |s|, each (N, 3); c1 (3,) per axis."""
+    n = x.shape[0]
+    e1 = np.empty((n, 3))
+    s = np.empty((n, 3))
+    abs_s = np.empty((n, 3))
+    for i in range(n):
+        for d in range(3):
+            e1[i, d] = x_d[i, d] - x[i, d]
+            s[i, d] = c1[d] * e1[i, d] + xd_dot[i, d] - v[i, d]
+            abs_s[i, d] = abs(s[i, d])
+    return e1, s, abs_s
 
 
-def sliding_variable(
-    x_d: np.ndarray, xd_dot: np.ndarray, x: np.ndarray, v: np.ndarray, params: SMCParams
-) -> tuple[np.ndarray, np.ndarray]:
-    """e1 = x_d - x and s = e2 = c1 e1 + xd_dot - v, each (N, 3) (spec 7.1)."""
-    e1 = x_d - x
-    return e1, _per_axis(params, "c1") * e1 + xd_dot - v
-
-
-def smc_control(
-    x_d: np.ndarray,
-    xd_dot: np.ndarray,
-    xd_ddot: np.ndarray,
-    x: np.ndarray,
-    v: np.ndarray,
-    params: SMCParams,
-    g: float = G,
-) -> tuple[np.ndarray, np.ndarray]:
-    """U = xd_ddot - c1^2 e1 + c1 e2 - reaching_law(s) (+g in z), and s; both (N, 3) (spec 7.1, Eq 49)."""
-    c1 = _per_axis(params, "c1")
-    e1, s = sliding_variable(x_d, xd_dot, x, v, params)
-    u = xd_ddot - c1 * c1 * e1 + c1 * s - reaching_law(s, params)
-    u[:, 2] += g
-    return u, s
-
-
-def clamp_estimate(d_hat: np.ndarray, params: SMCParams) -> np.ndarray:
-    """d_hat (N, 3) m/s^2 with its horizontal norm at most xy.disturbance_max and |z| at most
-    z.disturbance_max [add]."""
-    out = np.array(d_hat, dtype=float)
-    cap = params.xy.disturbance_max
-    norm = np.hypot(out[:, 0], out[:, 1])
-    over = norm > cap
-    out[over, :2] *= (cap / norm[over])[:, None]
-    out[:, 2] = np.clip(out[:, 2], -params.z.disturbance_max, params.z.disturbance_max)
-    return out
-
-
-def winding(u: np.ndarray, step: np.ndarray, limits: Limits, g: float = G) -> np.ndarray:
-    """(N, 3) bool: channels whose estimate step (N, 3) would push U (N, 3) further into a spec 5 limit that
-    the inversion applies: xy beyond the tilt cone (limit 2) or the thrust cap (limit 3, taken as
-    |U| <= thrust_max_g g); z below the U_z floor (limit 1) or above the thrust cap [add]."""
-    floor = limits.uz_min_g * g
-    tilted = np.hypot(u[:, 0], u[:, 1]) > np.maximum(u[:, 2], floor) * np.tan(limits.tilt_max)
-    capped = row_norms(limit_thrust_vector(u, limits, g)) > limits.thrust_max_g * g
-    out = np.empty(u.shape, dtype=bool)
-    out[:, :2] = (tilted | capped)[:, None] & (step[:, :2] * u[:, :2] > 0)
-    out[:, 2] = ((u[:, 2] < floor) & (step[:, 2] < 0)) | (capped & (step[:, 2] > 0))
-    return out
+@kernel
+def smc_output(
+    e1: np.ndarray, s: np.ndarray, power1: np.ndarray, power2: np.ndarray, xd_ddot: np.ndarray, v: np.ndarray,
+    gains: np.ndarray, c_hat: np.ndarray, d_hat: np.ndarray, dt: float, config: SMCSettings,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """U (N, 3) m/s^2 from e1, s (N, 3) and power1, power2 = |s|^xi1, |s|^xi2 (N, 3): Eq 49
+    U = xd_ddot - c1^2 e1 + c1 s - reaching law (+g in z), the reaching law
+    -k1 s - k2 |s|^xi1 sw(s) - k3 |s|^xi2 sw(s) with sw = sgn, or sat(s / Phi) with a boundary layer Phi > 0
+    (spec 7.1, 7.4); then the drag adaptation (U_xy += c_hat v_xy) and the disturbance estimate
+    (U += d_hat) with their next values c_hat (N,), d_hat (N, 3) (module docstring; rows without a finite
+    state do not integrate). `gains` (5, 3): rows c1, k1, k2, k3, k_d per axis."""
+    phi, g, gamma, drag_max = config.boundary_layer, config.g, config.drag_adaptation, config.drag_max
+    has_limits, tan_tilt = config.has_limits, config.tan_tilt
+    uz_floor, thrust_cap = config.uz_floor, config.thrust_cap
+    d_max_xy, d_max_z, estimate = config.d_max_xy, config.d_max_z, config.estimate
+    n = s.shape[0]
+    u = np.empty((n, 3))
+    c_next = c_hat.copy()
+    d_next = d_hat.copy()
+    for i in range(n):
+        for d in range(3):
+            if phi <= 0.0:
+                switch = sign(s[i, d])
+            else:
+                switch = clip_to_scalars(s[i, d] / phi, -1.0, 1.0)
+            reaching = -gains[1, d] * s[i, d] - gains[2, d] * (power1[i, d] * switch)
+            reaching = reaching - gains[3, d] * (power2[i, d] * switch)
+            c1 = gains[0, d]
+            u[i, d] = xd_ddot[i, d] - c1 * c1 * e1[i, d] + c1 * s[i, d] - reaching
+        u[i, 2] += g
+        if gamma > 0.0:  # [add] drag adaptation, held while the tilt limit cuts U
+            vx = v[i, 0] if np.isfinite(v[i, 0]) else 0.0
+            vy = v[i, 1] if np.isfinite(v[i, 1]) else 0.0
+            u[i, 0] += c_hat[i] * vx
+            u[i, 1] += c_hat[i] * vy
+            sx = s[i, 0] if np.isfinite(s[i, 0]) else 0.0
+            sy = s[i, 1] if np.isfinite(s[i, 1]) else 0.0
+            step = gamma * (0.0 + sx * vx + sy * vy) * dt
+            if has_limits and math.hypot(u[i, 0], u[i, 1]) > maximum(u[i, 2], 0.0) * tan_tilt and step > 0.0:
+                step = 0.0
+            c_next[i] = clip_to_scalars(c_hat[i] + step, 0.0, drag_max)
+        if not estimate:
+            continue
+        for d in range(3):
+            u[i, d] = u[i, d] + d_hat[i, d]
+        st0 = gains[4, 0] * s[i, 0] * dt if np.isfinite(s[i, 0]) else 0.0
+        st1 = gains[4, 1] * s[i, 1] * dt if np.isfinite(s[i, 1]) else 0.0
+        st2 = gains[4, 2] * s[i, 2] * dt if np.isfinite(s[i, 2]) else 0.0
+        if has_limits:  # [add] conditional integration: no step further into a spec 5 limit
+            u0, u1, u2 = u[i, 0], u[i, 1], u[i, 2]
+            tilted = math.hypot(u0, u1) > maximum(u2, uz_floor) * tan_tilt
+            l0, l1, l2 = limited_thrust(u0, u1, u2, uz_floor, tan_tilt)
+            capped = norm3(l0, l1, l2) > thrust_cap
+            if (tilted or capped) and st0 * u0 > 0:
+                st0 = 0.0
+            if (tilted or capped) and st1 * u1 > 0:
+                st1 = 0.0
+            if (u2 < uz_floor and st2 < 0) or (capped and st2 > 0):
+                st2 = 0.0
+        x0, x1, x2 = d_hat[i, 0] + st0, d_hat[i, 1] + st1, d_hat[i, 2] + st2  # within disturbance_max
+        norm = math.hypot(x0, x1)
+        if norm > d_max_xy:
+            scale = d_max_xy / norm
+            x0, x1 = x0 * scale, x1 * scale
+        d_next[i, 0], d_next[i, 1], d_next[i, 2] = x0, x1, clip_to_scalars(x2, -d_max_z, d_max_z)
+    return u, c_next, d_next
 
 
 class SMCController:
@@ -106,12 +148,23 @@ class SMCController:
     d_hat and drag adaptation c_hat [add] (module docstring)."""
 
     def __init__(self, params: SMCParams, g: float = G, limits: Limits | None = None) -> None:
-        """`limits`: the spec 5 limits the inversion applies, so the estimate holds while they cut U; None:
+        """`limits`: the spec 5 limits the inversion applies, so the estimates hold while they cut U; None:
         only the disturbance_max clamp."""
         self.params = params
         self.g = g
         self.limits = limits
         self.k_d = _per_axis(params, "disturbance_gain")
+        self.gains = np.array([_per_axis(params, name) for name in ("c1", "k1", "k2", "k3")] + [self.k_d])
+        self.xi1, self.xi2 = _per_axis(params, "xi1"), _per_axis(params, "xi2")
+        self.settings = SMCSettings(
+            boundary_layer=float(params.boundary_layer), g=float(g),
+            drag_adaptation=float(params.drag_adaptation), drag_max=float(params.drag_max),
+            has_limits=limits is not None, tan_tilt=float(np.tan(limits.tilt_max)) if limits else 0.0,
+            uz_floor=float(limits.uz_min_g * g) if limits else 0.0,
+            thrust_cap=float(limits.thrust_max_g * g) if limits else 0.0,
+            d_max_xy=float(params.xy.disturbance_max), d_max_z=float(params.z.disturbance_max),
+            estimate=bool(self.k_d.any()),
+        )  # fmt: skip
         self.s = np.zeros((0, 3))  # last sliding variable (N, 3), m/s, for diagnostics
         self.d_hat = np.zeros((0, 3))  # disturbance estimate (N, 3), m/s^2, added to U
         self.c_hat = np.zeros(0)  # horizontal drag estimate (N,), 1/s
@@ -136,38 +189,27 @@ class SMCController:
         v: np.ndarray,
         dt: float,
     ) -> np.ndarray:
-        """Thrust acceleration U (N, 3), m/s^2; dt (s) since the previous call integrates d_hat (unused at
-        k_d = 0, where the law is static Eq 49). Without a reset the estimate starts at zero."""
-        u, self.s = smc_control(x_d, xd_dot, xd_ddot, x, v, self.params, self.g)
-        if self.params.drag_adaptation > 0.0:
-            u = self._drag_compensated(u, v, dt)
-        if not self.k_d.any():
-            return u
-        if self.d_hat.shape != u.shape:
+        """Thrust acceleration U (N, 3), m/s^2; dt (s) since the previous call integrates the estimates
+        (unused with both off, where the law is static Eq 49). Without a reset the estimates start at
+        zero."""
+        n = len(x)
+        adapting = self.settings.drag_adaptation > 0.0
+        if adapting and self.c_hat.shape != (n,):
+            self.c_hat = np.zeros(n)
+        if self.settings.estimate and self.d_hat.shape != (n, 3):
             if len(self.d_hat):
-                raise ValueError(f"SMCController was reset for {len(self.d_hat)} vehicles, got {len(u)}")
-            self.d_hat = np.zeros_like(u)
-        u = u + self.d_hat
-        # Explicit Euler of d_hat_dot = k_d s; rows without a finite state (no telemetry yet) hold.
-        step = np.where(np.isfinite(self.s), self.k_d * self.s * dt, 0.0)
-        if self.limits is not None:
-            step[winding(u, step, self.limits, self.g)] = 0.0
-        self.d_hat = clamp_estimate(self.d_hat + step, self.params)
+                raise ValueError(f"SMCController was reset for {len(self.d_hat)} vehicles, got {n}")
+            self.d_hat = np.zeros((n, 3))
+        x, v = np.ascontiguousarray(x), np.ascontiguousarray(v)
+        e1, self.s, abs_s = smc_sliding(x_d, xd_dot, x, v, self.gains[0])
+        c_hat = self.c_hat if self.c_hat.shape == (n,) else np.zeros(n)
+        d_hat = self.d_hat if self.d_hat.shape == (n, 3) else np.zeros((n, 3))
+        u, c_next, d_next = smc_output(
+            e1, self.s, abs_s**self.xi1, abs_s**self.xi2, xd_ddot, v, self.gains, c_hat, d_hat, float(dt),
+            self.settings,
+        )  # fmt: skip
+        if adapting:
+            self.c_hat = c_next
+        if self.settings.estimate:
+            self.d_hat = d_next
         return u
-
-    def _drag_compensated(self, u: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
-        """U (N, 3) plus c_hat v_xy; one Euler step of c_hat_dot = gamma s_xy . v_xy (module docstring)."""
-        if self.c_hat.shape != (len(u),):
-            self.c_hat = np.zeros(len(u))
-        v_xy = np.where(np.isfinite(v[:, :2]), v[:, :2], 0.0)
-        out = u.copy()
-        out[:, :2] += self.c_hat[:, None] * v_xy
-        s_xy = np.where(np.isfinite(self.s[:, :2]), self.s[:, :2], 0.0)
-        step = self.params.drag_adaptation * np.einsum("nd,nd->n", s_xy, v_xy) * dt
-        if self.limits is not None:  # no adaptation while the tilt or thrust limits cut U (anti-windup)
-            tilted = np.hypot(out[:, 0], out[:, 1]) > np.maximum(out[:, 2], 0.0) * np.tan(
-                self.limits.tilt_max
-            )
-            step = np.where(tilted & (step > 0.0), 0.0, step)
-        self.c_hat = np.clip(self.c_hat + step, 0.0, self.params.drag_max)
-        return out
