@@ -29,7 +29,7 @@ from typing import Any, TypeAlias
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from swarm_common.mavlink_datagrams import PacketTaker, decode_leading_packets
+from swarm_common.mavlink_datagrams import decode_leading_packets
 from swarm_common.signing import VerifyingParser
 
 MAVLinkMessage: TypeAlias = mavlink2.MAVLink_message
@@ -104,16 +104,21 @@ class _DatagramParser:
     The whole MAVLink 2 packets a datagram starts with (usually all of it) are decoded one by one
     (swarm_common.mavlink_datagrams: the checks of `parse_buffer` without its byte-buffer bookkeeping, the
     streamed telemetry built cheaper without a signing key); from the first thing that is not such a packet
-    on, `parse_buffer` takes the rest.
+    on, `parse_buffer` takes the rest. A datagram may be handed over in pieces cut at packet boundaries.
     """
 
     def __init__(self, key: bytes | None = None) -> None:
         self._key = key
         self._parser = new_parser(key)
 
-    def parse(self, data: bytes, take: PacketTaker | None = None) -> list[MAVLinkMessage]:
-        """The messages of one datagram; `take` is offered its whole MAVLink 2 packets first (PacketTaker)."""
-        msgs, start = decode_leading_packets(self._parser, data, take)
+    @property
+    def parser(self) -> mavlink2.MAVLink:
+        """The pymavlink parser now in use (its signing state is the stream timestamps accepted so far)."""
+        return self._parser
+
+    def parse(self, data: bytes) -> list[MAVLinkMessage]:
+        """The messages of one datagram (or of its tail from a packet boundary on)."""
+        msgs, start = decode_leading_packets(self._parser, data)
         if start < len(data):
             msgs += self._parse_buffer(data[start:])
         return msgs
@@ -130,7 +135,15 @@ class _DatagramParser:
 
 
 class Endpoint:
-    """One local socket or serial port. Subclasses implement `fileno`, `receive`, `send`, `close`."""
+    """One local socket or serial port. Subclasses implement `fileno`, `read_into`, `parse`, `send`,
+    `close`, and `parser`.
+
+    Reading and decoding are apart so that link.intake can gather every endpoint's bytes in one buffer and
+    take the plain telemetry from them itself: `read_into` reads one datagram (or one chunk of a stream),
+    `parse` decodes bytes from a packet boundary on (the general path)."""
+
+    reads_per_poll = 1  # datagrams / chunks `read_into` may be called for in one receive
+    stream = False  # a byte stream (tcp, serial): a packet may continue in the next chunk
 
     def __init__(self, spec: ConnectionSpec) -> None:
         self.spec = spec
@@ -139,11 +152,47 @@ class Endpoint:
     def fileno(self) -> int:
         raise NotImplementedError
 
-    def receive(self, take: PacketTaker | None = None) -> list[tuple[MAVLinkMessage, Any]]:
-        """Drain what is readable now: (message, peer address or None) pairs, BAD_DATA included. `take`:
-        offered every whole MAVLink 2 packet of a datagram first (PacketTaker); only a datagram endpoint of
-        one vehicle (udpout) offers them, the others decode everything."""
+    def read_into(self, buffer: memoryview) -> tuple[int, Any] | None:
+        """Read one datagram (or stream chunk) into `buffer`: (its size, the peer address or None); None when
+        nothing more is readable now."""
         raise NotImplementedError
+
+    def parse(self, data: bytes, peer: Any = None) -> list[MAVLinkMessage]:
+        """The messages in `data` (BAD_DATA included), read from `peer`; it starts at a packet boundary."""
+        raise NotImplementedError
+
+    @property
+    def parser(self) -> mavlink2.MAVLink:
+        """The pymavlink parser `parse` uses now."""
+        raise NotImplementedError
+
+    @property
+    def busy(self) -> bool:
+        """The parser holds the start of a packet that the next bytes complete (a stream's)."""
+        return False
+
+    def check_signature(self, packet: bytearray, sysid: int, compid: int) -> bool:
+        """The signature check `parse` applies to a signed packet (swarm_common.signing.VerifyingParser:
+        a good one advances the stream's timestamp); True without a signing key, as pymavlink accepts."""
+        parser = self.parser
+        if parser.signing.secret_key is None:
+            return True
+        return bool(parser.check_signature(packet, sysid, compid))
+
+    def learn(self, sysid: int, peer: Any) -> None:
+        """A packet of `sysid` that passed came from `peer` (UdpRouter answers it there)."""
+
+    def receive(self) -> list[tuple[MAVLinkMessage, Any]]:
+        """Drain what is readable now: (message, peer address or None) pairs, BAD_DATA included."""
+        out: list[tuple[MAVLinkMessage, Any]] = []
+        buffer = memoryview(bytearray(_UDP_MAX))
+        for _ in range(self.reads_per_poll):
+            got = self.read_into(buffer)
+            if got is None:
+                break
+            size, peer = got
+            out.extend((msg, peer) for msg in self.parse(bytes(buffer[:size]), peer))
+        return out
 
     def send(self, packet: bytes | bytearray, sysid: int | None) -> bool:
         """Send one packet towards vehicle `sysid`; False when there is nowhere to send it yet."""
@@ -176,22 +225,29 @@ class UdpRouter(Endpoint):
     def fileno(self) -> int:
         return self._sock.fileno()
 
-    def receive(self, take: PacketTaker | None = None) -> list[tuple[MAVLinkMessage, Any]]:
-        out: list[tuple[MAVLinkMessage, Any]] = []
-        for _ in range(_MAX_READS_PER_POLL):
+    reads_per_poll = _MAX_READS_PER_POLL
+
+    def read_into(self, buffer: memoryview) -> tuple[int, Any] | None:
+        while True:
             try:
-                data, addr = self._sock.recvfrom(_UDP_MAX)
+                return self._sock.recvfrom_into(buffer, _UDP_MAX)
             except (BlockingIOError, InterruptedError):
-                break
+                return None
             except OSError:  # e.g. ICMP port unreachable reported on the socket
                 continue
-            for msg in self._parser.parse(data):
-                if msg.get_type() != "BAD_DATA":
-                    self._learn(msg.get_srcSystem(), addr)
-                out.append((msg, addr))
-        return out
 
-    def _learn(self, sysid: int, addr: Address) -> None:
+    @property
+    def parser(self) -> mavlink2.MAVLink:
+        return self._parser.parser
+
+    def parse(self, data: bytes, peer: Any = None) -> list[MAVLinkMessage]:
+        msgs = self._parser.parse(data)
+        for msg in msgs:
+            if msg.get_type() != "BAD_DATA":
+                self.learn(msg.get_srcSystem(), peer)
+        return msgs
+
+    def learn(self, sysid: int, addr: Address) -> None:
         known = self.addresses.setdefault(sysid, [])
         if not known or known[-1] != addr:
             if addr in known:
@@ -236,6 +292,7 @@ class MavutilEndpoint(Endpoint):
                 raise OSError("serial connections need pyserial (pip install pyserial)") from err
             self._conn = mavutil.mavlink_connection(spec.device, baud=spec.baud, source_system=255)
             self._datagrams = False
+            self.stream = True
             self._stream_parser = new_parser(key)
             return
         if spec.kind == "tcp":
@@ -246,11 +303,13 @@ class MavutilEndpoint(Endpoint):
             finally:
                 socket.setdefaulttimeout(previous)
             self._datagrams = False
+            self.stream = True
             self._stream_parser = new_parser(key)
             return
         self._destination = (socket.gethostbyname(spec.host), spec.port)
         self._conn = mavutil.mavlink_connection(spec.text)
         self._datagrams = True
+        self.reads_per_poll = _MAX_READS_PER_POLL
         self._udp_parser = _DatagramParser(key)
 
     def fileno(self) -> int:
@@ -259,40 +318,42 @@ class MavutilEndpoint(Endpoint):
             raise OSError(f"{self.spec.text} has no pollable file descriptor")
         return int(fd)
 
-    def receive(self, take: PacketTaker | None = None) -> list[tuple[MAVLinkMessage, Any]]:
-        out: list[tuple[MAVLinkMessage, Any]] = []
+    def read_into(self, buffer: memoryview) -> tuple[int, Any] | None:
         if self._datagrams:
-            for _ in range(_MAX_READS_PER_POLL):
+            while True:
                 try:
-                    data, addr = self._conn.port.recvfrom(_UDP_MAX)
+                    return self._conn.port.recv_into(buffer, _UDP_MAX), None
                 except (BlockingIOError, InterruptedError):
-                    break
+                    return None
                 except OSError:  # ECONNREFUSED: nothing listens at the destination (yet)
                     continue
-                out.extend((msg, addr) for msg in self._udp_parser.parse(data, take))
-            return out
-        chunk = b""
         if self.spec.kind == "tcp":
             try:
-                chunk = self._conn.port.recv(_UDP_MAX)
-                self.closed = not chunk
+                size = self._conn.port.recv_into(buffer, _UDP_MAX)
             except (BlockingIOError, InterruptedError):
-                pass
+                return None
             except OSError:
-                self.closed = True
-        else:
-            chunk = self._conn.recv(4096)
-        return [(msg, None) for msg in (self._stream_parser.parse_buffer(chunk) or [])] if chunk else []
+                size = 0
+            self.closed = size == 0
+            return (size, None) if size else None
+        chunk = self._conn.recv(4096)
+        if not chunk:
+            return None
+        buffer[: len(chunk)] = chunk
+        return len(chunk), None
 
     @property
-    def datagram_socket(self) -> socket.socket | None:
-        """The udpout socket, which a caller may read whole datagrams from and hand to `parse_datagram`
-        (link.batch_intake); None for a stream or a serial port."""
-        return self._conn.port if self._datagrams else None
+    def parser(self) -> mavlink2.MAVLink:
+        return self._udp_parser.parser if self._datagrams else self._stream_parser
 
-    def parse_datagram(self, data: bytes, take: PacketTaker | None = None) -> list[MAVLinkMessage]:
-        """The messages of one datagram read from `datagram_socket`, as `receive` makes them."""
-        return self._udp_parser.parse(data, take)
+    @property
+    def busy(self) -> bool:
+        return not self._datagrams and self._stream_parser.buf_len() > 0
+
+    def parse(self, data: bytes, peer: Any = None) -> list[MAVLinkMessage]:
+        if self._datagrams:
+            return self._udp_parser.parse(data)
+        return self._stream_parser.parse_buffer(data) or []
 
     def send(self, packet: bytes | bytearray, sysid: int | None) -> bool:
         try:

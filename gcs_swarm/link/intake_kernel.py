@@ -1,27 +1,27 @@
-"""The compiled half of link.batch_intake: a whole fleet's 50 Hz telemetry datagrams (GLOBAL_POSITION_INT and
-ATTITUDE) into the state arrays in one call, instead of about 6 us of Python per packet (HotTelemetry).
+"""The law of a vehicle's stamped telemetry, written once and compiled, and the walk that applies it to every
+plain 50 Hz packet (GLOBAL_POSITION_INT, ATTITUDE) of one receive's datagrams.
 
-`take_datagrams` walks the datagrams gathered in one byte buffer, in the order they were read, and takes each
-one whole or stops before it. It takes a datagram only when every packet in it is what HotTelemetry.take
-would take and HotTelemetry.apply would apply without anything but the plain case:
+The law (spec 1.1), on the arrays of telemetry.TelemetryState, row or column i = vehicle i:
 
-- nothing but whole, unsigned MAVLink 2 packets (no incompatibility flag), each a GLOBAL_POSITION_INT or an
-  ATTITUDE from the bound vehicle's sysid and component, with a good CRC (trailing-zero truncation undone);
-- values in range (|lat| <= 90 deg, |lon| <= 180 deg; finite angles: else `invalid` is counted);
-- a time_boot_ms that is not late for its kind (`late`), not a reboot, and whose advance makes no GCS
-  HEARTBEAT due (the heartbeat is sent by Python, in the middle of the datagram);
-- a vehicle whose link is alive (else `heard` may add "link regained").
+- `on_time`: a packet stamped with time_boot_ms t advances the vehicle's clock and the fleet clock, reveals a
+  reboot (t older than the newest by more than REBOOT_BACKSTEP_MS: its frames start again) and a late
+  packet of its kind (older than the newest of that kind: its data must not overwrite newer data), and says
+  whether a GCS HEARTBEAT is due in vehicle time (`heartbeat_due`);
+- `position_packet`: GLOBAL_POSITION_INT (lat/lon out of bounds: invalid) -> geodetic row, ENU velocity,
+  position count, missed frames;
+- `attitude_packet`: ATTITUDE (non-finite angles: invalid) -> FLU/ENU Euler angles;
+- `heard`: a packet from the vehicle arrived: its link is alive.
 
-Every other datagram is left to the caller, which puts it through the per-packet path (HotTelemetry and
-Network's general path) and calls again from the next one, so the packets of all vehicles are applied in
-the order they were read, as Network.receive applies them. What a taken packet does is
-VehicleTelemetry.on_global_position / on_attitude, on_time and heard, statement for statement, on the
-arrays of TelemetryState; its tlog record (8-byte big-endian unix us, then the packet) goes to an output
-buffer, and `received` is counted per vehicle.
+Each returns outcome bits (HEARTBEAT_DUE, REBOOTED, LATE, INVALID, REGAINED, POSITION_STORED) for what only
+Python can do (send the heartbeat, reset the streams, count, log an event): telemetry.VehicleTelemetry does
+it, for the packets pymavlink decodes and for those `take_packets` takes alike.
 
-Field decoding reads the payload in the machine's byte order, so link.batch_intake uses this only on
-little-endian machines (MAVLink's own order). No fastmath; error_model "numpy". tests/gcs_swarm/link/
-test_batch_intake.py compares it with the per-packet path over random datagrams.
+`take_packets` walks datagrams gathered in one byte buffer (link.intake) in the order they were read, packet
+by packet, and takes a packet when it is a whole MAVLink 2 GLOBAL_POSITION_INT or ATTITUDE from the bound
+autopilot (sysid -> vehicle by the endpoint's route table, component) with a good CRC; with signing, only a
+signed one whose signature the caller has checked (it stops before an unchecked one and says so). It stops
+before anything else (left to pymavlink, the general path), and after a taken packet whose outcome needs
+Python. Payload fields are read in MAVLink's byte order (little-endian), whatever the machine's.
 """
 
 from __future__ import annotations
@@ -29,255 +29,410 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link.heartbeat import GCS_HEARTBEAT_MS, HEARTBEAT_STAGGER_MS
-from gcs_swarm.link.telemetry import ATTITUDE_KIND, POSITION_KIND, REBOOT_BACKSTEP_MS
+from swarm_common.jit import kernel
+from swarm_common.rotations import yaw_ned_enu
 
-_kernel = njit(cache=True, error_model="numpy")
+REBOOT_BACKSTEP_MS = 5000  # a time_boot_ms this much older than the latest means a reboot, not a late packet
+POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND = 0, 1, 2  # kinds of stamped packets whose lateness is judged apart
+# (columns of TelemetryState.latest_ms; CLOCK_KIND: the lockstep clock ticks, link.lockstep); -1: no kind
+GCS_HEARTBEAT_MS = 500  # [add] vehicle ms between GCS HEARTBEATs: under 10 % loss a 5 s FS_GCS_TIMEOUT
+# then needs ~10 lost in a row, not 5
+HEARTBEAT_STAGGER_MS = 7  # [add] offset between consecutive vehicles' heartbeat periods, so that a fleet's
+# vehicle-time heartbeats (clocks in step) spread over the frames of a period instead of all leaving in one
+
+TIMES_ROWS = (
+    "time_ms",
+    "position_ms",
+    "tick_ms",
+    "position_count",
+    "frames_missed",
+    "progress_ms",
+    "heard_clock_ms",
+    "gcs_heartbeat_ms",
+    "frame_ms",
+)  # TelemetryState.times (9, N) int64, row by row
+(_TIME, _POSITION, _TICK, _COUNT, _MISSED, _PROGRESS, _HEARD_CLOCK, _GCS_HEARTBEAT, _FRAME) = range(9)
+_PROGRESS_WALL, _LAST_RX_WALL = 0, 1  # rows of TelemetryState.walls (2, N) float64, time.monotonic() s
+
+# outcome bits
+HEARTBEAT_DUE = 1  # the vehicle's time moved and a vehicle-time GCS HEARTBEAT is due
+REBOOTED = 2  # the vehicle rebooted: its stream rates are gone
+LATE = 4  # older than the newest packet of its kind: not applied
+INVALID = 8  # values out of range: not applied
+REGAINED = 16  # the link was lost and is alive again
+POSITION_STORED = 32  # a GLOBAL_POSITION_INT was stored: TelemetryState.pos must be recomputed
+FOLLOW_UP = HEARTBEAT_DUE | REBOOTED | LATE | INVALID | REGAINED  # what only Python can finish
+
+# take_packets' stops before a packet
+NOT_TAKEN = -1  # for the general path (pymavlink)
+UNVERIFIED = -2  # signed, its signature not yet checked
 
 _MARKER_V2 = mavlink2.PROTOCOL_MARKER_V2
+_SIGNED = mavlink2.MAVLINK_IFLAG_SIGNED
+_SIGNATURE_LEN = mavlink2.MAVLINK_SIGNATURE_BLOCK_LEN
 _HEADER_LEN = mavlink2.HEADER_LEN_V2  # 10: magic, len, incompat, compat, seq, sysid, compid, msgid x3
 _POSITION_ID = mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT
 _ATTITUDE_ID = mavlink2.MAVLINK_MSG_ID_ATTITUDE
 _POSITION_CRC_EXTRA = mavlink2.MAVLink_global_position_int_message.crc_extra
 _ATTITUDE_CRC_EXTRA = mavlink2.MAVLink_attitude_message.crc_extra
-_POSITION_SIZE = mavlink2.MAVLink_global_position_int_message.unpacker.size  # 28 payload bytes
-_ATTITUDE_SIZE = mavlink2.MAVLink_attitude_message.unpacker.size  # 28 payload bytes
-_SCRATCH = -(-max(_POSITION_SIZE, _ATTITUDE_SIZE) // 4) * 4  # bytes: the longer payload in whole 4-byte words
-# GLOBAL_POSITION_INT wire order (pymavlink's unpacker): time_boot_ms u32, lat, lon, alt, relative_alt i32,
-# vx, vy, vz i16, hdg u16. ATTITUDE: time_boot_ms u32, roll, pitch, yaw, and three rates f32.
-_LAT, _LON, _ALT = 1, 2, 3  # int32 words
-_VX, _VY, _VZ = 10, 11, 12  # int16 halves
-_ROLL, _PITCH, _YAW = 1, 2, 3  # float32 words
+_PAYLOAD = max(
+    mavlink2.MAVLink_global_position_int_message.unpacker.size, mavlink2.MAVLink_attitude_message.unpacker.size
+)  # 28 bytes: the longer payload; MAVLink 2 cuts trailing zeros, and longer payloads' extra bytes are ignored
+MIN_PACKET = _HEADER_LEN + 2 + 1  # bytes of the shortest MAVLink 2 packet (one payload byte)
+# GLOBAL_POSITION_INT wire offsets (pymavlink's unpacker): time_boot_ms u32 0, lat 4, lon 8, alt 12,
+# relative_alt 16 (i32), vx 20, vy 22, vz 24 (i16), hdg 26 (u16). ATTITUDE: time_boot_ms u32 0, roll 4,
+# pitch 8, yaw 12, then three rates (f32).
 
 
-@_kernel
-def _crc_ok(buf: np.ndarray, start: int, end: int, crc_extra: int) -> bool:
-    """The MAVLink CRC (X.25 / MCRF4XX) over buf[start + 1 : end - 2] and crc_extra equals the packet's."""
-    crc = 0xFFFF
-    for k in range(start + 1, end - 2 + 1):
-        byte = crc_extra if k == end - 2 else int(buf[k])
-        tmp = (byte ^ (crc & 0xFF)) & 0xFF
-        tmp = (tmp ^ (tmp << 4)) & 0xFF
-        crc = ((crc >> 8) ^ (tmp << 8) ^ (tmp << 3) ^ (tmp >> 4)) & 0xFFFF
-    return crc == (int(buf[end - 2]) | (int(buf[end - 1]) << 8))
-
-
-@_kernel
-def _heartbeat_due(index: int, t_ms: int, last_ms: int) -> bool:
-    """heartbeat.GcsHeartbeat.due for vehicle `index` whose latest GCS HEARTBEAT went at `last_ms`."""
+@kernel
+def heartbeat_due(i: int, t_ms: int, last_ms: int) -> bool:
+    """A GCS HEARTBEAT is due for vehicle `i` at time_boot_ms `t_ms`, the latest having gone at `last_ms`
+    (-1: none yet): the first one, one after a reboot, then one per GCS_HEARTBEAT_MS period of vehicle time,
+    vehicle i's periods starting HEARTBEAT_STAGGER_MS * i ms later (modulo the period)."""
     if last_ms < 0 or t_ms < last_ms:
         return True
-    shift = GCS_HEARTBEAT_MS - index * HEARTBEAT_STAGGER_MS % GCS_HEARTBEAT_MS
+    shift = GCS_HEARTBEAT_MS - i * HEARTBEAT_STAGGER_MS % GCS_HEARTBEAT_MS
     return (t_ms + shift) // GCS_HEARTBEAT_MS > (last_ms + shift) // GCS_HEARTBEAT_MS
 
 
-@_kernel
-def _load_payload(buf: np.ndarray, start: int, end: int, scratch: np.ndarray) -> None:
-    """The packet's payload into `scratch`, zeros after it (MAVLink 2 trailing-zero truncation undone)."""
-    payload_start, payload_end = start + _HEADER_LEN, end - 2
-    for k in range(_SCRATCH):
-        scratch[k] = buf[payload_start + k] if payload_start + k < payload_end else 0
-
-
-@_kernel
-def _takeable(
-    buf: np.ndarray,
-    start: int,
-    end: int,
+@kernel
+def on_time(
     i: int,
-    sysid: np.ndarray,
-    compid: np.ndarray,
-    alive: np.ndarray,
-    time_ms: np.ndarray,
+    t_ms: int,
+    kind: int,
+    times: np.ndarray,
     latest_ms: np.ndarray,
-    gcs_heartbeat_ms: np.ndarray,
-    scratch: np.ndarray,
-) -> bool:
-    """Datagram buf[start:end] of vehicle `i` is one `take_datagrams` takes (module doc); reads only."""
-    if start == end:
-        return True  # an empty datagram: nothing to do
-    if not alive[i] or sysid[i] < 0:
-        return False
-    words, floats = scratch.view(np.int32), scratch.view(np.float32)
-    prev = time_ms[i]
-    latest_position, latest_attitude = latest_ms[i, POSITION_KIND], latest_ms[i, ATTITUDE_KIND]
-    p = start
-    while p < end:
-        if end - p < 3 or buf[p] != _MARKER_V2 or buf[p + 2] != 0:
-            return False
-        packet_end = p + _HEADER_LEN + 2 + np.int64(buf[p + 1])
-        if packet_end > end or buf[p + 5] != sysid[i] or buf[p + 6] != compid[i]:
-            return False
-        msgid = np.int64(buf[p + 7]) | (np.int64(buf[p + 8]) << 8) | (np.int64(buf[p + 9]) << 16)
-        if msgid == _POSITION_ID:
-            if not _crc_ok(buf, p, packet_end, _POSITION_CRC_EXTRA):
-                return False
-            _load_payload(buf, p, packet_end, scratch)
-            if abs(np.int64(words[_LAT])) > 900_000_000 or abs(np.int64(words[_LON])) > 1_800_000_000:
-                return False
-        elif msgid == _ATTITUDE_ID:
-            if not _crc_ok(buf, p, packet_end, _ATTITUDE_CRC_EXTRA):
-                return False
-            _load_payload(buf, p, packet_end, scratch)
-            roll, pitch, yaw = floats[_ROLL], floats[_PITCH], floats[_YAW]
-            if not (math.isfinite(roll) and math.isfinite(pitch) and math.isfinite(yaw)):
-                return False
-        else:
-            return False
-        t_ms = int(scratch.view(np.uint32)[0])
-        if t_ms > prev:
-            if _heartbeat_due(i, t_ms, int(gcs_heartbeat_ms[i])):
-                return False
-            prev = t_ms
-        elif t_ms < prev - REBOOT_BACKSTEP_MS:
-            return False
-        if msgid == _POSITION_ID:
-            if t_ms < latest_position:
-                return False
-            latest_position = t_ms
-        else:
-            if t_ms < latest_attitude:
-                return False
-            latest_attitude = t_ms
-        p = packet_end
-    return True
+    walls: np.ndarray,
+    clock: np.ndarray,
+    wall_now: float,
+) -> int:
+    """Vehicle i sent a packet stamped with time_boot_ms `t_ms`, of lateness `kind` (POSITION_KIND,
+    ATTITUDE_KIND, CLOCK_KIND; -1: none). times (9, N) int64 (TIMES_ROWS), latest_ms (N, 3) int64, walls
+    (2, N) float64, clock (2,) float64 (the fleet clock: ms of the largest progress, time.monotonic() of its
+    last advance) are updated; `wall_now`: time.monotonic() now. Returns HEARTBEAT_DUE | REBOOTED | LATE.
+
+    A stamp newer than the vehicle's newest advances its progress (and the fleet clock); one older by more
+    than REBOOT_BACKSTEP_MS is a reboot, after which its frames start again from none. Lateness is per kind:
+    a delayed position report older than the latest attitude is still the newest position."""
+    prev = times[_TIME, i]
+    outcome = 0
+    if t_ms > prev or t_ms < prev - REBOOT_BACKSTEP_MS:
+        if t_ms > prev and prev >= 0:
+            progress = times[_PROGRESS, i] + t_ms - prev
+            times[_PROGRESS, i] = progress
+            walls[_PROGRESS_WALL, i] = wall_now
+            if progress > clock[0]:
+                clock[0], clock[1] = progress, wall_now
+        elif t_ms < prev:
+            times[_TICK, i] = -1
+            times[_FRAME, i] = -1
+            times[_POSITION, i] = -1
+            latest_ms[i, :] = -1
+            outcome |= REBOOTED
+        times[_TIME, i] = t_ms
+        if heartbeat_due(i, t_ms, times[_GCS_HEARTBEAT, i]):
+            outcome |= HEARTBEAT_DUE
+    if kind < 0:
+        return outcome
+    if t_ms < latest_ms[i, kind]:
+        return outcome | LATE
+    latest_ms[i, kind] = t_ms
+    return outcome
 
 
-@_kernel
-def take_datagrams(
+@kernel
+def position_packet(
+    i: int,
+    t_ms: int,
+    lat: int,
+    lon: int,
+    alt: int,
+    vx: int,
+    vy: int,
+    vz: int,
+    times: np.ndarray,
+    latest_ms: np.ndarray,
+    walls: np.ndarray,
+    clock: np.ndarray,
+    geodetic: np.ndarray,
+    vel: np.ndarray,
+    wall_now: float,
+) -> int:
+    """GLOBAL_POSITION_INT's fields (lat, lon degE7, alt mm AMSL, vx, vy, vz cm/s NED) into geodetic (N, 3)
+    lat deg, lon deg, alt m and vel (N, 3) ENU m/s (spec 1.1); the rest as `on_time`. Returns its outcome."""
+    if abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000:
+        return INVALID
+    outcome = on_time(i, t_ms, POSITION_KIND, times, latest_ms, walls, clock, wall_now)
+    if outcome & LATE:
+        return outcome
+    geodetic[i, 0] = lat * 1e-7
+    geodetic[i, 1] = lon * 1e-7
+    geodetic[i, 2] = alt * 1e-3
+    vel[i, 0] = vy * 0.01
+    vel[i, 1] = vx * 0.01
+    vel[i, 2] = -vz * 0.01
+    times[_COUNT, i] += 1
+    if t_ms > times[_POSITION, i] and times[_POSITION, i] > times[_TICK, i]:
+        times[_MISSED, i] += 1  # a new frame; the one in hand was never used
+    times[_POSITION, i] = t_ms
+    return outcome | POSITION_STORED
+
+
+@kernel
+def attitude_packet(
+    i: int,
+    t_ms: int,
+    roll: float,
+    pitch: float,
+    yaw: float,
+    times: np.ndarray,
+    latest_ms: np.ndarray,
+    walls: np.ndarray,
+    clock: np.ndarray,
+    att: np.ndarray,
+    wall_now: float,
+) -> int:
+    """ATTITUDE's roll, pitch, yaw rad (body FRD in world NED) into att (N, 3) roll, pitch, yaw rad (body
+    FLU in world ENU, spec 1.1); the rest as `on_time`. Returns its outcome."""
+    if not (math.isfinite(roll) and math.isfinite(pitch) and math.isfinite(yaw)):
+        return INVALID
+    outcome = on_time(i, t_ms, ATTITUDE_KIND, times, latest_ms, walls, clock, wall_now)
+    if outcome & LATE:
+        return outcome
+    att[i, 0] = roll
+    att[i, 1] = -pitch
+    att[i, 2] = yaw_ned_enu(yaw)
+    return outcome
+
+
+@kernel
+def heard(i: int, now: float, alive: np.ndarray, times: np.ndarray, walls: np.ndarray, clock: np.ndarray) -> int:
+    """A packet from vehicle i's autopilot arrived at `now` (time.monotonic()): its link is alive. REGAINED
+    when it was not."""
+    walls[_LAST_RX_WALL, i] = now
+    times[_HEARD_CLOCK, i] = np.int64(clock[0])
+    if alive[i]:
+        return 0
+    alive[i] = True
+    return REGAINED
+
+
+@kernel
+def _crc_ok(buf: np.ndarray, start: int, crc_at: int, crc_extra: int) -> bool:
+    """The MAVLink CRC (X.25 / MCRF4XX) over buf[start + 1 : crc_at] and crc_extra equals the two bytes at
+    crc_at."""
+    crc = 0xFFFF
+    for k in range(start + 1, crc_at + 1):
+        byte = crc_extra if k == crc_at else int(buf[k])
+        tmp = (byte ^ (crc & 0xFF)) & 0xFF
+        tmp = (tmp ^ (tmp << 4)) & 0xFF
+        crc = ((crc >> 8) ^ (tmp << 8) ^ (tmp << 3) ^ (tmp >> 4)) & 0xFFFF
+    return crc == (int(buf[crc_at]) | (int(buf[crc_at + 1]) << 8))
+
+
+@kernel
+def _load_payload(buf: np.ndarray, start: int, stop: int, payload: np.ndarray) -> None:
+    """buf[start:stop] into `payload`, zeros after it (MAVLink 2 trailing-zero truncation undone)."""
+    for k in range(_PAYLOAD):
+        payload[k] = buf[start + k] if start + k < stop else 0
+
+
+@kernel
+def _u32(p: np.ndarray, k: int) -> int:
+    """The little-endian uint32 at payload byte k."""
+    return int(p[k]) | (int(p[k + 1]) << 8) | (int(p[k + 2]) << 16) | (int(p[k + 3]) << 24)
+
+
+@kernel
+def _i32(p: np.ndarray, k: int) -> int:
+    """The little-endian int32 at payload byte k."""
+    u = _u32(p, k)
+    return u - (1 << 32) if u >= 1 << 31 else u
+
+
+@kernel
+def _i16(p: np.ndarray, k: int) -> int:
+    """The little-endian int16 at payload byte k."""
+    u = int(p[k]) | (int(p[k + 1]) << 8)
+    return u - (1 << 16) if u >= 1 << 15 else u
+
+
+@kernel
+def _f32(p: np.ndarray, k: int, word: np.ndarray) -> float:
+    """The little-endian IEEE float32 at payload byte k, as float64 (`word`: a (1,) uint32 scratch)."""
+    word[0] = _u32(p, k)
+    return np.float64(word.view(np.float32)[0])
+
+
+@kernel
+def take_packets(
     buf: np.ndarray,
     starts: np.ndarray,
     ends: np.ndarray,
-    vehicles: np.ndarray,
-    first: int,
+    endpoints: np.ndarray,
+    d: int,
+    p: int,
     count: int,
-    ids: np.ndarray,
+    routes: np.ndarray,
+    compid: np.ndarray,
+    signing: bool,
+    verified_d: int,
+    verified_p: int,
     alive: np.ndarray,
     times: np.ndarray,
     latest_ms: np.ndarray,
+    walls: np.ndarray,
+    clock: np.ndarray,
     geodetic: np.ndarray,
     vel: np.ndarray,
     att: np.ndarray,
-    walls: np.ndarray,
-    clock: np.ndarray,
     received: np.ndarray,
-    tlog: np.ndarray,
-    tlog_stamp: np.ndarray,
+    taken_sysid: np.ndarray,
+    records: np.ndarray,
+    record_starts: np.ndarray,
+    stamp: np.ndarray,
     now: float,
     wall_now: float,
-) -> tuple[int, int, int, bool]:
-    """Take datagrams first, first + 1, ... of the `count` gathered, up to the first one it does not take.
+) -> tuple[int, int, int, int, int, int, bool]:
+    """Take the packets from offset p of datagram d on, up to the `count` gathered (module doc).
 
-    Datagram d is buf[starts[d]:ends[d]] (uint8) from vehicle vehicles[d]. Per vehicle i:
-    ids (2, N) int64: bound sysid, component (-1: not bound);
-    alive (N,) bool;
-    times (7, N) int64: time_ms, position_ms, tick_ms, position_count, frames_missed, progress_ms,
-    heard_clock_ms, then gcs_heartbeat_ms (row 7), as in TelemetryState;
-    latest_ms (N, 3) int64; geodetic, vel, att (N, 3) float64 (TelemetryState's units);
-    walls (2, N) float64: progress_wall, last_rx_wall (time.monotonic() s);
-    clock (2,) float64: the fleet clock's clock_ms and clock_wall, read and written;
-    received (N,) int64: packets taken per vehicle, added to;
-    tlog: uint8 output for the tlog records (8-byte `tlog_stamp` then the packet), at least
-    (ends[count - 1] - starts[first]) * 5 // 3 + 1 bytes long; an empty one writes none.
-    `now`: time.monotonic() when the datagrams were read (heard); `wall_now`: time.monotonic() now (the time
-    progress stamps, VehicleTelemetry.on_time's time.monotonic()).
+    Datagram k is buf[starts[k]:ends[k]] (uint8), read from endpoint endpoints[k] (-1: leave it whole to the
+    general path); routes (E, 256) int64: the vehicle a sysid's packets on endpoint e belong to (-1: none
+    bound); compid (N,) int64: each vehicle's autopilot component. `signing`: a signing key is set, so only
+    signed packets are taken, and only the one at (verified_d, verified_p), whose signature the caller has
+    checked, without stopping first. State arrays as TelemetryState (on_time); received (N,) int64 counts
+    the packets taken per vehicle; taken_sysid (count,) int64: the sysid of datagram k's latest taken packet.
+    records: uint8 output for the tlog records of the packets taken (8-byte `stamp`, then the packet; empty:
+    none written), record k starting at byte record_starts[k]. `now`: time.monotonic()
+    when the datagrams were read; `wall_now`: time.monotonic() now.
 
-    Returns (next datagram: the one it stopped before, or `count`; tlog bytes written; packets taken; any
-    GLOBAL_POSITION_INT taken, so that TelemetryState.pos is stale).
+    Returns (d, p, outcome, vehicle, record bytes written, records written, any position stored): it stopped at offset p of
+    datagram d (d == count: all done) with outcome NOT_TAKEN or UNVERIFIED before the packet there, or with
+    the FOLLOW_UP outcome of vehicle's packet just before it.
     """
-    time_ms, position_ms, tick_ms, position_count = times[0], times[1], times[2], times[3]
-    frames_missed, progress_ms, heard_clock_ms, gcs_heartbeat_ms = times[4], times[5], times[6], times[7]
-    sysid, compid = ids[0], ids[1]
-    progress_wall, last_rx_wall = walls[0], walls[1]
-    clock_ms, clock_wall = np.int64(clock[0]), clock[1]
-    scratch = np.zeros(_SCRATCH, dtype=np.uint8)
-    words, halves, floats = scratch.view(np.int32), scratch.view(np.int16), scratch.view(np.float32)
-    write_tlog = tlog.shape[0] > 0
-    written = 0
-    taken = 0
-    position_taken = False
-    d = first
+    payload = np.zeros(_PAYLOAD, dtype=np.uint8)
+    word = np.empty(1, dtype=np.uint32)
+    write_records = records.shape[0] > 0
+    written, recorded = 0, 0
+    position_stored = False
     while d < count:
-        start, end, i = starts[d], ends[d], vehicles[d]
-        if not _takeable(
-            buf, start, end, i, sysid, compid, alive, time_ms, latest_ms, gcs_heartbeat_ms, scratch
-        ):
-            break
-        p = start
+        end = ends[d]
+        e = endpoints[d]
         while p < end:
-            packet_end = p + _HEADER_LEN + 2 + np.int64(buf[p + 1])
-            _load_payload(buf, p, packet_end, scratch)
-            t_ms = int(scratch.view(np.uint32)[0])
-            # VehicleTelemetry.on_time (no reboot, no heartbeat due, not late: _takeable)
-            prev = time_ms[i]
-            if t_ms > prev:
-                if prev >= 0:
-                    progress_ms[i] += t_ms - prev
-                    progress_wall[i] = wall_now
-                    if progress_ms[i] > clock_ms:
-                        clock_ms, clock_wall = progress_ms[i], wall_now
-                time_ms[i] = t_ms
-            if buf[p + 7] == _POSITION_ID:  # VehicleTelemetry.on_global_position
-                latest_ms[i, POSITION_KIND] = t_ms
-                geodetic[i, 0] = np.float64(words[_LAT]) * 1e-7  # degE7, degE7, mm AMSL
-                geodetic[i, 1] = np.float64(words[_LON]) * 1e-7
-                geodetic[i, 2] = np.float64(words[_ALT]) * 1e-3
-                vel[i, 0] = np.float64(halves[_VY]) * 0.01  # cm/s NED -> m/s ENU (spec 1.1)
-                vel[i, 1] = np.float64(halves[_VX]) * 0.01
-                vel[i, 2] = np.float64(-np.int64(halves[_VZ])) * 0.01
-                position_taken = True
-                position_count[i] += 1
-                if t_ms > position_ms[i] and position_ms[i] > tick_ms[i]:
-                    frames_missed[i] += 1
-                position_ms[i] = t_ms
-            else:  # VehicleTelemetry.on_attitude: FRD/NED -> FLU/ENU (spec 1.1)
-                latest_ms[i, ATTITUDE_KIND] = t_ms
-                yaw = np.float64(floats[_YAW])
-                att[i, 0] = np.float64(floats[_ROLL])
-                att[i, 1] = -np.float64(floats[_PITCH])
-                att[i, 2] = (0.5 * math.pi - yaw + math.pi) % (2.0 * math.pi) - math.pi
-            # VehicleTelemetry.heard (alive already)
-            last_rx_wall[i] = now
-            heard_clock_ms[i] = clock_ms
+            if e < 0 or end - p < MIN_PACKET or buf[p] != _MARKER_V2 or buf[p + 2] & ~_SIGNED:
+                return d, p, NOT_TAKEN, -1, written, recorded, position_stored
+            signed = buf[p + 2] != 0
+            crc_at = p + _HEADER_LEN + np.int64(buf[p + 1])
+            packet_end = crc_at + 2 + (_SIGNATURE_LEN if signed else 0)
+            i = routes[e, buf[p + 5]]
+            if packet_end > end or i < 0 or buf[p + 6] != compid[i]:
+                return d, p, NOT_TAKEN, -1, written, recorded, position_stored
+            msgid = np.int64(buf[p + 7]) | (np.int64(buf[p + 8]) << 8) | (np.int64(buf[p + 9]) << 16)
+            if msgid == _POSITION_ID:
+                crc_extra = _POSITION_CRC_EXTRA
+            elif msgid == _ATTITUDE_ID:
+                crc_extra = _ATTITUDE_CRC_EXTRA
+            else:
+                return d, p, NOT_TAKEN, -1, written, recorded, position_stored
+            if not _crc_ok(buf, p, crc_at, crc_extra) or (signing and not signed):
+                return d, p, NOT_TAKEN, -1, written, recorded, position_stored
+            if signing and not (d == verified_d and p == verified_p):
+                return d, p, UNVERIFIED, i, written, recorded, position_stored
+            _load_payload(buf, p + _HEADER_LEN, crc_at, payload)
+            t_ms = _u32(payload, 0)
+            if msgid == _POSITION_ID:
+                outcome = position_packet(
+                    i,
+                    t_ms,
+                    _i32(payload, 4),
+                    _i32(payload, 8),
+                    _i32(payload, 12),
+                    _i16(payload, 20),
+                    _i16(payload, 22),
+                    _i16(payload, 24),
+                    times,
+                    latest_ms,
+                    walls,
+                    clock,
+                    geodetic,
+                    vel,
+                    wall_now,
+                )
+                position_stored = position_stored or outcome & POSITION_STORED != 0
+            else:
+                outcome = attitude_packet(
+                    i,
+                    t_ms,
+                    _f32(payload, 4, word),
+                    _f32(payload, 8, word),
+                    _f32(payload, 12, word),
+                    times,
+                    latest_ms,
+                    walls,
+                    clock,
+                    att,
+                    wall_now,
+                )
+            outcome |= heard(i, now, alive, times, walls, clock)
             received[i] += 1
-            taken += 1
-            if write_tlog:
+            taken_sysid[d] = buf[p + 5]
+            if write_records:
+                record_starts[recorded] = written
+                recorded += 1
                 for k in range(8):
-                    tlog[written + k] = tlog_stamp[k]
+                    records[written + k] = stamp[k]
                 written += 8
                 for k in range(p, packet_end):
-                    tlog[written] = buf[k]
+                    records[written] = buf[k]
                     written += 1
             p = packet_end
+            if outcome & FOLLOW_UP:
+                return d, p, outcome, i, written, recorded, position_stored
         d += 1
-    clock[0], clock[1] = np.float64(clock_ms), clock_wall
-    return d, written, taken, position_taken
+        if d < count:
+            p = starts[d]
+    return d, p, 0, -1, written, recorded, position_stored
 
 
 def warm_up() -> None:
-    """Compile the kernel (or load it from numba's cache) before the first tick needs it."""
+    """Compile every function of the law for the argument types the link gives them, or load them from
+    numba's cache, before the first receive needs them."""
     n = 1
-    take_datagrams(
-        np.zeros(16, dtype=np.uint8),
-        np.zeros(1, dtype=np.int64),
-        np.zeros(1, dtype=np.int64),
-        np.zeros(1, dtype=np.int64),
+    times, latest_ms = np.full((len(TIMES_ROWS), n), -1, dtype=np.int64), np.full((n, 3), -1, dtype=np.int64)
+    walls, clock, rows = np.zeros((2, n)), np.zeros(2), np.zeros((n, 3))
+    alive = np.zeros(n, dtype=np.bool_)
+    on_time(0, 1, -1, times, latest_ms, walls, clock, 0.0)
+    position_packet(0, 1, 0, 0, 0, 0, 0, 0, times, latest_ms, walls, clock, rows, rows, 0.0)
+    attitude_packet(0, 1, 0.0, 0.0, 0.0, times, latest_ms, walls, clock, rows, 0.0)
+    heard(0, 0.0, alive, times, walls, clock)
+    empty = np.zeros(1, dtype=np.int64)
+    take_packets(
+        np.zeros(1, dtype=np.uint8),
+        empty,
+        empty,
+        empty,
         0,
-        1,
-        np.full((2, n), -1, dtype=np.int64),
-        np.zeros(n, dtype=np.bool_),
-        np.zeros((8, n), dtype=np.int64),
-        np.zeros((n, 3), dtype=np.int64),
-        np.zeros((n, 3)),
-        np.zeros((n, 3)),
-        np.zeros((n, 3)),
-        np.zeros((2, n)),
-        np.zeros(2),
-        np.zeros(n, dtype=np.int64),
+        0,
+        0,
+        np.full((1, 256), -1, dtype=np.int64),
+        empty,
+        False,
+        -1,
+        -1,
+        alive,
+        times,
+        latest_ms,
+        walls,
+        clock,
+        rows,
+        rows,
+        rows,
+        empty,
+        empty,
         np.zeros(0, dtype=np.uint8),
+        empty,
         np.zeros(8, dtype=np.uint8),
         0.0,
         0.0,

@@ -16,7 +16,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import MAVLinkMessage
-from gcs_swarm.link.telemetry import CLOCK_KIND, TelemetryState, VehicleTelemetry
+from gcs_swarm.link.intake_kernel import CLOCK_KIND
+from gcs_swarm.link.telemetry import TelemetryState, VehicleTelemetry
 from swarm_common.mavlink_codec import Packer
 
 _SYSTEM_TIME = Packer(mavlink2.MAVLink_system_time_message)

@@ -6,13 +6,12 @@ bound to its sysid, component and autopilot dialect at its first HEARTBEAT. Pack
 does not give a vehicle are counted (`unrouted` on a shared endpoint, `foreign_heartbeats` on a vehicle's
 own one), and the identity checks refuse two vehicles answering to one sysid.
 
-With a signing key every endpoint checks signatures (connection.py): what fails is counted per vehicle
-(`unsigned`, `bad_signature` in its LinkStats) and never reaches it. Without one, a vehicle on its own udpout
-endpoint has its 50 Hz telemetry taken straight from the datagram bytes (gcs_swarm.link.hot_telemetry), with
-the same effect as the general path, and, with numba and no forwards, the whole fleet's at once by a compiled
-kernel (gcs_swarm.link.batch_intake), which hands what it does not take back to that path. Forwards
-(gcs_swarm.link.forward) get every vehicle frame, and their own frames are routed to the vehicles by target
-system when they may pass.
+Every vehicle endpoint's bytes come in through gcs_swarm.link.intake, whatever the endpoint, the signing
+or the forwards: the plain 50 Hz telemetry taken by its compiled walk, everything else decoded by pymavlink
+and routed here (`_deliver`). With a signing key every endpoint checks signatures (connection.py): what
+fails is counted per vehicle (`unsigned`, `bad_signature` in its LinkStats) and never reaches it. Forwards
+(gcs_swarm.link.forward) get every vehicle frame, unchanged and in order, and their own frames are routed to
+the vehicles by target system when they may pass.
 """
 
 from __future__ import annotations
@@ -25,20 +24,19 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link import batch_intake
+from gcs_swarm.link import intake_kernel
 from gcs_swarm.link.autopilots import dialect_for, dialect_named
 from gcs_swarm.link.connection import (
     ConnectionSpec,
     Endpoint,
     LinkError,
     MAVLinkMessage,
-    MavutilEndpoint,
     UdpRouter,
     open_endpoint,
     parse_connection,
 )
 from gcs_swarm.link.forward import Forward, ForwardConfig
-from gcs_swarm.link.hot_telemetry import HotTelemetry, TakenPacket
+from gcs_swarm.link.intake import Intake
 from gcs_swarm.link.tlog import TlogWriter
 from gcs_swarm.link.vehicle import VehicleLink
 from swarm_common.signing import is_signature_rejection, was_signed
@@ -50,10 +48,7 @@ SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before th
 class Network:
     """Endpoints and routing for `links` (row i = links[i]) and `forward_configs`; every packet in and out
     goes to the tlog (a forward's frames when they reach a vehicle). `signing_key`: checked on every frame
-    received (vehicles' and forwards'). `hot_intake`: take the 50 Hz telemetry from the bytes where possible
-    (HotTelemetry, and BatchIntake for the whole fleet where it is available; False: every packet through
-    pymavlink messages, the reference path). `batch`: use BatchIntake where it can serve. `spin_s`: wall s
-    `receive` polls before it blocks (swarm_common.spin_wait; for a lockstep simulator, which answers
+    received (vehicles' and forwards'). `spin_s`: wall s `receive` polls before it blocks (swarm_common.spin_wait; for a lockstep simulator, which answers
     within a fraction of a millisecond)."""
 
     def __init__(
@@ -61,18 +56,11 @@ class Network:
         links: Sequence[VehicleLink],
         signing_key: bytes | None = None,
         forward_configs: Sequence[ForwardConfig] = (),
-        hot_intake: bool = True,
         spin_s: float = 0.0,
-        batch: bool = True,
     ) -> None:
         self.links = list(links)
-        self.batch = batch
-        self._batch: batch_intake.BatchIntake | None = None  # set by `open` when it serves
-        self._batched: dict[Endpoint, tuple[Any, int]] = {}  # endpoints BatchIntake reads: (socket, vehicle)
         self.spin_s = spin_s  # wall s receive polls before it blocks (swarm_common.spin_wait)
         self.signing_key = signing_key
-        self.hot_intake = hot_intake
-        self._hot: dict[Endpoint, HotTelemetry] = {}  # the endpoints whose telemetry HotTelemetry takes
         self.forward_configs = list(forward_configs)
         self.forwards: list[Forward] = []
         self._outgoing: list[bytes | bytearray] = []  # vehicle frames read in this receive, for the forwards
@@ -82,6 +70,18 @@ class Network:
         self.unrouted = 0  # packets on a shared udpin endpoint from no configured vehicle
         self.foreign_heartbeats: list[dict[int, int]] = [{} for _ in self.links]
         """Per vehicle: other vehicles' sysids heard on its connection -> their HEARTBEATs."""
+        self.intake = self._new_intake()
+
+    def _new_intake(self) -> Intake:
+        """The way in for every vehicle endpoint `open` opens (gcs_swarm.link.intake)."""
+        return Intake(
+            self.links,
+            self.links[0].state,
+            self.signing_key is not None,
+            lambda: self._tlog,
+            self._outgoing if self.forward_configs else None,
+            self._deliver,
+        )
 
     @property
     def connected(self) -> bool:
@@ -90,6 +90,7 @@ class Network:
 
     def open(self, connect_timeout_s: float, tlog_path: Path | None) -> None:
         """Open every vehicle's endpoint (shared udpin endpoints once) and the tlog; LinkError on failure."""
+        self.intake = self._new_intake()
         groups: dict[tuple[str, str, int], tuple[ConnectionSpec, list[VehicleLink]]] = {}
         for link in self.links:
             try:
@@ -110,8 +111,7 @@ class Network:
                 )
             endpoint = open_endpoint(spec, names, connect_timeout_s, self.signing_key)
             self._routes[endpoint] = members
-            if self.hot_intake and self.signing_key is None and spec.kind == "udpout":
-                self._hot[endpoint] = HotTelemetry(members[0], self._record)
+            self.intake.add(endpoint)
             self._selector.register(endpoint.fileno(), selectors.EVENT_READ, endpoint)
             for member in members:
                 member.channel.endpoint = endpoint
@@ -129,28 +129,16 @@ class Network:
             self._tlog = TlogWriter(tlog_path)
             for link in self.links:
                 link.channel.tlog = self._tlog
-        if self.batch and self._hot and not self.forwards and batch_intake.available():
-            self._batch = batch_intake.BatchIntake(
-                self.links, self.links[0].state, lambda: self._tlog, self._per_packet
-            )
-            for endpoint, hot in self._hot.items():
-                assert isinstance(endpoint, MavutilEndpoint)
-                self._batched[endpoint] = (endpoint.datagram_socket, hot.link.index)
 
     def warm_up(self) -> None:
-        """Compile (or load from numba's cache) the batch intake's kernel now, when the batch serves, rather
-        than in the first receive that needs it."""
-        if self._batch is not None:
-            batch_intake.warm_up()
+        """Compile (or load from numba's cache) the intake's law now rather than in the first receive."""
+        intake_kernel.warm_up()
 
     def close(self) -> None:
         """Close every endpoint and the tlog (idempotent)."""
         for endpoint in self._routes:
             endpoint.close()
         self._routes.clear()
-        self._hot.clear()
-        self._batched.clear()
-        self._batch = None
         for forward in self.forwards:
             forward.endpoint.close()
         self.forwards.clear()
@@ -169,53 +157,27 @@ class Network:
             ready = []
             time.sleep(max(timeout_s, 0.0))
         now = time.monotonic()
-        batch, batched = self._batch, self._batched
+        intake = self.intake
         for key, _ in ready:
-            if batch is not None:
-                read_by_batch = batched.get(key.data)
-                if read_by_batch is not None:
-                    batch.read(read_by_batch[0], read_by_batch[1], now)
-                    continue
-                batch.flush(now)  # what came before this endpoint's packets is applied before them
             if isinstance(key.data, Forward):
+                intake.flush(now)  # what came before the forward's packets is applied before them
                 self._from_forward(key.data)
                 if key.data.endpoint.closed:
                     self._selector.unregister(key.fd)
                 continue
             endpoint: Endpoint = key.data
-            hot = self._hot.get(endpoint)
-            if hot is None:
-                for msg, peer in endpoint.receive():
-                    self._deliver(endpoint, msg, peer, now)
-                continue
-            for item, peer in endpoint.receive(hot.take):
-                if isinstance(item, TakenPacket):
-                    hot.apply(item, now)
-                else:
-                    self._deliver(endpoint, item, peer, now)
+            intake.read(endpoint, now)
             if endpoint.closed:
+                intake.flush(now)
                 self._selector.unregister(key.fd)
                 for link in self._routes[endpoint]:
                     link.add_event(f"connection {endpoint.spec.text} closed by the peer")
-        if batch is not None:
-            batch.flush(now)
+        intake.flush(now)
         if self._outgoing:
             for forward in self.forwards:
                 forward.send_frames(self._outgoing)
-            self._outgoing = []
+            self._outgoing.clear()
         return now
-
-    def _per_packet(self, index: int, datagram: bytes, now: float) -> None:
-        """One datagram of vehicle `index`'s hot endpoint that BatchIntake did not take, as `receive` handles
-        it without the batch."""
-        endpoint = self.links[index].channel.endpoint
-        assert isinstance(endpoint, MavutilEndpoint)
-        hot = self._hot[endpoint]
-        for item in endpoint.parse_datagram(datagram, hot.take):
-            if isinstance(item, TakenPacket):
-                hot.apply(item, now)
-            else:
-                self._deliver(endpoint, item, None, now)
 
     def _from_forward(self, forward: Forward) -> None:
         """Route what a forward sent to the vehicles its target_system names (0 or none: all), unchanged, when
@@ -292,8 +254,7 @@ class Network:
         channel = link.channel
         if channel.sysid is None and link.config.sysid in (None, sysid):
             channel.sysid, channel.compid = sysid, msg.get_srcComponent()
-            if self._batch is not None:
-                self._batch.refresh_identity(link.index)
+            self.intake.bind(link)
             heard = dialect_for(msg.autopilot)
             named = link.config.autopilot
             channel.autopilot = heard if named == "auto" else dialect_named(named)

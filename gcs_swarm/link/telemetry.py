@@ -19,25 +19,21 @@ import numpy as np
 from numpy.typing import NDArray
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link import frames
+from gcs_swarm.link import frames, intake_kernel
 from gcs_swarm.link.autopilots import AutopilotDialect
 from gcs_swarm.link.channel import LinkStats
 from gcs_swarm.link.connection import MAVLinkMessage
+from gcs_swarm.link.intake_kernel import (
+    ATTITUDE_KIND,
+    HEARTBEAT_DUE,
+    INVALID,
+    LATE,
+    POSITION_STORED,
+    REBOOTED,
+    REGAINED,
+    TIMES_ROWS,
+)
 from swarm_common import rotations
-
-REBOOT_BACKSTEP_MS = 5000  # a time_boot_ms this much older than the latest means a reboot, not a late packet
-POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND = 0, 1, 2  # kinds of stamped packets whose lateness is judged
-# apart (VehicleTelemetry.on_time; CLOCK_KIND: the lockstep clock ticks, link.lockstep)
-TIMES_ROWS = (
-    "time_ms",
-    "position_ms",
-    "tick_ms",
-    "position_count",
-    "frames_missed",
-    "progress_ms",
-    "heard_clock_ms",
-    "gcs_heartbeat_ms",
-)  # TelemetryState.times, row by row
 
 # EKF_STATUS_REPORT.flags: a usable position estimate (as ArduCopter's ekf_position_ok, disarmed case).
 EKF_REQUIRED = (
@@ -62,8 +58,9 @@ class Event(NamedTuple):
 
 
 class TelemetryState:
-    """The fleet's telemetry as per-vehicle arrays, row i = vehicle i. Written only by `VehicleTelemetry`
-    (and the lockstep bookkeeping: tick_ms, frame_ms).
+    """The fleet's telemetry as per-vehicle arrays, row i = vehicle i. Written only by the law of
+    link.intake_kernel (through `VehicleTelemetry` or link.intake) and `VehicleTelemetry` (and the lockstep
+    bookkeeping: tick_ms, frame_ms).
 
     Units: geodetic (N,3) lat deg, lon deg, alt m AMSL; vel (N,3) ENU m/s; att (N,3) FLU/ENU roll, pitch,
     yaw rad; time_ms (N,) latest time_boot_ms (-1 = none yet). mode: the autopilot's custom_mode (-1 unknown).
@@ -75,8 +72,8 @@ class TelemetryState:
         self.geodetic = np.full((n, 3), np.nan)
         self.vel = np.full((n, 3), np.nan)
         self.att = np.full((n, 3), np.nan)
-        # the int64 rows link.intake_kernel reads and writes, one (8, N) matrix (TIMES_ROWS): views, never
-        # rebound
+        # the int64 rows the law (link.intake_kernel) reads and writes, one (9, N) matrix (TIMES_ROWS): views,
+        # never rebound
         self.times = np.zeros((len(TIMES_ROWS), n), dtype=np.int64)
         (
             self.time_ms,  # latest time_boot_ms (-1 = none yet)
@@ -88,8 +85,10 @@ class TelemetryState:
             self.progress_ms,  # the vehicle's time progress since connect, ms (reboots do not count back)
             self.heard_clock_ms,  # the fleet clock (clock_ms) at the vehicle's last packet
             self.gcs_heartbeat_ms,  # its time_boot_ms when the latest GCS HEARTBEAT went (-1 = none yet)
+            self.frame_ms,  # latest lockstep clock tick (link.lockstep; -1 = none yet)
         ) = self.times
         self.time_ms[:] = self.position_ms[:] = self.tick_ms[:] = self.gcs_heartbeat_ms[:] = -1
+        self.frame_ms[:] = -1
         self.alive = np.zeros(n, dtype=bool)
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.full(n, -1, dtype=np.int64)
@@ -104,18 +103,27 @@ class TelemetryState:
         self.prearm = np.full(n, -1, dtype=np.int8)  # SYS_STATUS pre-arm check: -1 unknown, 0 failing, 1 ok
         self.gps_fix = np.full(n, -1, dtype=np.int64)  # GPS_RAW_INT.fix_type (-1 = none received)
         self.rtt_ms = np.full(n, np.nan)  # round trip of the latest TIMESYNC exchange, wall ms
-        self.frame_ms = np.full(n, -1, dtype=np.int64)  # latest lockstep clock tick (link.lockstep)
-        self.clock_ms = 0  # fleet vehicle clock: the largest time progress of any vehicle since connect
-        self.clock_wall = -math.inf  # time.monotonic() at which clock_ms last advanced
-        # per vehicle, kept by VehicleTelemetry (arrays, so that link.batch_intake can take a whole fleet's
-        # telemetry in one compiled call): time.monotonic() at which progress_ms last advanced and of its last
-        # packet, one (2, N) matrix of views; the time_boot_ms of its newest packet of each kind (columns
-        # POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND; -1: none yet)
+        # the fleet vehicle clock: ms of the largest time progress of any vehicle since connect, and the
+        # time.monotonic() at which it last advanced
+        self.clock = np.array([0.0, -math.inf])
+        # per vehicle (2, N): time.monotonic() at which progress_ms last advanced, and of its last packet
         self.walls = np.full((2, n), -math.inf)
         self.progress_wall, self.last_rx_wall = self.walls
+        # (N, 3) the time_boot_ms of its newest packet of each kind (columns POSITION_KIND, ATTITUDE_KIND,
+        # CLOCK_KIND; -1: none yet)
         self.latest_ms = np.full((n, 3), -1, dtype=np.int64)
         self._pos = np.full((n, 3), np.nan)
         self.pos_stale = False  # set by GLOBAL_POSITION_INT: `pos` recomputes lazily
+
+    @property
+    def clock_ms(self) -> int:
+        """The fleet vehicle clock: the largest time progress of any vehicle since connect, ms."""
+        return int(self.clock[0])
+
+    @property
+    def clock_wall(self) -> float:
+        """time.monotonic() at which `clock_ms` last advanced (-inf: never)."""
+        return float(self.clock[1])
 
     def vehicle_clock(self) -> tuple[int, float]:
         """The fleet vehicle clock for a `Timeout`: (clock_ms, wall time it last advanced)."""
@@ -150,8 +158,10 @@ class TelemetryState:
 class VehicleTelemetry:
     """Decodes one vehicle's telemetry into `state` row `index`; keeps its clock, events and liveness.
 
-    `on_time(t_ms)` is called whenever the vehicle's time_boot_ms moves (forward, or back at a reboot) and
-    `on_reboot()` when it reboots (its stream rates are gone): the link's GCS heartbeat and stream watchdog.
+    The law of the stamped packets is link.intake_kernel's, here called for the packets pymavlink decodes;
+    `follow_up` does what it leaves to Python, for those and for the packets link.intake takes:
+    `on_heartbeat_due()` is called when a vehicle-time GCS HEARTBEAT is due and `on_reboot()` when the
+    vehicle reboots (its stream rates are gone): the link's GCS heartbeat and stream watchdog.
     """
 
     def __init__(
@@ -161,7 +171,7 @@ class VehicleTelemetry:
         state: TelemetryState,
         events: deque[Event],
         stats: LinkStats,
-        on_time: Callable[[int], None],
+        on_heartbeat_due: Callable[[], None],
         on_reboot: Callable[[], None],
     ) -> None:
         self.index = index
@@ -169,7 +179,7 @@ class VehicleTelemetry:
         self.state = state
         self.events = events
         self.stats = stats
-        self._on_time_hook = on_time
+        self._on_heartbeat_due = on_heartbeat_due
         self._on_reboot_hook = on_reboot
         self.statustexts = 0  # STATUSTEXT messages received so far
         self.last_statustext = ""
@@ -213,46 +223,35 @@ class VehicleTelemetry:
 
     def heard(self, now: float) -> None:
         """A packet from the autopilot arrived at `now` (time.monotonic()): the link is alive."""
-        st, i = self.state, self.index
-        st.last_rx_wall[i] = now
-        st.heard_clock_ms[i] = st.clock_ms
-        if not st.alive[i]:
-            st.alive[i] = True
-            if self.stats.lost:
-                self.add_event("link regained", mavlink2.MAV_SEVERITY_NOTICE)
+        st = self.state
+        self.follow_up(intake_kernel.heard(self.index, now, st.alive, st.times, st.walls, st.clock))
 
-    def on_time(self, t_ms: int, kind: int | None = None) -> bool:
-        """A packet stamped with the vehicle's time_boot_ms: advance clocks, call `on_time` (the heartbeat).
-
-        False for a late packet of `kind` (POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND: older than the latest
-        of that kind, delayed or reordered on the way), whose data must not overwrite newer data. Lateness is
-        per kind: a delayed position report older than the latest attitude is still the newest position. A
-        stamp older than the vehicle's newest by more than REBOOT_BACKSTEP_MS is a reboot.
-        """
-        st, i = self.state, self.index
-        prev = int(st.time_ms[i])
-        if t_ms > prev or t_ms < prev - REBOOT_BACKSTEP_MS:
-            if t_ms > prev and prev >= 0:
-                progress = int(st.progress_ms[i]) + t_ms - prev
-                wall = time.monotonic()
-                st.progress_ms[i], st.progress_wall[i] = progress, wall
-                if progress > st.clock_ms:
-                    st.clock_ms, st.clock_wall = progress, wall
-            elif t_ms < prev:  # rebooted: frames start again from zero, and its stream rates are gone
-                st.tick_ms[i] = -1
-                st.frame_ms[i] = -1
-                st.position_ms[i] = -1
-                st.latest_ms[i] = -1
-                self._on_reboot_hook()
-            st.time_ms[i] = t_ms
-            self._on_time_hook(t_ms)
-        if kind is None:
-            return True
-        if t_ms < st.latest_ms[i, kind]:
+    def follow_up(self, outcome: int) -> None:
+        """What the law's `outcome` (link.intake_kernel bits) leaves to Python: counters, the reboot and
+        heartbeat hooks, the "link regained" event, the stale ENU positions."""
+        if outcome & INVALID:
+            self.stats.invalid += 1
+        if outcome & REBOOTED:
+            self._on_reboot_hook()
+        if outcome & HEARTBEAT_DUE:
+            self._on_heartbeat_due()
+        if outcome & LATE:
             self.stats.late += 1
-            return False
-        st.latest_ms[i, kind] = t_ms
-        return True
+        if outcome & POSITION_STORED:
+            self.state.pos_stale = True
+        if outcome & REGAINED and self.stats.lost:
+            self.add_event("link regained", mavlink2.MAV_SEVERITY_NOTICE)
+
+    def on_time(self, t_ms: int, kind: int = -1) -> bool:
+        """A packet stamped with the vehicle's time_boot_ms (link.intake_kernel.on_time, then `follow_up`).
+        False for a late packet of `kind` (POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND; -1: none), whose data
+        must not overwrite newer data."""
+        st = self.state
+        outcome = intake_kernel.on_time(
+            self.index, t_ms, kind, st.times, st.latest_ms, st.walls, st.clock, time.monotonic()
+        )
+        self.follow_up(outcome)
+        return not outcome & LATE
 
     def _on_heartbeat(self, m: MAVLinkMessage) -> None:
         st, i = self.state, self.index
@@ -260,43 +259,51 @@ class VehicleTelemetry:
         st.armed[i] = bool(m.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
         st.system_status[i] = m.system_status
 
-    def _invalid(self) -> None:
-        self.stats.invalid += 1
-
     def _on_global_position_int(self, m: MAVLinkMessage) -> None:
-        self.on_global_position(m.time_boot_ms, m.lat, m.lon, m.alt, m.vx, m.vy, m.vz)
-
-    def on_global_position(self, t_ms: int, lat: int, lon: int, alt: int, vx: int, vy: int, vz: int) -> None:
-        """GLOBAL_POSITION_INT's fields: time_boot_ms, lat, lon degE7, alt mm AMSL, vx, vy, vz cm/s NED."""
-        if abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000:
-            return self._invalid()
-        if not self.on_time(t_ms, POSITION_KIND):
-            return
-        st, i = self.state, self.index
-        st.geodetic[i] = (lat * 1e-7, lon * 1e-7, alt * 1e-3)  # degE7, degE7, mm AMSL
-        st.vel[i] = (vy * 0.01, vx * 0.01, -vz * 0.01)  # cm/s NED -> m/s ENU (spec 1.1)
-        st.pos_stale = True
-        st.position_count[i] += 1
-        if t_ms > st.position_ms[i] > st.tick_ms[i]:  # a new frame; the one in hand was never used
-            st.frames_missed[i] += 1
-        st.position_ms[i] = t_ms
+        st = self.state
+        self.follow_up(
+            intake_kernel.position_packet(
+                self.index,
+                m.time_boot_ms,
+                m.lat,
+                m.lon,
+                m.alt,
+                m.vx,
+                m.vy,
+                m.vz,
+                st.times,
+                st.latest_ms,
+                st.walls,
+                st.clock,
+                st.geodetic,
+                st.vel,
+                time.monotonic(),
+            )
+        )
 
     def _on_attitude(self, m: MAVLinkMessage) -> None:
-        self.on_attitude(m.time_boot_ms, m.roll, m.pitch, m.yaw)
-
-    def on_attitude(self, t_ms: int, roll: float, pitch: float, yaw: float) -> None:
-        """ATTITUDE's fields: time_boot_ms, roll, pitch, yaw rad (FRD body in NED)."""
-        if not (math.isfinite(roll) and math.isfinite(pitch) and math.isfinite(yaw)):
-            return self._invalid()
-        if not self.on_time(t_ms, ATTITUDE_KIND):
-            return
-        enu_yaw = (0.5 * math.pi - yaw + math.pi) % (2.0 * math.pi) - math.pi
-        self.state.att[self.index] = (roll, -pitch, enu_yaw)  # FRD/NED -> FLU/ENU (spec 1.1)
+        st = self.state
+        self.follow_up(
+            intake_kernel.attitude_packet(
+                self.index,
+                m.time_boot_ms,
+                m.roll,
+                m.pitch,
+                m.yaw,
+                st.times,
+                st.latest_ms,
+                st.walls,
+                st.clock,
+                st.att,
+                time.monotonic(),
+            )
+        )
 
     def _on_attitude_quaternion(self, m: MAVLinkMessage) -> None:
         q = (m.q1, m.q2, m.q3, m.q4)
         if not all(math.isfinite(c) for c in q) or not 0.5 < math.hypot(*q) < 1.5:
-            return self._invalid()
+            self.stats.invalid += 1
+            return
         if not self.on_time(m.time_boot_ms, ATTITUDE_KIND):
             return
         q_enu = frames.quaternion_ned_to_enu((m.q1, m.q2, m.q3, m.q4))

@@ -67,7 +67,7 @@ class VehicleLink:
             state,
             events,
             self.channel.stats,
-            self.heartbeat.on_vehicle_time,
+            self.heartbeat.send,
             self._rebooted,
         )
         self.lockstep = LockstepAnswer(index, self.channel, self.telemetry)

@@ -10,7 +10,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.connection import new_parser
 from gcs_swarm.link.fleet import Fleet
-from gcs_swarm.link.heartbeat import GCS_HEARTBEAT_MS
+from gcs_swarm.link.intake_kernel import GCS_HEARTBEAT_MS
 from gcs_swarm.link.vehicle import VehicleConfig
 
 N = 100
