@@ -21,17 +21,14 @@ from pathlib import Path
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from sitl_sim.autopilot import px4
-from sitl_sim.autopilot.copter import READY_DELAY_S as ARDUCOPTER_READY_DELAY_S
 from sitl_sim.autopilot.copter import Autopilot
 from sitl_sim.autopilot.fence import FenceItem
 from sitl_sim.autopilot.params import ParamTable, param_specs
-from sitl_sim.autopilot.persona import ARDUPILOT, PX4
+from sitl_sim.autopilot.persona import Persona, fleet_params, fleet_personas
 from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
 from sitl_sim.network.endpoint import VehicleEndpoint
 from sitl_sim.network.link_faults import UP, LinkFaults
 from sitl_sim.network.streams import (
-    DEFAULT_RATES_HZ,
     STREAM_IDS,
     Geodesy,
     StreamSchedule,
@@ -79,8 +76,7 @@ class SimConfig:
     wind: tuple[float, float, float]  # speed m/s, from-direction deg, turbulence m/s
     truth_log: Path | None
     seed: int
-    # simulated s from boot to the position estimate, all vehicles; None: each its autopilot's default
-    # (copter.READY_DELAY_S for ArduCopter, px4.READY_DELAY_S for PX4)
+    # simulated s from boot to the position estimate, all vehicles; None: each its persona's ready_delay_s
     ready_delay: float | None
     link: LinkFaults = LinkFaults()  # link faults of every vehicle (SIM_LINK_* param defaults, outages)
     signing_key: bytes | None = field(
@@ -91,7 +87,7 @@ class SimConfig:
     orphan_grace_s: float = 300.0  # simulated s an orphan flies at most before it exits
     # wall s each lockstep wait for answers polls before it blocks (swarm_common.spin_wait; CLI default 1 ms)
     lockstep_spin_s: float = 0.0
-    autopilots: tuple[str, ...] = ()  # "ardupilot"/"px4" per vehicle (autopilot.persona); (): all ArduPilot
+    autopilots: tuple[str, ...] = ()  # persona name per vehicle (autopilot.persona); (): all ArduCopter
 
     @property
     def vehicles(self) -> int:
@@ -111,8 +107,8 @@ class Simulator:
         self.sysids = config.sysid_base + np.arange(n)
         speed, direction, turbulence = config.wind
         direction = wind_from_degrees(direction)
-        px4_mask = np.array([name == PX4 for name in config.autopilots or (ARDUPILOT,) * n], dtype=bool)
-        self.params = fleet_params(quad.hover_fraction, config.param_names, px4_mask)
+        personas = fleet_personas(config.autopilots, n)
+        self.params = simulator_params(quad.hover_fraction, config.param_names, personas)
         p = self.params
         p.values[:, p.column_index("MAV_SYSID")] = self.sysids
         p.values[:, p.column_index("MAV_SYS_ID")] = self.sysids
@@ -133,13 +129,13 @@ class Simulator:
             home,
             airborne,
             config.start_vel,
-            ready_delays(config, px4_mask),
-            px4_mask,
+            ready_delays(config, personas),
+            personas,
         )
         self.wind = Wind(n, config.seed, speed, direction, turbulence)
         self.obstacles = config.obstacles
         self.geodesy = Geodesy(config.home)
-        rates = [px4.DEFAULT_RATES_HZ if is_px4 else DEFAULT_RATES_HZ for is_px4 in px4_mask]
+        rates = [persona.default_rates_hz for persona in personas]
         self.streams = StreamSchedule(
             n, round(self.timing.tick_s * 1e6), np.array([[r.get(m, 0.0) for m in STREAM_IDS] for r in rates])
         )
@@ -477,10 +473,9 @@ class Simulator:
         """Store a checked parameter value set on vehicle i; world parameters change the world at once."""
         j = self.params.index[name]
         for row in self.params.set(i, name, value):
-            self.endpoints[row].outbox.send_param(self.params, row, j, bytewise=self.autopilot.is_px4(row))
-        if name in px4.MIRRORS:  # a PX4 parameter drives a column of the shared outer loop
-            column, scale = px4.MIRRORS[name]
-            self.params.values[i, self.params.column_index(column)] = self.params.value(i, name) * scale
+            bytewise = self.autopilot.persona(row).bytewise_params
+            self.endpoints[row].outbox.send_param(self.params, row, j, bytewise=bytewise)
+        self.autopilot.persona(i).parameter_set(self.params, i, name)  # a mirrored one drives the shared loop
         if name.startswith("SIM_WIND_"):
             p = self.params
             self.wind.set(p.value(i, "SIM_WIND_SPD"), p.value(i, "SIM_WIND_DIR"), p.value(i, "SIM_WIND_TURB"))
@@ -531,7 +526,7 @@ def warm_up_kernels() -> None:
     fleet, so that the first frames after READY are not late by the JIT time."""
     quad = QuadParams()
     dyn = FleetDynamics(1, quad)
-    params = fleet_params(quad.hover_fraction, "4.7", np.zeros(1, dtype=bool))
+    params = simulator_params(quad.hover_fraction, "4.7", fleet_personas((), 1))
     zeros = np.zeros((1, 3))
     Autopilot(dyn, params, zeros, zeros, np.zeros(1, dtype=bool), zeros, 0.0).update(0.0, 0.01)
     dyn.step(zeros, 1)
@@ -540,31 +535,20 @@ def warm_up_kernels() -> None:
     find_collisions(zeros, zeros, Obstacles(zeros, np.ones(1), zeros), 0.0, 0.01, np.zeros(1, dtype=bool))
 
 
-def ready_delays(config: SimConfig, px4_mask: np.ndarray) -> np.ndarray:
+def ready_delays(config: SimConfig, personas: tuple[type[Persona], ...]) -> np.ndarray:
     """(N,) simulated s from boot to each vehicle's position estimate: config.ready_delay for all when given,
-    else the default of each vehicle's autopilot (ArduCopter copter.READY_DELAY_S, PX4 px4.READY_DELAY_S)."""
+    else each vehicle's persona's ready_delay_s."""
     if config.ready_delay is not None:
-        return np.full(len(px4_mask), float(config.ready_delay))
-    return np.where(px4_mask, px4.READY_DELAY_S, ARDUCOPTER_READY_DELAY_S)
+        return np.full(len(personas), float(config.ready_delay))
+    return np.array([persona.ready_delay_s for persona in personas])
 
 
-def fleet_params(hover_fraction: float, param_names: str, px4_mask: np.ndarray) -> ParamTable:
-    """The parameters of a fleet whose vehicles `px4_mask` (N,) are PX4: one table of ArduCopter's and PX4's
-    columns; an ArduPilot vehicle shows ArduCopter's names, a PX4 vehicle PX4's (both show the simulator's
-    SIM_*); a PX4 vehicle's hidden ArduCopter columns follow its PX4 values (px4.MIRRORS, HIDDEN_FIXED)."""
-    ardupilot = param_specs(hover_fraction, param_names)
-    own = px4.param_specs(hover_fraction)
-    specs = tuple(sorted(ardupilot + own, key=lambda spec: spec.name))
-    shared = np.array([spec.name.startswith("SIM_") for spec in specs])
-    is_own = np.array([spec in own for spec in specs])
-    mask = np.asarray(px4_mask, dtype=bool)[:, None]
-    table = ParamTable(len(mask), specs, {}, np.where(mask, is_own | shared, ~is_own))
-    rows = np.flatnonzero(mask[:, 0])
-    for name, (column, scale) in px4.MIRRORS.items():
-        table.values[rows, table.column_index(column)] = table.values[rows, table.column_index(name)] * scale
-    for name, value in px4.HIDDEN_FIXED.items():
-        table.values[rows, table.column_index(name)] = value
-    return table
+def simulator_params(
+    hover_fraction: float, param_names: str, personas: tuple[type[Persona], ...]
+) -> ParamTable:
+    """The fleet's parameter table: the shared table of ArduCopter's `param_names` release (hover_fraction:
+    MOT_THST_HOVER's default) and each persona's own (autopilot.persona.fleet_params)."""
+    return fleet_params(param_specs(hover_fraction, param_names), hover_fraction, personas)
 
 
 def wind_from_degrees(direction_deg: float) -> float:

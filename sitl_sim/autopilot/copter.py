@@ -1,8 +1,11 @@
-"""ArduCopter-like autopilot of N vehicles: modes, arming, guided targets, land detector, failsafes.
+"""The shared autopilot of N vehicles: ArduCopter-numbered modes and their control laws, arming, guided
+targets, takeoff, land detector, geofences; what differs per autopilot is asked of each vehicle's persona
+(sitl_sim.autopilot.persona: HEARTBEAT, pre-arm verdict, rules around each tick, descent profile).
 
-`update` runs once per outer tick: one fused loop over all vehicles (sitl_sim.autopilot.outer_loop,
-compiled by numba when available) hands attitude/thrust targets to the physics (FleetDynamics, whose attitude
-controller runs at the physics rate) and flags the rare events (disarm, failsafe) that Python then handles.
+`update` runs once per outer tick: the personas' rules, then one compiled loop over all vehicles
+(sitl_sim.autopilot.outer_loop) that hands attitude/thrust targets to the physics (FleetDynamics, whose
+attitude controller runs at the physics rate) and flags the rare events (disarm, failsafe) the personas then
+handle.
 Discrete inputs (a command, a mode change, a crash) are per-vehicle methods. Every mode reduces to one of two
 control laws:
 - position/velocity control (GUIDED position/velocity targets, LOITER, BRAKE, RTL, LAND): position_control;
@@ -31,10 +34,8 @@ from sitl_sim.autopilot.health import (
 from sitl_sim.autopilot.modes import (
     ALT_HOLD,
     BRAKE,
-    GCS_FAILSAFE_ACTIONS,
     GUID_OPTION_THRUST,
     GUIDED,
-    GUIDED_ENABLED_MODES,
     GUIDED_NOGPS,
     LAND,
     LOITER,
@@ -47,7 +48,7 @@ from sitl_sim.autopilot.modes import (
 from sitl_sim.autopilot.outer_loop import (
     CTRL_ANGLE,
     CTRL_POS,
-    EVENT_DISARM,
+    DESCENT_INTERPOLATED,
     KIND_ACCEL,
     KIND_BRAKE,
     KIND_POS,
@@ -56,18 +57,20 @@ from sitl_sim.autopilot.outer_loop import (
     LOOP_PARAMS,
     RTL_CLIMB,
     RTL_DESCEND,
+    AngleTargets,
+    Descent,
+    Modes,
+    Navigation,
+    Outputs,
+    Vehicles,
     outer_loop,
 )
 from sitl_sim.autopilot.params import ParamTable
-from sitl_sim.autopilot.px4 import Px4Autopilot
+from sitl_sim.autopilot.persona import Persona, fleet_personas
 from sitl_sim.vehicle_model.attitude_control import level_quat, yaw_from_quat
 from sitl_sim.vehicle_model.dynamics import FleetDynamics
 
-PREARM_DISPLAY_PERIOD_S = 30.0  # AP_Arming.cpp PREARM_DISPLAY_PERIOD: unprompted pre-arm failure reports
 GPS_FIX_S = 10.0  # simulated s from boot to the GPS 3D fix (real SITL: 10 s), at most half the ready delay
-# default ready delay of an ArduCopter vehicle (`sitl-sim --ready-delay` not given): a real ArduCopter 4.7
-# SITL's EKF uses GPS 42 s after boot; a PX4 vehicle's default is sitl_sim.autopilot.px4.READY_DELAY_S
-READY_DELAY_S = 40.0
 
 
 class Autopilot:
@@ -77,7 +80,7 @@ class Autopilot:
     airborne (N,) bool: vehicles that start flying (armed, GUIDED, holding start_vel (N,3) until
     GUID_TIMEOUT).
     ready_delay: simulated seconds until a vehicle on the ground has a position estimate, one for all or (N,)
-    one per vehicle.
+    one per vehicle. personas: each vehicle's persona class (default ArduCopter for all).
     """
 
     def __init__(
@@ -89,9 +92,8 @@ class Autopilot:
         airborne: np.ndarray,
         start_vel: np.ndarray,
         ready_delay: float | np.ndarray,
-        px4: np.ndarray | None = None,
+        personas: tuple[type[Persona], ...] = (),
     ) -> None:
-        """px4 (N,) bool: the vehicles that behave as PX4 (sitl_sim.autopilot.px4), default none."""
         n = dyn.n
         self.n = n
         self.dyn = dyn
@@ -136,10 +138,9 @@ class Autopilot:
         self.use_thrust = np.zeros(n, dtype=bool)
         self.angle_timed_out = np.ones(n, dtype=bool)
         self.integrator = np.zeros((n, 3))
-        # upward velocity limit (m/s) on top of the position controller's own, +inf = none: the PX4 persona's
-        # takeoff (spool-up, ramp, takeoff speed; sitl_sim.autopilot.px4); never set on an ArduCopter vehicle
+        # upward velocity limit (m/s) on top of the position controller's own, +inf = none: a persona's own
+        # climb rules (Persona.before_loop)
         self.climb_cap = np.full(n, np.inf)
-        self.px4_mask = np.zeros(n, dtype=bool) if px4 is None else np.array(px4, dtype=bool)
         self.texts: list[list[tuple[int, str]]] = [[] for _ in range(n)]
         self.fence = fences.Fences(n)  # geofences and their breach state (sitl_sim.autopilot.fence)
         self.fence_log: list[str] = []  # breaches and their actions, for the simulator's log (stderr)
@@ -152,31 +153,49 @@ class Autopilot:
         self._rate_control = False  # some vehicle was under rate-only control at the last tick
         self._events = np.zeros(n, dtype=np.int64)
         self._columns = np.array([params.column_index(name) for name in LOOP_PARAMS], dtype=np.int64)
+        kinds = personas or fleet_personas((), n)
+        descent_columns = np.zeros((n, 8), dtype=np.int64)
+        for row, kind in enumerate(kinds):
+            if kind.descent_profile == DESCENT_INTERPOLATED:
+                descent_columns[row] = [params.column_index(name) for name in kind.descent_params]
         s = self.state
-        self._loop_arrays = (
-            s.pos, s.vel, s.quat, s.landed, s.crashed, self.home,
-            self.mode, self.armed, self.control, self.nav_kind, self.nav_pos, self.nav_vel, self.nav_acc,
-            self.nav_yaw, self.nav_yaw_rate, self.target_time, self.rtl_stage, self.takeoff_active,
-            self.land_complete, self.land_timer, self.disarm_timer, self.thrust_demand,
+        self._vehicles = Vehicles(s.pos, s.vel, s.quat, s.landed, s.crashed, self.home)
+        self._modes = Modes(
+            self.mode, self.armed, self.control, self.rtl_stage, self.takeoff_active, self.land_complete,
+            self.land_timer, self.disarm_timer, self.target_time, self.last_gcs_heartbeat, self.failsafe_gcs,
+        )  # fmt: skip
+        self._navigation = Navigation(
+            self.nav_kind, self.nav_pos, self.nav_vel, self.nav_acc, self.nav_yaw, self.nav_yaw_rate,
+            self.climb_cap, self.integrator,
+        )  # fmt: skip
+        self._angle = AngleTargets(
             self.angle_quat, self.angle_rates, self.angle_rate_ff, self.rates_only, self.climb_rate,
-            self.collective, self.use_thrust, self.angle_timed_out, self.integrator,
-            self.last_gcs_heartbeat, self.failsafe_gcs, self.climb_cap, self.px4_mask,
-            self._quat_sp, self._rate_ff, self._motors_on, self._tilt, self._rate_mask, self._events,
+            self.collective, self.use_thrust, self.angle_timed_out,
+        )  # fmt: skip
+        self._descent = Descent(
+            np.array([kind.descent_profile for kind in kinds], dtype=np.int64),
+            descent_columns,
+            np.array([kind.descent_accel_down for kind in kinds], dtype=float),
+            np.array([kind.descent_range_max for kind in kinds], dtype=float),
+        )
+        self._outputs = Outputs(
+            self._quat_sp, self._rate_ff, self.thrust_demand, self._motors_on, self._tilt, self._rate_mask,
+            self._events,
         )  # fmt: skip
         for i in np.flatnonzero(~self.armed):
             self._enter_mode(int(i), STABILIZE)
-        self.px4 = Px4Autopilot(self, self.px4_mask)
+        # one instance of each persona over its vehicles (after the state above: a persona may set modes)
+        rows = {kind: np.array([k is kind for k in kinds], dtype=bool) for kind in dict.fromkeys(kinds)}
+        self.personas = [kind(self, mask) for kind, mask in rows.items()]
+        self._persona_of = [next(p for p in self.personas if isinstance(p, kind)) for kind in kinds]
 
-    def is_px4(self, i: int) -> bool:
-        """Vehicle i speaks as PX4 (its rules are self.px4's); otherwise as ArduCopter."""
-        return bool(self.px4.mask[i])
+    def persona(self, i: int) -> Persona:
+        """Vehicle i's persona (the instance holding its persona's rules and state)."""
+        return self._persona_of[i]
 
     def heartbeat(self, i: int) -> tuple[int, int, int, int]:
-        """(autopilot, base_mode, custom_mode, system_status) of vehicle i's HEARTBEAT."""
-        if self.is_px4(i):
-            return self.px4.heartbeat(i)
-        autopilot = mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA
-        return autopilot, self.base_mode(i), int(self.mode[i]), self.system_status(i)
+        """(autopilot, base_mode, custom_mode, system_status) of vehicle i's HEARTBEAT (its persona's)."""
+        return self.persona(i).heartbeat(i)
 
     def enter_mode(self, i: int, mode: int) -> None:
         """Run the shared control law of internal (ArduCopter-numbered) `mode` on vehicle i from its state."""
@@ -200,26 +219,6 @@ class Autopilot:
     def position_ok(self, i: int) -> bool:
         """The EKF has a position (origin, home and GPS fix are set)."""
         return bool(self.ready[i])
-
-    def base_mode(self, i: int) -> int:
-        """HEARTBEAT base_mode as ArduCopter computes it."""
-        bits = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink2.MAV_MODE_FLAG_STABILIZE_ENABLED
-        bits |= mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
-        if self.mode[i] in GUIDED_ENABLED_MODES:
-            bits |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
-        if self.armed[i]:
-            bits |= mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
-        return bits
-
-    def system_status(self, i: int) -> int:
-        """HEARTBEAT system_status: BOOT, STANDBY, ACTIVE armed, CRITICAL in failsafe, EMERGENCY crashed."""
-        if self.state.crashed[i]:
-            return mavlink2.MAV_STATE_EMERGENCY
-        if self.failsafe_gcs[i]:
-            return mavlink2.MAV_STATE_CRITICAL
-        if self.t < self.boot_end[i]:
-            return mavlink2.MAV_STATE_BOOT
-        return mavlink2.MAV_STATE_ACTIVE if self.armed[i] else mavlink2.MAV_STATE_STANDBY
 
     def prearm_ok(self, i: int) -> bool:
         """The pre-arm checks pass (position estimate, not crashed, the fence's checks)."""
@@ -259,8 +258,8 @@ class Autopilot:
             health |= mavlink2.MAV_SYS_STATUS_AHRS
         if self.ready[i]:
             health |= mavlink2.MAV_SYS_STATUS_SENSOR_GPS
-        if self.px4.arming_problem(i, int(self.px4.nav[i])) is None if self.is_px4(i) else self.prearm_ok(i):
-            health |= mavlink2.MAV_SYS_STATUS_PREARM_CHECK  # PX4: pre_flight_checks_pass (Commander::run)
+        if self.persona(i).prearm_ok(i):
+            health |= mavlink2.MAV_SYS_STATUS_PREARM_CHECK
         present = SENSORS_PRESENT
         # AC_Fence::sys_status_present/_enabled/_failed: the geofence bit
         configured = int(self.params.value(i, "FENCE_TYPE"))
@@ -332,7 +331,7 @@ class Autopilot:
         if not force and not self.land_complete[i]:
             self.say(i, mavlink2.MAV_SEVERITY_WARNING, "Disarm: vehicle is flying")
             return mavlink2.MAV_RESULT_FAILED
-        self._disarm(i)
+        self.disarm_motors(i)
         return mavlink2.MAV_RESULT_ACCEPTED
 
     def set_mode(self, i: int, mode: int) -> int:
@@ -350,10 +349,10 @@ class Autopilot:
             )
             return mavlink2.MAV_RESULT_FAILED
         self._enter_mode(i, mode)
-        self._mode_changed(i)
+        self.mode_changed(i)
         return mavlink2.MAV_RESULT_ACCEPTED
 
-    def _mode_changed(self, i: int) -> None:
+    def mode_changed(self, i: int) -> None:
         """ArduCopter mode.cpp set_mode: any mode change while breached (the fence's own action too) starts
         the fence's manual recovery, 10 s in which new breaches are not acted on."""
         if self.params.value(i, "FENCE_ACTION") != fences.REPORT_ONLY and self.fence.manual_recovery_start(
@@ -475,11 +474,12 @@ class Autopilot:
         """One outer tick at simulated time t (s) covering dt (s): modes, control, targets to the physics."""
         self.t = t
         self.ready = t >= self.ready_at
-        if not (self.ready | self.px4.mask).all():  # AP_Arming::update: an ArduCopter that cannot arm says
-            self._prearm_reports(t)  # why every PREARM_DISPLAY_PERIOD (30 s) by itself
-        if self.px4.mask.any():
-            self.px4.before_loop(t, dt)  # PX4's own limits on this tick's shared control law (takeoff)
-        outer_loop(t, dt, self.dyn.params.g, self.params.values, self._columns, *self._loop_arrays)
+        for persona in self.personas:
+            persona.before_loop(t, dt)
+        outer_loop(
+            t, dt, self.dyn.params.g, self.params.values, self._columns,
+            self._vehicles, self._modes, self._navigation, self._angle, self._descent, self._outputs,
+        )  # fmt: skip
         self.dyn.set_targets(
             self._quat_sp,
             self._rate_ff,
@@ -490,27 +490,10 @@ class Autopilot:
         if self._rate_mask.any() or self._rate_control:  # rate-only control started, continues or ends
             self.dyn.set_rate_targets(self._rate_mask, self.angle_rates)
             self._rate_control = bool(self._rate_mask.any())
-        # PX4 vehicles disarm and failsafe by their own rules (self.px4.update)
-        for i in np.flatnonzero((self._events != 0) & ~self.px4.mask):
-            self._handle_event(int(i), int(self._events[i]))
-        if self.px4.mask.any():
-            self.px4.update(t)
+        for persona in self.personas:
+            persona.after_loop(t, self._events)
         if t - self.fence.last_check >= fences.CHECK_PERIOD_S - 1e-9:
             self._fence_check(t)
-
-    def _prearm_reports(self, t: float) -> None:
-        """Unprompted "PreArm: Need Position Estimate" of the vehicles without a position estimate, disarmed,
-        booted, whose last report is PREARM_DISPLAY_PERIOD_S old (simulated s)."""
-        due = (
-            ~self.ready
-            & ~self.px4.mask
-            & ~self.armed
-            & (t - self.prearm_said >= PREARM_DISPLAY_PERIOD_S)
-            & (t >= self.boot_end)
-        )
-        for i in np.flatnonzero(due):
-            self.say(int(i), mavlink2.MAV_SEVERITY_CRITICAL, "PreArm: Need Position Estimate")
-            self.prearm_said[i] = t
 
     def _fence_check(self, t: float) -> None:
         """ArduCopter/fence.cpp at 25 Hz: AC_Fence::check for every vehicle (sitl_sim.autopilot.fence), then
@@ -548,7 +531,7 @@ class Autopilot:
         action = int(self.params.value(i, "FENCE_ACTION"))
         if action != fences.REPORT_ONLY:
             if self.land_complete[i]:
-                self._disarm(i)
+                self.disarm_motors(i)
             elif self.fence.breach_distance(i, new) > fences.GIVE_UP_DISTANCE_M:
                 self.set_mode(i, LAND)
             else:
@@ -562,30 +545,14 @@ class Autopilot:
             + (", disarmed" if not self.armed[i] else "")
         )
 
-    def _handle_event(self, i: int, event: int) -> None:
-        if event == EVENT_DISARM:
-            self._disarm(i)
-            return
-        self.failsafe_gcs[i] = True  # EVENT_GCS_FAILSAFE
-        if self.land_complete[i]:
-            self.say(i, mavlink2.MAV_SEVERITY_CRITICAL, "GCS Failsafe - Disarming")
-            self._disarm(i)
-            return
-        self.say(i, mavlink2.MAV_SEVERITY_CRITICAL, "GCS Failsafe")
-        action = GCS_FAILSAFE_ACTIONS[int(self.params.value(i, "FS_GCS_ENABLE"))]
-        if self.mode[i] not in (LAND, RTL) or action == LAND:
-            changed = action != self.mode[i]
-            self._enter_mode(i, action)
-            if changed:
-                self._mode_changed(i)
-
     # --- internals ------------------------------------------------------------------------------------------
 
     def _landing(self, i: int) -> bool:
         """Vehicle i is in a landing descent (LAND, or RTL's final descent)."""
         return bool(self.mode[i] == LAND or (self.mode[i] == RTL and self.rtl_stage[i] == RTL_DESCEND))
 
-    def _disarm(self, i: int) -> None:
+    def disarm_motors(self, i: int) -> None:
+        """Vehicle i disarms now (motors stop), saying so."""
         self.armed[i] = False
         self.takeoff_active[i] = False
         self.disarm_timer[i] = 0.0

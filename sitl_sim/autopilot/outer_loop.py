@@ -1,20 +1,22 @@
-"""The autopilot's fused outer loop over all vehicles (compiled by numba when available): guided timeouts,
-navigation targets (takeoff, RTL stages, LAND descent, BRAKE), land detector, the position or angle control
-law, and the disarm / GCS-failsafe events Python then handles (sitl_sim.autopilot.copter.Autopilot.update).
+"""The autopilot's outer loop over all vehicles, compiled (swarm_common.jit): guided timeouts, navigation
+targets (takeoff, RTL stages, the landing descent, BRAKE), land detector, the position or angle control
+law, and the disarm / GCS-failsafe events the personas then handle (sitl_sim.autopilot.copter.Autopilot
+.update).
 
-World ENU, body FLU, SI units; parameters in ArduCopter's units (cm, cdeg) as the parameter table holds them,
-the PX4 persona's own (MPC_*, read for PX4 vehicles only) in PX4's (m, m/s).
+World ENU, body FLU, SI units; the shared parameter columns in ArduCopter's units (cm, cdeg) as the parameter
+table holds them. Its inputs and outputs are grouped in named records of arrays (Vehicles, Modes, Navigation,
+AngleTargets, Descent, Outputs; N vehicles). What differs per persona is data in these records: the landing
+descent profile and its parameters (Descent), an upward velocity limit (Navigation.climb_cap).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from sitl_sim.autopilot.modes import ALT_HOLD, BRAKE, GUIDED, GUIDED_NOGPS, LAND, RTL, STABILIZE
-from swarm_common.jit import kernel
-from swarm_common.shaping import sqrt_controller
 from sitl_sim.vehicle_model.position_control import (
     I_MAX_XY,
     I_MAX_Z,
@@ -24,6 +26,8 @@ from sitl_sim.vehicle_model.position_control import (
     velocity_demand,
     velocity_pi,
 )
+from swarm_common.jit import kernel
+from swarm_common.shaping import sqrt_controller
 
 CTRL_POS, CTRL_ANGLE = 0, 1
 KIND_POS, KIND_VEL, KIND_POSVEL, KIND_ACCEL = 0, 1, 2, 3  # guided position-target kinds
@@ -36,17 +40,10 @@ LAND_ALT_LOW = 10.0  # m, LAND descends at WPNAV_SPEED_DN above, LAND_SPEED belo
 SPIN_ARMED = 0.05  # fraction of full thrust while armed on the ground (MOT_SPIN_ARM-like)
 RTL_REACHED_M = 1.0  # m, horizontal distance at which RTL starts its descent
 TAKEOFF_REACHED_M = 0.1  # m below the takeoff altitude at which the takeoff is complete
-# PX4 persona (sitl_sim.autopilot.px4): MPC_ACC_DOWN_MAX default (mc_pos_control
-# multicopter_position_control_limits_params: 3 m/s^2), the descent acceleration of FlightTaskAuto's
-# PositionSmoothing (FlightTaskAuto::_updateTrajConstraints, "down"); not a parameter of the persona
-PX4_ACC_DOWN_MAX = 3.0
-# SIH's downward distance sensor (simulator_sih sih.cpp send_dist_snsr, published while |SIH_DISTSNSR_OVR| <
-# 10000, default -1): valid up to SIH_DISTSNSR_MAX (default 100 m), so PX4's FlightTask has _dist_to_bottom
-PX4_RANGE_MAX_M = 100.0
-# PX4's jerk-limited vertical trajectories (_smooth_vertical, px4.jerk_limited_step): the acceleration aimed
-# at is sqrt_controller(velocity error, SMOOTH_P, jerk), i.e. the time-optimal sqrt(2 jerk |error|) (brought
-# to 0 at the jerk limit as the error closes, as VelocitySmoothing plans) except within jerk / SMOOTH_P^2
-# (0.04 m/s at 4 m/s^3), where it is linear: it lags a moving target by ~ rate^2 / (2 jerk), as PX4 does
+# Jerk-limited vertical trajectories (jerk_limited_step): the acceleration aimed at is
+# sqrt_controller(velocity error, SMOOTH_P, jerk), i.e. the time-optimal sqrt(2 jerk |error|) (brought to 0
+# at the jerk limit as the error closes, as a jerk-limited velocity smoother plans) except within
+# jerk / SMOOTH_P^2 (0.04 m/s at 4 m/s^3), where it is linear: it lags a moving target by ~ rate^2 / (2 jerk)
 SMOOTH_P = 10.0
 
 EVENT_DISARM, EVENT_GCS_FAILSAFE = 1, 2
@@ -55,16 +52,103 @@ LOOP_PARAMS = (
     "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
     "LAND_SPEED", "DISARM_DELAY", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "ATC_ANGLE_BOOST", "PSC_JERK_XY",
     "LOIT_BRK_ACCEL", "LOIT_BRK_JERK",
-    "MPC_LAND_ALT1", "MPC_LAND_ALT2", "MPC_LAND_ALT3", "MPC_LAND_CRWL", "MPC_LAND_SPEED", "MPC_Z_VEL_MAX_DN",
-    "MPC_Z_V_AUTO_DN", "MPC_JERK_AUTO",
 )  # fmt: skip
 (
     P_HOVER, P_ANGLE_MAX, P_GUID_TIMEOUT, P_POSXY_P, P_POSZ_P, P_VELXY_P, P_VELXY_I, P_VELZ_P, P_VELZ_I,
     P_SPEED, P_SPEED_UP, P_SPEED_DN, P_ACCEL, P_LAND_SPEED, P_DISARM_DELAY, P_FS_ENABLE, P_FS_TIMEOUT,
     P_ANGLE_BOOST, P_JERK_XY, P_LOIT_BRK_ACCEL, P_LOIT_BRK_JERK,
-    P_PX4_LAND_ALT1, P_PX4_LAND_ALT2, P_PX4_LAND_ALT3, P_PX4_LAND_CRWL, P_PX4_LAND_SPEED, P_PX4_Z_VEL_MAX_DN,
-    P_PX4_Z_V_AUTO_DN, P_PX4_JERK_AUTO,
 ) = range(len(LOOP_PARAMS))  # fmt: skip
+# Landing descent profiles (Descent.profile): ArduCopter's two speeds (LAND_SPEED below LAND_ALT_LOW,
+# WPNAV_SPEED_DN above, as the target velocity at once), or a speed interpolated between two heights with a
+# crawl near the ground, capped, and reached through the jerk-limited trajectory (interpolated_land_speed)
+DESCENT_TWO_SPEED, DESCENT_INTERPOLATED = 0, 1
+# Descent.columns: the parameter columns DESCENT_INTERPOLATED reads, in this order (all in m, m/s, m/s^3)
+D_ALT_FAST, D_ALT_SLOW, D_ALT_CRAWL, D_CRAWL_SPEED, D_SLOW_SPEED, D_FAST_SPEED, D_SPEED_CAP, D_JERK = range(8)
+
+
+class Vehicles(NamedTuple):
+    """The physics' state the loop reads: pos, vel (N,3) ENU m, m/s; quat (N,4) body FLU -> world ENU; landed,
+    crashed (N,) bool; home (N,3) ENU m."""
+
+    pos: np.ndarray
+    vel: np.ndarray
+    quat: np.ndarray
+    landed: np.ndarray
+    crashed: np.ndarray
+    home: np.ndarray
+
+
+class Modes(NamedTuple):
+    """Mode state (N,): mode (internal, ArduCopter-numbered), armed, control (CTRL_*), rtl_stage (RTL_*),
+    takeoff_active, land_complete, land_timer and disarm_timer (s), target_time (s of the last guided target),
+    last_gcs_heartbeat (s), failsafe_gcs."""
+
+    mode: np.ndarray
+    armed: np.ndarray
+    control: np.ndarray
+    rtl_stage: np.ndarray
+    takeoff_active: np.ndarray
+    land_complete: np.ndarray
+    land_timer: np.ndarray
+    disarm_timer: np.ndarray
+    target_time: np.ndarray
+    last_gcs_heartbeat: np.ndarray
+    failsafe_gcs: np.ndarray
+
+
+class Navigation(NamedTuple):
+    """Position-control targets: kind (N,) KIND_*; pos, vel, acc (N,3) ENU m, m/s, m/s^2 (NaN pos: that axis
+    free); yaw, yaw_rate (N,) rad, rad/s ENU; climb_cap (N,) m/s, an upward velocity limit a persona puts on
+    position control (+inf: none); integrator (N,3) velocity PI memory, m/s^2."""
+
+    kind: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    yaw: np.ndarray
+    yaw_rate: np.ndarray
+    climb_cap: np.ndarray
+    integrator: np.ndarray
+
+
+class AngleTargets(NamedTuple):
+    """Angle-control targets: quat (N,4); rates (N,3) body FLU rad/s; rate_ff, rates_only (N,) bool;
+    climb_rate (N,) m/s; collective (N,) fraction of full thrust, used when use_thrust; timed_out (N,)
+    bool."""
+
+    quat: np.ndarray
+    rates: np.ndarray
+    rate_ff: np.ndarray
+    rates_only: np.ndarray
+    climb_rate: np.ndarray
+    collective: np.ndarray
+    use_thrust: np.ndarray
+    timed_out: np.ndarray
+
+
+class Descent(NamedTuple):
+    """Each vehicle's landing descent, from its persona: profile (N,) DESCENT_*; for DESCENT_INTERPOLATED
+    columns (N,8) the parameter columns read (D_*), accel_down (N,) m/s^2 the trajectory's descent
+    acceleration, range_max (N,) m the height up to which the crawl applies (a range finder's)."""
+
+    profile: np.ndarray
+    columns: np.ndarray
+    accel_down: np.ndarray
+    range_max: np.ndarray
+
+
+class Outputs(NamedTuple):
+    """What the loop hands on: quat_sp (N,4), rate_ff (N,3) rad/s, thrust_demand (N,) fraction of full thrust
+    (also read back: the land detector's last demand), motors_on (N,), tilt_max (N,) rad, rate_mask (N,) bool
+    (rate-only control), events (N,) EVENT_* for the personas."""
+
+    quat_sp: np.ndarray
+    rate_ff: np.ndarray
+    thrust_demand: np.ndarray
+    motors_on: np.ndarray
+    tilt_max: np.ndarray
+    rate_mask: np.ndarray
+    events: np.ndarray
 
 
 @kernel
@@ -74,7 +158,7 @@ def _set_level(quats: np.ndarray, i: int, yaw: float) -> None:
 
 
 @kernel
-def px4_land_speed(
+def interpolated_land_speed(
     height: float,
     alt1: float,
     alt2: float,
@@ -83,14 +167,14 @@ def px4_land_speed(
     crawl_speed: float,
     max_down: float,
     auto_down: float,
+    range_max: float,
 ) -> float:
-    """PX4's AUTO.LAND descent speed (m/s, > 0) at `height` m above the ground, all in PX4's units.
+    """DESCENT_INTERPOLATED's descent speed (m/s, > 0) at `height` m above the ground (the
+    AUTO.LAND of sitl_sim.autopilot's second persona, whose module cites its source and parameters).
 
-    FlightTaskAuto::_prepareLandSetpoints: math::interpolate(_dist_to_ground, MPC_LAND_ALT2, MPC_LAND_ALT1,
-    MPC_LAND_SPEED, MPC_Z_VEL_MAX_DN) (MPC_LAND_SPEED at and below ALT2, MPC_Z_VEL_MAX_DN above ALT1, linear
-    between; FlightTaskAuto::updateParams keeps ALT1 >= ALT2), MPC_LAND_CRWL at and below MPC_LAND_ALT3 when a
-    distance sensor measures the height (_dist_to_bottom finite: SIH's downward one, up to PX4_RANGE_MAX_M);
-    the PositionSmoothing then caps the descent at MPC_Z_V_AUTO_DN (_updateTrajConstraints, "down").
+    land_speed at and below alt2, max_down above alt1, linear between (alt1 is kept >= alt2); crawl_speed at
+    and below alt3 while the height is within range_max (a range finder measures it); the result capped at
+    auto_down.
     """
     alt1 = max(alt1, alt2)
     if height <= alt2:
@@ -100,7 +184,7 @@ def px4_land_speed(
     else:  # lib/mathlib math::interpolate
         slope = (max_down - land_speed) / (alt1 - alt2)
         speed = slope * height + (land_speed - slope * alt2)
-    if height <= min(alt3, PX4_RANGE_MAX_M):
+    if height <= min(alt3, range_max):
         speed = crawl_speed
     return min(speed, auto_down)
 
@@ -110,8 +194,8 @@ def jerk_limited_step(
     vel: float, acc: float, target: float, accel_max: float, jerk_max: float, dt: float
 ) -> tuple[float, float]:
     """(velocity, acceleration) one step dt towards the velocity `target` (m/s, m/s^2): acceleration at most
-    accel_max, changing by at most jerk_max per s, never overshooting: the stand-in for PX4's jerk-limited
-    PositionSmoothing (SMOOTH_P) in the PX4 persona's descents (_smooth_vertical) and climbs (px4.py)."""
+    accel_max, changing by at most jerk_max per s, never overshooting (SMOOTH_P): the DESCENT_INTERPOLATED
+    descents (_smooth_vertical) and the climbs a persona limits (Navigation.climb_cap)."""
     want = min(max(sqrt_controller(target - vel, SMOOTH_P, jerk_max, 0.0), -accel_max), accel_max)
     acc += min(max(want - acc, -jerk_max * dt), jerk_max * dt)
     new_vel = vel + acc * dt
@@ -139,21 +223,31 @@ def _smooth_vertical(
 
 @kernel
 def outer_loop(
-    t, dt, g, params, columns,
-    pos, vel, quat, landed, crashed, home,
-    mode, armed, control, nav_kind, nav_pos, nav_vel, nav_acc, nav_yaw, nav_yaw_rate, target_time, rtl_stage,
-    takeoff_active, land_complete, land_timer, disarm_timer, thrust_demand,
-    angle_quat, angle_rates, angle_rate_ff, rates_only, climb_rate, collective, use_thrust, angle_timed_out,
-    integrator, last_gcs_heartbeat, failsafe_gcs, climb_cap, px4,
-    quat_sp, rate_ff, motors_on, tilt_max, rate_mask, events,
-):  # fmt: skip  # noqa: ANN001, ANN202 - numba kernel over the Autopilot's arrays (see Autopilot.update)
-    """Per vehicle: guided timeouts, navigation targets, land detector, control law, disarm/failsafe events.
-
-    Writes quat_sp (N,4), rate_ff (N,3), thrust_demand (fraction of full thrust), motors_on, tilt_max (rad),
-    rate_mask (rate-only control) and events (0, EVENT_DISARM, EVENT_GCS_FAILSAFE) for Python to act on.
-    climb_cap (N,) m/s caps the upward velocity demand of position control (+inf: none); px4 (N,) bool: the
-    vehicles whose landing descent is PX4's (px4_land_speed); both are the PX4 persona's only.
+    t: float,
+    dt: float,
+    g: float,
+    params: np.ndarray,
+    columns: np.ndarray,
+    vehicles: Vehicles,
+    modes: Modes,
+    navigation: Navigation,
+    angle: AngleTargets,
+    descent: Descent,
+    out: Outputs,
+) -> None:
+    """One tick at simulated time t (s) covering dt (s), per vehicle: guided timeouts, navigation targets,
+    land detector, control law, disarm/failsafe events. params (N, P) the parameter table's values, columns
+    (len LOOP_PARAMS,) the column of each LOOP_PARAMS entry; g m/s^2. Updates the records in place and writes
+    `out`.
     """
+    pos, vel, quat, landed, crashed, home = vehicles
+    (
+        mode, armed, control, rtl_stage, takeoff_active, land_complete,
+        land_timer, disarm_timer, target_time, last_gcs_heartbeat, failsafe_gcs,
+    ) = modes  # fmt: skip
+    nav_kind, nav_pos, nav_vel, nav_acc, nav_yaw, nav_yaw_rate, climb_cap, integrator = navigation
+    angle_quat, angle_rates, angle_rate_ff, rates_only, climb_rate, collective, use_thrust, timed_out = angle
+    quat_sp, rate_ff, thrust_demand, motors_on, tilt_max, rate_mask, events = out
     for i in range(len(mode)):
         p = params[i]
         hover = p[columns[P_HOVER]]
@@ -169,14 +263,14 @@ def outer_loop(
         if guided and control[i] == CTRL_POS and stale and nav_kind[i] != KIND_POS:
             nav_vel[i] = 0.0
             nav_acc[i] = 0.0
-        if angle_guided and stale and not angle_timed_out[i]:
+        if angle_guided and stale and not timed_out[i]:
             _set_level(angle_quat, i, yaw_now)
             angle_rates[i] = 0.0
             angle_rate_ff[i] = False
             rates_only[i] = False
             climb_rate[i] = 0.0
             use_thrust[i] = False
-            angle_timed_out[i] = True
+            timed_out[i] = True
 
         # Navigation: takeoff completion, RTL stages, LAND descent speed, BRAKE hold, guided yaw rate.
         if takeoff_active[i] and pos[i, 2] >= nav_pos[i, 2] - TAKEOFF_REACHED_M:
@@ -192,13 +286,14 @@ def outer_loop(
                 nav_pos[i, 2] = math.nan
                 rtl_stage[i] = RTL_DESCEND
         landing = m == LAND or (m == RTL and rtl_stage[i] == RTL_DESCEND)
-        if landing and px4[i]:  # PX4's descent profile, through its jerk-limited trajectory
-            speed = px4_land_speed(
-                pos[i, 2] - home[i, 2], p[columns[P_PX4_LAND_ALT1]], p[columns[P_PX4_LAND_ALT2]],
-                p[columns[P_PX4_LAND_ALT3]], p[columns[P_PX4_LAND_SPEED]], p[columns[P_PX4_LAND_CRWL]],
-                p[columns[P_PX4_Z_VEL_MAX_DN]], p[columns[P_PX4_Z_V_AUTO_DN]],
+        if landing and descent.profile[i] == DESCENT_INTERPOLATED:  # through the jerk-limited trajectory
+            c = descent.columns[i]
+            speed = interpolated_land_speed(
+                pos[i, 2] - home[i, 2], p[c[D_ALT_FAST]], p[c[D_ALT_SLOW]], p[c[D_ALT_CRAWL]],
+                p[c[D_SLOW_SPEED]], p[c[D_CRAWL_SPEED]], p[c[D_FAST_SPEED]], p[c[D_SPEED_CAP]],
+                descent.range_max[i],
             )  # fmt: skip
-            _smooth_vertical(nav_vel, nav_acc, i, -speed, PX4_ACC_DOWN_MAX, p[columns[P_PX4_JERK_AUTO]], dt)
+            _smooth_vertical(nav_vel, nav_acc, i, -speed, descent.accel_down[i], p[c[D_JERK]], dt)
         elif landing:
             low = pos[i, 2] - home[i, 2] <= LAND_ALT_LOW
             nav_vel[i, 2] = -(p[columns[P_LAND_SPEED]] if low else p[columns[P_SPEED_DN]]) / 100.0
@@ -228,8 +323,8 @@ def outer_loop(
         # Control law.
         if m == STABILIZE:
             collective[i] = hover  # no RC: the throttle stick rests at mid (hover)
-        angle = angle_guided or m == STABILIZE or m == ALT_HOLD
-        direct = angle and use_thrust[i]
+        angle_law = angle_guided or m == STABILIZE or m == ALT_HOLD
+        direct = angle_law and use_thrust[i]
         flying = armed[i] and not land_complete[i]
         speed_dn = p[columns[P_SPEED_DN]] / 100.0
         speed_up = p[columns[P_SPEED_UP]] / 100.0
@@ -237,10 +332,10 @@ def outer_loop(
             pos[i], nav_pos[i], nav_vel[i], p[columns[P_POSXY_P]], p[columns[P_POSZ_P]],
             p[columns[P_ACCEL]] / 100.0, p[columns[P_SPEED]] / 100.0, speed_up, speed_dn,
         )  # fmt: skip
-        if climb_cap[i] < vz:  # the PX4 persona's takeoff limit (never set for ArduCopter: +inf)
+        if climb_cap[i] < vz:  # a persona's upward limit (+inf: none)
             vz = climb_cap[i]
         ax = ay = az = 0.0
-        if angle:
+        if angle_law:
             vz = min(max(climb_rate[i], -speed_dn), speed_up)
         elif flying:
             kp, ki = p[columns[P_VELXY_P]], p[columns[P_VELXY_I]]
@@ -251,12 +346,12 @@ def outer_loop(
         if flying and not direct:
             kp, ki = p[columns[P_VELZ_P]], p[columns[P_VELZ_I]]
             az, integrator[i, 2] = velocity_pi(vz - vel[i, 2], integrator[i, 2], kp, ki, I_MAX_Z, dt)
-            az += 0.0 if angle else nav_acc[i, 2]
-        if angle or not flying:
+            az += 0.0 if angle_law else nav_acc[i, 2]
+        if angle_law or not flying:
             integrator[i, 0] = integrator[i, 1] = 0.0
         if not flying or direct:
             integrator[i, 2] = 0.0
-        if angle:
+        if angle_law:
             quat_sp[i] = angle_quat[i]
             up = max(1.0 - 2.0 * (x * x + y * y), math.cos(tilt))  # cos(tilt) of the actual attitude
             if direct:

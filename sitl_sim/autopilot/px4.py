@@ -1,5 +1,5 @@
-"""PX4 v1.14+/main multicopter persona of the simulated autopilot: its modes, arming rules, failsafes,
-parameters and default telemetry, over the shared outer loop of sitl_sim.autopilot.copter.
+"""The PX4 v1.14+/main multicopter persona: its modes, arming rules, failsafes, parameters, default telemetry
+and landing descent, over the shared autopilot of sitl_sim.autopilot.copter.
 
 A PX4 vehicle keeps PX4's own state here (its navigation state as custom_mode, the last offboard setpoint,
 the GCS link, the auto-disarm timers) and drives the shared control laws through an internal ArduCopter-like
@@ -11,44 +11,18 @@ facts are also listed in docs/sitl.md (PX4 persona). Times are simulated seconds
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot import modes as internal
-from sitl_sim.autopilot.outer_loop import jerk_limited_step
-from sitl_sim.autopilot.params import INT32, REAL32, ParamSpec, ParamTable
-from sitl_sim.vehicle_model.dynamics import FleetState
+from sitl_sim.autopilot.outer_loop import DESCENT_INTERPOLATED, jerk_limited_step
+from sitl_sim.autopilot.params import INT32, REAL32, ParamSpec
+from sitl_sim.autopilot.persona import Persona
 
-
-class Autopilot(Protocol):
-    """What the PX4 rules read and drive of the shared outer loop (sitl_sim.autopilot.copter.Autopilot
-    documents each; arrays (N,) or (N, 3) world ENU m). A Protocol, so that this module need not import
-    copter.py, which imports it."""
-
-    n: int
-    t: float
-    state: FleetState
-    params: ParamTable
-    home: np.ndarray
-    nav_pos: np.ndarray
-    armed: np.ndarray
-    land_complete: np.ndarray
-    takeoff_active: np.ndarray
-    disarm_timer: np.ndarray
-    boot_end: np.ndarray
-    climb_cap: np.ndarray
-    integrator: np.ndarray
-
-    def say(self, i: int, severity: int, text: str) -> None: ...
-
-    def enter_mode(self, i: int, mode: int) -> None: ...
-
-    def climb_to(self, i: int, z: float) -> None: ...
-
-    def position_ok(self, i: int) -> bool: ...
-
+if TYPE_CHECKING:
+    from sitl_sim.autopilot.copter import Autopilot
 
 M = mavlink2
 ACCEPTED, REJECTED = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_TEMPORARILY_REJECTED
@@ -92,8 +66,8 @@ INTERNAL_MODE = {
 FORCE_MAGIC = 21196  # Commander.cpp VEHICLE_CMD_COMPONENT_ARM_DISARM: param2 that forces (disarm in flight)
 MISSIONPLANNER_COMPID = 190  # Commander.cpp: printRejectMode only for MAV_COMP_ID_MISSIONPLANNER commands
 FALLBACK_TO_RTL = (0, 1, 2)  # failsafe.cpp fromOffboardLossActParam: Position/Altitude/Stabilized need sticks
-# default ready delay of a PX4 vehicle (`sitl-sim --ready-delay` not given; ArduCopter's is
-# copter.READY_DELAY_S): simulated s from boot to the position estimate and pre-arm OK. Real PX4 SITL (SIH
+# default ready delay of a PX4 vehicle (`sitl-sim --ready-delay` not given): simulated s from boot to the
+# position estimate and pre-arm OK. Real PX4 SITL (SIH
 # quadx, flown on this project's machine) said "Ready for takeoff!" 4.4-4.6 s after boot; 5 s is not earlier.
 READY_DELAY_S = 5.0
 G = 9.80665  # m/s^2, CONSTANTS_ONE_G (lib/geo/geo.h)
@@ -109,6 +83,21 @@ TAKEOFF_TRAJECTORY_VZ_INIT = -0.7
 # FlightTaskAuto::update: _want_takeoff = unsmoothed_velocity(2) < -0.3 (NED: more than 0.3 m/s up); the
 # unsmoothed velocity is PositionSmoothing::_generateVelocitySetpoint's, capped by _getMaxZSpeed (stop_speed)
 WANT_TAKEOFF_VZ = 0.3
+# AUTO.LAND's descent (the shared loop's DESCENT_INTERPOLATED): FlightTaskAuto::_prepareLandSetpoints,
+# math::interpolate(_dist_to_ground, MPC_LAND_ALT2, MPC_LAND_ALT1, MPC_LAND_SPEED, MPC_Z_VEL_MAX_DN)
+# (FlightTaskAuto::updateParams keeps ALT1 >= ALT2), MPC_LAND_CRWL at and below MPC_LAND_ALT3 while a distance
+# sensor measures the height, the PositionSmoothing capping it at MPC_Z_V_AUTO_DN (_updateTrajConstraints,
+# "down") with jerk MPC_JERK_AUTO; in outer_loop.Descent's column order
+DESCENT_PARAMS = (
+    "MPC_LAND_ALT1", "MPC_LAND_ALT2", "MPC_LAND_ALT3", "MPC_LAND_CRWL", "MPC_LAND_SPEED", "MPC_Z_VEL_MAX_DN",
+    "MPC_Z_V_AUTO_DN", "MPC_JERK_AUTO",
+)  # fmt: skip
+# MPC_ACC_DOWN_MAX default (mc_pos_control multicopter_position_control_limits_params: 3 m/s^2), the descent
+# acceleration of FlightTaskAuto's PositionSmoothing (_updateTrajConstraints, "down"); not a parameter here
+ACC_DOWN_MAX = 3.0
+# SIH's downward distance sensor (simulator_sih sih.cpp send_dist_snsr, published while |SIH_DISTSNSR_OVR| <
+# 10000, default -1): valid up to SIH_DISTSNSR_MAX (default 100 m), so PX4's FlightTask has _dist_to_bottom
+RANGE_MAX_M = 100.0
 
 
 def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
@@ -192,13 +181,29 @@ HIDDEN_FIXED = {
 }
 
 
-class Px4Autopilot:
-    """The PX4 rules of the vehicles `mask` (N,) bool of the shared Autopilot `ap`; arrays (N,)."""
+class Px4(Persona):
+    """The PX4 rules of the vehicles `rows` (N,) bool of the shared Autopilot `ap`; arrays (N,)."""
 
-    def __init__(self, ap: Autopilot, mask: np.ndarray) -> None:
+    name: ClassVar[str] = "px4"
+    ready_delay_s: ClassVar[float] = READY_DELAY_S
+    default_rates_hz = DEFAULT_RATES_HZ
+    bytewise_params: ClassVar[bool] = True  # MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+    shows_shared_params: ClassVar[bool] = False  # a PX4 vehicle lists PX4's names (and SIM_*)
+    descent_profile: ClassVar[int] = DESCENT_INTERPOLATED
+    descent_params = DESCENT_PARAMS
+    descent_accel_down: ClassVar[float] = ACC_DOWN_MAX
+    descent_range_max: ClassVar[float] = RANGE_MAX_M
+    mirrors = MIRRORS
+    hidden_fixed = HIDDEN_FIXED
+
+    @classmethod
+    def param_specs(cls, hover_fraction: float) -> tuple[ParamSpec, ...]:
+        """PX4's own parameters (param_specs)."""
+        return param_specs(hover_fraction)
+
+    def __init__(self, ap: Autopilot, rows: np.ndarray) -> None:
+        super().__init__(ap, rows)
         n = ap.n
-        self.ap = ap
-        self.mask = np.asarray(mask, dtype=bool)
         # UserModeIntention.hpp: the user intended nav state starts as AUTO_LOITER (Hold)
         self.nav = np.full(n, MODE_LOITER, dtype=np.int64)
         self.nav_after_disarm = np.full(n, MODE_LOITER, dtype=np.int64)
@@ -220,11 +225,11 @@ class Px4Autopilot:
         self.takeoff_vz = np.zeros(n)
         self.takeoff_az = np.zeros(n)
         self.takeoff_hold = np.zeros(n, dtype=bool)  # in the Hold a takeoff ended in, still climbing to it
-        for i in np.flatnonzero(self.mask & ap.armed):  # airborne starts fly OFFBOARD with a fresh setpoint
+        for i in np.flatnonzero(self.rows & ap.armed):  # airborne starts fly OFFBOARD with a fresh setpoint
             self.nav[i] = MODE_OFFBOARD
             self.last_setpoint[i] = 0.0
             self.taken_off[i] = True
-        for i in np.flatnonzero(self.mask & ~ap.armed):
+        for i in np.flatnonzero(self.rows & ~ap.armed):
             ap.enter_mode(int(i), internal.LOITER)
 
     # --- what HEARTBEAT and SYS_STATUS say ------------------------------------------------------------------
@@ -243,6 +248,10 @@ class Px4Autopilot:
         else:
             status = M.MAV_STATE_ACTIVE if self.ap.armed[i] else M.MAV_STATE_STANDBY
         return M.MAV_AUTOPILOT_PX4, base, int(self.nav[i]), status
+
+    def prearm_ok(self, i: int) -> bool:
+        """Commander::run's pre_flight_checks_pass: vehicle i could arm in its current mode."""
+        return self.arming_problem(i, int(self.nav[i])) is None
 
     def arming_problem(self, i: int, mode: int) -> str | None:
         """Why vehicle i cannot arm in `mode` (HealthAndArmingChecks modeCheck.cpp messages), or None."""
@@ -389,8 +398,8 @@ class Px4Autopilot:
         """The upward velocity limits PX4 puts on the shared control law this tick (Autopilot.climb_cap):
         AUTO.TAKEOFF's spool-up, ramp and takeoff trajectory (_takeoff_limit), AUTO.RTL's MPC_Z_V_AUTO_UP."""
         ap = self.ap
-        ap.climb_cap[self.mask] = math.inf
-        for i in np.flatnonzero(self.mask & ap.armed).tolist():
+        ap.climb_cap[self.rows] = math.inf
+        for i in np.flatnonzero(self.rows & ap.armed).tolist():
             nav = int(self.nav[i])
             if nav == MODE_TAKEOFF and ap.takeoff_active[i]:
                 ap.climb_cap[i] = self._takeoff_limit(i, t, dt)
@@ -478,10 +487,11 @@ class Px4Autopilot:
             limit = min(limit, TAKEOFF_RAMP_VZ_INIT + progress * (max_up - TAKEOFF_RAMP_VZ_INIT))
         return limit
 
-    def update(self, t: float) -> None:
-        """Takeoff completion, offboard loss, GCS loss, auto-disarm of the PX4 vehicles."""
+    def after_loop(self, t: float, events: np.ndarray) -> None:
+        """Takeoff completion, offboard loss, GCS loss, auto-disarm of the PX4 vehicles (the shared loop's
+        events are ArduCopter's rules: a PX4 vehicle disarms and fails safe by its own)."""
         ap = self.ap
-        for i in np.flatnonzero(self.mask & ap.armed).tolist():
+        for i in np.flatnonzero(self.rows & ap.armed).tolist():
             if not ap.land_complete[i]:
                 self.taken_off[i] = True
             nav = int(self.nav[i])

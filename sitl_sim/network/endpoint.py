@@ -8,9 +8,10 @@ ignored or refused and counted in `counters`; an exception escaping a handler is
 its traceback and counted in `counters.handler_errors`, and the vehicle goes on serving.
 
 The ground station's answer to every frame, a datagram holding one unsigned SET_ATTITUDE_TARGET, takes a
-short cut on an ArduPilot vehicle without a signing key: its fields are unpacked straight from the packet
-(`lone_attitude_target`) and handed to the setpoint handler's `attitude_target`, with the checks, counters and
-lockstep answer of the general path (`parse_datagram`, `_handle_message`) and no pymavlink message object.
+short cut on a vehicle whose persona allows it (sitl_sim.network.surfaces) and without a signing key: its
+fields are unpacked straight from the packet (`lone_attitude_target`) and handed to the setpoint handler's
+`attitude_target`, with the checks, counters and lockstep answer of the general path (`parse_datagram`,
+`_handle_message`) and no pymavlink message object.
 """
 
 from __future__ import annotations
@@ -25,15 +26,13 @@ from fastcrc.crc16 import mcrf4xx
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.network import signing
-from sitl_sim.network.commands import CommandHandlers
 from sitl_sim.network.counters import LinkCounters
 from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, Outage
 from sitl_sim.network.mission_protocol import FenceProtocol
 from sitl_sim.network.outbox import Outbox
-from sitl_sim.network.px4_commands import Px4CommandHandlers, Px4SetpointHandlers
 from sitl_sim.network.services import SimulatorServices
-from sitl_sim.network.setpoints import SetpointHandlers
 from sitl_sim.network.streams import Framer
+from sitl_sim.network.surfaces import surface_of
 from swarm_common.mavlink_datagrams import decode_leading_packets
 from swarm_common.signing import is_signature_rejection
 
@@ -104,17 +103,15 @@ class VehicleEndpoint:
         self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
         self.counters = LinkCounters()
         self.missions = FenceProtocol(index, self.counters, self.outbox, sim)  # MISSION_* of the fence
-        px4 = sim.autopilot.is_px4(index)  # the one place an endpoint picks its autopilot's MAVLink surface
-        commands = Px4CommandHandlers if px4 else CommandHandlers
-        setpoints = (Px4SetpointHandlers if px4 else SetpointHandlers)(index, self.counters, sim)
+        surface = surface_of(sim.autopilot.persona(index))  # the handlers of its persona's MAVLink surface
+        setpoints = surface.setpoints(index, self.counters, sim)
         self.handlers: dict[int, Handler] = {
-            **commands(index, sysid, self.counters, self.outbox, sim).handlers(),
+            **surface.commands(index, sysid, self.counters, self.outbox, sim).handlers(),
             **setpoints.handlers(),
         }
-        # the lone SET_ATTITUDE_TARGET short cut (module doc): not for PX4 (its handler checks more), nor with
-        # a key (the parser checks signatures)
+        # the lone SET_ATTITUDE_TARGET short cut (module doc): not with a key (the parser checks signatures)
         self._attitude_target: AttitudeTargetHandler | None = (
-            None if px4 or signing_key is not None else setpoints.attitude_target
+            setpoints.attitude_target if surface.attitude_short_cut and signing_key is None else None
         )
         for msg_id in self.missions.handlers:
             self.handlers[msg_id] = lambda msg, addr: self.missions.handle(msg)

@@ -10,9 +10,10 @@ import math
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot.params import INT_TYPES, float_as_int32
-from sitl_sim.autopilot.px4 import MODE_LAND, MODE_RTL
+from sitl_sim.autopilot.px4 import MODE_LAND, MODE_RTL, Px4
 from sitl_sim.network.commands import CommandHandlers
 from sitl_sim.network.message_fields import finite, param_name
+from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.setpoints import BODY_FRAMES, SetpointHandlers
 from sitl_sim.network.streams import STREAM_IDS
 
@@ -33,19 +34,27 @@ ROLL_PITCH_RATES = (
 )
 
 
+def px4_rules(sim: SimulatorServices, i: int) -> Px4:
+    """Vehicle i's PX4 persona (the rules these handlers answer by)."""
+    persona = sim.autopilot.persona(i)
+    assert isinstance(persona, Px4), f"vehicle {i} is not a PX4 vehicle"
+    return persona
+
+
 class Px4CommandHandlers(CommandHandlers):
     """Commands, modes, parameters and stream requests of a PX4 vehicle."""
 
     _source_compid = 0  # component id of the command being handled (commander's printRejectMode rule)
 
     def _on_heartbeat(self, msg: mavlink2.MAVLink_heartbeat_message, addr: tuple[str, int]) -> None:
-        self.sim.autopilot.px4.gcs_heartbeat(self.index, msg.type)
+        px4_rules(self.sim, self.index).gcs_heartbeat(self.index, msg.type)
 
     def _on_set_mode(self, msg: mavlink2.MAVLink_set_mode_message, addr: tuple[str, int]) -> None:
         """mavlink_receiver handle_message_set_mode: turned into VEHICLE_CMD_DO_SET_MODE (main and sub mode
         from the custom_mode union); commander answers that command (COMMAND_ACK command 176)."""
         main, sub = (msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF
-        result = self.sim.autopilot.px4.set_mode(self.index, msg.base_mode, main, sub, msg.get_srcComponent())
+        px4 = px4_rules(self.sim, self.index)
+        result = px4.set_mode(self.index, msg.base_mode, main, sub, msg.get_srcComponent())
         self.outbox.ack(M.MAV_CMD_DO_SET_MODE, self._refused_if_not_accepted(result), msg)
 
     def _on_command_long(self, msg: mavlink2.MAVLink_command_long_message, addr: tuple[str, int]) -> None:
@@ -58,7 +67,7 @@ class Px4CommandHandlers(CommandHandlers):
 
     def _command(self, command: int, p: tuple[float, ...], frame: int | None) -> int:
         """Commander::handle_command and mavlink_receiver's own commands; others as the shared handler."""
-        i, px4 = self.index, self.sim.autopilot.px4
+        i, px4 = self.index, px4_rules(self.sim, self.index)
         source = self._source_compid
         if command == M.MAV_CMD_COMPONENT_ARM_DISARM:
             return self._refused_if_not_accepted(px4.arm(i, p[0], p[1]))
@@ -198,7 +207,7 @@ class Px4SetpointHandlers(SetpointHandlers):
         """A setpoint naming something to fly renews the proof of life; True when it is flown (OFFBOARD)."""
         if not mask_has_target:
             return False
-        return self.sim.autopilot.px4.setpoint(self.index)
+        return px4_rules(self.sim, self.index).setpoint(self.index)
 
     def _on_attitude_target(
         self, msg: mavlink2.MAVLink_set_attitude_target_message, addr: tuple[str, int]

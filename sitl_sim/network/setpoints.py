@@ -18,6 +18,7 @@ from sitl_sim.network.message_fields import finite, ned_to_enu
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.streams import swap_quat_enu_ned
 from sitl_sim.vehicle_model.attitude_control import yaw_from_quat
+from swarm_common.rotations import yaw_ned_enu
 
 MAX_POSITION_M = 1e6  # target position offsets beyond this (m) are absurd
 MAX_SPEED = 100.0  # m/s, velocity targets beyond are absurd
@@ -70,7 +71,7 @@ class SetpointHandlers:
             return
         mask = msg.type_mask
         state = self.sim.autopilot.state
-        yaw_ned = math.pi / 2 - float(yaw_from_quat(state.quat[self.index]))
+        yaw_ned = yaw_ned_enu(float(yaw_from_quat(state.quat[self.index])))
         body = msg.coordinate_frame in BODY_FRAMES
 
         def to_north_east(v: list[float]) -> list[float]:
@@ -142,7 +143,7 @@ class SetpointHandlers:
             if not (finite(msg.yaw) and abs(msg.yaw) <= 4 * math.pi):
                 self.counters.invalid += 1
                 return
-            yaw = math.pi / 2 - (msg.yaw + yaw_offset)  # NED heading -> ENU yaw
+            yaw = yaw_ned_enu(msg.yaw + yaw_offset)  # NED heading -> ENU yaw
         if not mask & YAW_RATE_IGNORE:
             if not (finite(msg.yaw_rate) and abs(msg.yaw_rate) <= MAX_RATE):
                 self.counters.invalid += 1

@@ -21,30 +21,13 @@ import pymap3d
 from fastcrc.crc16 import mcrf4xx as _mcrf4xx  # pymavlink's x25crc: CRC-16/MCRF4XX from 0xFFFF
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from sitl_sim.autopilot.arducopter import DEFAULT_RATES_HZ
 from swarm_common.jit import kernel
 
 if TYPE_CHECKING:
     from sitl_sim.autopilot.copter import Autopilot
 
-# Default rates (Hz). A fresh ArduCopter streams nothing on a link until a ground station asks: its per-link
-# rates MAVn_* (SRn_* before 4.7) default to 0 in SITL (seen on a V4.7.0-dev SITL build: HEARTBEAT and a
-# TIMESYNC only, until REQUEST_DATA_STREAM or SET_MESSAGE_INTERVAL). HEARTBEAT goes out at 1 Hz regardless.
-# 0 = only on request (SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM, REQUEST_MESSAGE) or on change.
-DEFAULT_RATES_HZ: dict[int, float] = {
-    mavlink2.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
-    mavlink2.MAVLINK_MSG_ID_SYS_STATUS: 0.0,
-    mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 0.0,
-    mavlink2.MAVLINK_MSG_ID_ATTITUDE: 0.0,
-    mavlink2.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 0.0,
-    mavlink2.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 0.0,
-    mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.0,
-    mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT: 0.0,
-    mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 0.0,
-    mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME: 0.0,
-    mavlink2.MAVLINK_MSG_ID_HOME_POSITION: 0.0,
-    mavlink2.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 0.0,
-    mavlink2.MAVLINK_MSG_ID_FENCE_STATUS: 0.0,
-}
+# every stream the simulator sends, in its order: the ArduCopter persona's table of default rates lists them
 STREAM_IDS = tuple(DEFAULT_RATES_HZ)
 # Legacy REQUEST_DATA_STREAM groups (MAVProxy uses them) -> the messages of ours they contain, as ArduPilot
 # groups them (libraries/GCS_MAVLink/GCS_MAVLink_Parameters.cpp STREAM_*_msgs); EXTENDED_SYS_STATE is in
@@ -424,8 +407,8 @@ def _sys_status(v: TelemetryView, f: Framer, i: int) -> bytes:
 
 
 def _ekf_status(v: TelemetryView, f: Framer, i: int) -> bytes | None:
-    if v.ap.is_px4(i):
-        return None  # an ardupilotmega message: PX4 has no such stream (ESTIMATOR_STATUS instead)
+    if not v.ap.persona(i).reports_ekf_status:
+        return None  # an ardupilotmega message, which not every persona sends
     return f.pack(f.mav.ekf_status_report_encode(v.ap.ekf_flags(i), 0.02, 0.02, 0.02, 0.02, 0.0, 0.0))
 
 
