@@ -11,10 +11,10 @@ from gcs_swarm.guidance.formation import (
     LeaderHeading,
     check_offsets,
     formation_offsets,
+    formation_targets,
     leader_frame_offsets,
     rotate_to_world,
     slot_positions,
-    slot_velocities,
 )
 from gcs_swarm.guidance.topology import (
     PAPER_SIX_UAV_ADJACENCY,
@@ -67,14 +67,53 @@ def test_paper_six_uav_offsets_give_table3_targets():
     np.testing.assert_allclose(rotate_to_world(TABLE3_OFFSETS, 0.0), TABLE3_OFFSETS)
 
 
-def test_slot_velocity_is_the_time_derivative_of_the_slot():
+def targets_at(t, p0, v, psi0, rate, offsets, lead=0, margin=0.0, centres=None, radii=None):
+    """formation_targets for a leader at p0 + v t heading psi0 + rate t (constant v and rate), goal at the
+    origin; every vehicle heard the leader now."""
+    psi = psi0 + rate * t
+    heard = np.tile(np.concatenate([p0 + v * t, v, [psi, rate], np.zeros(3)]), (len(offsets), 1))
+    cos, sin = np.full(len(offsets), math.cos(psi)), np.full(len(offsets), math.sin(psi))
+    centres = np.zeros((0, 3)) if centres is None else centres
+    radii = np.zeros(0) if radii is None else radii
+    return formation_targets(
+        heard, cos, sin, offsets, 1.0, centres, radii, margin, lead, np.zeros(3), np.zeros((0, 3))
+    )
+
+
+def test_slot_feed_forwards_are_the_time_derivatives_of_the_slot():
+    """Spec 8 step 1: the slot velocity and acceleration feed-forwards are the first and second time
+    derivatives of the slot of a leader moving at constant velocity and turn rate (central differences);
+    the leader's own row is its goal with zero feed-forwards."""
     offsets = np.vstack([np.zeros(3), formation_offsets("grid", 6, 12.0)])
     p0, v = np.array([5.0, 7.0, 20.0]), np.array([3.0, -1.0, 0.5])
     psi0, rate = 0.4, 0.3
-    slot = lambda t: slot_positions(p0 + v * t, psi0 + rate * t, offsets)  # noqa: E731
-    h = 1e-6
-    numeric = (slot(1.0 + h) - slot(1.0 - h)) / (2 * h)
-    np.testing.assert_allclose(slot_velocities(v, psi0 + rate, rate, offsets), numeric, atol=1e-6)
+    slot = lambda t: targets_at(t, p0, v, psi0, rate, offsets)[0]  # noqa: E731
+    targets, v_ff, a_ff, dest = targets_at(1.0, p0, v, psi0, rate, offsets)
+    np.testing.assert_allclose(targets[1:], slot_positions(p0 + v, psi0 + rate, offsets)[1:], atol=1e-12)
+    h = 1e-4
+    velocity = (slot(1.0 + h) - slot(1.0 - h)) / (2 * h)
+    acceleration = (slot(1.0 + h) - 2 * slot(1.0) + slot(1.0 - h)) / (h * h)
+    np.testing.assert_allclose(v_ff[1:], velocity[1:], atol=1e-6)
+    np.testing.assert_allclose(a_ff[1:], acceleration[1:], atol=1e-4)
+    np.testing.assert_array_equal(targets[0], np.zeros(3))
+    np.testing.assert_array_equal(v_ff[0], np.zeros(3))
+    np.testing.assert_array_equal(a_ff[0], np.zeros(3))
+    np.testing.assert_allclose(dest, slot_positions(np.zeros(3), psi0 + rate, offsets), atol=1e-12)
+
+
+def test_a_slot_inside_an_obstacle_goes_out_horizontally():
+    """slot_margin > 0: a slot within r + margin of an obstacle's centre (horizontally, at heights the grown
+    sphere covers) goes radially out to that circle at its own height; others stay."""
+    offsets = np.array([[0.0, 0.0, 0.0], [-10.0, 0.0, 0.0], [-30.0, 0.0, 0.0]])
+    centres, radii = np.array([[-9.0, 0.0, 3.0]]), np.array([4.0])  # slot 1 at (-10, 0, 0): 1 m off centre
+    targets = targets_at(0.0, np.zeros(3), np.zeros(3), 0.0, 0.0, offsets, 0, 1.0, centres, radii)[0]
+    ring = math.sqrt(5.0**2 - 3.0**2)  # the grown sphere's circle at the slot's height (dz = 3 m)
+    np.testing.assert_allclose(targets[1], [-9.0 - ring, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(targets[2], [-30.0, 0.0, 0.0])
+    on_axis = targets_at(
+        0.0, np.zeros(3), np.zeros(3), 0.0, 0.0, offsets, 0, 1.0, centres + [-1.0, 0, 0], radii
+    )[0]
+    np.testing.assert_allclose(on_axis[1], [-10.0 + ring, 0.0, 0.0], atol=1e-12)  # on the axis: out along +x
 
 
 def test_shapes():

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm.guidance.inversion import invert, limit_thrust_vector, thrust_vector
+from gcs_swarm.guidance.inversion import invert, limited_thrust, thrust_vector
 from gcs_swarm.guidance.params import G, Limits
 
 
@@ -41,13 +41,14 @@ def test_limits_apply_in_order():
     lim = Limits()
     tan = math.tan(lim.tilt_max)
     # 1. U_z floor first, then 2. the tilt limit shortens U_xy (direction kept) against the floored U_z.
-    u = limit_thrust_vector(np.array([[30.0, 40.0, -5.0]]), lim)
-    assert u[0, 2] == pytest.approx(0.3 * G)
-    assert np.hypot(u[0, 0], u[0, 1]) == pytest.approx(0.3 * G * tan)
-    assert u[0, 1] / u[0, 0] == pytest.approx(40.0 / 30.0)
+    floor = lim.uz_min_g * G
+    u = limited_thrust(30.0, 40.0, -5.0, floor, tan)
+    assert u[2] == pytest.approx(0.3 * G)
+    assert np.hypot(u[0], u[1]) == pytest.approx(0.3 * G * tan)
+    assert u[1] / u[0] == pytest.approx(40.0 / 30.0)
+    np.testing.assert_array_equal(invert(np.array([[30.0, 40.0, -5.0]]), np.zeros(1), lim).u_limited[0], u)
     # inside the cone nothing changes
-    inside = np.array([[1.0, -1.0, G]])
-    np.testing.assert_array_equal(limit_thrust_vector(inside, lim), inside)
+    assert limited_thrust(1.0, -1.0, G, floor, tan) == (1.0, -1.0, G)
     # 3. thrust cap last: direction (angles) kept, magnitude 2 g
     cmd = invert(np.array([[0.0, 5.0, 40.0]]), np.zeros(1), lim)
     assert cmd.thrust_acc[0] == pytest.approx(2 * G)

@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm.guidance import fleet_controller
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets, slot_positions
 from gcs_swarm.guidance.inversion import thrust_vector
@@ -128,11 +127,8 @@ def test_a_waiting_leader_keeps_followers_that_cannot_outrun_it_near_their_slots
     assert waiting_arrival > plain_arrival
 
 
-@pytest.mark.parametrize("compiled", [True, False])
-def test_a_tight_formation_flies_as_if_the_wait_were_off(compiled, monkeypatch):
+def test_a_tight_formation_flies_as_if_the_wait_were_off():
     """Below leader_wait_m the commands are the paper's, bit for bit."""
-    if not compiled:
-        monkeypatch.setattr(fleet_controller, "compiled_steps", None)
     n = 3
     offsets = np.zeros((n, 3))
     offsets[1:] = formation_offsets("v", n - 1, 10.0)

@@ -7,8 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gcs_swarm.guidance import field as fieldmod
-from gcs_swarm.guidance import iaapf
+from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.inversion import invert
 from gcs_swarm.guidance.params import FieldParams, Limits, SeparationParams
@@ -31,13 +30,12 @@ def test_at_the_goal_attraction_and_rep2_vanish(goal, method, n):
     centre = goal + np.array([[10.0, 0.0, 0.0]])  # goal 5 m from the surface, inside l0
     fp = FieldParams(method=method, n=n)
     q = goal[None, :]
-    att = fieldmod.attraction(q, goal, fp, 15.0)
-    rep, inside = fieldmod.obstacle_repulsion(q, goal, centre, np.array([5.0]), fp)
+    att = attraction(q, q, fp, 15.0)
+    rep = obstacle_repulsion(q, q, q, centre, np.array([5.0]), fp)
     assert np.all(att == 0.0)
-    assert np.isfinite(rep).all() and not inside.any()
+    assert np.isfinite(rep).all()
     if method == "iaapf":
-        f1, f2 = iaapf.adaptive_repulsion_terms(q, centre, np.array([5.0]), goal, 1e5, 20.0, n, 0.05, 1e-3)
-        assert np.all(f1 == 0.0) and np.all(f2 == 0.0)  # the goal is an equilibrium (spec 3.2)
+        assert np.all(rep == 0.0)  # rho^n = 0 and rho < rho_eps: the goal is an equilibrium (spec 3.2)
     else:
         assert rep[0] @ (goal - centre[0]) > 0  # APF still pushes off the goal: the GNRON offset
 
@@ -54,22 +52,21 @@ def test_at_the_goal_attraction_and_rep2_vanish(goal, method, n):
 def test_on_and_inside_an_obstacle_is_finite_flagged_and_pushes_out(
     centre, radius, direction, depth, method, goal
 ):
-    """depth 0 = on the surface, 1 = at the centre (direction +z there, spec 2.1)."""
+    """depth 0 = on the surface, 1 = at the centre (direction +z there, spec 2.1). The paper's terms (no
+    circulation, full vertical weight); the IAAPF's destination lies 50 m outward, so both of its terms
+    push out. Elsewhere (`goal`) the force is finite."""
     q = (centre + direction * radius * (1.0 - depth))[None, :]
-    fp = FieldParams(method=method)
-    rep, inside = fieldmod.obstacle_repulsion(q, goal, centre[None, :], np.array([radius]), fp)
-    assert np.isfinite(rep).all()
-    assert inside.all() or depth == 0.0  # exactly on the surface rounding may put q a hair outside
     offset = q[0] - centre  # rounding can put q exactly on the centre before depth reaches 1
     gap = np.linalg.norm(offset)
     outward = offset / gap if gap > 0 else np.array([0.0, 0.0, 1.0])
-    if method == "apf":
-        assert rep[0] @ outward > 0
-    else:
-        f1, _ = iaapf.adaptive_repulsion_terms(
-            q, centre[None, :], np.array([radius]), goal, fp.k_rep, fp.l0, fp.n, fp.l_min, fp.rho_eps
-        )
-        assert f1[0] @ outward >= 0
+    fp = FieldParams(method=method, circulation=0.0, obstacle_vertical=1.0)
+    rep = obstacle_repulsion(q, q, q + 50.0 * outward, centre[None, :], np.array([radius]), fp)
+    assert np.isfinite(rep).all()
+    assert rep[0] @ outward > 0
+    anywhere = obstacle_repulsion(
+        q, q, goal[None, :], centre[None, :], np.array([radius]), FieldParams(method=method)
+    )
+    assert np.isfinite(anywhere).all()
 
 
 @FAST
@@ -79,8 +76,11 @@ def test_two_vehicles_at_one_point_are_pushed_apart_vertically(p, i, j, mode):
         j = (i + 1) % 5
     pos = np.full((5, 3), 1e4) + np.arange(5)[:, None] * 100.0  # the others far away
     pos[i] = pos[j] = p
+    sep = SeparationParams(mode=mode)
+    fp = FieldParams(k_uav=5e4, n_uav=0.8, l_min=0.05)
+    still, valid = np.zeros_like(pos), np.ones(5, dtype=bool)
     force, emergency = uav_repulsion(
-        pos, pos, np.zeros_like(pos), 5e4, 0.8, 10.0, SeparationParams(mode=mode), 0.05
+        pos, pos, still, valid, still, 0.0, fp, 10.0, mode == "formula", sep.d_emg, sep.a_e, sep.s_s
     )
     assert np.isfinite(force).all()
     assert emergency[i] and emergency[j]

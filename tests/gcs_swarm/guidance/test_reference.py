@@ -12,7 +12,6 @@ from gcs_swarm.guidance.reference import (
     ReferenceGenerator,
     default_d_g,
     paper_literal_reference,
-    saturate_split,
 )
 
 
@@ -23,9 +22,16 @@ def test_default_d_g_is_v_max_over_k_v():
 
 
 def test_saturation_keeps_the_horizontal_direction_and_clips_vertical():
-    out = saturate_split(np.array([[30.0, 40.0, -25.0], [1.0, 1.0, 1.0]]), np.array([10.0, 10.0]), 20.0)
-    np.testing.assert_allclose(out[0], [6.0, 8.0, -20.0])
-    np.testing.assert_allclose(out[1], [1.0, 1.0, 1.0])
+    """Step 3: v_cmd = v_ff + (K_v / k_att) F with its horizontal part scaled to the cap (direction kept) and
+    its vertical part clipped to v_z; from rest with tau_v = 1 s the first-order step 4 gives a_r = v_cmd
+    (within the acceleration limits)."""
+    lim = Limits(a_xy=1e6, a_z=1e6, tilt_max_deg=70.0)
+    gen = ReferenceGenerator(paper_plain_reference(tau_v=1.0), lim, k_att=100.0)
+    gen.reset(np.zeros((2, 3)), np.zeros((2, 3)))
+    force = np.array([[3000.0, 4000.0, -2500.0], [1.0, 1.0, 1.0]]) * 100.0  # v_cmd (30, 40, -25), (1, 1, 1)
+    gen.step(force, np.zeros((2, 3)), np.array([10.0, 10.0]), 0.02, np.ones(2, dtype=bool))
+    np.testing.assert_allclose(gen.a[0], [6.0, 8.0, -lim.v_z])
+    np.testing.assert_allclose(gen.a[1], [1.0, 1.0, 1.0])
 
 
 def test_velocity_and_acceleration_limits_and_leash():
@@ -43,7 +49,7 @@ def test_velocity_and_acceleration_limits_and_leash():
     assert np.hypot(*a[0, :2]) == pytest.approx(a_xy_max)
     assert a[0, 2] == pytest.approx(lim.a_z)
     for _ in range(500):  # the vehicles stay put: the leash holds the references 5 m away
-        gen.leash(pos, rows)
+        gen.leash_and_lookahead(pos, rows)
         p, v, a = gen.step(huge, np.zeros((2, 3)), caps, 0.02, rows)
     assert np.hypot(*v[0, :2]) == pytest.approx(10.0)  # leader cap
     assert np.hypot(*v[1, :2]) == pytest.approx(20.0)
@@ -81,7 +87,7 @@ def test_unselected_rows_do_not_move():
     gen.reset(np.zeros((2, 3)), np.zeros((2, 3)))
     rows = np.array([True, False])
     gen.step(np.ones((2, 3)) * 500, np.zeros((2, 3)), np.array([10.0, 10.0]), 0.02, rows)
-    gen.leash(np.full((2, 3), 100.0), rows)
+    gen.leash_and_lookahead(np.full((2, 3), 100.0), rows)
     assert gen.p[0].any() and not gen.p[1].any() and not gen.v[1].any()
 
 

@@ -10,11 +10,50 @@ import pytest
 
 from gcs_swarm.evaluation import metrics
 from gcs_swarm.guidance.params import G, Limits, SMCAxisGains, SMCParams
-from gcs_swarm.guidance.smc import SMCController, reaching_law, sliding_variable, smc_control
+from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.mission import MissionError, parse_mission
 from tests.gcs_swarm.guidance.spec_reference import spec_reference
 
 PAPER_XY = SMCAxisGains(0.8, 1.5, 0.3, 0.05)  # the default xy gains without the disturbance estimate
+
+
+# The spec 7.1 equations, written out here from the spec (not from the controller) to check it against.
+def gain(params: SMCParams, name: str) -> np.ndarray:
+    return np.array([getattr(params.xy, name), getattr(params.xy, name), getattr(params.z, name)])
+
+
+def sliding_variable(x_d, xd_dot, x, v, params):
+    """e1 = x_d - x, s = c1 e1 + xd_dot - v."""
+    e1 = x_d - x
+    return e1, gain(params, "c1") * e1 + xd_dot - v
+
+
+def reaching_law(s, params):
+    """s_dot = -k1 s - k2 |s|^xi1 sw(s) - k3 |s|^xi2 sw(s); sw = sgn, or sat(s / Phi) (spec 7.4)."""
+    phi = params.boundary_layer
+    switch = np.sign(s) if phi <= 0.0 else np.clip(s / phi, -1.0, 1.0)
+    k1, k2, k3, xi1, xi2 = (gain(params, name) for name in ("k1", "k2", "k3", "xi1", "xi2"))
+    return -k1 * s - k2 * np.abs(s) ** xi1 * switch - k3 * np.abs(s) ** xi2 * switch
+
+
+def eq49(x_d, xd_dot, xd_ddot, x, v, params):
+    """U = xd_ddot - c1^2 e1 + c1 s - reaching_law(s) + g z, and s."""
+    c1 = gain(params, "c1")
+    e1, s = sliding_variable(x_d, xd_dot, x, v, params)
+    return xd_ddot - c1 * c1 * e1 + c1 * s - reaching_law(s, params) + np.array([0.0, 0.0, G]), s
+
+
+def static(params: SMCParams | None = None) -> SMCParams:
+    """params with the [add] estimates off: the controller is the paper's Eq 49."""
+    base = dataclasses.replace(params or SMCParams(), drag_adaptation=0.0)
+    return dataclasses.replace(base, xy=dataclasses.replace(base.xy, disturbance_gain=0.0))
+
+
+def smc_control(x_d, xd_dot, xd_ddot, x, v, params):
+    """The controller's U and s with the estimates off (a fresh controller: no state)."""
+    ctl = SMCController(static(params), G)
+    u = ctl(x_d, xd_dot, xd_ddot, x, v, 0.01)
+    return u, ctl.s
 
 
 def test_sliding_variable_obeys_the_reaching_law_on_a_double_integrator():
@@ -24,10 +63,12 @@ def test_sliding_variable_obeys_the_reaching_law_on_a_double_integrator():
     x = np.array([[3.0, -2.0, 1.0]])
     v = np.array([[0.0, 1.0, -1.0]])
     worst = 0.0
+    ctl = SMCController(static(params), G)
     for k in range(20000):  # 2 s
         t = k * dt
         xd, vd, ad = spec_reference(t)
-        u, s = smc_control(xd, vd, ad, x, v, params)
+        u = ctl(xd, vd, ad, x, v, dt)
+        s = ctl.s
         acc = u - np.array([0.0, 0.0, G])
         x_next, v_next = x + v * dt + 0.5 * acc * dt * dt, v + acc * dt
         _, s_next = sliding_variable(*spec_reference(t + dt)[:2], x_next, v_next, params)
@@ -47,10 +88,11 @@ def simulate_axis(gains: SMCAxisGains, e0: float, de0: float, t_end: float, a_ma
     x = xd - e0
     v = vd - de0
     times, errors = [], []
+    ctl = SMCController(static(params), G)
     for k in range(int(t_end / dt)):
         t = k * dt
         xd, vd, ad = spec_reference(t)
-        u, _ = smc_control(xd, vd, ad, x, v, params)
+        u = ctl(xd, vd, ad, x, v, dt)
         u[:, 2] -= G
         if a_max is not None:
             u = np.clip(u, -a_max, a_max)
@@ -105,10 +147,11 @@ def test_boundary_layer_reduces_chattering():
         dt = 0.01
         x, v = np.zeros((1, 3)), np.zeros((1, 3))
         us, ts = [], []
+        ctl = SMCController(static(params), G)
         for k in range(3000):
             t = k * dt
             xd, vd = np.full((1, 3), 5.0 + 2.0 * t), np.full((1, 3), 2.0)
-            u, _ = smc_control(xd, vd, np.zeros((1, 3)), x, v, params)
+            u = ctl(xd, vd, np.zeros((1, 3)), x, v, dt)
             v = v + (u - np.array([0.0, 0.0, G])) * dt
             x = x + v * dt
             us.append(u[0, 0])
@@ -133,7 +176,7 @@ def with_estimate(gain: float, d_max: float = 4.0, base: SMCParams | None = None
 
 def test_zero_disturbance_gain_is_eq_49_bit_for_bit():
     """k_d = 0 (the default) leaves the paper's static law: identical bits to smc_control on every call,
-    whatever disturbance_max, and smc_control is Eq 49 written out."""
+    whatever disturbance_max, and that is Eq 49 written out."""
     rng = np.random.default_rng(7)
     params = with_estimate(0.0, d_max=0.5)
     ctl = SMCController(params, G, Limits())
@@ -145,11 +188,9 @@ def test_zero_disturbance_gain_is_eq_49_bit_for_bit():
         np.testing.assert_array_equal(u, expected)
         np.testing.assert_array_equal(ctl.s, s)
         assert not ctl.d_hat.any()
-    c1 = np.array([0.8, 0.8, 1.0])
-    e1 = x_d - x
-    s_hand = c1 * e1 + xd_dot - v
-    eq49 = xd_ddot - c1**2 * e1 + c1 * s_hand - reaching_law(s_hand, params) + np.array([0.0, 0.0, G])
-    np.testing.assert_allclose(u, eq49, rtol=1e-12, atol=1e-12)
+        written_out, s_hand = eq49(x_d, xd_dot, xd_ddot, x, v, params)
+        np.testing.assert_allclose(u, written_out, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(ctl.s, s_hand, rtol=1e-12, atol=1e-12)
 
 
 def fly_ramp(params: SMCParams, limits: Limits | None, t_end: float = 60.0, dt: float = 0.02):
@@ -293,5 +334,5 @@ def test_drag_adaptation_removes_the_trail_and_learns_the_drag():
     assert ctl.c_hat[0] == pytest.approx(DRAG, abs=0.01)
     zero = np.zeros((1, 3))
     u_rest = ctl(zero, zero, zero, zero, zero, 0.02)
-    expected, _ = smc_control(zero, zero, zero, zero, zero, params)
+    expected, _ = eq49(zero, zero, zero, zero, zero, params)
     np.testing.assert_array_equal(u_rest, expected)
