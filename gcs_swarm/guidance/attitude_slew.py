@@ -9,8 +9,6 @@ world ZYX Euler (spec 1.1).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from swarm_common.jit import kernel
@@ -67,7 +65,7 @@ def slew_step(
             r, q = roll_d[i], pitch_d[i]
         d_roll, d_pitch = roll_d[i] - r, pitch_d[i] - q
         if limit > 0.0:
-            step = math.hypot(d_roll, d_pitch)
+            step = np.hypot(d_roll, d_pitch)
             scale = limit / step if step > limit else 1.0
             d_roll, d_pitch = d_roll * scale, d_pitch * scale
         if rows[i]:

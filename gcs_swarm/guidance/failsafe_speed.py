@@ -96,7 +96,7 @@ def distance_along_course(
     n, k_obs = pos.shape[0], radii.shape[0]
     out = np.full(n, np.inf)
     for i in range(n):
-        speed = math.hypot(vel[i, 0], vel[i, 1])
+        speed = np.hypot(vel[i, 0], vel[i, 1])
         if not speed > 1e-6:
             continue
         u0, u1 = vel[i, 0] / speed, vel[i, 1] / speed

@@ -8,7 +8,6 @@ scales it to the vehicle's normalised thrust). Shapes: U (N, 3), angles (N,).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,7 +45,7 @@ def limited_thrust(
     """Spec 5 limits 1-2 on one U (m/s^2): U_z >= uz_floor, then U_xy shortened to U_z tan(tilt_max) keeping
     its direction."""
     z = maximum(u2, uz_floor)
-    u_xy = math.hypot(u0, u1)
+    u_xy = np.hypot(u0, u1)
     cap = z * tan_tilt
     if u_xy > cap:
         scale = cap / u_xy

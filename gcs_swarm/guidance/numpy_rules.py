@@ -10,6 +10,10 @@ vectorised spellings gave (flights are reproducible across versions of this code
   +0 (so -0 becomes +0); `norm3`: sqrt((x0^2 + x1^2) + x2^2), numpy's row norm.
 
 All scalar, compiled (swarm_common.jit) and callable from other kernels.
+
+The kernels of the guidance write the length of a 2-vector as np.hypot, not math.hypot: compiled, both are
+the platform's libm hypot; run as plain Python (NUMBA_DISABLE_JIT=1), np.hypot is libm's as well while
+CPython's math.hypot is an algorithm of its own that can differ in the last bit.
 """
 
 from __future__ import annotations

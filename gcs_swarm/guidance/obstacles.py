@@ -79,7 +79,7 @@ def push_out_horizontally(
         grown = radii[k] + margin
         reach_sq = grown * grown - dz * dz
         h0, h1 = x - centres[k, 0], y - centres[k, 1]
-        dist = math.hypot(h0, h1)
+        dist = np.hypot(h0, h1)
         if reach_sq > 0.0 and dist * dist < reach_sq:
             ring = math.sqrt(maximum(reach_sq, 0.0))
             if dist > 0.0:

@@ -109,7 +109,7 @@ def reference_step(
             v_ff[i, 1] + gain * force[i, 1],
             v_ff[i, 2] + gain * force[i, 2],
         )
-        xy = math.hypot(c0, c1)  # step 3: saturate
+        xy = np.hypot(c0, c1)  # step 3: saturate
         if xy > v_xy_max[i]:
             scale = v_xy_max[i] / xy
             c0, c1 = c0 * scale, c1 * scale
@@ -145,7 +145,7 @@ def reference_step(
             a0, a1, a2 = a_prev[i, 0], a_prev[i, 1], a_prev[i, 2]
         elif jerk_max <= 0.0:  # the spec's first-order step 4
             a0, a1, a2 = (c0 - v[i, 0]) / tau_v, (c1 - v[i, 1]) / tau_v, (c2 - v[i, 2]) / tau_v
-            xy = math.hypot(a0, a1)
+            xy = np.hypot(a0, a1)
             if xy > a_xy_max:
                 scale = a_xy_max / xy
                 a0, a1 = a0 * scale, a1 * scale

@@ -279,7 +279,7 @@ def closing_speed_caps(
         allowed = math.sqrt(2.0 * accel * maximum(dist - d_emg - CLOSING_MARGIN_M, 0.0))
         excess = closing - allowed
         if own > 0.0 and excess > 0.0:
-            speed = math.hypot(vel[i, 0], vel[i, 1])
+            speed = np.hypot(vel[i, 0], vel[i, 1])
             caps[i] = minimum(caps[i], maximum(speed - excess, 0.0))
     return caps
 

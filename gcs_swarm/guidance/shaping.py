@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from gcs_swarm.guidance.numpy_rules import clip, clip_to_scalars, maximum
 from swarm_common.jit import kernel
 from swarm_common.shaping import sqrt_controller
@@ -25,7 +27,7 @@ CORNER_ACCELERATION_RATIO = 1.0 / math.sqrt(2.0)  # control.cpp: lateral share k
 @kernel
 def _limit_scale(x: float, y: float, limit: float) -> float:
     """The factor that shortens (x, y) to at most `limit`: limit / |(x, y)| when longer, else 1."""
-    length = math.hypot(x, y)
+    length = np.hypot(x, y)
     return limit / length if length > limit else 1.0
 
 
@@ -42,12 +44,12 @@ def shape_vel_accel_xy(
     kpa = jerk_max / accel_max
     ex = vx - vel_x
     ey = vy - vel_y
-    length = math.hypot(ex, ey)  # control.cpp sqrt_controller of a vector: along the error
+    length = np.hypot(ex, ey)  # control.cpp sqrt_controller of a vector: along the error
     rate = sqrt_controller(length, kpa, jerk_max, dt)
     scale = rate / length if length > 0.0 else 0.0
     tx = ex * scale
     ty = ey * scale
-    speed_in = math.hypot(vx, vy)
+    speed_in = np.hypot(vx, vy)
     ux = vx / speed_in if speed_in > 0.0 else 0.0
     uy = vy / speed_in if speed_in > 0.0 else 0.0
     along = 0.0 + ux * tx + uy * ty

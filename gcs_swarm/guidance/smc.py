@@ -25,7 +25,6 @@ the term does nothing. c_hat is kept in [0, drag_max] and does not adapt while t
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -113,7 +112,7 @@ def smc_output(
             sx = s[i, 0] if np.isfinite(s[i, 0]) else 0.0
             sy = s[i, 1] if np.isfinite(s[i, 1]) else 0.0
             step = gamma * (0.0 + sx * vx + sy * vy) * dt
-            if has_limits and math.hypot(u[i, 0], u[i, 1]) > maximum(u[i, 2], 0.0) * tan_tilt and step > 0.0:
+            if has_limits and np.hypot(u[i, 0], u[i, 1]) > maximum(u[i, 2], 0.0) * tan_tilt and step > 0.0:
                 step = 0.0
             c_next[i] = clip_to_scalars(c_hat[i] + step, 0.0, drag_max)
         if not estimate:
@@ -125,7 +124,7 @@ def smc_output(
         st2 = gains[4, 2] * s[i, 2] * dt if np.isfinite(s[i, 2]) else 0.0
         if has_limits:  # [add] conditional integration: no step further into a spec 5 limit
             u0, u1, u2 = u[i, 0], u[i, 1], u[i, 2]
-            tilted = math.hypot(u0, u1) > maximum(u2, uz_floor) * tan_tilt
+            tilted = np.hypot(u0, u1) > maximum(u2, uz_floor) * tan_tilt
             l0, l1, l2 = limited_thrust(u0, u1, u2, uz_floor, tan_tilt)
             capped = norm3(l0, l1, l2) > thrust_cap
             if (tilted or capped) and st0 * u0 > 0:
@@ -135,7 +134,7 @@ def smc_output(
             if (u2 < uz_floor and st2 < 0) or (capped and st2 > 0):
                 st2 = 0.0
         x0, x1, x2 = d_hat[i, 0] + st0, d_hat[i, 1] + st1, d_hat[i, 2] + st2  # within disturbance_max
-        norm = math.hypot(x0, x1)
+        norm = np.hypot(x0, x1)
         if norm > d_max_xy:
             scale = d_max_xy / norm
             x0, x1 = x0 * scale, x1 * scale
