@@ -11,7 +11,7 @@ from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.inversion import invert
 from gcs_swarm.guidance.params import FieldParams, Limits, SeparationParams
-from gcs_swarm.guidance.separation import uav_repulsion
+from gcs_swarm.guidance.separation import DENSE_PAIRS_MAX, neighbour_pairs, uav_repulsion
 
 coord = st.floats(-100, 100, allow_nan=False)
 vec3 = st.tuples(coord, coord, coord).map(np.array)
@@ -131,3 +131,29 @@ def test_fleet_at_rest_gives_finite_commands_and_holds_heading(yaw, spread):
     for arr in (cmd.roll_d, cmd.pitch_d, cmd.yaw_d, cmd.thrust_acc, cmd.ref_pos, cmd.field_force):
         assert np.isfinite(arr).all()
     assert cmd.psi_leader == np.float64(np.asarray(yaw + np.pi) % (2 * np.pi) - np.pi)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    radius=st.floats(0.5, 40.0),
+    n=st.sampled_from([40, 210]),
+    same_rows=st.booleans(),
+)
+def test_neighbour_pairs_are_the_brute_force_pairs(seed, radius, n, same_rows):
+    """Dense (40 x 40 candidates) and hash grid (210 x 210 > DENSE_PAIRS_MAX): exactly the pairs closer than
+    the radius by a brute-force distance matrix, in ascending i; NaN rows of p_at match nothing; with
+    same_rows, no i == j. Some points sit exactly on grid-cell boundaries (multiples of the radius)."""
+    rng = np.random.default_rng(seed)
+    p_src = rng.uniform(-120.0, 120.0, (n, 3))
+    p_src[: n // 4, :2] = np.round(p_src[: n // 4, :2] / radius) * radius
+    p_at = p_src + rng.normal(0.0, radius, (n, 3)) * rng.integers(0, 2, (n, 1))
+    p_at[rng.integers(0, n, 3)] = np.nan
+    assert (n * n > DENSE_PAIRS_MAX) == (n == 210)
+    pairs = neighbour_pairs(p_at, p_src, radius, same_rows)
+    with np.errstate(invalid="ignore"):
+        close = np.linalg.norm(p_at[:, None, :] - p_src[None, :, :], axis=2) < radius
+    if same_rows:
+        np.fill_diagonal(close, False)
+    assert sorted(map(tuple, pairs.tolist())) == sorted(zip(*np.nonzero(close), strict=True))
+    assert np.all(np.diff(pairs[:, 0]) >= 0)
