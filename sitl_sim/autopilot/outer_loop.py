@@ -195,30 +195,13 @@ def jerk_limited_step(
 ) -> tuple[float, float]:
     """(velocity, acceleration) one step dt towards the velocity `target` (m/s, m/s^2): acceleration at most
     accel_max, changing by at most jerk_max per s, never overshooting (SMOOTH_P): the DESCENT_INTERPOLATED
-    descents (_smooth_vertical) and the climbs a persona limits (Navigation.climb_cap)."""
+    descents and the climbs a persona limits (Navigation.climb_cap)."""
     want = min(max(sqrt_controller(target - vel, SMOOTH_P, jerk_max, 0.0), -accel_max), accel_max)
     acc += min(max(want - acc, -jerk_max * dt), jerk_max * dt)
     new_vel = vel + acc * dt
     if (new_vel - target) * (vel - target) <= 0.0:
         return target, 0.0
     return new_vel, acc
-
-
-@kernel
-def _smooth_vertical(
-    nav_vel: np.ndarray,
-    nav_acc: np.ndarray,
-    i: int,
-    target: float,
-    accel_max: float,
-    jerk_max: float,
-    dt: float,
-) -> None:
-    """One step of vehicle i's vertical velocity target (nav_vel[i, 2], its acceleration nav_acc[i, 2], ENU)
-    towards `target` m/s (jerk_limited_step)."""
-    nav_vel[i, 2], nav_acc[i, 2] = jerk_limited_step(
-        nav_vel[i, 2], nav_acc[i, 2], target, accel_max, jerk_max, dt
-    )
 
 
 @kernel
@@ -293,7 +276,9 @@ def outer_loop(
                 p[c[D_SLOW_SPEED]], p[c[D_CRAWL_SPEED]], p[c[D_FAST_SPEED]], p[c[D_SPEED_CAP]],
                 descent.range_max[i],
             )  # fmt: skip
-            _smooth_vertical(nav_vel, nav_acc, i, -speed, descent.accel_down[i], p[c[D_JERK]], dt)
+            nav_vel[i, 2], nav_acc[i, 2] = jerk_limited_step(
+                nav_vel[i, 2], nav_acc[i, 2], -speed, descent.accel_down[i], p[c[D_JERK]], dt
+            )
         elif landing:
             low = pos[i, 2] - home[i, 2] <= LAND_ALT_LOW
             nav_vel[i, 2] = -(p[columns[P_LAND_SPEED]] if low else p[columns[P_SPEED_DN]]) / 100.0
@@ -352,7 +337,8 @@ def outer_loop(
         if not flying or direct:
             integrator[i, 2] = 0.0
         if angle_law:
-            quat_sp[i] = angle_quat[i]
+            for k in range(4):  # element by element: an array copy would compile numba's shape-error text
+                quat_sp[i, k] = angle_quat[i, k]
             up = max(1.0 - 2.0 * (x * x + y * y), math.cos(tilt))  # cos(tilt) of the actual attitude
             if direct:
                 # guided thrust goes through set_throttle_out(thrust, apply_angle_boost=true)

@@ -156,6 +156,7 @@ class FleetDynamics:
         """(N,) bool: vehicles whose last set_targets/set_rate_targets input had non-finite values."""
         self._phys = pack_physics(params, self.dt)
         self._ctl = self.gains.packed(self.dt)
+        self._work = np.zeros((5, 4))  # advance's scratch
         if state is None:
             state = FleetState.at_rest(np.zeros((self.n, 3)), np.zeros(self.n), params=params)
         self.state = state
@@ -235,7 +236,7 @@ class FleetDynamics:
             int(nsteps), self._phys, self._ctl,
             s.pos, s.vel, s.quat, s.omega, s.motor, s.landed, s.crashed, s.world_accel,
             self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on, self._rate_mode,
-            self._rate_cmd, self._integrator, self._d_state, self._prev_error, wind,
+            self._rate_cmd, self._integrator, self._d_state, self._prev_error, wind, self._work,
         )  # fmt: skip
 
     def reset_vehicle(self, i: int, pos: np.ndarray, yaw: float, vel: np.ndarray | None = None) -> None:
@@ -287,26 +288,21 @@ def pack_physics(params: QuadParams, dt: float) -> np.ndarray:
 @kernel
 def advance(
     nsteps, phys, ctl, pos, vel, quat, omega, motor, landed, crashed, accel_out,
-    quat_t, rate_ff, thrust_sp, motors_on, rate_mode, rate_cmd, integ, d_state, prev_err, wind,
+    quat_t, rate_ff, thrust_sp, motors_on, rate_mode, rate_cmd, integ, d_state, prev_err, wind, work,
 ):  # fmt: skip  # noqa: ANN001, ANN201 - numba kernel over FleetDynamics' arrays
     """Advance all vehicles nsteps physics steps of phys[P_DT] s; state and controller memory are updated in
     place. phys: pack_physics; ctl: AttitudeGains.packed; the arrays as FleetState and FleetDynamics hold them
     (targets quat_t (N,4), rate_ff (N,3) rad/s, thrust_sp (N,) N, motors_on, rate_mode (N,) bool, rate_cmd
-    (N,3) rad/s; rate PID memory integ, d_state, prev_err (N,3); wind (N,3) ENU m/s). Vehicles are
-    independent, so each one is advanced all nsteps in a row."""
+    (N,3) rad/s; rate PID memory integ, d_state, prev_err (N,3); wind (N,3) ENU m/s); work (5,4) scratch.
+    Vehicles are independent, so each one is advanced all nsteps in a row. (No array is allocated here: an
+    allocation would compile numba's error-message machinery into the cold start.)"""
     mass, g, dt = phys[P_MASS], phys[P_G], phys[P_DT]
-    inertia = np.array([phys[P_IXX], phys[P_IYY], phys[P_IZZ]])
+    ixx, iyy, izz = phys[P_IXX], phys[P_IYY], phys[P_IZZ]
     arm_xy, yaw_coef, f_max = phys[P_ARM_XY], phys[P_YAW_COEF], phys[P_F_MAX]
     alpha, drag_lin, drag_rot = phys[P_MOTOR_ALPHA], phys[P_DRAG_LIN], phys[P_DRAG_ROT]
     inv_4d = 1.0 / (4.0 * arm_xy)
     weight = mass * g
-    rate_sp = np.empty(3)
-    err = np.empty(3)
-    torque = np.empty(3)
-    rp = np.empty(4)
-    yaw = np.empty(4)
-    f_cmd = np.empty(4)
-    w_dot = np.empty(3)
+    rate_sp, torque, rp, yaw, f_cmd = work[0], work[1], work[2], work[3], work[4]
 
     for i in range(pos.shape[0]):
         for _ in range(nsteps):
@@ -318,7 +314,7 @@ def advance(
                 for k in range(3):
                     rate_sp[k] = rate_cmd[i, k]
             else:
-                err[0], err[1], err[2] = attitude_error(
+                err = attitude_error(
                     qw, qx, qy, qz, quat_t[i, 0], quat_t[i, 1], quat_t[i, 2], quat_t[i, 3]
                 )
                 for k in range(3):
@@ -371,16 +367,18 @@ def advance(
             a_y = ay_t * (thrust / mass) - k_drag * (vel[i, 1] - wind[i, 1])
             a_z = az_t * (thrust / mass) - k_drag * (vel[i, 2] - wind[i, 2]) - g
             wx, wy, wz = omega[i, 0], omega[i, 1], omega[i, 2]
-            lx, ly, lz = inertia[0] * wx, inertia[1] * wy, inertia[2] * wz
-            w_dot[0] = (tau_x - (wy * lz - wz * ly) - drag_rot * wx) / inertia[0]
-            w_dot[1] = (tau_y - (wz * lx - wx * lz) - drag_rot * wy) / inertia[1]
-            w_dot[2] = (tau_z - (wx * ly - wy * lx) - drag_rot * wz) / inertia[2]
+            lx, ly, lz = ixx * wx, iyy * wy, izz * wz
+            w_dot_x = (tau_x - (wy * lz - wz * ly) - drag_rot * wx) / ixx
+            w_dot_y = (tau_y - (wz * lx - wx * lz) - drag_rot * wy) / iyy
+            w_dot_z = (tau_z - (wx * ly - wy * lx) - drag_rot * wz) / izz
             vel[i, 0] += a_x * dt
             vel[i, 1] += a_y * dt
             vel[i, 2] += a_z * dt
             for k in range(3):
                 pos[i, k] += vel[i, k] * dt
-                omega[i, k] += w_dot[k] * dt
+            omega[i, 0] += w_dot_x * dt
+            omega[i, 1] += w_dot_y * dt
+            omega[i, 2] += w_dot_z * dt
             accel_out[i, 0], accel_out[i, 1], accel_out[i, 2] = a_x, a_y, a_z
 
             # q * exp(omega dt / 2): the exact rotation for the body rates held over dt, renormalised

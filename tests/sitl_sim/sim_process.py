@@ -1,8 +1,12 @@
 """Helpers of the simulator tests: the real `python -m sitl_sim` process on free loopback ports (`start_sim`),
 an in-process SimConfig, and a scripted pymavlink ground station (`Pilot`) that can drive it in lockstep.
 
-Every process is started with a bounded wait for READY; the fixtures in conftest.py terminate (then kill) it
-at teardown. Import as `tests.sitl_sim.sim_process`.
+Every process is started with a bounded wait for READY (READY_TIMEOUT_S); the fixtures in conftest.py
+terminate (then kill) it at teardown. Before the first start, this process compiles the simulator's kernels
+into numba's on-disk cache (`cache_kernels`), which the simulator shares: the READY bound then times a
+start that loads them, as every start but the first after a change does, rather than a cold compile, which
+on a loaded 2-core machine (a CI run beside a build job) can outlast the bound without anything hanging; a
+simulator that hangs before READY still fails the bound. Import as `tests.sitl_sim.sim_process`.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.clock import plan_timing
-from sitl_sim.simulator import SimConfig
+from sitl_sim.simulator import SimConfig, warm_up_kernels
 from sitl_sim.world import Obstacles
 from swarm_common.ports import free_udp_base
 
@@ -86,8 +90,21 @@ class SimProcess:
         return self.proc.returncode, err
 
 
+_kernels_cached = False
+
+
+def cache_kernels() -> None:
+    """Compile (or load) the simulator's kernels in this process once, filling numba's on-disk cache that the
+    simulator processes load (module doc); no bound: compiling is slow on a loaded machine, never stuck."""
+    global _kernels_cached  # noqa: PLW0603 - once per test process
+    if not _kernels_cached:
+        warm_up_kernels()
+        _kernels_cached = True
+
+
 def start_sim(*args: str, vehicles: int = 1, extra_env: dict[str, str] | None = None) -> SimProcess:
     """Start `python -m sitl_sim` (vehicles given or with a --mission in args) and wait for READY."""
+    cache_kernels()
     base = free_udp_base(vehicles)
     command = [sys.executable, "-m", "sitl_sim", "--base-port", str(base), *args]
     if "--mission" not in args:
