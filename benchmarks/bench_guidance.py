@@ -10,10 +10,6 @@ on. Prints a Markdown table: median per tick over repeats, with the spread (min.
 
     python benchmarks/bench_guidance.py [--repeats 7] [--ticks 50] [--quick] [--max-n 1000]
 
-With --compiled-ab: the tick compiled (numba, the default when installed: fleet_controller.compiled_steps)
-against the numpy steps (compiled_steps = None, the step-4 shaping still compiled), interleaved repeat by
-repeat, N = --sizes with K = 10.
-
 With --baseline DIR: the tick of this tree against the tick of the gcs_swarm/guidance package of another tree
 (DIR, e.g. an export of an older commit: `git archive <commit> gcs_swarm | tar -x -C DIR`), loaded side by
 side in this process, interleaved repeat by repeat, N = --sizes with K = 10; `uptime` is printed alongside.
@@ -37,7 +33,6 @@ from types import ModuleType
 import numpy as np
 
 import gcs_swarm
-from gcs_swarm.guidance import fleet_controller
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import DeadGcsParams, FieldParams, G
@@ -140,34 +135,6 @@ def print_ab(title: str, names: tuple[str, str], sizes: list[int], repeats: int,
     print(f"uptime: {os.popen('uptime').read().strip()}")
 
 
-def compiled_ab(sizes: list[int], repeats: int, ticks: int) -> None:
-    """The compiled steps against the numpy steps of this tree (fleet_controller.compiled_steps)."""
-    compiled = fleet_controller.compiled_steps
-    if compiled is None:
-        raise SystemExit("numba is not installed: no compiled path to compare")
-
-    def select(path: object):
-        return lambda: setattr(fleet_controller, "compiled_steps", path)
-
-    def setup(n: int):
-        return {"numpy": scenario(n, 10), "compiled": scenario(n, 10)}, {
-            "numpy": select(None),
-            "compiled": select(compiled),
-        }
-
-    try:
-        print_ab(
-            "FleetController.tick, numpy vs compiled steps",
-            ("numpy", "compiled"),
-            sizes,
-            repeats,
-            ticks,
-            setup,
-        )
-    finally:
-        fleet_controller.compiled_steps = compiled
-
-
 def load_guidance(root: Path) -> dict[str, ModuleType]:
     """The modules fleet_controller and params of the gcs_swarm/guidance package under `root`, imported
     beside this tree's (sys.modules is restored afterwards, so both stay usable)."""
@@ -249,7 +216,6 @@ def main() -> None:
     parser.add_argument("--ticks", type=int, default=50, help="ticks timed per repeat")
     parser.add_argument("--quick", action="store_true", help="3 repeats of 20 ticks")
     parser.add_argument("--max-n", type=int, default=1000, help="skip fleets larger than this")
-    parser.add_argument("--compiled-ab", action="store_true", help="compiled vs numpy steps, N = --sizes")
     parser.add_argument("--baseline", type=Path, help="A/B against the guidance package of this tree root")
     parser.add_argument("--sizes", default="3,6,9,50,100,200", help="fleet sizes of the A/B tables")
     args = parser.parse_args()
@@ -257,9 +223,6 @@ def main() -> None:
     sizes = [int(x) for x in args.sizes.split(",")]
     if args.baseline is not None:
         baseline_ab(args.baseline, sizes, repeats, ticks)
-        return
-    if args.compiled_ab:
-        compiled_ab(sizes, repeats, ticks)
         return
     fp = FieldParams()
     print(

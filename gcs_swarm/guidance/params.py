@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import cached_property
 
 G = 9.8  # m/s^2, Table 2
 
@@ -51,7 +52,7 @@ class FieldParams:
         if self.d_g is not None and not self.d_g > 0:
             raise ValueError("d_g must be > 0 (or omitted for v_max / K_v)")
 
-    @property
+    @cached_property
     def law(self) -> FieldMethod:
         """The field law `method` names; ValueError for a name that is none of FieldMethod's."""
         try:

@@ -39,7 +39,8 @@ def paper_literal_reference(
 
 
 class ReferenceConfig(NamedTuple):
-    """The settings of `reference_step`, from ReferenceParams and Limits (ReferenceGenerator)."""
+    """The settings of `reference_step`, its last parameters in this order (ReferenceGenerator builds them
+    from ReferenceParams and Limits)."""
 
     gain: float  # K_v / k_att, (m/s) per field unit
     v_z: float  # m/s, vertical speed limit
@@ -87,18 +88,16 @@ def leash_and_lookahead(
 def reference_step(
     p: np.ndarray, v: np.ndarray, a_prev: np.ndarray, force: np.ndarray, v_ff: np.ndarray, a_ff: np.ndarray,
     targets: np.ndarray, v_xy_max: np.ndarray, rows: np.ndarray, evasive: np.ndarray, dt: float,
-    config: ReferenceConfig,
+    gain: float, v_z: float, stop_accel: float, k_v: float, jerk_max: float, has_z_min: bool, z_min: float,
+    jerk_max_z: float, a_z: float, tau_v: float, a_xy_max: float, a_xy_evasive: float, jerk_xy_evasive: float,
+    jerk_z_evasive: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Steps 3-5 from the reference state p, v, a_prev (N, 3), the field force (N, 3) at p, the feed-forwards
     v_ff, a_ff (N, 3), the attraction targets (N, 3), the horizontal speed caps v_xy_max (N,) m/s, the (N,)
     bool rows to advance, the (N,) bool `evasive` rows and dt s: the desired acceleration a_r (N, 3) of this
     instant (a_prev in rows not advanced) and the next reference state p, v (N, 3) (p, v themselves in rows
-    not advanced). ReferenceGenerator documents the rules."""
-    gain, v_z, stop_accel, k_v = config.gain, config.v_z, config.stop_accel, config.k_v
-    jerk_max = config.jerk_max
-    has_z_min, z_min, jerk_max_z, a_z = config.has_z_min, config.z_min, config.jerk_max_z, config.a_z
-    tau_v, a_xy_max, a_xy_evasive = config.tau_v, config.a_xy_max, config.a_xy_evasive
-    jerk_xy_evasive, jerk_z_evasive = config.jerk_xy_evasive, config.jerk_z_evasive
+    not advanced). The settings are ReferenceConfig's fields (called with *config); ReferenceGenerator
+    documents the rules."""
     n = p.shape[0]
     accel = np.empty((n, 3))
     p_next = np.empty((n, 3))
@@ -266,6 +265,6 @@ class ReferenceGenerator:
         targets = self.p if targets is None else targets  # its own point: no stopping curve
         p, v = self.p, self.v
         self.a, self.p, self.v = reference_step(
-            p, v, self.a, force, v_ff, a_ff, targets, v_xy_max, rows, evasive, float(dt), self.config
+            p, v, self.a, force, v_ff, a_ff, targets, v_xy_max, rows, evasive, float(dt), *self.config
         )
         return p, v, self.a

@@ -42,7 +42,8 @@ def _per_axis(params: SMCParams, name: str) -> np.ndarray:
 
 
 class SMCSettings(NamedTuple):
-    """The scalar settings of `smc_output`, from SMCParams and Limits (SMCController)."""
+    """The scalar settings of `smc_output`, its last parameters in this order (SMCController builds them
+    from SMCParams and Limits)."""
 
     boundary_layer: float  # m/s, Phi; 0: sgn
     g: float  # m/s^2
@@ -77,18 +78,18 @@ def smc_sliding(
 @kernel
 def smc_output(
     e1: np.ndarray, s: np.ndarray, power1: np.ndarray, power2: np.ndarray, xd_ddot: np.ndarray, v: np.ndarray,
-    gains: np.ndarray, c_hat: np.ndarray, d_hat: np.ndarray, dt: float, config: SMCSettings,
+    gains: np.ndarray, c_hat: np.ndarray, d_hat: np.ndarray, dt: float, boundary_layer: float, g: float,
+    drag_adaptation: float, drag_max: float, has_limits: bool, tan_tilt: float, uz_floor: float,
+    thrust_cap: float, d_max_xy: float, d_max_z: float, estimate: bool,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """U (N, 3) m/s^2 from e1, s (N, 3) and power1, power2 = |s|^xi1, |s|^xi2 (N, 3): Eq 49
     U = xd_ddot - c1^2 e1 + c1 s - reaching law (+g in z), the reaching law
     -k1 s - k2 |s|^xi1 sw(s) - k3 |s|^xi2 sw(s) with sw = sgn, or sat(s / Phi) with a boundary layer Phi > 0
     (spec 7.1, 7.4); then the drag adaptation (U_xy += c_hat v_xy) and the disturbance estimate
     (U += d_hat) with their next values c_hat (N,), d_hat (N, 3) (module docstring; rows without a finite
-    state do not integrate). `gains` (5, 3): rows c1, k1, k2, k3, k_d per axis."""
-    phi, g, gamma, drag_max = config.boundary_layer, config.g, config.drag_adaptation, config.drag_max
-    has_limits, tan_tilt = config.has_limits, config.tan_tilt
-    uz_floor, thrust_cap = config.uz_floor, config.thrust_cap
-    d_max_xy, d_max_z, estimate = config.d_max_xy, config.d_max_z, config.estimate
+    state do not integrate). `gains` (5, 3): rows c1, k1, k2, k3, k_d per axis; the settings are SMCSettings'
+    fields (called with *settings)."""
+    phi, gamma = boundary_layer, drag_adaptation
     n = s.shape[0]
     u = np.empty((n, 3))
     c_next = c_hat.copy()
@@ -205,7 +206,7 @@ class SMCController:
         d_hat = self.d_hat if self.d_hat.shape == (n, 3) else np.zeros((n, 3))
         u, c_next, d_next = smc_output(
             e1, self.s, abs_s**self.xi1, abs_s**self.xi2, xd_ddot, v, self.gains, c_hat, d_hat, float(dt),
-            self.settings,
+            *self.settings,
         )  # fmt: skip
         if adapting:
             self.c_hat = c_next

@@ -99,3 +99,16 @@ def test_paper_literal_reference_shift_is_scaled_and_capped_at_l0():
     np.testing.assert_allclose(x_d, [[13.0, 0.0, 9.0], [20.0, 0.0, 5.0]])
     np.testing.assert_array_equal(xd_dot, vel)
     assert not xd_ddot.any()
+
+
+def test_the_named_settings_are_the_kernels_last_parameters():
+    """ReferenceConfig and SMCSettings are passed as *settings: their fields name the kernels' last
+    parameters, in order."""
+    import inspect
+
+    from gcs_swarm.guidance.reference import ReferenceConfig, reference_step
+    from gcs_swarm.guidance.smc import SMCSettings, smc_output
+
+    for record, kernel in ((ReferenceConfig, reference_step), (SMCSettings, smc_output)):
+        names = list(inspect.signature(kernel.py_func).parameters)
+        assert names[-len(record._fields) :] == list(record._fields)
