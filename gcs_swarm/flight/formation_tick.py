@@ -58,11 +58,10 @@ def send_formation_tick(
     cmd = controller.tick(t, verdict.pos, vel, att, centres, radii, active)
     if timing is not None:
         timing.mark(GUIDANCE)
-    # ArduCopter adds its own 1/cos(tilt) to guided thrust when ATC_ANGLE_BOOST is on: not twice
-    # (attitude_commands: thrust, then the final command guard)
+    # attitude_commands: each vehicle's autopilot dialect makes its thrust, then the final command guard
     roll, pitch, yaw, thrust, limited = attitude_commands(
         cmd.roll_d, cmd.pitch_d, cmd.yaw_d, cmd.thrust_acc, att, verdict.pos, vel, setup.hover,
-        setup.angle_boost, G, limits,
+        setup.angle_boost, G, limits, fleet.dialects,
     )  # fmt: skip
     fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
     for i in np.flatnonzero(verdict.held & flown):

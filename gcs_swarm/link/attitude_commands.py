@@ -1,30 +1,21 @@
 """The send step of a formation tick: from the guidance's command to what each SET_ATTITUDE_TARGET carries.
 
-1. Thrust for ArduCopter: the collective acceleration with ArduCopter's own angle boost taken out again
-   (autopilots.ardupilot.unboosted_thrust), made finite (numpy.nan_to_num: NaN 0, +-inf the largest float,
-   so no thrust or full thrust once normalised), normalised (autopilots.ardupilot.thrust_from_acc).
+1. Thrust: each vehicle's autopilot dialect turns the collective acceleration into its normalised thrust
+   (AutopilotDialect.thrust: ArduCopter takes its own angle boost out again, PX4 flies it as given), for
+   the vehicles of each dialect at once.
 2. The final command guard (command_limits.guard_attitude_commands).
-
-`attitude_commands_numpy` is that sequence of numpy functions, the reference. `attitude_commands` gives the
-same bits from one compiled loop over the vehicles (link_kernels.attitude_commands) when numba is installed:
-for 6 vehicles 45 us of numpy calls become 10 us (timeit), a twentieth of the formation tick's work
-(BENCHMARKS.md). tests/gcs_swarm/link/test_attitude_commands.py compares the two bit for bit.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from gcs_swarm.link.autopilots import ardupilot
-from gcs_swarm.link.command_limits import TILT_SLACK, CommandLimits, guard_attitude_commands
-
-try:  # the compiled loop (the same bits) when numba is there (extra "fast")
-    from gcs_swarm.link import link_kernels
-except ImportError:  # pragma: no cover - numba is optional
-    link_kernels = None  # type: ignore[assignment]
+from gcs_swarm.link.autopilots import ARDUPILOT, PX4, AutopilotDialect
+from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
 
 FloatArray = NDArray[np.float64]
 
@@ -40,30 +31,6 @@ class AttitudeCommands(NamedTuple):
     changed: NDArray[np.bool_]
 
 
-def attitude_commands_numpy(
-    roll: FloatArray,
-    pitch: FloatArray,
-    yaw: FloatArray,
-    thrust_acc: FloatArray,
-    att: FloatArray,
-    pos: FloatArray,
-    vel: FloatArray,
-    hover: FloatArray,
-    boost: NDArray[np.bool_],
-    g: float,
-    limits: CommandLimits,
-) -> AttitudeCommands:
-    """The guidance's (N,) roll, pitch, yaw rad and collective thrust acceleration m/s^2 made into the
-    commands to send, for vehicles at the measured att (N, 3) rad (roll, pitch, yaw), pos (N, 3) ENU m and
-    vel (N, 3) ENU m/s, with hover thrust (N,) (MOT_THST_HOVER), ATC_ANGLE_BOOST on (N,) bool, gravity g
-    m/s^2 and the guard's limits (see the module doc)."""
-    acc = ardupilot.unboosted_thrust(thrust_acc, att[:, 0], att[:, 1], boost)
-    thrust = ardupilot.thrust_from_acc(np.nan_to_num(acc), hover, g)
-    return AttitudeCommands(
-        *guard_attitude_commands(roll, pitch, yaw, thrust, pos, att[:, 2], hover, limits, vel=vel)
-    )
-
-
 def attitude_commands(
     roll: FloatArray,
     pitch: FloatArray,
@@ -76,25 +43,34 @@ def attitude_commands(
     boost: NDArray[np.bool_],
     g: float,
     limits: CommandLimits,
+    dialects: Sequence[AutopilotDialect],
 ) -> AttitudeCommands:
-    """attitude_commands_numpy (same arguments, same bits), by the compiled loop when numba is there."""
-    if link_kernels is None:
-        return attitude_commands_numpy(roll, pitch, yaw, thrust_acc, att, pos, vel, hover, boost, g, limits)
-    r, p, y, acc, a, x, v, h = (
-        np.ascontiguousarray(values, dtype=np.float64)
-        for values in (roll, pitch, yaw, thrust_acc, att, pos, vel, hover)
-    )
-    # numpy's own arccos (the compiled loop's acos is the C library's; module doc of link_kernels)
-    commanded_tilt = np.arccos(np.clip(np.cos(r) * np.cos(p), -1.0, 1.0))
-    bounds = (
-        float(limits.tilt_max),
-        float(limits.thrust_max_g),
-        float(limits.min_altitude),
-        float(limits.geofence_radius),
-        float(limits.geofence_max_alt),
-    )
+    """The guidance's (N,) roll, pitch, yaw rad and collective thrust acceleration m/s^2 made into the
+    commands to send, for vehicles at the measured att (N, 3) rad (roll, pitch, yaw), pos (N, 3) ENU m and
+    vel (N, 3) ENU m/s, with hover thrust (N,), the autopilot's angle boost on (N,) bool, gravity g m/s^2,
+    the guard's limits and each vehicle's autopilot dialect (N,) (see the module doc)."""
+    acc, hov, a = (np.ascontiguousarray(x, dtype=np.float64) for x in (thrust_acc, hover, att))
     boosted = np.ascontiguousarray(boost, dtype=np.bool_)
-    out = link_kernels.attitude_commands(
-        r, p, y, acc, commanded_tilt, a, x, v, h, boosted, float(g), bounds, TILT_SLACK
-    )  # fmt: skip
-    return AttitudeCommands(*out)
+    groups: dict[int, tuple[AutopilotDialect, list[int]]] = {}
+    for i, dialect in enumerate(dialects):
+        groups.setdefault(id(dialect), (dialect, []))[1].append(i)
+    if len(groups) == 1:
+        thrust = dialects[0].thrust(acc, a[:, 0], a[:, 1], hov, boosted, g)
+    else:
+        thrust = np.empty(len(acc))
+        for dialect, rows in groups.values():
+            thrust[rows] = dialect.thrust(acc[rows], a[rows, 0], a[rows, 1], hov[rows], boosted[rows], g)
+    return AttitudeCommands(
+        *guard_attitude_commands(roll, pitch, yaw, thrust, pos, a[:, 2], hov, limits, vel=vel)
+    )
+
+
+def warm_up() -> None:
+    """Compile the send step (both dialects' thrust and the guard) or load it from numba's cache, before a
+    tick needs it."""
+    row, rows = np.zeros(1), np.zeros((1, 3))
+    limits = CommandLimits(1.0, 1.0, 0.0, 1.0, 1.0)
+    for dialect in (ARDUPILOT, PX4):
+        attitude_commands(
+            row, row, row, row, rows, rows, rows, row, np.ones(1, dtype=bool), 9.8, limits, [dialect]
+        )

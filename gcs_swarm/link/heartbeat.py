@@ -16,7 +16,7 @@ WALL_HEARTBEAT_S = 1.0  # wall s between the heartbeats (and TIMESYNC requests) 
 
 
 class GcsHeartbeat:
-    """HEARTBEATs to vehicle `index` through `channel`: one per intake_kernel.GCS_HEARTBEAT_MS of its time (the simulator
+    """HEARTBEATs to vehicle `index` through `channel`: one per GCS_HEARTBEAT_MS of its time (the simulator
     times its GCS failsafe in vehicle time; when one is due is link.intake_kernel.heartbeat_due's law, and
     `send` is called then), one per WALL_HEARTBEAT_S of wall time with a TIMESYNC request."""
 

@@ -207,8 +207,8 @@ class Intake:
                 self._general(endpoint, data[offset:packet_end], d, now)
                 p = start + packet_end
         self.packets_taken += int(self.received.sum())
-        for vehicle in np.flatnonzero(self.received):
-            self.links[vehicle].channel.stats.received += int(self.received[vehicle])
+        for row in np.flatnonzero(self.received):
+            self.links[row].channel.stats.received += int(self.received[row])
         self.received[:] = 0
         self._count = 0
         self._used = 0

@@ -78,7 +78,8 @@ _ATTITUDE_ID = mavlink2.MAVLINK_MSG_ID_ATTITUDE
 _POSITION_CRC_EXTRA = mavlink2.MAVLink_global_position_int_message.crc_extra
 _ATTITUDE_CRC_EXTRA = mavlink2.MAVLink_attitude_message.crc_extra
 _PAYLOAD = max(
-    mavlink2.MAVLink_global_position_int_message.unpacker.size, mavlink2.MAVLink_attitude_message.unpacker.size
+    mavlink2.MAVLink_global_position_int_message.unpacker.size,
+    mavlink2.MAVLink_attitude_message.unpacker.size,
 )  # 28 bytes: the longer payload; MAVLink 2 cuts trailing zeros, and longer payloads' extra bytes are ignored
 MIN_PACKET = _HEADER_LEN + 2 + 1  # bytes of the shortest MAVLink 2 packet (one payload byte)
 # GLOBAL_POSITION_INT wire offsets (pymavlink's unpacker): time_boot_ms u32 0, lat 4, lon 8, alt 12,
@@ -208,7 +209,9 @@ def attitude_packet(
 
 
 @kernel
-def heard(i: int, now: float, alive: np.ndarray, times: np.ndarray, walls: np.ndarray, clock: np.ndarray) -> int:
+def heard(
+    i: int, now: float, alive: np.ndarray, times: np.ndarray, walls: np.ndarray, clock: np.ndarray
+) -> int:
     """A packet from vehicle i's autopilot arrived at `now` (time.monotonic()): its link is alive. REGAINED
     when it was not."""
     walls[_LAST_RX_WALL, i] = now
@@ -308,9 +311,9 @@ def take_packets(
     none written), record k starting at byte record_starts[k]. `now`: time.monotonic()
     when the datagrams were read; `wall_now`: time.monotonic() now.
 
-    Returns (d, p, outcome, vehicle, record bytes written, records written, any position stored): it stopped at offset p of
-    datagram d (d == count: all done) with outcome NOT_TAKEN or UNVERIFIED before the packet there, or with
-    the FOLLOW_UP outcome of vehicle's packet just before it.
+    Returns (d, p, outcome, vehicle, record bytes written, records written, any position stored): it
+    stopped at offset p of datagram d (d == count: all done) with outcome NOT_TAKEN or UNVERIFIED before the
+    packet there, or with the FOLLOW_UP outcome of vehicle's packet just before it.
     """
     payload = np.zeros(_PAYLOAD, dtype=np.uint8)
     word = np.empty(1, dtype=np.uint32)

@@ -9,7 +9,7 @@ refuses UNIX times before 2022) and sends no clock ticks, so all this is always 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -18,6 +18,7 @@ from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import MAVLinkMessage
 from gcs_swarm.link.intake_kernel import CLOCK_KIND
 from gcs_swarm.link.telemetry import TelemetryState, VehicleTelemetry
+from swarm_common.jit import kernel
 from swarm_common.mavlink_codec import Packer
 
 _SYSTEM_TIME = Packer(mavlink2.MAVLink_system_time_message)
@@ -85,7 +86,8 @@ def frame_ready(answers: Sequence[LockstepAnswer], connected: Sequence[bool]) ->
     return all(a.needs_answer for a in alive + clocked)
 
 
-def take_new_frame_numpy(
+@kernel
+def take_new_frame(
     alive: np.ndarray, position_ms: np.ndarray, frame_ms: np.ndarray, tick_ms: np.ndarray
 ) -> bool:
     """Whether every vehicle expected in a new tick has a frame newer than its last tick: a
@@ -94,18 +96,20 @@ def take_new_frame_numpy(
     at the fleet's last tick (a lockstep simulator waits for its answer). If so, that frame is consumed: each
     expected vehicle's tick_ms becomes its newest frame's. `alive`: (N,) bool. False while nobody is alive.
     """
-    newest = np.maximum(position_ms, frame_ms)
-    last_tick = int(tick_ms[alive].max()) if alive.any() else -1
-    expected = alive | ((frame_ms >= 0) & (frame_ms >= last_tick) & (tick_ms >= last_tick))
-    if alive.any() and bool(np.all((newest > tick_ms) | ~expected)):
-        tick_ms[expected] = newest[expected]
-        return True
-    return False
-
-
-take_new_frame: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], bool]
-"""`take_new_frame_numpy`, compiled when numba is there (link_kernels.take_new_frame: the same results)."""
-try:
-    from gcs_swarm.link.link_kernels import take_new_frame
-except ImportError:  # pragma: no cover - numba is optional
-    take_new_frame = take_new_frame_numpy
+    n = alive.shape[0]
+    last_tick = np.int64(-1)
+    any_alive = False
+    for i in range(n):
+        if alive[i] and (not any_alive or tick_ms[i] > last_tick):
+            last_tick = tick_ms[i]
+            any_alive = True
+    if not any_alive:
+        return False
+    for i in range(n):
+        expected = alive[i] or (frame_ms[i] >= 0 and frame_ms[i] >= last_tick and tick_ms[i] >= last_tick)
+        if expected and not max(position_ms[i], frame_ms[i]) > tick_ms[i]:
+            return False
+    for i in range(n):
+        if alive[i] or (frame_ms[i] >= 0 and frame_ms[i] >= last_tick and tick_ms[i] >= last_tick):
+            tick_ms[i] = max(position_ms[i], frame_ms[i])
+    return True

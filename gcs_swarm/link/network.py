@@ -48,8 +48,8 @@ SYSID_CONFLICT_HEARTBEATS = 3  # vehicle HEARTBEATs from a wrong sysid before th
 class Network:
     """Endpoints and routing for `links` (row i = links[i]) and `forward_configs`; every packet in and out
     goes to the tlog (a forward's frames when they reach a vehicle). `signing_key`: checked on every frame
-    received (vehicles' and forwards'). `spin_s`: wall s `receive` polls before it blocks (swarm_common.spin_wait; for a lockstep simulator, which answers
-    within a fraction of a millisecond)."""
+    received (vehicles' and forwards'). `spin_s`: wall s `receive` polls before it blocks
+    (swarm_common.spin_wait; for a lockstep simulator, which answers at once)."""
 
     def __init__(
         self,

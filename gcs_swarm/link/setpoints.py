@@ -14,8 +14,8 @@ from gcs_swarm.link import frames
 from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.lockstep import LockstepAnswer
-from swarm_common import rotations
 from swarm_common.mavlink_codec import Packer
+from swarm_common.rotations import yaw_ned_enu
 
 ATTITUDE_TARGET_IGNORE_RATES = 0b00000111  # SET_ATTITUDE_TARGET.type_mask: use quaternion + thrust only
 _SET_ATTITUDE_TARGET = Packer(mavlink2.MAVLink_set_attitude_target_message)
@@ -155,4 +155,4 @@ def _with_yaw(mask: int, yaw: float | None) -> tuple[int, float]:
     (clockwise from North) in [-pi, pi), or the yaw ignored (0.0 sent) when None."""
     if yaw is None:
         return mask | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE, 0.0
-    return mask, float(rotations.wrap_pi(0.5 * math.pi - yaw))
+    return mask, float(yaw_ned_enu(yaw))

@@ -12,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Protocol
 
+import numpy as np
+from numpy.typing import NDArray
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.autopilots.ardupilot import ARDUPILOT
@@ -69,6 +71,20 @@ class AutopilotDialect(Protocol):
 
     def is_angle_boost_on(self, value: float) -> bool:
         """`angle_boost_param`'s value as read -> whether the boost is on."""
+        ...
+
+    def thrust(
+        self,
+        thrust_acc: NDArray[np.float64],
+        roll: NDArray[np.float64],
+        pitch: NDArray[np.float64],
+        hover: NDArray[np.float64],
+        boost: NDArray[np.bool_],
+        g: float,
+    ) -> NDArray[np.float64]:
+        """SET_ATTITUDE_TARGET.thrust (K,) normalised, that makes K vehicles of this autopilot fly the
+        collective thrust accelerations thrust_acc (K,) m/s^2, at measured roll, pitch (K,) rad, with hover
+        thrust `hover` (K,) (hover_param) and the angle boost on (`boost` (K,) bool); g: gravity m/s^2."""
         ...
 
     def mode_number(self, mode: str | int) -> int:

@@ -1,9 +1,9 @@
-"""What the ground station must know about ArduCopter on the wire, in one place (issue 18 will add PX4 beside
-it): flight modes, telemetry stream groups, parameter names that changed between releases, how to read its
+"""What the ground station must know about ArduCopter on the wire, in one place (PX4's is px4.py beside it):
+flight modes, telemetry stream groups, parameter names that changed between releases, how to read its
 health, and what its guided-attitude thrust means. Each fact cites the ArduPilot source it comes from.
 
 `ARDUPILOT` is the dialect object the link uses (registered in gcs_swarm.link.autopilots under
-MAV_AUTOPILOT_ARDUPILOTMEGA); the thrust functions below it are used by the flight loop.
+MAV_AUTOPILOT_ARDUPILOTMEGA, and the fallback for an autopilot with no dialect of its own).
 """
 
 from __future__ import annotations
@@ -14,11 +14,13 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
+from gcs_swarm.link.autopilots.thrust import clip, normalised_thrust
+from swarm_common.jit import kernel
 
 ARDUCOPTER_MODES: Mapping[str, int] = MappingProxyType(
     {name: number for number, name in mavutil.mode_mapping_acm.items()}
@@ -149,6 +151,28 @@ class ArduPilotDialect:
         """ATC_ANGLE_BOOST as read (is_boost_on)."""
         return is_boost_on(value)
 
+    def thrust(
+        self,
+        thrust_acc: NDArray[np.float64],
+        roll: NDArray[np.float64],
+        pitch: NDArray[np.float64],
+        hover: NDArray[np.float64],
+        boost: NDArray[np.bool_],
+        g: float,
+    ) -> NDArray[np.float64]:
+        """SET_ATTITUDE_TARGET.thrust (K,) that makes K ArduCopters fly the collective accelerations
+        thrust_acc (K,) m/s^2, measured at roll, pitch (K,) rad, with MOT_THST_HOVER `hover` (K,) and
+        ATC_ANGLE_BOOST on (`boost` (K,) bool); g: gravity m/s^2.
+
+        The guidance's thrust already counts the tilt (spec 5, Eq 36: U_z / (cos phi cos theta) at the
+        measured attitude). ArduCopter's guided-attitude thrust goes through set_throttle_out(thrust,
+        apply_angle_boost = true) (ArduCopter/mode_guided.cpp angle_control_run), and with ATC_ANGLE_BOOST = 1
+        AC_AttitudeControl_Multi::get_throttle_boosted multiplies it by 1 / cos(its own current lean angle)
+        (floored at 0.1; an inverted factor only above 84 deg). So for those vehicles the tilt is taken out
+        again here, at the measured attitude, and ArduCopter puts it back with its own, fresher attitude: the
+        thrust is not counted twice. Then thrust.normalised_thrust (GUID_OPTIONS bit 3)."""
+        return _thrust(thrust_acc, roll, pitch, hover, boost, float(g))  # type: ignore[no-any-return]
+
     def mode_number(self, mode: str | int) -> int:
         """ArduCopter mode name (case-insensitive) or number -> custom_mode number; ValueError if unknown."""
         if isinstance(mode, int | np.integer):
@@ -205,32 +229,28 @@ class ArduPilotDialect:
 ARDUPILOT = ArduPilotDialect()
 
 
-def unboosted_thrust(
-    thrust_acc: np.ndarray, roll: np.ndarray, pitch: np.ndarray, boost: np.ndarray
+@kernel
+def _thrust(
+    thrust_acc: np.ndarray,
+    roll: np.ndarray,
+    pitch: np.ndarray,
+    hover: np.ndarray,
+    boost: np.ndarray,
+    g: float,
 ) -> np.ndarray:
-    """The collective to send (m/s^2, like thrust_acc (N,)) so that ArduCopter flies thrust_acc.
-
-    The guidance's thrust already counts the tilt (spec 5, Eq 36: U_z / (cos phi cos theta) at the measured
-    attitude). ArduCopter's guided-attitude thrust goes through set_throttle_out(thrust, apply_angle_boost =
-    true) (ArduCopter/mode_guided.cpp angle_control_run), and with ATC_ANGLE_BOOST = 1 (`boost` (N,) bool)
-    AC_AttitudeControl_Multi::get_throttle_boosted multiplies it by 1 / cos(its own current lean angle)
-    (floored at 0.1; an inverted factor only above 84 deg). So for those vehicles the tilt is taken out
-    again here, at the measured roll, pitch (N,) rad, and ArduCopter puts it back with its own, fresher
-    attitude; the thrust is not counted twice. Vehicles without the boost get thrust_acc unchanged."""
-    cos_tilt = np.clip(np.cos(roll) * np.cos(pitch), 0.1, 1.0)
-    cos_tilt = np.where(np.isfinite(cos_tilt), cos_tilt, 1.0)
-    return np.where(boost, np.asarray(thrust_acc, dtype=float) * cos_tilt, thrust_acc)
+    """ArduPilotDialect.thrust, one loop over the K vehicles."""
+    out = np.empty(thrust_acc.shape[0])
+    for i in range(thrust_acc.shape[0]):
+        acc = thrust_acc[i]
+        if boost[i]:
+            cos_tilt = clip(math.cos(roll[i]) * math.cos(pitch[i]), 0.1, 1.0)
+            if not math.isfinite(cos_tilt):
+                cos_tilt = 1.0
+            acc = acc * cos_tilt
+        out[i] = normalised_thrust(acc, hover[i], g)
+    return out
 
 
 def is_boost_on(value: float) -> bool:
     """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
     return not (math.isfinite(value) and value == 0.0)
-
-
-def thrust_from_acc(acc: ArrayLike, hover: ArrayLike, g: float) -> NDArray[np.float64]:
-    """Collective thrust acceleration |U| (m/s^2) -> normalised thrust `hover * acc / g` clipped to [0, 1],
-    the meaning of SET_ATTITUDE_TARGET.thrust with GUID_OPTIONS bit 3 set.
-
-    `hover` is the vehicle's MOT_THST_HOVER (normalised thrust that holds 1 g); `g` gravity, m/s^2; spec 5.
-    """
-    return np.asarray(np.clip(np.asarray(hover, dtype=float) * np.asarray(acc, dtype=float) / g, 0.0, 1.0))

@@ -14,11 +14,14 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 import numpy as np
+from numpy.typing import NDArray
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.autopilots.ardupilot import ekf_flag_names
 from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
+from gcs_swarm.link.autopilots.thrust import normalised_thrust
+from swarm_common.jit import kernel
 
 # src/modules/commander/px4_custom_mode.h: custom_mode = main_mode << 16 | sub_mode << 24
 MAIN_MODE_SHIFT, SUB_MODE_SHIFT = 16, 24
@@ -180,6 +183,21 @@ class PX4Dialect:
         """PX4 has no angle boost on offboard thrust."""
         return False
 
+    def thrust(
+        self,
+        thrust_acc: NDArray[np.float64],
+        roll: NDArray[np.float64],
+        pitch: NDArray[np.float64],
+        hover: NDArray[np.float64],
+        boost: NDArray[np.bool_],
+        g: float,
+    ) -> NDArray[np.float64]:
+        """SET_ATTITUDE_TARGET.thrust (K,) that makes K PX4 vehicles fly the collective accelerations
+        thrust_acc (K,) m/s^2 with MPC_THR_HOVER `hover` (K,); g: gravity m/s^2. OFFBOARD flies the thrust as
+        given, along body z (mavlink_receiver fill_thrust: thrust_body[2] = -thrust; mc_att_control adds no
+        tilt compensation), so the attitude and `boost` do not enter: thrust.normalised_thrust."""
+        return _thrust(thrust_acc, hover, float(g))  # type: ignore[no-any-return]
+
     def other_param_name(self, name: str) -> str | None:
         """PX4 parameters are not renamed between the releases the ground station supports."""
         return None
@@ -202,6 +220,15 @@ class PX4Dialect:
         return (
             entry.name.removeprefix("GPS_FIX_TYPE_").replace("_", " ").lower() if entry else f"fix {fix_type}"
         )
+
+
+@kernel
+def _thrust(thrust_acc: np.ndarray, hover: np.ndarray, g: float) -> np.ndarray:
+    """PX4Dialect.thrust, one loop over the K vehicles."""
+    out = np.empty(thrust_acc.shape[0])
+    for i in range(thrust_acc.shape[0]):
+        out[i] = normalised_thrust(thrust_acc[i], hover[i], g)
+    return out
 
 
 PX4 = PX4Dialect()

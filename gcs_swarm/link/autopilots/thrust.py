@@ -1,0 +1,54 @@
+"""What SET_ATTITUDE_TARGET.thrust means to a multicopter autopilot flying a collective thrust, compiled, and
+numpy's rules for one float64 that the send step keeps (NaN, infinities, signed zeros).
+
+Both dialects fly `normalised_thrust`: ArduCopter with GUID_OPTIONS bit 3 (thrust is collective thrust, not
+a climb rate) and PX4 in OFFBOARD (mavlink_receiver fill_thrust: thrust_body[2] = -thrust, flown as given by
+mc_att_control) take thrust / hover thrust as thrust / weight.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from swarm_common.jit import kernel
+
+_FLOAT_MAX = float(np.finfo(np.float64).max)  # numpy.nan_to_num's value for +inf
+
+
+@kernel
+def clip(x: float, low: float, high: float) -> float:
+    """numpy.clip of one float64 between scalar bounds (x NaN: x; a NaN bound: NaN; x equal to a bound, as
+    -0.0 to 0.0: x)."""
+    if x != x:
+        return x
+    if low != low:
+        return low
+    if high != high:
+        return high
+    if x < low:
+        return low
+    if x > high:
+        return high
+    return x
+
+
+@kernel
+def nan_to_num(x: float) -> float:
+    """numpy.nan_to_num of one float64: NaN -> 0, +-inf -> the largest finite float of its sign."""
+    if x != x:
+        return 0.0
+    if x == math.inf:
+        return _FLOAT_MAX
+    if x == -math.inf:
+        return -_FLOAT_MAX
+    return x
+
+
+@kernel
+def normalised_thrust(acc: float, hover: float, g: float) -> float:
+    """Collective thrust acceleration `acc` m/s^2 -> normalised thrust hover * acc / g in [0, 1], `hover`
+    being the normalised thrust that holds 1 g (MOT_THST_HOVER, MPC_THR_HOVER) and `g` gravity m/s^2 (spec
+    5). A NaN acceleration gives no thrust, +inf full thrust, -inf none."""
+    return clip(hover * nan_to_num(acc) / g, 0.0, 1.0)
