@@ -340,9 +340,8 @@ class Simulator:
         reads its links once per loop (ArduCopter at 400 Hz), rather than waking for every datagram. What
         arrived acts on the same step either way; a reply leaves up to one step later. Waking per datagram
         made a client's burst of commands wake this process up to once per command, and a sendto that wakes
-        a blocked process costs the sender about 40 us against 3 us (benchmarks/bench_wakeup.py): the ground
-        station's send step at 200 vehicles in real time had a p99 of 5.4-6.0 ms, 2.0 ms with this
-        (BENCHMARKS.md, 2026-11-28 05:00 UTC)."""
+        a blocked process costs the sender far more than one that does not (benchmarks/bench_wakeup.py,
+        BENCHMARKS.md)."""
         deadline = self.pacer.deadline(self.t, time.monotonic())
         while True:
             time.sleep(max(0.0, deadline - time.monotonic()))
@@ -522,8 +521,9 @@ class Simulator:
 
 
 def warm_up_kernels() -> None:
-    """Compile (or load from numba's cache) the physics and autopilot kernels on a throwaway one-vehicle
-    fleet, so that the first frames after READY are not late by the JIT time."""
+    """Compile (or load from numba's cache) every kernel a run calls, on a throwaway one-vehicle fleet, so
+    that the first frames after READY are not late by the JIT. The outer loop's kernel holds every persona's
+    rules as data, so one ArduCopter vehicle compiles what a PX4 vehicle needs too."""
     quad = QuadParams()
     dyn = FleetDynamics(1, quad)
     params = simulator_params(quad.hover_fraction, "4.7", fleet_personas((), 1))

@@ -8,9 +8,9 @@ ENU; Euler ZYX rad; motor thrusts N (ArduCopter motor order); mode = ArduCopter 
     t,obstacle,x,y,z,radius
 Numbers are printed with fixed precision so that identical runs give identical bytes. Each file's rows go as
 numbers to a formatting process of its own (swarm_common.row_log_process), which turns them into text on the
-other core, below the control loops: formatting them was about 60 us of a 6-vehicle simulator frame of 1 ms,
-the frame that sets the pace of take-off and landing (BENCHMARKS.md). Rows are handed over in batches of
-about 200 rows or 10 samples and at least every second: the simulator never waits on the disk.
+other core, below the control loops, where formatting was a large part of a small fleet's simulator frame
+(BENCHMARKS.md). Rows are handed over in batches of about 200 rows or 10 samples and at least every second:
+the simulator never waits on the disk.
 """
 
 from __future__ import annotations

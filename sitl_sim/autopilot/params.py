@@ -1,4 +1,6 @@
-"""ArduCopter-like parameters of N simulated vehicles (names, types and ranges as ArduCopter 4.6 has them).
+"""The parameter table of N simulated vehicles: the shared columns in ArduCopter's names, types and ranges
+(the release chosen by PARAM_NAME_RELEASES), which the shared autopilot reads, and the columns a persona adds
+(sitl_sim.autopilot.persona.fleet_params puts them together; each vehicle lists what its persona shows).
 
 Values live in one (N, P) float64 array so the vectorised autopilot reads a whole column per parameter.
 Parameters are listed (PARAM_REQUEST_LIST, param_index) in alphabetical order. World parameters (SIM_WIND_*)
@@ -119,8 +121,8 @@ def param_specs(hover_fraction: float, names: str = "4.7") -> tuple[ParamSpec, .
 class ParamTable:
     """Parameter values of N vehicles: `values` (N, P) float64, column j belongs to specs[j].
 
-    visible (N, P) bool, default all: the parameters each vehicle shows on the wire (a PX4 vehicle shows PX4
-    names, an ArduPilot one ArduCopter names; the hidden columns still drive the shared autopilot code).
+    visible (N, P) bool, default all: the parameters each vehicle shows on the wire (what its persona shows,
+    Persona.shows; the hidden columns still drive the shared autopilot code).
     revision counts the `set` calls: a reader that keeps something derived from `values` compares it and reads
     again when it changed (the endpoints' SIM_LINK_* check), so the columns it derives from change only
     through `set` once it runs.

@@ -1,5 +1,6 @@
 """Handlers of one vehicle's commands, mode changes, parameters and stream requests (HEARTBEAT, TIMESYNC,
-SET_MODE, COMMAND_LONG/INT, PARAM_*, REQUEST_DATA_STREAM), answering as ArduCopter does.
+SET_MODE, COMMAND_LONG/INT, PARAM_*, REQUEST_DATA_STREAM), answering as ArduCopter does: the ArduCopter
+persona's MAVLink surface, which the PX4 one (px4_commands) extends (sitl_sim.network.surfaces).
 
 Input that ArduCopter refuses is refused here explicitly: `counters.invalid` for NaN/inf/absurd fields and
 malformed requests, `counters.refused` for well-formed commands the autopilot declines. No handler raises on

@@ -314,9 +314,7 @@ def advance(
                 for k in range(3):
                     rate_sp[k] = rate_cmd[i, k]
             else:
-                err = attitude_error(
-                    qw, qx, qy, qz, quat_t[i, 0], quat_t[i, 1], quat_t[i, 2], quat_t[i, 3]
-                )
+                err = attitude_error(qw, qx, qy, qz, quat_t[i, 0], quat_t[i, 1], quat_t[i, 2], quat_t[i, 3])
                 for k in range(3):
                     r = sqrt_controller(err[k], ctl[C_ANGLE_P + k], ctl[C_ACCEL_MAX + k], 0.0) + rate_ff[i, k]
                     rate_sp[k] = min(max(r, -ctl[C_RATE_MAX + k]), ctl[C_RATE_MAX + k])

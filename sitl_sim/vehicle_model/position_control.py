@@ -1,4 +1,4 @@
-"""ArduCopter-like position/velocity/altitude control of one vehicle (world ENU, SI units), compiled by numba.
+"""ArduCopter-like position/velocity/altitude control of one vehicle (world ENU, SI units).
 
 Cascade as AC_PosControl: position error -> sqrt controller -> velocity demand (speed limited) -> velocity PI
 -> acceleration demand -> thrust vector (spec 5 inversion: U = a + g e3, tilt limited altitude first) ->
