@@ -523,7 +523,7 @@ class Simulator:
 def warm_up_kernels() -> None:
     """Compile (or load from numba's cache) every kernel a run calls, on a throwaway one-vehicle fleet, so
     that the first frames after READY are not late by the JIT. The outer loop's kernel holds every persona's
-    rules as data, so one ArduCopter vehicle compiles what a PX4 vehicle needs too."""
+    rules as data, so one vehicle of the default persona compiles what every persona needs."""
     quad = QuadParams()
     dyn = FleetDynamics(1, quad)
     params = simulator_params(quad.hover_fraction, "4.7", fleet_personas((), 1))
