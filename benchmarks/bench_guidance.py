@@ -36,8 +36,9 @@ import gcs_swarm
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import DeadGcsParams, FieldParams, G
-from gcs_swarm.link.autopilots import ardupilot
-from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
+from gcs_swarm.link.attitude_commands import attitude_commands
+from gcs_swarm.link.autopilots import ARDUPILOT
+from gcs_swarm.link.command_limits import CommandLimits
 
 SPACING = 9.0  # m
 DT = 0.02  # s, 50 Hz
@@ -183,8 +184,8 @@ GUARD = CommandLimits(math.radians(35.0), 2.0, 5.0, 7000.0, 400.0)
 
 
 def time_guard(n: int, k: int, repeats: int, ticks: int) -> list[float]:
-    """Per-tick seconds of the command guard for one tick's command (formation_tick: unboosted thrust,
-    normalised thrust, guard_attitude_commands), one median per repeat."""
+    """Per-tick seconds of the send step for one tick's command (formation_tick's attitude_commands:
+    ArduCopter's thrust, then the command guard), one median per repeat."""
     ctl, pos, vel, att, centres, radii = scenario(n, k)
     cmd = ctl.tick(0.0, pos, vel, att, centres, radii, np.ones(n, dtype=bool))
     hover, boost = np.full(n, 0.45), np.arange(n) % 2 == 0
@@ -193,11 +194,10 @@ def time_guard(n: int, k: int, repeats: int, ticks: int) -> list[float]:
         samples = []
         for _ in range(ticks):
             start = time.perf_counter()
-            acc = ardupilot.unboosted_thrust(cmd.thrust_acc, att[:, 0], att[:, 1], boost)
-            thrust = ardupilot.thrust_from_acc(np.nan_to_num(acc), hover, G)
-            guard_attitude_commands(
-                cmd.roll_d, cmd.pitch_d, cmd.yaw_d, thrust, pos, att[:, 2], hover, GUARD, vel=vel
-            )
+            attitude_commands(
+                cmd.roll_d, cmd.pitch_d, cmd.yaw_d, cmd.thrust_acc, att, pos, vel, hover, boost, G, GUARD,
+                [ARDUPILOT] * n,
+            )  # fmt: skip
             samples.append(time.perf_counter() - start)
         out.append(statistics.median(samples))
     return out

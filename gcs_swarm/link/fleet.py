@@ -403,7 +403,7 @@ class Fleet:
         """SET_ATTITUDE_TARGET to each connected vehicle in `mask` (default all), echoing its time_boot_ms.
 
         roll, pitch, yaw: (N,) rad, body FLU in world ENU (spec 1.1); thrust: (N,) normalised, clipped to
-        [0, 1] (see autopilots.ardupilot.thrust_from_acc). A NaN or inf in a selected row is a bug upstream:
+        [0, 1] (AutopilotDialect.thrust). A NaN or inf in a selected row is a bug upstream:
         ValueError naming the vehicles, and nothing is sent to any vehicle (each keeps its previous target
         until the caller decides, e.g. BRAKE).
         """

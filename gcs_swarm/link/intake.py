@@ -19,8 +19,8 @@ calls `flush` before it serves a forward and at the end of the receive. `flush` 
   then Network's routing): one whole packet, or the rest of the datagram when what follows is not one; a
   stream chunk whose parser holds the start of a packet goes there whole.
 
-Two things are stamped per flush rather than per packet, both wall clocks: a taken packet's tlog record
-(the unix time of its flush) and the telemetry's wall stamps (time.monotonic() at the flush).
+Two things are stamped per run of the walk rather than per packet, both wall clocks: a taken packet's tlog
+record (the unix time the run started) and the telemetry's wall stamps (time.monotonic() at the flush).
 """
 
 from __future__ import annotations
@@ -141,12 +141,12 @@ class Intake:
         tlog = self._tlog()
         keep = tlog is not None or self._outgoing is not None
         records = self._records if keep else self._no_records
-        stamp = np.frombuffer(int(time.time() * 1e6).to_bytes(8, "big"), dtype=np.uint8)
         wall_now = time.monotonic()
         d, p = 0, int(self._starts[0])
         verified = (-1, -1)
         learned = 0  # datagrams before this one have taught their udpin endpoints their vehicles' addresses
         while True:
+            stamp = np.frombuffer(int(time.time() * 1e6).to_bytes(8, "big"), dtype=np.uint8)
             d, p, outcome, vehicle, written, recorded, stored = intake_kernel.take_packets(
                 self._buffer,
                 self._starts,

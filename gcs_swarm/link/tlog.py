@@ -43,7 +43,7 @@ class TlogWriter:
 
     def write_records(self, records: bytes, count: int) -> None:
         """Append `count` records already framed (8-byte big-endian unix us, then the packet, each), e.g. a
-        batch of packets stamped together (link.batch_intake)."""
+        batch of packets stamped together (link.intake)."""
         self._pending += records
         self.records += count
         if len(self._pending) >= CHUNK_BYTES or time.monotonic() - self._handed_at >= FLUSH_PERIOD_S:

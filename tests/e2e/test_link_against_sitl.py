@@ -17,7 +17,7 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link.autopilots.ardupilot import thrust_from_acc
+from gcs_swarm.link.autopilots import ARDUPILOT
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.streams import STREAM_QUIET_S
 from gcs_swarm.link.vehicle import VehicleConfig
@@ -85,7 +85,9 @@ def test_fly_and_land_two_vehicles_in_lockstep(simulator: tuple[int, Path], tmp_
             assert fleet.wait_tick(timeout_s=5.0)
             samples.append((fleet.time_ms.copy(), fleet.pos, fleet.att))
             yaw = samples[0][2][:, 2]
-            fleet.send_attitude_targets(np.zeros(N), np.zeros(N), yaw, thrust_from_acc(9.8, hover, 9.8))
+            level = np.zeros(N)
+            thrust = ARDUPILOT.thrust(np.full(N, 9.8), level, level, hover, np.zeros(N, dtype=bool), 9.8)
+            fleet.send_attitude_targets(level, level, yaw, thrust)
             fleet.answer_frame()
         assert np.all(np.abs(fleet.vel) < 1.0) and np.all(fleet.pos[:, 2] > 1.5)
         fleet.land_all()

@@ -30,16 +30,21 @@ def test_parameters_that_kept_their_name_have_no_other_spelling() -> None:
 
 def test_the_boost_is_taken_out_for_boosting_vehicles_only() -> None:
     """ArduCopter multiplies by 1/cos(lean) (floored at cos 0.1); sending thrust * cos(lean) makes the two
-    cancel: at 30 deg roll and 20 deg pitch cos(lean) = cos 30 cos 20 = 0.8138."""
-    thrust = np.array([12.0, 12.0])
-    sent = ardupilot.unboosted_thrust(
-        thrust, np.radians([30.0, 30.0]), np.radians([20.0, 20.0]), np.array([True, False])
+    cancel: at 30 deg roll and 20 deg pitch cos(lean) = cos 30 cos 20 = 0.8138. Hover 0.5, 12 m/s^2."""
+    g = 9.8
+    sent = ARDUPILOT.thrust(
+        np.array([12.0, 12.0]),
+        np.radians([30.0, 30.0]),
+        np.radians([20.0, 20.0]),
+        np.array([0.5, 0.5]),
+        np.array([True, False]),
+        g,
     )
     cos_lean = math.cos(math.radians(30)) * math.cos(math.radians(20))
-    assert sent[0] == pytest.approx(12.0 * cos_lean)
-    assert sent[1] == 12.0
+    assert sent[0] == pytest.approx(0.5 * 12.0 * cos_lean / g)
+    assert sent[1] == pytest.approx(0.5 * 12.0 / g)
     boosted_again = sent[0] / min(max(cos_lean, 0.1), 1.0)  # AC_AttitudeControl_Multi::get_throttle_boosted
-    assert boosted_again == pytest.approx(12.0)
+    assert boosted_again == pytest.approx(0.5 * 12.0 / g)
 
 
 def test_a_missing_boost_value_counts_as_on() -> None:

@@ -67,7 +67,7 @@ def test_circle_items_are_the_centres_in_degE7():
     circle = fence.FenceCircle(0, (100.0, 20.0), 12.5)
     (item,) = fence.circle_items([circle], ORIGIN)
     assert item.command == fence.CIRCLE_EXCLUSION and item.param1 == 12.5
-    back = frames.geodetic_to_enu(item.lat_e7 * 1e-7, item.lon_e7 * 1e-7, ORIGIN[2], ORIGIN)
+    back = frames.geodetic_rows_to_enu([(item.lat_e7 * 1e-7, item.lon_e7 * 1e-7, ORIGIN[2])], ORIGIN)[0]
     assert np.allclose(back[:2], (100.0, 20.0), atol=0.02)  # 1e-7 deg is 1.1 cm
 
 

@@ -12,7 +12,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gcs_swarm.link import frames, lockstep
-from gcs_swarm.link.autopilots.ardupilot import thrust_from_acc
 
 ANSWERS = (
     "SYSTEM_TIME",
@@ -111,13 +110,6 @@ def test_non_finite_targets_never_leave_the_ground_station(lead) -> None:
     assert wire.sent("SET_ATTITUDE_TARGET") == [] and wire.sent("SET_POSITION_TARGET_GLOBAL_INT") == []
 
 
-def test_thrust_from_acceleration() -> None:
-    np.testing.assert_allclose(
-        thrust_from_acc([9.8, 0.0, 19.6, 100.0, -1.0], 0.35, 9.8), [0.35, 0.0, 0.7, 1.0, 0.0]
-    )
-    assert thrust_from_acc(9.8, [0.3, 0.5], 9.8).tolist() == pytest.approx([0.3, 0.5])
-
-
 def test_unanswered_waits_stall_the_simulator_when_answers_are_off(simulator, fleet_of) -> None:
     """The counter-check of the lockstep tests above: without answers the simulator does wait (and gives
     up after its --lockstep-timeout, 1 s)."""
@@ -130,43 +122,56 @@ def test_unanswered_waits_stall_the_simulator_when_answers_are_off(simulator, fl
     fleet.wait_until(lambda: vehicles.dropped(wire) != [], 10.0, "the simulator to drop the silent client")
 
 
-def test_the_frame_check_is_the_compiled_one() -> None:
-    """The test environment has numba: the comparison below compares the compiled loop with numpy."""
-    assert lockstep.take_new_frame is not lockstep.take_new_frame_numpy
-
-
 frame_times = st.integers(-1, 6)  # few distinct times: ties and "nothing yet" (-1) come up often
 
 
 @given(
     st.lists(st.tuples(st.booleans(), frame_times, frame_times, frame_times), max_size=9),
 )
-def test_compiled_frame_check_agrees_with_numpy(rows) -> None:
-    """wait_tick's test of a complete frame (lockstep.take_new_frame): the compiled loop gives the numpy
-    function's answer and leaves tick_ms as it does, for fleets of 0 to 9 vehicles alive or lost, with or
-    without clock ticks."""
-    alive = np.array([r[0] for r in rows], dtype=bool)
-    position_ms, frame_ms, tick_ms = (np.array([r[k] for r in rows], dtype=np.int64) for k in (1, 2, 3))
-    ticks_numpy, ticks_compiled = tick_ms.copy(), tick_ms.copy()
-    expected = lockstep.take_new_frame_numpy(alive, position_ms, frame_ms, ticks_numpy)
-    assert lockstep.take_new_frame(alive, position_ms, frame_ms, ticks_compiled) is expected
-    assert ticks_compiled.tolist() == ticks_numpy.tolist()
+def test_the_frame_check_follows_its_rule(rows) -> None:
+    """wait_tick's test of a complete frame (lockstep.take_new_frame) on fleets of 0 to 9 vehicles alive or
+    lost, with or without clock ticks, against its rule written out: nobody alive, no frame; else the
+    fleet's last tick is the newest of the alive vehicles'; a vehicle is expected when alive, or lost with
+    clock ticks at least as new as that last tick on both counts; the frame is complete when every expected
+    vehicle has a position or clock tick newer than its own last tick, which then becomes that newest."""
+    alive = [r[0] for r in rows]
+    position_ms, frame_ms, tick_ms = ([r[k] for r in rows] for k in (1, 2, 3))
+    ticks = np.array(tick_ms, dtype=np.int64)
+    got = lockstep.take_new_frame(
+        np.array(alive, dtype=bool),
+        np.array(position_ms, dtype=np.int64),
+        np.array(frame_ms, dtype=np.int64),
+        ticks,
+    )
+    if not any(alive):
+        assert not got and ticks.tolist() == tick_ms
+        return
+    last = max(t for t, a in zip(tick_ms, alive, strict=True) if a)
+    expected = [
+        a or (f >= 0 and f >= last and t >= last) for a, f, t in zip(alive, frame_ms, tick_ms, strict=True)
+    ]
+    newest = [max(p, f) for p, f in zip(position_ms, frame_ms, strict=True)]
+    complete = all(n > t for n, t, e in zip(newest, tick_ms, expected, strict=True) if e)
+    assert got is complete
+    assert ticks.tolist() == [
+        n if complete and e else t for n, t, e in zip(newest, tick_ms, expected, strict=True)
+    ]
 
 
 def test_a_frame_is_complete_when_every_expected_vehicle_has_a_newer_one() -> None:
     """Worked cases of the rule: a lost vehicle whose clock ticks were current at the last tick is waited
     for; one that fell behind is not; the frame taken sets tick_ms to each vehicle's newest stamp."""
-    for take in (lockstep.take_new_frame_numpy, lockstep.take_new_frame):
-        alive = np.array([True, True, False])
-        tick = np.array([100, 100, 100], dtype=np.int64)
-        # vehicle 2 is lost but its clock ticks kept up: its newer clock tick (120) is waited for
-        assert not take(alive, np.array([120, 120, -1]), np.array([-1, -1, 100]), tick)
-        assert tick.tolist() == [100, 100, 100]
-        assert take(alive, np.array([120, 120, -1]), np.array([-1, -1, 120]), tick)
-        assert tick.tolist() == [120, 120, 120]
-        # a lost vehicle whose clock fell behind the last tick is not waited for, and keeps its tick_ms
-        tick = np.array([100, 100, 80], dtype=np.int64)
-        assert take(alive, np.array([120, 140, -1]), np.array([-1, -1, 80]), tick)
-        assert tick.tolist() == [120, 140, 80]
-        # nobody alive: no tick
-        assert not take(np.zeros(2, dtype=bool), np.array([5, 5]), np.array([5, 5]), np.zeros(2, np.int64))
+    take = lockstep.take_new_frame
+    alive = np.array([True, True, False])
+    tick = np.array([100, 100, 100], dtype=np.int64)
+    # vehicle 2 is lost but its clock ticks kept up: its newer clock tick (120) is waited for
+    assert not take(alive, np.array([120, 120, -1]), np.array([-1, -1, 100]), tick)
+    assert tick.tolist() == [100, 100, 100]
+    assert take(alive, np.array([120, 120, -1]), np.array([-1, -1, 120]), tick)
+    assert tick.tolist() == [120, 120, 120]
+    # a lost vehicle whose clock fell behind the last tick is not waited for, and keeps its tick_ms
+    tick = np.array([100, 100, 80], dtype=np.int64)
+    assert take(alive, np.array([120, 140, -1]), np.array([-1, -1, 80]), tick)
+    assert tick.tolist() == [120, 140, 80]
+    # nobody alive: no tick
+    assert not take(np.zeros(2, dtype=bool), np.array([5, 5]), np.array([5, 5]), np.zeros(2, np.int64))

@@ -25,11 +25,11 @@ angles = st.tuples(
 )
 
 
-def test_geodetic_to_enu_matches_pymap3d_and_round_trips() -> None:
+def test_geodetic_rows_to_enu_match_pymap3d_and_round_trip() -> None:
     lat = np.array([47.397742, 47.398742, 47.396742])
     lon = np.array([8.545594, 8.547594, 8.544594])
     alt = np.array([488.0, 498.5, 470.0])
-    enu = frames.geodetic_to_enu(lat, lon, alt, ORIGIN)
+    enu = frames.geodetic_rows_to_enu(np.column_stack((lat, lon, alt)), ORIGIN)
     assert enu.shape == (3, 3)
     for k in range(3):
         expected = pymap3d.geodetic2enu(lat[k], lon[k], alt[k], *ORIGIN)
@@ -41,8 +41,8 @@ def test_geodetic_to_enu_matches_pymap3d_and_round_trips() -> None:
     np.testing.assert_allclose(back[2], alt, atol=1e-6)
 
 
-def test_origin_is_zero_and_scalar_inputs_give_one_vector() -> None:
-    np.testing.assert_allclose(frames.geodetic_to_enu(*ORIGIN, ORIGIN), [0.0, 0.0, 0.0], atol=1e-9)
+def test_the_origin_is_zero() -> None:
+    np.testing.assert_allclose(frames.geodetic_rows_to_enu([ORIGIN], ORIGIN), [[0.0, 0.0, 0.0]], atol=1e-9)
 
 
 def test_ned_enu_vectors() -> None:
@@ -57,13 +57,16 @@ def test_ned_enu_vectors() -> None:
     [(0, 90), (90, 0), (180, -90), (-90, 180), (30, 60), (120, -30), (-60, 150), (-150, -120)],
 )
 def test_yaw_quadrants(yaw_enu_deg: float, yaw_ned_deg: float) -> None:
-    ned = frames.attitude_enu_to_ned([0.0, 0.0, math.radians(yaw_enu_deg)])
-    assert math.degrees(rotations.wrap_pi(ned[2] - math.radians(yaw_ned_deg))) == pytest.approx(0.0, abs=1e-9)
+    """Level, the target quaternion turns about NED's down axis by the NED yaw: (cos y/2, 0, 0, sin y/2)."""
+    q = frames.attitude_target_quaternion([0.0, 0.0, math.radians(yaw_enu_deg)])
+    yaw_ned = 2.0 * math.atan2(q[3], q[0])
+    assert q[1] == q[2] == 0.0
+    assert math.degrees(rotations.wrap_pi(yaw_ned - math.radians(yaw_ned_deg))) == pytest.approx(
+        0.0, abs=1e-9
+    )
 
 
 def test_known_cases() -> None:
-    # Facing East (ENU yaw 0) is NED yaw 90 deg; nose down (FLU pitch > 0) is FRD pitch < 0; roll unchanged.
-    np.testing.assert_allclose(frames.attitude_enu_to_ned([0.1, 0.2, 0.0]), [0.1, -0.2, math.pi / 2])
     # Level, facing North in NED (yaw 0): the MAVLink quaternion is the identity.
     np.testing.assert_allclose(
         frames.attitude_target_quaternion([0.0, 0.0, math.pi / 2]), [1, 0, 0, 0], atol=1e-12
@@ -75,16 +78,11 @@ def test_attitude_conversion_is_the_frame_change(euler: tuple[float, float, floa
     """R_NED<-FRD = T * R_ENU<-FLU * B for the converted Euler angles and quaternions."""
     r_enu = rotation(euler)
     r_ned = ENU_TO_NED @ r_enu @ FLU_TO_FRD
-    ned = frames.attitude_enu_to_ned(euler)
-    np.testing.assert_allclose(rotation(tuple(ned)), r_ned, atol=1e-12)
-    np.testing.assert_allclose(
-        quaternion_rotation(frames.attitude_target_quaternion(euler)), r_ned, atol=1e-12
-    )
-    q_enu = frames.quaternion_ned_to_enu(rotations.euler_to_quaternion(ned))
+    q_ned = frames.attitude_target_quaternion(euler)
+    np.testing.assert_allclose(quaternion_rotation(q_ned), r_ned, atol=1e-12)
+    q_enu = frames.quaternion_ned_to_enu(q_ned)
     np.testing.assert_allclose(quaternion_rotation(q_enu), r_enu, atol=1e-12)
     np.testing.assert_allclose(quaternion_rotation(frames.quaternion_enu_to_ned(q_enu)), r_ned, atol=1e-12)
-    back = frames.attitude_ned_to_enu(ned)
-    np.testing.assert_allclose(rotation(tuple(back)), r_enu, atol=1e-12)
 
 
 def test_vectorised_shapes() -> None:
@@ -98,37 +96,11 @@ def test_vectorised_shapes() -> None:
     st.floats(-180.0, 180.0),
     st.floats(-400.0, 5000.0),
     st.integers(0, 2**32 - 1),
-    st.sampled_from([(), (1,), (6,), (3, 2)]),
-)
-def test_geodetic_to_enu_gives_pymap3d_bits(lat0, lon0, h0, seed, shape):
-    """The origin's terms kept per origin change nothing: every output bit is pymap3d.geodetic2enu's, for
-    scalars and arrays, points near the origin and kilometres away."""
-    rng = np.random.default_rng(seed)
-    lat = np.clip(lat0 + rng.normal(0.0, 0.05, shape), -90.0, 90.0)
-    lon = lon0 + rng.normal(0.0, 0.05, shape)
-    alt = h0 + rng.normal(0.0, 300.0, shape)
-    e, n, u = pymap3d.geodetic2enu(lat, lon, alt, lat0, lon0, h0)
-    expected = np.stack(np.broadcast_arrays(e, n, u), axis=-1).astype(float)
-    got = frames.geodetic_to_enu(lat, lon, alt, (lat0, lon0, h0))
-    assert got.shape == expected.shape and got.tobytes() == expected.tobytes()
-
-
-def test_the_fleet_rows_are_converted_by_the_compiled_kernels() -> None:
-    """The test environment has numba (extra "fast" is in "test"): the bit comparisons below compare the
-    compiled loops, not the numpy fallback with itself."""
-    assert frames.link_kernels is not None
-
-
-@given(
-    st.floats(-89.0, 89.0),
-    st.floats(-180.0, 180.0),
-    st.floats(-400.0, 5000.0),
-    st.integers(0, 2**32 - 1),
     st.integers(0, 9),
     st.floats(0.0, 0.5),
 )
 def test_geodetic_rows_to_enu_gives_pymap3d_bits(lat0, lon0, h0, seed, n, spread_deg):
-    """Every output bit of the compiled rows is pymap3d.geodetic2enu's: fleets of 0 to 9 vehicles, near the
+    """Every output bit of the rows is pymap3d.geodetic2enu's: fleets of 0 to 9 vehicles, near the
     origin and up to about 50 km away, unknown (NaN) rows included."""
     rng = np.random.default_rng(seed)
     rows = np.column_stack(
@@ -155,12 +127,13 @@ edge_angles = st.one_of(
 
 
 @given(st.lists(st.tuples(edge_angles, edge_angles, edge_angles), max_size=9))
-def test_compiled_attitude_targets_give_the_numpy_bits(rows):
-    """A fleet's attitude targets from the compiled loop have the bits of the numpy conversion
-    (attitude_enu_to_ned, then euler_to_quaternion), NaN, infinities and signed zeros included."""
+def test_attitude_targets_give_the_bits_of_the_euler_formula(rows):
+    """A fleet's attitude targets have the bits of swarm_common.rotations.euler_to_quaternion (numpy) of the
+    FRD/NED angles (roll, -pitch, wrap_pi(pi/2 - yaw)), NaN, infinities and signed zeros included."""
     euler = np.array(rows, dtype=float).reshape(-1, 3)
     with np.errstate(invalid="ignore"):  # inf % 2 pi
-        expected = rotations.euler_to_quaternion(frames.attitude_enu_to_ned(euler))
+        ned = np.stack((euler[:, 0], -euler[:, 1], rotations.wrap_pi(0.5 * math.pi - euler[:, 2])), axis=-1)
+        expected = rotations.euler_to_quaternion(ned)
     got = frames.attitude_target_quaternion(euler)
     assert got.shape == expected.shape == (len(rows), 4)
     assert_same_bits(got, expected)
