@@ -11,10 +11,6 @@ reason)` that robust parsing makes. At the first thing that is not such a packet
 packet with an unknown incompatibility flag, a truncated packet) it stops and returns the offset, and the
 caller hands the rest to `parse_buffer` with its own policy for a truncated packet ending the datagram.
 
-A caller may take some packets itself instead of having them decoded (`take`: the ground station's intake of
-its 50 Hz telemetry straight from the bytes, gcs_swarm.link.hot_telemetry): what it makes of such a packet
-takes the packet's place in the returned list, so the order of the datagram's packets is kept.
-
 Equality with `parse_buffer` holds for a parser whose buffer is empty when the datagram starts (callers parse
 whole datagrams and drop a truncated tail) and that parses robustly (`robust_parsing = True`); pymavlink's
 byte and packet totals (`total_bytes_received`, `total_packets_received`) are not advanced for the packets
@@ -23,15 +19,9 @@ decoded here.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from swarm_common import mavlink_codec
-
-PacketTaker = Callable[[bytes, int, int], object | None]
-"""take(datagram, start, end): what the caller makes of the whole MAVLink 2 packet datagram[start:end]
-instead of a decoded message, or None to have it decoded."""
 
 _MARKER_V2 = mavlink2.PROTOCOL_MARKER_V2
 _SIGNED = mavlink2.MAVLINK_IFLAG_SIGNED
@@ -53,22 +43,17 @@ def v2_packet_end(data: bytes, start: int) -> int | None:
 
 
 def decode_leading_packets(
-    parser: mavlink2.MAVLink, data: bytes, take: PacketTaker | None = None
+    parser: mavlink2.MAVLink, data: bytes
 ) -> tuple[list[mavlink2.MAVLink_message], int]:
     """Decode the whole MAVLink 2 packets `data` starts with (usually all of it) with `parser.decode`; returns
     the messages (BAD_DATA for a packet pymavlink refuses: CRC, signature, length) and the offset of the first
     byte not consumed (len(data) when the datagram was nothing but such packets). When the parser checks no
     signatures, swarm_common.mavlink_codec.decode builds the hot messages first (the same objects,
-    cheaper). `take`, when given, is offered each packet first, in order; what it returns stands in the list
-    in the packet's place (PacketTaker)."""
+    cheaper)."""
     messages: list[mavlink2.MAVLink_message] = []
     start = 0
     lean = getattr(parser.signing, "secret_key", None) is None  # with a key: pymavlink checks every signature
     while (end := v2_packet_end(data, start)) is not None:
-        if take is not None and (taken := take(data, start, end)) is not None:
-            messages.append(taken)
-            start = end
-            continue
         packet = bytearray(data[start:end])
         msg = mavlink_codec.decode(packet) if lean else None
         if msg is None:

@@ -2,8 +2,8 @@
 as a whole while bounds show that none of it can act.
 
 Each pump used to call, for every vehicle, `GcsHeartbeat.send_if_due`, `VehicleTelemetry.check_loss` and
-`Streams.check`: about 1.6 us per vehicle, 0.3 ms per pump at 200 vehicles and three or four pumps per
-frame, although almost every call finds nothing to do. `Housekeeping.run` makes those calls only when one of
+`Streams.check`, for a large fleet a noticeable share of each pump, although almost every call finds
+nothing to do. `Housekeeping.run` makes those calls only when one of
 them may act, from three bounds taken at its last full pass over the links and the telemetry arrays:
 
     heartbeats   any send_if_due acts only if now - last_wall >= WALL_HEARTBEAT_S for some link; last_wall
