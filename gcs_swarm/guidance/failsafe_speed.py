@@ -132,7 +132,14 @@ def _interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
         return fp[0]
     if x > xp[last]:
         return fp[last]
-    j = np.searchsorted(xp, x, side="right") - 1
+    lo, hi = 0, last + 1  # j: the last table point <= x (np.searchsorted's side "right", less one)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    j = lo - 1
     if j == last or xp[j] == x:
         return fp[j]
     slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])

@@ -34,11 +34,9 @@ from gcs_swarm.guidance.params import (
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
 from gcs_swarm.guidance.separation import (
-    DENSE_PAIRS_MAX,
     closing_deceleration,
     closing_range,
     closing_speed_caps,
-    neighbour_pairs,
     repulsion_range,
     uav_repulsion,
 )
@@ -77,7 +75,6 @@ def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
     table = np.array([0.0, 1.0])  # the failsafe speed scheduling's kernels, on a small table
     brake_distances(table, 7.5, 5.0, 0.002, 2)
     speed_caps_from_table(pos, np.ones((3, 3)), obstacle_c, obstacle_r, 1.0, table, table)
-    neighbour_pairs(np.zeros((DENSE_PAIRS_MAX, 3)), np.zeros((2, 3)), 1.0, True)  # the hash grid's path
     alive = np.ones(3, dtype=bool)  # the stale-telemetry rule (degradation.StaleTelemetryMonitor.assess)
     stale_verdict(np.zeros(3), alive, ~alive, pos, np.ones((3, 3)), 0, 1.0, 0.3)
 

@@ -70,12 +70,52 @@ def closing_range(d_emg: float, accel: float, speed_max: float) -> float:
 
 
 @kernel
-def _row_norms(v: np.ndarray) -> np.ndarray:
-    """|v| of each row of (N, 3), (N,)."""
-    out = np.empty(v.shape[0])
+def _largest_norm(v: np.ndarray) -> float:
+    """The largest |v| of the rows of (N, 3) that are not NaN (np.nanmax's rule: NaN when all are)."""
+    largest = np.nan
     for r in range(v.shape[0]):
-        out[r] = norm3(v[r, 0], v[r, 1], v[r, 2])
-    return out
+        x = norm3(v[r, 0], v[r, 1], v[r, 2])
+        if x > largest or (largest != largest and x == x):
+            largest = x
+    return largest
+
+
+@kernel
+def _stable_order(keys: np.ndarray) -> np.ndarray:
+    """The indices (M,) that sort the integer `keys` (M,), equal keys in index order (bottom-up merge)."""
+    n = keys.shape[0]
+    order = np.empty(n, dtype=np.intp)
+    for i in range(n):
+        order[i] = i
+    merged = np.empty(n, dtype=np.intp)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid, hi = min(lo + width, n), min(lo + 2 * width, n)
+            i, j = lo, mid
+            for k in range(lo, hi):
+                if j >= hi or (i < mid and keys[order[i]] <= keys[order[j]]):
+                    merged[k] = order[i]
+                    i += 1
+                else:
+                    merged[k] = order[j]
+                    j += 1
+        order, merged = merged, order
+        width *= 2
+    return order
+
+
+@kernel
+def _first_at_least(keys: np.ndarray, value: int) -> int:
+    """The first index of the increasing `keys` whose key is >= value (keys.shape[0] if none)."""
+    lo, hi = 0, keys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @kernel
@@ -83,42 +123,50 @@ def _grid_order(p_at: np.ndarray, rows: np.ndarray, p_src: np.ndarray, cell: flo
     """The hash grid's candidates: for each at-row of `rows`, in order, the source indices of its own and
     the 8 surrounding horizontal cells of size `cell` m, cell by cell (dx, then dy, from -1), each cell's
     sources in index order. Returns (candidates, 2) index pairs (at row, source)."""
-    n_src = p_src.shape[0]
+    n_src, n_rows = p_src.shape[0], rows.shape[0]
     src_cell = np.empty((n_src, 2), dtype=np.int64)
+    at_cell = np.empty((n_rows, 2), dtype=np.int64)
     for j in range(n_src):
-        src_cell[j, 0] = np.int64(np.floor(p_src[j, 0] / cell))
-        src_cell[j, 1] = np.int64(np.floor(p_src[j, 1] / cell))
-    at_cell = np.empty((rows.shape[0], 2), dtype=np.int64)
-    for r in range(rows.shape[0]):
-        at_cell[r, 0] = np.int64(np.floor(p_at[rows[r], 0] / cell))
-        at_cell[r, 1] = np.int64(np.floor(p_at[rows[r], 1] / cell))
-    low0 = min(src_cell[:, 0].min(), at_cell[:, 0].min()) - 1
-    low1 = min(src_cell[:, 1].min(), at_cell[:, 1].min()) - 1
-    width = max(src_cell[:, 1].max(), at_cell[:, 1].max()) - low1 + 2
-    src_key = (src_cell[:, 0] - low0) * width + (src_cell[:, 1] - low1)
-    order = np.argsort(src_key, kind="mergesort")
-    keys = src_key[order]
-    pairs = []
-    for r in range(rows.shape[0]):
-        at_key = (at_cell[r, 0] - low0) * width + (at_cell[r, 1] - low1)
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                query = at_key + dx * width + dy
-                lo = np.searchsorted(keys, query, side="left")
-                hi = np.searchsorted(keys, query, side="right")
-                for m in range(lo, hi):
-                    pairs.append((rows[r], order[m]))
-    out = np.empty((len(pairs), 2), dtype=np.intp)
-    for m in range(len(pairs)):
-        out[m, 0], out[m, 1] = pairs[m]
+        for d in range(2):
+            src_cell[j, d] = np.int64(np.floor(p_src[j, d] / cell))
+    for r in range(n_rows):
+        for d in range(2):
+            at_cell[r, d] = np.int64(np.floor(p_at[rows[r], d] / cell))
+    low0, low1, high1 = src_cell[0, 0], src_cell[0, 1], src_cell[0, 1]
+    for cells in (src_cell, at_cell):
+        for m in range(cells.shape[0]):
+            low0, low1, high1 = min(low0, cells[m, 0]), min(low1, cells[m, 1]), max(high1, cells[m, 1])
+    low0, low1 = low0 - 1, low1 - 1
+    width = high1 - low1 + 2  # keys of neighbouring columns never meet
+    src_key = np.empty(n_src, dtype=np.int64)
+    for j in range(n_src):
+        src_key[j] = (src_cell[j, 0] - low0) * width + (src_cell[j, 1] - low1)
+    order = _stable_order(src_key)
+    keys = np.empty(n_src, dtype=np.int64)
+    for m in range(n_src):
+        keys[m] = src_key[order[m]]
+    out = np.empty((0, 2), dtype=np.intp)
+    for fill in (False, True):  # count the candidates, then write them
+        p = 0
+        for r in range(n_rows):
+            at_key = (at_cell[r, 0] - low0) * width + (at_cell[r, 1] - low1)
+            for dx in (-1, 0, 1):
+                for dy in (-1, 0, 1):
+                    query = at_key + dx * width + dy
+                    for m in range(_first_at_least(keys, query), _first_at_least(keys, query + 1)):
+                        if fill:
+                            out[p, 0], out[p, 1] = rows[r], order[m]
+                        p += 1
+        if not fill:
+            out = np.empty((p, 2), dtype=np.intp)
     return out
 
 
 @kernel
-def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float, same_rows: bool) -> np.ndarray:
+def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float) -> np.ndarray:
     """Index pairs (P, 2) (i, j) (j indexes p_src (M, 3)) with |p_at[i] - p_src[j]| < radius m, in (i, j)
-    order (the hash grid's visiting order above DENSE_PAIRS_MAX candidates); `same_rows`: row i of both is
-    one vehicle, so i == j is left out. Rows of p_src must be finite; NaN rows of p_at match nothing."""
+    order (the hash grid's visiting order above DENSE_PAIRS_MAX candidates). Rows of p_src must be finite;
+    NaN rows of p_at match nothing."""
     n_at, n_src = p_at.shape[0], p_src.shape[0]
     if n_at * n_src <= DENSE_PAIRS_MAX:
         candidates = np.empty((n_at * n_src, 2), dtype=np.intp)
@@ -142,8 +190,6 @@ def neighbour_pairs(p_at: np.ndarray, p_src: np.ndarray, radius: float, same_row
     p = 0
     for m in range(candidates.shape[0]):
         i, j = candidates[m, 0], candidates[m, 1]
-        if same_rows and i == j:
-            continue
         d0, d1, d2 = p_at[i, 0] - p_src[j, 0], p_at[i, 1] - p_src[j, 1], p_at[i, 2] - p_src[j, 2]
         if dot3(d0, d1, d2, d0, d1, d2) < r_sq:
             out[p, 0], out[p, 1] = i, j
@@ -169,15 +215,16 @@ def uav_pairs(
     src_index = np.flatnonzero(src_valid)
     sweep = brake_accel > 0.0
     if sweep:
-        rel_speed_max = np.nanmax(_row_norms(at_vel)) + np.nanmax(_row_norms(vel))
+        rel_speed_max = _largest_norm(at_vel) + _largest_norm(vel)
         reach = d_max + rel_speed_max * rel_speed_max / (4.0 * brake_accel)
     else:
         reach = d_max
     src = np.empty((src_index.shape[0], 3))
     for m in range(src_index.shape[0]):
-        src[m] = p_src[src_index[m]]
+        for d in range(3):
+            src[m, d] = p_src[src_index[m], d]
     candidates = (
-        neighbour_pairs(p_at, src, reach, False) if n > 0 and src.shape[0] > 0 else np.empty((0, 2), np.intp)
+        neighbour_pairs(p_at, src, reach) if n > 0 and src.shape[0] > 0 else np.empty((0, 2), np.intp)
     )
     pairs = np.empty_like(candidates)
     e_ji = np.empty((candidates.shape[0], 3))
@@ -266,10 +313,13 @@ def closing_speed_caps(
     rows = rows[:m]
     sub = np.empty((m, 3))
     for r in range(m):
-        sub[r] = pos[rows[r]]
-    pairs = neighbour_pairs(sub, sub, radius, True)
+        for d in range(3):
+            sub[r, d] = pos[rows[r], d]
+    pairs = neighbour_pairs(sub, sub, radius)
     for p in range(pairs.shape[0]):
         i, j = rows[pairs[p, 0]], rows[pairs[p, 1]]
+        if i == j:
+            continue
         r0, r1, r2 = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
         dist = math.sqrt(dot3(r0, r1, r2, r0, r1, r2))
         floor = maximum(dist, 1e-9)

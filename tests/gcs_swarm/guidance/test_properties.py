@@ -138,22 +138,19 @@ def test_fleet_at_rest_gives_finite_commands_and_holds_heading(yaw, spread):
     seed=st.integers(0, 2**32 - 1),
     radius=st.floats(0.5, 40.0),
     n=st.sampled_from([40, 210]),
-    same_rows=st.booleans(),
 )
-def test_neighbour_pairs_are_the_brute_force_pairs(seed, radius, n, same_rows):
+def test_neighbour_pairs_are_the_brute_force_pairs(seed, radius, n):
     """Dense (40 x 40 candidates) and hash grid (210 x 210 > DENSE_PAIRS_MAX): exactly the pairs closer than
-    the radius by a brute-force distance matrix, in ascending i; NaN rows of p_at match nothing; with
-    same_rows, no i == j. Some points sit exactly on grid-cell boundaries (multiples of the radius)."""
+    the radius by a brute-force distance matrix, in ascending i; NaN rows of p_at match nothing. Some points
+    sit exactly on grid-cell boundaries (multiples of the radius)."""
     rng = np.random.default_rng(seed)
     p_src = rng.uniform(-120.0, 120.0, (n, 3))
     p_src[: n // 4, :2] = np.round(p_src[: n // 4, :2] / radius) * radius
     p_at = p_src + rng.normal(0.0, radius, (n, 3)) * rng.integers(0, 2, (n, 1))
     p_at[rng.integers(0, n, 3)] = np.nan
     assert (n * n > DENSE_PAIRS_MAX) == (n == 210)
-    pairs = neighbour_pairs(p_at, p_src, radius, same_rows)
+    pairs = neighbour_pairs(p_at, p_src, radius)
     with np.errstate(invalid="ignore"):
         close = np.linalg.norm(p_at[:, None, :] - p_src[None, :, :], axis=2) < radius
-    if same_rows:
-        np.fill_diagonal(close, False)
     assert sorted(map(tuple, pairs.tolist())) == sorted(zip(*np.nonzero(close), strict=True))
     assert np.all(np.diff(pairs[:, 0]) >= 0)
