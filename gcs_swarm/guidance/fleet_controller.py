@@ -5,6 +5,13 @@ controller (any `gcs_swarm.guidance.controller.PositionController`: SMC or PID) 
 Everything is local ENU metres, FLU body, rad; arrays have one row per vehicle (N). The ground station calls
 `tick` once per control period with the measured state; the returned `Command` rows of active vehicles become
 SET_ATTITUDE_TARGET messages (the link converts frames and thrust).
+
+The per-vehicle work of every step is a compiled kernel of the module that owns its law (formation, field,
+separation, failsafe_speed, reference, smc, inversion, attitude_slew; swarm_common.jit); `tick` strings them
+together and evaluates the transcendental functions (cos, sin, powers, arctan2, arcsin) with numpy between
+them. With NUMBA_DISABLE_JIT=1 the same code runs as plain Python and gives the same commands
+(tests/gcs_swarm/guidance/test_interpreted_tick.py). `prepare_kernels` compiles, or loads from numba's cache,
+every kernel ahead of the first tick.
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 Inputs are (N, 3) world ENU arrays: reference position/velocity/acceleration and measured position/velocity.
 The output U = (U_x, U_y, U_z) is the commanded thrust acceleration in m/s^2 (gravity added in z), which
-`inversion` turns into attitude and thrust.
+`inversion` turns into attitude and thrust. Two compiled kernels (swarm_common.jit), `smc_sliding` and
+`smc_output`, with the powers |s|^xi taken by numpy between them; SMCController holds the state.
 
 [add] Disturbance estimate (integral sliding-mode action), per channel, off by default (`disturbance_gain`
 k_d = 0 leaves Eq 49 bit for bit): U = Eq 49 + d_hat with d_hat_dot = k_d s. For a plant v_dot = U + d with an
