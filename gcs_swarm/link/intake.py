@@ -25,7 +25,6 @@ record (the unix time the run started) and the telemetry's wall stamps (time.mon
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -40,9 +39,6 @@ from swarm_common.mavlink_datagrams import v2_packet_end
 
 if TYPE_CHECKING:
     from gcs_swarm.link.vehicle import VehicleLink
-
-if sys.byteorder != "little":  # the one place byte order matters: numpy's views of the state arrays
-    raise ImportError("gcs_swarm's intake runs on little-endian machines only")
 
 _UDP_MAX = 65535  # bytes: the largest datagram, room kept free before every read
 BUFFER_BYTES = 1 << 20  # datagram bytes gathered before a flush
