@@ -232,7 +232,7 @@ class FleetController:
             wp = wp[None, :]
         if wp.ndim != 2 or wp.shape[1] != 3 or len(wp) == 0 or not np.isfinite(wp).all():
             raise ValueError(f"goal waypoints must be a non-empty finite (W, 3) array, got shape {wp.shape}")
-        self.waypoints = wp
+        self.waypoints = np.ascontiguousarray(wp)  # its rows go to a kernel
         self.waypoint_index = 0
 
     def set_goal(self, goal: np.ndarray) -> None:
@@ -266,7 +266,7 @@ class FleetController:
         return cap
 
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
-        arr = _as_array("follower_targets", targets, (self.n, 3))
+        arr = np.ascontiguousarray(_as_array("follower_targets", targets, (self.n, 3)))
         if not np.isfinite(arr).all():
             raise ValueError("follower_targets must be finite")
         return arr
