@@ -449,15 +449,16 @@ class FleetController:
         else:
             cmd = invert(u, att[:, 2], self.limits, self.g)
         roll_cmd, pitch_cmd = self.slew(cmd.roll, cmd.pitch, dt, active)
-        off = ~active
+        off = ~active if not active.all() else None
 
-        def masked(a: np.ndarray) -> np.ndarray:
-            out = np.array(a, dtype=float)
-            out[off] = np.nan
-            return out
+        def masked(fresh: np.ndarray) -> np.ndarray:
+            """`fresh` (an array of this tick's own) with NaN in the rows not commanded."""
+            if off is not None:
+                fresh[off] = np.nan
+            return fresh
 
         return Command(
-            active=active, roll_d=masked(roll_cmd), pitch_d=masked(pitch_cmd), yaw_d=masked(psi_l),
+            active=active, roll_d=masked(roll_cmd), pitch_d=masked(pitch_cmd), yaw_d=masked(psi_l.copy()),
             thrust_acc=masked(cmd.thrust_acc), ref_pos=x_d, ref_vel=xd_dot, ref_acc=xd_ddot,
             field_force=force, slots=targets, u=masked(cmd.u_limited), emergency=emergency & active,
             psi_leader=self.heading.psi, waypoint_index=self.waypoint_index, leader_goal_distance=goal_dist,
