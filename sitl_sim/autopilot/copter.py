@@ -183,7 +183,7 @@ class Autopilot:
             self._events,
         )  # fmt: skip
         for i in np.flatnonzero(~self.armed):
-            self._enter_mode(int(i), STABILIZE)
+            self.enter_mode(int(i), STABILIZE)
         # one instance of each persona over its vehicles (after the state above: a persona may set modes)
         rows = {kind: np.array([k is kind for k in kinds], dtype=bool) for kind in dict.fromkeys(kinds)}
         self.personas = [kind(self, mask) for kind, mask in rows.items()]
@@ -196,10 +196,6 @@ class Autopilot:
     def heartbeat(self, i: int) -> tuple[int, int, int, int]:
         """(autopilot, base_mode, custom_mode, system_status) of vehicle i's HEARTBEAT (its persona's)."""
         return self.persona(i).heartbeat(i)
-
-    def enter_mode(self, i: int, mode: int) -> None:
-        """Run the shared control law of internal (ArduCopter-numbered) `mode` on vehicle i from its state."""
-        self._enter_mode(i, mode)
 
     def climb_to(self, i: int, z: float) -> None:
         """Take off vertically to world height z (m) under position control (the shared takeoff law)."""
@@ -320,7 +316,7 @@ class Autopilot:
                 return mavlink2.MAV_RESULT_FAILED
         self.armed[i] = True
         self.disarm_timer[i] = 0.0
-        self._enter_mode(i, int(self.mode[i]))
+        self.enter_mode(i, int(self.mode[i]))
         self.say(i, mavlink2.MAV_SEVERITY_INFO, "Arming motors")
         return mavlink2.MAV_RESULT_ACCEPTED
 
@@ -348,7 +344,7 @@ class Autopilot:
                 f"Mode change to {MODE_NAMES[mode]} failed: requires position",
             )
             return mavlink2.MAV_RESULT_FAILED
-        self._enter_mode(i, mode)
+        self.enter_mode(i, mode)
         self.mode_changed(i)
         return mavlink2.MAV_RESULT_ACCEPTED
 
@@ -448,7 +444,7 @@ class Autopilot:
 
     def guided_stop(self, i: int) -> None:
         """Invalid guided input: stop and hold (ArduCopter mode_guided.init)."""
-        self._enter_mode(i, int(self.mode[i]))
+        self.enter_mode(i, int(self.mode[i]))
 
     def gcs_heartbeat(self, i: int, sysid: int) -> None:
         """A HEARTBEAT from `sysid` reached vehicle i: refreshes the GCS failsafe if it is MAV_GCS_SYSID."""
@@ -563,8 +559,9 @@ class Autopilot:
         self.nav_kind[i] = kind
         self.target_time[i] = self.t
 
-    def _enter_mode(self, i: int, mode: int) -> None:
-        """Switch vehicle i to `mode` and initialise its targets (hold where it is, keep its heading)."""
+    def enter_mode(self, i: int, mode: int) -> None:
+        """Switch vehicle i to internal (ArduCopter-numbered) `mode` and initialise its shared control law's
+        targets from its state (hold where it is, keep its heading)."""
         s = self.state
         pos, vel = s.pos[i], s.vel[i]
         yaw = float(yaw_from_quat(s.quat[i]))

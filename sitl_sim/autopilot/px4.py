@@ -523,11 +523,11 @@ class Px4(Persona):
         self.failsafe[i] = True
         self.ap.say(i, M.MAV_SEVERITY_CRITICAL, "Failsafe activated")
         if act in FALLBACK_TO_RTL or act == 3:
-            self._failsafe_mode(i, MODE_RTL)
+            self._enter(i, MODE_RTL)
         elif act == 4:
-            self._failsafe_mode(i, MODE_LAND)
+            self._enter(i, MODE_LAND)
         elif act == 5:
-            self._failsafe_mode(i, MODE_LOITER)
+            self._enter(i, MODE_LOITER)
         else:  # 6 Terminate, 7 Disarm: motors off
             self.disarm(i, "failsafe")
 
@@ -553,22 +553,19 @@ class Px4(Persona):
             return
         text = f"Failsafe activated: entering Hold for {round(delay)} seconds"
         self.ap.say(i, M.MAV_SEVERITY_CRITICAL, text)
-        self._failsafe_mode(i, MODE_LOITER)
+        self._enter(i, MODE_LOITER)
         self.failsafe_action_at[i] = t + delay
 
     def _act(self, i: int, action: int) -> None:
         """failsafe.cpp fromNavDllOrRclActParam: 1 Hold, 2 RTL, 3 Land, 5 Terminate, 6 Disarm."""
         if action == 1:
-            self._failsafe_mode(i, MODE_LOITER)
+            self._enter(i, MODE_LOITER)
         elif action == 2:
-            self._failsafe_mode(i, MODE_RTL)
+            self._enter(i, MODE_RTL)
         elif action == 3:
-            self._failsafe_mode(i, MODE_LAND)
+            self._enter(i, MODE_LAND)
         else:
             self.disarm(i, "failsafe")
-
-    def _failsafe_mode(self, i: int, mode: int) -> None:
-        self._enter(i, mode)
 
     def _clear_failsafe(self, i: int) -> None:
         self.failsafe[i] = False
