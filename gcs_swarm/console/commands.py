@@ -11,7 +11,7 @@ from __future__ import annotations
 import difflib
 import math
 import shlex
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from gcs_swarm.console.snapshot import Snapshot
@@ -52,49 +52,8 @@ class CommandError(Exception):
     """A typed command that cannot be run, with one sentence saying why."""
 
 
-@dataclass(frozen=True)
-class HelpEntry:
-    usage: str
-    summary: str
-
-
-HELP: dict[str, HelpEntry] = {
-    "start": HelpEntry("start", "fly the mission: preflight, GUIDED, arm, take off, formation flight"),
-    "hold": HelpEntry("hold", "every vehicle brakes and holds its position (formation flight pauses)"),
-    "resume": HelpEntry("resume", "back to formation flight from where the vehicles are"),
-    "abort": HelpEntry("abort", "stop the mission: every vehicle lands now"),
-    "goal": HelpEntry("goal X Y Z", "move the leader's goal to X Y Z (m, ENU) in flight"),
-    "rejoin": HelpEntry(
-        "rejoin VEHICLE", "hand back a vehicle taken over (another GCS, RC, failsafe): GUIDED, to its slot"
-    ),
-    "leader": HelpEntry("leader VEHICLE", "this vehicle leads from now on (the leader was taken over)"),
-    "formation": HelpEntry(
-        "formation SHAPE [SPACING]",
-        f"reshape in flight ({', '.join(SHAPES)}; SPACING m), inter-UAV avoidance stays on",
-    ),
-    "arm": HelpEntry("arm [throttle] [TARGET]", "arm the motors (MAVProxy's `arm throttle` works too)"),
-    "disarm": HelpEntry("disarm [TARGET]", "disarm the motors (a flying vehicle refuses)"),
-    "mode": HelpEntry("mode NAME [TARGET]", "set a flight mode, e.g. `mode GUIDED`; or type the mode alone"),
-    "takeoff": HelpEntry("takeoff ALT [TARGET]", "take off to ALT m above home (GUIDED and armed first)"),
-    "land": HelpEntry("land [TARGET]", "LAND mode; `land` for all while the mission flies = abort"),
-    "rtl": HelpEntry("rtl [TARGET]", "RTL mode: return to launch and land"),
-    "param": HelpEntry(
-        "param get|set|fetch NAME [VALUE] [TARGET]",
-        "read or write a parameter; `param fetch` reads every vehicle's list (for completion)",
-    ),
-    "status": HelpEntry("status", "print every vehicle's state in detail"),
-    "help": HelpEntry("help [COMMAND]", "this list, or one command's usage"),
-    "wait": HelpEntry(
-        "wait SECONDS | wait phase NAME [SECONDS]",
-        "scripts: wait SECONDS of vehicle time, or until the mission enters phase NAME",
-    ),
-    "quit": HelpEntry("quit", "leave the console (asks first while vehicles are airborne)"),
-}
 TARGET_HELP = "TARGET is all (default), a vehicle name or a sysid"
-COMMANDS = tuple(HELP)
 ALIASES = {"exit": "quit", "q": "quit", "?": "help", "stop": "abort"}
-CONFIRM_VERBS = frozenset({"start", "arm", "takeoff"})
-"""Commands that arm or launch vehicles: the console asks before running them unless --yes."""
 
 
 @dataclass(frozen=True)
@@ -140,6 +99,18 @@ def vocabulary_for(mission: Mission, snapshot: Snapshot) -> Vocabulary:
 
 
 @dataclass(frozen=True)
+class Verb:
+    """One console command: `usage` and `summary` (its help line and completion entry), `parse` (the words
+    after the verb -> a Request, or CommandError with one sentence), `confirm`: it arms or launches vehicles,
+    so the console asks before running it unless --yes."""
+
+    usage: str
+    summary: str
+    parse: Callable[[str, list[str], str, Vocabulary], Request]
+    confirm: bool = False
+
+
+@dataclass(frozen=True)
 class Request:
     """One validated command. `vehicles` are vehicle indices (every vehicle when `every`)."""
 
@@ -168,8 +139,8 @@ def parse(line: str, vocabulary: Vocabulary) -> Request | None:
     head = ALIASES.get(head, head)
     args = words[1:]
     text = line.strip()
-    if head in _PARSERS:
-        return _PARSERS[head](head, args, text, vocabulary)
+    if head in VERBS:
+        return VERBS[head].parse(head, args, text, vocabulary)
     if head.upper() in MODE_NAMES:  # MAVProxy: a mode name alone sets that mode
         return _mode_request(head.upper(), args, text, vocabulary)
     hint = _closest(head, COMMANDS)
@@ -179,13 +150,13 @@ def parse(line: str, vocabulary: Vocabulary) -> Request | None:
 def help_lines(topic: str | None = None) -> list[str]:
     """Help text: every command, or one command's usage and meaning; CommandError for an unknown topic."""
     if topic is None:
-        width = max(len(h.usage) for h in HELP.values())
-        lines = [f"{h.usage:<{width}}  {h.summary}" for h in HELP.values()]
+        width = max(len(h.usage) for h in VERBS.values())
+        lines = [f"{h.usage:<{width}}  {h.summary}" for h in VERBS.values()]
         return [*lines, TARGET_HELP + "; a mode name alone (guided, loiter, ...) = mode NAME"]
     key = ALIASES.get(topic.lower(), topic.lower())
-    if key not in HELP:
+    if key not in VERBS:
         raise CommandError(f"no help for {topic!r}{_closest(key, COMMANDS)}; type help for the list")
-    entry = HELP[key]
+    entry = VERBS[key]
     lines = [f"{entry.usage}: {entry.summary}"]
     if "TARGET" in entry.usage:
         lines.append(TARGET_HELP)
@@ -266,7 +237,7 @@ def _targeted(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> 
     if verb == "arm" and args and args[0].lower() == "throttle":
         args = args[1:]
     if len(args) > 1:
-        raise CommandError(f"usage: {HELP[verb].usage} ({TARGET_HELP})")
+        raise CommandError(f"usage: {VERBS[verb].usage} ({TARGET_HELP})")
     vehicles, every = _target(args[0] if args else None, vocabulary)
     return Request(verb, line, vehicles, every)
 
@@ -274,7 +245,7 @@ def _targeted(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> 
 def _one_vehicle(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> Request:
     """rejoin VEHICLE, leader VEHICLE: exactly one vehicle, by name or sysid."""
     if len(args) != 1 or args[0].lower() == "all":
-        raise CommandError(f"usage: {HELP[verb].usage} (one vehicle: a name or a sysid)")
+        raise CommandError(f"usage: {VERBS[verb].usage} (one vehicle: a name or a sysid)")
     vehicles, _ = _target(args[0], vocabulary)
     return Request(verb, line, vehicles)
 
@@ -382,27 +353,63 @@ def _wait(verb: str, args: list[str], line: str, vocabulary: Vocabulary) -> Requ
     return Request("wait", line, value=_seconds(args[0]))
 
 
-_PARSERS = {
-    "start": _no_args,
-    "hold": _no_args,
-    "resume": _no_args,
-    "abort": _no_args,
-    "status": _no_args,
-    "quit": _no_args,
-    "help": _help,
-    "arm": _targeted,
-    "disarm": _targeted,
-    "land": _targeted,
-    "rtl": _targeted,
-    "mode": _mode,
-    "takeoff": _takeoff,
-    "goal": _goal,
-    "rejoin": _one_vehicle,
-    "leader": _one_vehicle,
-    "formation": _formation,
-    "param": _param,
-    "wait": _wait,
+VERBS: dict[str, Verb] = {
+    "start": Verb(
+        "start", "fly the mission: preflight, GUIDED, arm, take off, formation flight", _no_args, confirm=True
+    ),
+    "hold": Verb("hold", "every vehicle brakes and holds its position (formation flight pauses)", _no_args),
+    "resume": Verb("resume", "back to formation flight from where the vehicles are", _no_args),
+    "abort": Verb("abort", "stop the mission: every vehicle lands now", _no_args),
+    "goal": Verb("goal X Y Z", "move the leader's goal to X Y Z (m, ENU) in flight", _goal),
+    "rejoin": Verb(
+        "rejoin VEHICLE",
+        "hand back a vehicle taken over (another GCS, RC, failsafe): GUIDED, to its slot",
+        _one_vehicle,
+    ),
+    "leader": Verb(
+        "leader VEHICLE", "this vehicle leads from now on (the leader was taken over)", _one_vehicle
+    ),
+    "formation": Verb(
+        "formation SHAPE [SPACING]",
+        f"reshape in flight ({', '.join(SHAPES)}; SPACING m), inter-UAV avoidance stays on",
+        _formation,
+    ),
+    "arm": Verb(
+        "arm [throttle] [TARGET]",
+        "arm the motors (MAVProxy's `arm throttle` works too)",
+        _targeted,
+        confirm=True,
+    ),
+    "disarm": Verb("disarm [TARGET]", "disarm the motors (a flying vehicle refuses)", _targeted),
+    "mode": Verb(
+        "mode NAME [TARGET]", "set a flight mode, e.g. `mode GUIDED`; or type the mode alone", _mode
+    ),
+    "takeoff": Verb(
+        "takeoff ALT [TARGET]",
+        "take off to ALT m above home (GUIDED and armed first)",
+        _takeoff,
+        confirm=True,
+    ),
+    "land": Verb("land [TARGET]", "LAND mode; `land` for all while the mission flies = abort", _targeted),
+    "rtl": Verb("rtl [TARGET]", "RTL mode: return to launch and land", _targeted),
+    "param": Verb(
+        "param get|set|fetch NAME [VALUE] [TARGET]",
+        "read or write a parameter; `param fetch` reads every vehicle's list (for completion)",
+        _param,
+    ),
+    "status": Verb("status", "print every vehicle's state in detail", _no_args),
+    "help": Verb("help [COMMAND]", "this list, or one command's usage", _help),
+    "wait": Verb(
+        "wait SECONDS | wait phase NAME [SECONDS]",
+        "scripts: wait SECONDS of vehicle time, or until the mission enters phase NAME",
+        _wait,
+    ),
+    "quit": Verb("quit", "leave the console (asks first while vehicles are airborne)", _no_args),
 }
+"""Every console command, in help order: adding one is one entry here (and its handler in
+gcs_swarm.console.session)."""
+COMMANDS = tuple(VERBS)
+CONFIRM_VERBS = frozenset(name for name, verb in VERBS.items() if verb.confirm)
 
 
 # ----------------------------------------------------------------------------- arguments
