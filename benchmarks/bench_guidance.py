@@ -139,6 +139,8 @@ def print_ab(title: str, names: tuple[str, str], sizes: list[int], repeats: int,
 def load_guidance(root: Path) -> dict[str, ModuleType]:
     """The modules fleet_controller and params of the gcs_swarm/guidance package under `root`, imported
     beside this tree's (sys.modules is restored afterwards, so both stay usable)."""
+    for cached in (root / "gcs_swarm").rglob("*.nb[ic]"):
+        cached.unlink()  # numba's cache of a package loaded this way names no importable module: not reusable
     ours = {
         name: mod for name, mod in sys.modules.items() if name.split(".")[:2] == ["gcs_swarm", "guidance"]
     }
