@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -100,44 +101,37 @@ class AttitudeGains:
             if len(values) != 3 or not all(math.isfinite(v) and v >= 0 for v in values):
                 raise ValueError(f"attitude gain {name} must be three finite numbers >= 0 (roll, pitch, yaw)")
 
-    @property
-    def angle_p(self) -> np.ndarray:
-        """(3,) angle P per body axis, rad/s per rad."""
-        return np.array([self.angle_p_rp, self.angle_p_rp, self.angle_p_yaw])
-
-    @property
-    def accel_max(self) -> np.ndarray:
-        """(3,) angular-acceleration limit of the angle loop per body axis, rad/s^2."""
-        return np.array([self.accel_max_rp, self.accel_max_rp, self.accel_max_yaw])
-
-    @property
-    def rate_max(self) -> np.ndarray:
-        """(3,) body-rate demand limit per axis, rad/s."""
-        return np.array([self.rate_max_rp, self.rate_max_rp, self.rate_max_yaw])
-
-    def d_alpha(self, dt: float) -> float:
-        """Smoothing factor of the first-order D-term filter for a step dt (s)."""
-        return dt / (dt + 1.0 / (2.0 * math.pi * self.d_filter_hz))
-
-    def packed(self, dt: float) -> np.ndarray:
-        """The gains as the kernels' float64 vector (indices C_*; D filter alpha for a step dt s)."""
-        return np.concatenate(
-            (
-                self.angle_p,
-                self.accel_max,
-                self.rate_max,
-                self.rate_p,
-                self.rate_i,
-                self.rate_d,
-                self.i_max,
-                [self.d_alpha(dt)],
-            )
-        ).astype(np.float64)
+    def for_step(self, dt: float) -> StepGains:
+        """The gains as the kernels take them for a physics step of dt s (per-axis triples as floats)."""
+        return StepGains(
+            angle_p=_triple((self.angle_p_rp, self.angle_p_rp, self.angle_p_yaw)),
+            accel_max=_triple((self.accel_max_rp, self.accel_max_rp, self.accel_max_yaw)),
+            rate_max=_triple((self.rate_max_rp, self.rate_max_rp, self.rate_max_yaw)),
+            rate_p=_triple(self.rate_p),
+            rate_i=_triple(self.rate_i),
+            rate_d=_triple(self.rate_d),
+            i_max=_triple(self.i_max),
+            d_alpha=dt / (dt + 1.0 / (2.0 * math.pi * self.d_filter_hz)),
+        )
 
 
-# Indices into AttitudeGains.packed: angle P, accel max, rate max, rate P, I, D, I limit (a triple each:
-# roll, pitch, yaw), then the D filter alpha.
-C_ANGLE_P, C_ACCEL_MAX, C_RATE_MAX, C_KP, C_KI, C_KD, C_I_MAX, C_D_ALPHA = 0, 3, 6, 9, 12, 15, 18, 21
+class StepGains(NamedTuple):
+    """AttitudeGains for one physics step, as the compiled kernels take them (AttitudeGains.for_step).
+
+    Each triple is per body FLU axis (roll, pitch, yaw), indexed by the axis k in the kernels."""
+
+    angle_p: tuple[float, float, float]  # angle loop P, rad/s per rad
+    accel_max: tuple[float, float, float]  # angle loop acceleration limit, rad/s^2
+    rate_max: tuple[float, float, float]  # body-rate demand limit, rad/s
+    rate_p: tuple[float, float, float]  # rate PID P, N m per rad/s
+    rate_i: tuple[float, float, float]  # rate PID I, N m per rad
+    rate_d: tuple[float, float, float]  # rate PID D, N m per rad/s^2
+    i_max: tuple[float, float, float]  # integrator limit, N m
+    d_alpha: float  # smoothing factor of the first-order D-term filter for the step
+
+
+def _triple(values: tuple[float, ...]) -> tuple[float, float, float]:
+    return float(values[0]), float(values[1]), float(values[2])
 
 
 @kernel
@@ -195,14 +189,14 @@ def rate_pid_axis(
     prev_error: float,
     integrator: float,
     d_state: float,
-    gains: np.ndarray,
+    gains: StepGains,
     k: int,
     reset: bool,
     dt: float,
 ) -> tuple[float, float, float]:
     """One body axis k (0 roll, 1 pitch, 2 yaw) of the rate PID: (torque N m, new integrator, new D state).
 
-    error, prev_error: rate error now and one step dt (s) earlier, rad/s; gains: AttitudeGains.packed. reset
+    error, prev_error: rate error now and one step dt (s) earlier, rad/s; gains: AttitudeGains.for_step. reset
     (landed or motors off): integrator and D term cleared (ArduCopter resets the rate I terms on the ground),
     so no wind-up carries into the next take-off.
     """
@@ -210,10 +204,10 @@ def rate_pid_axis(
         integrator = 0.0
         d_state = 0.0
     else:
-        d_state = d_state + gains[C_D_ALPHA] * ((error - prev_error) / dt - d_state)
-        i_max = gains[C_I_MAX + k]
-        integrator = min(max(integrator + gains[C_KI + k] * error * dt, -i_max), i_max)
-    return gains[C_KP + k] * error + integrator + gains[C_KD + k] * d_state, integrator, d_state
+        d_state = d_state + gains.d_alpha * ((error - prev_error) / dt - d_state)
+        i_max = gains.i_max[k]
+        integrator = min(max(integrator + gains.rate_i[k] * error * dt, -i_max), i_max)
+    return gains.rate_p[k] * error + integrator + gains.rate_d[k] * d_state, integrator, d_state
 
 
 @kernel

@@ -25,14 +25,12 @@ ground; FleetDynamics holds the arrays and calls it.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from sitl_sim.vehicle_model.airframe import QuadParams
 from sitl_sim.vehicle_model.attitude_control import (
-    C_ACCEL_MAX,
-    C_ANGLE_P,
-    C_RATE_MAX,
     MOTOR_PITCH_SIGN,
     MOTOR_ROLL_SIGN,
     MOTOR_YAW_SIGN,
@@ -48,9 +46,32 @@ from swarm_common.jit import kernel
 from swarm_common.shaping import sqrt_controller
 
 DEFAULT_TILT_MAX = math.radians(30.0)  # ArduCopter ANGLE_MAX default, 3000 cdeg
-# Indices into the packed airframe vector (pack_physics)
-P_MASS, P_G, P_IXX, P_IYY, P_IZZ, P_ARM_XY = range(6)
-P_YAW_COEF, P_F_MAX, P_MOTOR_ALPHA, P_DRAG_LIN, P_DRAG_ROT, P_DT = range(6, 12)
+
+
+class StepPhysics(NamedTuple):
+    """The airframe (QuadParams) for a physics step of dt s, as the compiled step `advance` takes it."""
+
+    mass: float  # kg
+    g: float  # m/s^2
+    ixx: float  # kg m^2, principal inertias (body FLU)
+    iyy: float
+    izz: float
+    arm_xy: float  # m, roll/pitch lever of each motor: arm / sqrt(2)
+    yaw_coef: float  # m, reaction torque per newton of thrust (k_d / k_t)
+    f_max: float  # N, one motor's maximum thrust
+    motor_alpha: float  # exp(-dt / motor_tau): the motor lag's decay over one step
+    drag_lin: float  # N per m/s of air-relative velocity
+    drag_rot: float  # N m per rad/s of body rate
+    dt: float  # s, the physics step
+
+    @classmethod
+    def of(cls, params: QuadParams, dt: float) -> StepPhysics:
+        """The airframe `params` for a step of dt s."""
+        return cls(
+            params.mass, params.g, params.ixx, params.iyy, params.izz, params.arm * math.sqrt(0.5),
+            params.yaw_coef, params.f_max, math.exp(-dt / params.motor_tau), params.drag_lin, params.drag_rot,
+            dt,
+        )  # fmt: skip
 
 
 class FleetState:
@@ -154,8 +175,8 @@ class FleetDynamics:
         self._prev_error = np.zeros((self.n, 3))
         self.last_sanitised = np.zeros(self.n, dtype=bool)
         """(N,) bool: vehicles whose last set_targets/set_rate_targets input had non-finite values."""
-        self._phys = pack_physics(params, self.dt)
-        self._ctl = self.gains.packed(self.dt)
+        self._phys = StepPhysics.of(params, self.dt)
+        self._ctl = self.gains.for_step(self.dt)
         self._work = np.zeros((5, 4))  # advance's scratch
         if state is None:
             state = FleetState.at_rest(np.zeros((self.n, 3)), np.zeros(self.n), params=params)
@@ -219,7 +240,7 @@ class FleetDynamics:
         rates = _float_array(rates, (self.n, 3), "rates")
         bad = ~np.all(np.isfinite(rates), axis=1)
         self.last_sanitised |= bad & mask
-        rate_max = self.gains.rate_max
+        rate_max = np.array(self._ctl.rate_max)
         rates = np.clip(np.where(bad[:, None], 0.0, rates), -rate_max, rate_max)
         self._rate_cmd[:] = np.where(mask[:, None], rates, 0.0)
         self._rate_mode[:] = mask
@@ -265,41 +286,22 @@ class FleetDynamics:
         self._prev_error[i] = 0.0
 
 
-def pack_physics(params: QuadParams, dt: float) -> np.ndarray:
-    """Airframe parameters and step dt (s) as the kernel's float64 vector."""
-    return np.array(
-        [
-            params.mass,
-            params.g,
-            params.ixx,
-            params.iyy,
-            params.izz,
-            params.arm * math.sqrt(0.5),
-            params.yaw_coef,
-            params.f_max,
-            math.exp(-dt / params.motor_tau),
-            params.drag_lin,
-            params.drag_rot,
-            dt,
-        ]
-    )
-
-
 @kernel
 def advance(
     nsteps, phys, ctl, pos, vel, quat, omega, motor, landed, crashed, accel_out,
     quat_t, rate_ff, thrust_sp, motors_on, rate_mode, rate_cmd, integ, d_state, prev_err, wind, work,
 ):  # fmt: skip  # noqa: ANN001, ANN201 - numba kernel over FleetDynamics' arrays
-    """Advance all vehicles nsteps physics steps of phys[P_DT] s; state and controller memory are updated in
-    place. phys: pack_physics; ctl: AttitudeGains.packed; the arrays as FleetState and FleetDynamics hold them
-    (targets quat_t (N,4), rate_ff (N,3) rad/s, thrust_sp (N,) N, motors_on, rate_mode (N,) bool, rate_cmd
-    (N,3) rad/s; rate PID memory integ, d_state, prev_err (N,3); wind (N,3) ENU m/s); work (5,4) scratch.
+    """Advance all vehicles nsteps physics steps of phys.dt s; state and controller memory are updated in
+    place. phys: StepPhysics; ctl: AttitudeGains.for_step; the arrays as FleetState and FleetDynamics hold
+    them (targets quat_t (N,4), rate_ff (N,3) rad/s, thrust_sp (N,) N, motors_on, rate_mode (N,) bool,
+    rate_cmd (N,3) rad/s; rate PID memory integ, d_state, prev_err (N,3); wind (N,3) ENU m/s); work (5,4)
+    scratch.
     Vehicles are independent, so each one is advanced all nsteps in a row. (No array is allocated here: an
     allocation would compile numba's error-message machinery into the cold start.)"""
-    mass, g, dt = phys[P_MASS], phys[P_G], phys[P_DT]
-    ixx, iyy, izz = phys[P_IXX], phys[P_IYY], phys[P_IZZ]
-    arm_xy, yaw_coef, f_max = phys[P_ARM_XY], phys[P_YAW_COEF], phys[P_F_MAX]
-    alpha, drag_lin, drag_rot = phys[P_MOTOR_ALPHA], phys[P_DRAG_LIN], phys[P_DRAG_ROT]
+    mass, g, dt = phys.mass, phys.g, phys.dt
+    ixx, iyy, izz = phys.ixx, phys.iyy, phys.izz
+    arm_xy, yaw_coef, f_max = phys.arm_xy, phys.yaw_coef, phys.f_max
+    alpha, drag_lin, drag_rot = phys.motor_alpha, phys.drag_lin, phys.drag_rot
     inv_4d = 1.0 / (4.0 * arm_xy)
     weight = mass * g
     rate_sp, torque, rp, yaw, f_cmd = work[0], work[1], work[2], work[3], work[4]
@@ -316,8 +318,8 @@ def advance(
             else:
                 err = attitude_error(qw, qx, qy, qz, quat_t[i, 0], quat_t[i, 1], quat_t[i, 2], quat_t[i, 3])
                 for k in range(3):
-                    r = sqrt_controller(err[k], ctl[C_ANGLE_P + k], ctl[C_ACCEL_MAX + k], 0.0) + rate_ff[i, k]
-                    rate_sp[k] = min(max(r, -ctl[C_RATE_MAX + k]), ctl[C_RATE_MAX + k])
+                    r = sqrt_controller(err[k], ctl.angle_p[k], ctl.accel_max[k], 0.0) + rate_ff[i, k]
+                    rate_sp[k] = min(max(r, -ctl.rate_max[k]), ctl.rate_max[k])
             reset = landed[i] or not active
             for k in range(3):
                 e = rate_sp[k] - omega[i, k]

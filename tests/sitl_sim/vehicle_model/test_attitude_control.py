@@ -12,8 +12,6 @@ import pytest
 
 from sitl_sim.vehicle_model.airframe import QuadParams
 from sitl_sim.vehicle_model.attitude_control import (
-    C_I_MAX,
-    C_KI,
     MOTOR_PITCH_SIGN,
     MOTOR_ROLL_SIGN,
     MOTOR_YAW_SIGN,
@@ -146,17 +144,17 @@ def test_gains_validation():
 
 def test_rate_pid_integrates_clamps_and_resets():
     gains = AttitudeGains()
-    packed = gains.packed(1e-3)
+    step_gains = gains.for_step(1e-3)
     for k in range(3):
         integ = d_state = 0.0
         for _ in range(100):  # a constant error of 1 rad/s for 0.1 s
-            torque, integ, d_state = rate_pid_axis(1.0, 1.0, integ, d_state, packed, k, False, 1e-3)
+            torque, integ, d_state = rate_pid_axis(1.0, 1.0, integ, d_state, step_gains, k, False, 1e-3)
         assert integ == pytest.approx(min(gains.rate_i[k] * 0.1, gains.i_max[k]))
         assert d_state == 0.0  # a constant error has no derivative
         assert torque == pytest.approx(gains.rate_p[k] * 1.0 + integ)
-        big = rate_pid_axis(1e6, 1e6, integ, 0.0, packed, k, False, 1e-3)[1]
-        assert big == packed[C_I_MAX + k] or packed[C_KI + k] == 0.0  # the integrator is clamped
-        assert rate_pid_axis(1.0, 0.0, integ, 5.0, packed, k, True, 1e-3) == (gains.rate_p[k], 0.0, 0.0)
+        big = rate_pid_axis(1e6, 1e6, integ, 0.0, step_gains, k, False, 1e-3)[1]
+        assert big == gains.i_max[k] or gains.rate_i[k] == 0.0  # the integrator is clamped
+        assert rate_pid_axis(1.0, 0.0, integ, 5.0, step_gains, k, True, 1e-3) == (gains.rate_p[k], 0.0, 0.0)
 
 
 # --- mixer -----------------------------------------------------------------------------------------------
