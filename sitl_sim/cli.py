@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import ipaddress
 import logging
 import math
@@ -43,6 +44,8 @@ DEFAULT_HOME = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's default locat
 LINE_SPACING_M = 5.0  # default start line along East
 
 
+# LinkFaults' fields that --link-<field> (dashes for underscores) and the mission's world.link set by name
+LINK_RATE_FIELDS = ("loss", "delay_ms", "jitter_ms", "dup", "corrupt", "reorder")
 ORPHAN_LOG = "simulator-orphan.log"  # beside the truth log: what the simulator says after its parent died
 
 
@@ -197,10 +200,10 @@ def link_faults(
         value = getattr(args, f"link_{option}")
         if value is not None and not 0.0 <= value <= 10000.0:
             parser.error(f"--link-{option.replace('_', '-')} must be 0..10000 ms, not {value:g}")
-    start = args.link_from
-    if start is not None and not 0.0 <= start < math.inf:
-        parser.error(f"--link-from must be >= 0 s, not {start:g}")
-    outages = base.outages
+    if args.link_from is not None and not 0.0 <= args.link_from < math.inf:
+        parser.error(f"--link-from must be >= 0 s, not {args.link_from:g}")
+    given = {field: getattr(args, f"link_{field}") for field in LINK_RATE_FIELDS}
+    given["start_s"] = args.link_from
     if args.link_outage is not None:
         parsed: list[Outage] = []
         for text in args.link_outage:
@@ -208,36 +211,16 @@ def link_faults(
                 parsed.append(parse_outage(text, vehicles))
             except ValueError as exc:
                 parser.error(str(exc))
-        outages = tuple(parsed)
-
-    def pick(given: float | None, default: float) -> float:
-        return default if given is None else given
-
-    return LinkFaults(
-        loss=pick(args.link_loss, base.loss),
-        delay_ms=pick(args.link_delay_ms, base.delay_ms),
-        jitter_ms=pick(args.link_jitter_ms, base.jitter_ms),
-        dup=pick(args.link_dup, base.dup),
-        corrupt=pick(args.link_corrupt, base.corrupt),
-        reorder=pick(args.link_reorder, base.reorder),
-        outages=outages,
-        start_s=pick(start, base.start_s),
-    )
+        given["outages"] = tuple(parsed)
+    return dataclasses.replace(base, **{field: value for field, value in given.items() if value is not None})
 
 
 def mission_link(world: World) -> LinkFaults:
     """The mission's world.link as the simulator's LinkFaults (outage vehicles are indices already)."""
     link = world.link
-    return LinkFaults(
-        loss=link.loss,
-        delay_ms=link.delay_ms,
-        jitter_ms=link.jitter_ms,
-        dup=link.dup,
-        corrupt=link.corrupt,
-        reorder=link.reorder,
-        outages=tuple(Outage(o.vehicle, o.start_s, o.duration_s) for o in link.outages),
-        start_s=link.from_s,
-    )
+    outages = tuple(Outage(o.vehicle, o.start_s, o.duration_s) for o in link.outages)
+    rates = {field: getattr(link, field) for field in LINK_RATE_FIELDS}
+    return LinkFaults(**rates, outages=outages, start_s=link.from_s)
 
 
 def _check(parser: OneLineParser, ok: bool, message: str) -> None:
@@ -317,45 +300,38 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
             autopilots = parse_autopilots(args.autopilot, n)
         except ValueError as exc:
             parser.error(str(exc))
-    _check(parser, 1 <= args.sysid_base <= 255, f"--sysid-base must be in 1..255, not {args.sysid_base}")
-    _check(
-        parser, args.sysid_base + n - 1 <= 255, f"{n} vehicles from sysid {args.sysid_base} exceed sysid 255"
-    )
-    _check(parser, 1 <= args.base_port <= 65535, f"--base-port must be in 1..65535, not {args.base_port}")
-    _check(
-        parser, args.base_port + n - 1 <= 65535, f"{n} vehicles from port {args.base_port} exceed port 65535"
-    )
     try:
         ipaddress.IPv4Address(args.bind)
     except ValueError:
         parser.error(f"--bind must be an IPv4 address such as 127.0.0.1, not {args.bind!r}")
-    _check(
-        parser,
-        _finite_positive(args.speedup) and args.speedup <= 1e6,
-        "--speedup must be a number in (0, 1e6]",
+    checks = (
+        (1 <= args.sysid_base <= 255, f"--sysid-base must be in 1..255, not {args.sysid_base}"),
+        (args.sysid_base + n - 1 <= 255, f"{n} vehicles from sysid {args.sysid_base} exceed sysid 255"),
+        (1 <= args.base_port <= 65535, f"--base-port must be in 1..65535, not {args.base_port}"),
+        (args.base_port + n - 1 <= 65535, f"{n} vehicles from port {args.base_port} exceed port 65535"),
+        (_finite_positive(args.speedup) and args.speedup <= 1e6, "--speedup must be a number in (0, 1e6]"),
+        (_finite_positive(args.lockstep_hz), "--lockstep-hz must be > 0"),
+        (_finite_positive(args.lockstep_timeout), "--lockstep-timeout must be > 0 s"),
+        (
+            0.0 <= args.lockstep_spin_us <= 20000.0,
+            "--lockstep-spin-us must be a number of microseconds in 0..20000",
+        ),
+        (args.orphan_speedup > 0, "--orphan-speedup must be > 0 (inf: as fast as possible)"),
+        (_finite_positive(args.orphan_grace), "--orphan-grace must be > 0 s"),
+        (
+            _finite_positive(args.rate_hz) and args.rate_hz == round(args.rate_hz) and args.rate_hz <= 100000,
+            "--rate-hz must be a whole number of Hz in 1..100000",
+        ),
+        (_finite_positive(args.outer_hz), "--outer-hz must be > 0"),
+        (_finite_positive(args.truth_rate_hz), "--truth-rate-hz must be > 0"),
+        (args.seed >= 0, f"--seed must be >= 0, not {args.seed}"),
+        (
+            args.ready_delay is None or (math.isfinite(args.ready_delay) and 0 <= args.ready_delay <= 600),
+            "--ready-delay must be 0..600 s",
+        ),
     )
-    _check(parser, _finite_positive(args.lockstep_hz), "--lockstep-hz must be > 0")
-    _check(parser, _finite_positive(args.lockstep_timeout), "--lockstep-timeout must be > 0 s")
-    _check(
-        parser,
-        0.0 <= args.lockstep_spin_us <= 20000.0,  # also refuses nan
-        "--lockstep-spin-us must be a number of microseconds in 0..20000",
-    )
-    _check(parser, args.orphan_speedup > 0, "--orphan-speedup must be > 0 (inf: as fast as possible)")
-    _check(parser, _finite_positive(args.orphan_grace), "--orphan-grace must be > 0 s")
-    _check(
-        parser,
-        _finite_positive(args.rate_hz) and args.rate_hz == round(args.rate_hz) and args.rate_hz <= 100000,
-        "--rate-hz must be a whole number of Hz in 1..100000",
-    )
-    _check(parser, _finite_positive(args.outer_hz), "--outer-hz must be > 0")
-    _check(parser, _finite_positive(args.truth_rate_hz), "--truth-rate-hz must be > 0")
-    _check(parser, args.seed >= 0, f"--seed must be >= 0, not {args.seed}")
-    _check(
-        parser,
-        args.ready_delay is None or (math.isfinite(args.ready_delay) and 0 <= args.ready_delay <= 600),
-        "--ready-delay must be 0..600 s",
-    )
+    for ok, message in checks:
+        _check(parser, ok, message)
     if args.truth_log is not None:
         parent = args.truth_log.resolve().parent
         _check(parser, parent.is_dir(), f"--truth-log directory {parent} does not exist")

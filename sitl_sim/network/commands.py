@@ -38,6 +38,11 @@ class CommandHandlers:
     """Commands, modes, parameters and stream requests of vehicle `index` (sysid), served by `sim`; replies go
     to `outbox`, refusals to `counters`."""
 
+    capabilities = CAPABILITIES  # AUTOPILOT_VERSION.capabilities
+    flight_sw_version = FLIGHT_SW_VERSION  # AUTOPILOT_VERSION.flight_sw_version
+    unavailable_result = mavlink2.MAV_RESULT_FAILED  # REQUEST_MESSAGE of a message not sent (yet)
+    bytewise_params = False  # PARAM_VALUE of integer parameters: value cast to float (False) or bytewise
+
     def __init__(
         self, index: int, sysid: int, counters: LinkCounters, outbox: Outbox, sim: SimulatorServices
     ) -> None:
@@ -170,7 +175,8 @@ class CommandHandlers:
         return result
 
     def _request_message(self, msg_id: int) -> int:
-        """Send one message now (REQUEST_MESSAGE); FAILED when it is unknown or not available yet.
+        """Send one message now (REQUEST_MESSAGE); `unavailable_result` when it is unknown or not available
+        yet (ArduPilot: FAILED; PX4's handle_request_message_command: DENIED).
 
         The ACK is queued by the caller after this message; both leave in the same datagram.
         """
@@ -178,17 +184,15 @@ class CommandHandlers:
             zeros = [0] * 8
             self.outbox.send(
                 self.outbox.tx.autopilot_version_encode(
-                    CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, zeros, zeros, zeros, 0, 0, self.sysid
+                    self.capabilities, self.flight_sw_version, 0, 0, 0, zeros, zeros, zeros, 0, 0, self.sysid
                 )
             )
             return mavlink2.MAV_RESULT_ACCEPTED
-        if msg_id not in STREAM_IDS:
-            self.counters.refused += 1
-            return mavlink2.MAV_RESULT_FAILED
-        data = self.sim.telemetry_view().encode(self.outbox.framer, msg_id, self.index)
+        data = None
+        if msg_id in STREAM_IDS:
+            data = self.sim.telemetry_view().encode(self.outbox.framer, msg_id, self.index)
         if data is None:
-            self.counters.refused += 1
-            return mavlink2.MAV_RESULT_FAILED
+            return self._refused_if_not_accepted(self.unavailable_result)
         self.outbox.append(data)
         return mavlink2.MAV_RESULT_ACCEPTED
 
@@ -203,9 +207,12 @@ class CommandHandlers:
         for msg_id in group:
             self.sim.streams.set_interval(self.index, msg_id, interval, self.sim.time_us)
 
+    def _send_param(self, j: int) -> None:
+        self.outbox.send_param(self.sim.params, self.index, j, bytewise=self.bytewise_params)
+
     def _on_param_request_list(self, msg: mavlink2.MAVLink_message, addr: tuple[str, int]) -> None:
         for j in self.sim.params.listing(self.index):
-            self.outbox.send_param(self.sim.params, self.index, j)
+            self._send_param(j)
 
     def _on_param_request_read(
         self, msg: mavlink2.MAVLink_param_request_read_message, addr: tuple[str, int]
@@ -219,7 +226,7 @@ class CommandHandlers:
         if j is None:
             self.counters.invalid += 1
             return
-        self.outbox.send_param(self.sim.params, self.index, j)
+        self._send_param(j)
 
     def _on_param_set(self, msg: mavlink2.MAVLink_param_set_message, addr: tuple[str, int]) -> None:
         name = param_name(msg.param_id)
@@ -231,6 +238,6 @@ class CommandHandlers:
             self.counters.refused += 1
             self.sim.autopilot.say(self.index, mavlink2.MAV_SEVERITY_WARNING, f"Param denied: {problem}")
             if j is not None:
-                self.outbox.send_param(self.sim.params, self.index, j)  # the unchanged value, as ArduPilot
+                self._send_param(j)  # the unchanged value, as ArduPilot
             return
         self.sim.set_param(self.index, name, value)

@@ -23,8 +23,6 @@ from dataclasses import dataclass
 
 REORDER_HOLD_MS = 60  # extra simulated ms a reordered packet is held back (3 frames at 50 Hz)
 UP, DOWN = 0, 1  # directions: ground station -> vehicle, vehicle -> ground station
-RATE_PARAMS = ("SIM_LINK_LOSS", "SIM_LINK_DUP", "SIM_LINK_CORRUPT", "SIM_LINK_REORDER")
-TIME_PARAMS = ("SIM_LINK_DELAY", "SIM_LINK_JITTER")
 
 
 @dataclass(frozen=True)

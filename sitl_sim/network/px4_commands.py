@@ -15,7 +15,6 @@ from sitl_sim.network.commands import CommandHandlers
 from sitl_sim.network.message_fields import finite, param_name
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.setpoints import BODY_FRAMES, SetpointHandlers
-from sitl_sim.network.streams import STREAM_IDS
 
 M = mavlink2
 PX4_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | M.FIRMWARE_VERSION_TYPE_DEV  # reported as 1.16.0-dev
@@ -44,6 +43,10 @@ def px4_rules(sim: SimulatorServices, i: int) -> Px4:
 class Px4CommandHandlers(CommandHandlers):
     """Commands, modes, parameters and stream requests of a PX4 vehicle."""
 
+    capabilities = PX4_CAPABILITIES
+    flight_sw_version = PX4_VERSION
+    unavailable_result = M.MAV_RESULT_DENIED  # handle_request_message_command: a stream PX4 lacks -> DENIED
+    bytewise_params = True  # MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     _source_compid = 0  # component id of the command being handled (commander's printRejectMode rule)
 
     def _on_heartbeat(self, msg: mavlink2.MAVLink_heartbeat_message, addr: tuple[str, int]) -> None:
@@ -80,15 +83,12 @@ class Px4CommandHandlers(CommandHandlers):
             home_amsl = self.sim.geodesy.alt0 + float(self.sim.autopilot.home[i, 2])
             altitude = p[6] if math.isfinite(p[6]) else math.nan
             return self._refused_if_not_accepted(px4.takeoff(i, altitude, home_amsl))
-        if command == M.MAV_CMD_NAV_LAND:
-            result = px4.change_mode(i, MODE_LAND, source)
+        if command in (M.MAV_CMD_NAV_LAND, M.MAV_CMD_NAV_RETURN_TO_LAUNCH):
+            land = command == M.MAV_CMD_NAV_LAND
+            result = px4.change_mode(i, MODE_LAND if land else MODE_RTL, source)
             if result == M.MAV_RESULT_ACCEPTED:
-                self.sim.autopilot.say(i, M.MAV_SEVERITY_INFO, "Landing at current position")
-            return self._refused_if_not_accepted(result)
-        if command == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-            result = px4.change_mode(i, MODE_RTL, source)
-            if result == M.MAV_RESULT_ACCEPTED:
-                self.sim.autopilot.say(i, M.MAV_SEVERITY_INFO, "Returning to launch")
+                text = "Landing at current position" if land else "Returning to launch"
+                self.sim.autopilot.say(i, M.MAV_SEVERITY_INFO, text)
             return self._refused_if_not_accepted(result)
         if command == M.MAV_CMD_SET_MESSAGE_INTERVAL:
             # mavlink_receiver set_message_interval: HEARTBEAT or an unknown stream -> FAILED
@@ -102,49 +102,11 @@ class Px4CommandHandlers(CommandHandlers):
             return M.MAV_RESULT_UNSUPPORTED  # geofences are not simulated for the PX4 persona
         return super()._command(command, p, frame)
 
-    def _request_message(self, msg_id: int) -> int:
-        """handle_request_message_command: a stream PX4 has -> ACCEPTED, otherwise DENIED."""
-        if msg_id == M.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
-            zeros = [0] * 8
-            self.outbox.send(
-                self.outbox.tx.autopilot_version_encode(
-                    PX4_CAPABILITIES, PX4_VERSION, 0, 0, 0, zeros, zeros, zeros, 0, 0, self.sysid
-                )
-            )
-            return M.MAV_RESULT_ACCEPTED
-        data = None
-        if msg_id in STREAM_IDS:
-            data = self.sim.telemetry_view().encode(self.outbox.framer, msg_id, self.index)
-        if data is None:
-            return self._refused_if_not_accepted(M.MAV_RESULT_DENIED)
-        self.outbox.append(data)
-        return M.MAV_RESULT_ACCEPTED
-
     def _on_request_data_stream(
         self, msg: mavlink2.MAVLink_request_data_stream_message, addr: tuple[str, int]
     ) -> None:
         """PX4's mavlink_receiver has no REQUEST_DATA_STREAM handler: ignored (counted as refused)."""
         self.counters.refused += 1
-
-    def _send_param(self, j: int) -> None:
-        self.outbox.send_param(self.sim.params, self.index, j, bytewise=True)
-
-    def _on_param_request_list(self, msg: mavlink2.MAVLink_message, addr: tuple[str, int]) -> None:
-        for j in self.sim.params.listing(self.index):
-            self._send_param(j)
-
-    def _on_param_request_read(
-        self, msg: mavlink2.MAVLink_param_request_read_message, addr: tuple[str, int]
-    ) -> None:
-        params, listing = self.sim.params, self.sim.params.listing(self.index)
-        if msg.param_index >= 0:
-            j = listing[msg.param_index] if msg.param_index < len(listing) else None
-        else:
-            j = params.lookup(self.index, param_name(msg.param_id))
-        if j is None:
-            self.counters.invalid += 1
-            return
-        self._send_param(j)
 
     def _on_param_set(self, msg: mavlink2.MAVLink_param_set_message, addr: tuple[str, int]) -> None:
         """mavlink_parameters.cpp PARAM_SET: unknown name -> STATUSTEXT, no PARAM_VALUE; INT32 values are
