@@ -13,12 +13,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.stats import binomtest
+
+from gcs_swarm.evaluation.metrics import rounded
 
 RESULTS_FILE = "results.jsonl"
 SUMMARY_FILE = "summary.json"
 SUMMARY_MD = "summary.md"
 CAMPAIGN_FILE = "campaign.json"
-Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 
 # Run figures summarised as distributions: key in a result line -> label (unit)
 DISTRIBUTIONS = {
@@ -33,15 +35,13 @@ class CampaignError(Exception):
     """The output folder holds another campaign, or cannot be written (one sentence)."""
 
 
-def wilson_interval(successes: int, n: int, z: float = Z_95) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion successes/n; (0, 1) when n = 0."""
+def wilson_interval(successes: int, n: int) -> tuple[float, float]:
+    """Wilson score 95 % interval of a binomial proportion successes/n (scipy's binomtest); (0, 1) when
+    n = 0."""
     if n <= 0:
         return (0.0, 1.0)
-    p = successes / n
-    denom = 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return (max(0.0, centre - half), min(1.0, centre + half))
+    interval = binomtest(successes, n).proportion_ci(confidence_level=0.95, method="wilson")
+    return (float(interval.low), float(interval.high))
 
 
 class CampaignStore:
@@ -105,18 +105,14 @@ def _distribution(values: list[float | None]) -> dict[str, Any]:
     finite = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
     if finite.size == 0:
         return {"n": 0, "mean": None, "median": None, "p5": None, "p95": None, "min": None, "max": None}
-
-    def r(x: float) -> float:
-        return round(float(x), 4)
-
     return {
         "n": int(finite.size),
-        "mean": r(finite.mean()),
-        "median": r(np.median(finite)),
-        "p5": r(np.percentile(finite, 5)),
-        "p95": r(np.percentile(finite, 95)),
-        "min": r(finite.min()),
-        "max": r(finite.max()),
+        "mean": rounded(finite.mean()),
+        "median": rounded(np.median(finite)),
+        "p5": rounded(np.percentile(finite, 5)),
+        "p95": rounded(np.percentile(finite, 95)),
+        "min": rounded(finite.min()),
+        "max": rounded(finite.max()),
     }
 
 

@@ -19,8 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gcs_swarm.evaluation import flight_quality, signals
-from gcs_swarm.guidance.formation import slot_positions
+from gcs_swarm.evaluation import flight_quality, metrics, signals
 
 if TYPE_CHECKING:
     from gcs_swarm.evaluation.run_data import CommandLog, Trajectories
@@ -111,7 +110,8 @@ def _draw_slot_errors(
     t = traj.t[sel]
     psi = signals.held_at(commands.t, commands.psi_l, t)
     leader = int(flight.get("leader", mission.leader_index))
-    err = flight_quality.slot_errors(t, traj.pos[sel], psi, flight, leader, np.array(flight["offsets"]))
+    offsets = np.array(flight["offsets"], dtype=float)
+    _, err = flight_quality.scheduled_formation_error(t, traj.pos[sel], psi, flight, leader, offsets)
     s = _every(len(t))
     for i, name in enumerate(names):
         if np.isfinite(err[:, i]).any():
@@ -293,8 +293,7 @@ def formation_error_series(run: CompareRun) -> tuple[np.ndarray, np.ndarray] | N
     if len(t) == 0:
         return None
     psi = signals.held_at(run.commands.t, run.commands.psi_l, t)
-    slots = slot_positions(p[:, run.leader], psi, run.offsets)
-    return t - run.t0, np.linalg.norm(p - slots, axis=-1).max(axis=1)
+    return t - run.t0, metrics.formation_error(t, p, run.leader, psi, run.offsets).error.max(axis=1)
 
 
 def plot_compare(runs: list[CompareRun], goal: np.ndarray, path: Path) -> bool:

@@ -15,6 +15,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from gcs_swarm.evaluation import metrics
+from gcs_swarm.evaluation.metrics import rounded
 
 CUSP_TURN_DEG = 90.0  # a cusp: the horizontal course turns by more than this ...
 CUSP_WINDOW_S = 1.0  # ... within this long ...
@@ -125,20 +126,17 @@ def formation_schedule(
     return leaders[k], table[k]
 
 
-def slot_errors(
+def scheduled_formation_error(
     t: np.ndarray, pos: np.ndarray, psi: np.ndarray, flight: dict[str, Any], leader: int, offsets: np.ndarray
-) -> np.ndarray:
-    """Follower-to-slot error (T, N) m over t (T,), pos (T, N, 3), with psi_L (T,) rad as flown and the
-    formation in force at each time (flight.json's formation_timeline); NaN for the leader of the moment
-    and for vehicles out of the formation (spec 10 e_F,i, before any settling window)."""
+) -> tuple[metrics.FormationError, np.ndarray]:
+    """Spec 10 formation error over t (T,), pos (T, N, 3), with psi_L (T,) rad as flown and the formation in
+    force at each time (`formation_schedule`), and the follower-to-slot error (T, N) m: the same e_F,i before
+    any settling window, NaN for the leader of the moment and for vehicles out of the formation."""
     leaders, flown = formation_schedule(flight, t, leader, offsets)
-    err = metrics.formation_error(t, pos, leaders, psi, flown).error.copy()
-    err[np.arange(len(t)), leaders] = np.nan
-    return err
-
-
-def _r(x: float | None, digits: int = 4) -> float | None:
-    return None if x is None or not math.isfinite(x) else round(float(x), digits)
+    fe = metrics.formation_error(t, pos, leaders, psi, flown)
+    err = fe.error.copy()
+    err[np.arange(len(t)), leaders] = np.nan  # the leader's own slot is where it is
+    return fe, err
 
 
 def whole_flight_figures(
@@ -146,49 +144,48 @@ def whole_flight_figures(
     pos: np.ndarray,
     vel: np.ndarray,
     slot_error: np.ndarray | None,
-    followers: np.ndarray,
     leader_route: np.ndarray,
     leader: int,
     window: tuple[float, float],
     formation_altitude: np.ndarray,
-    d_emg: float,
+    below: tuple[float, float],
     commands: tuple[np.ndarray, np.ndarray] | None,
     names: list[str],
-    closest: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The whole-flight figures of report.json (docs/metrics.md). Motion over t (T,), pos, vel (T, N, 3),
-    the follower-to-slot error slot_error (T, N) m (None without a record) for the vehicles `followers`
-    (N,) bool, inside window = (formation start, arrival or end of formation flight) s; the leader's route
-    (W, 3) from its start; formation_altitude (N,) m (slot height); commands = (t (C,), attitude_d
-    (C, N, 3)) of the formation phase, or None; closest (T,) m: metrics.closest_pair_distance(pos), when the
-    caller has it."""
+    the follower-to-slot error slot_error (T, N) m (NaN for the leader; None without a record), inside
+    window = (formation start, arrival or end of formation flight) s; the leader's route (W, 3) from its
+    start; formation_altitude (N,) m (slot height); below = `time_below` over the whole flight at D_Emg (s
+    below, smallest pair distance m); commands = (t (C,), attitude_d (C, N, 3)) of the formation phase, or
+    None."""
     t = np.asarray(t, dtype=float)
     sel = (t >= window[0]) & (t <= window[1])
     ts, ps, vs = t[sel], pos[sel], vel[sel]
-    out: dict[str, Any] = {"window_s": [_r(window[0], 2), _r(window[1], 2)]}
-    if slot_error is not None and followers.any() and sel.any():
-        err = slot_error[sel][:, followers]
+    out: dict[str, Any] = {"window_s": [rounded(window[0], 2), rounded(window[1], 2)]}
+    if slot_error is not None and sel.any():
+        err = slot_error[sel]
         err = err[np.isfinite(err)]
         if err.size:
-            out["slot_error_rms_m"] = _r(float(np.sqrt(np.mean(err * err))))
-            out["slot_error_p95_m"] = _r(float(np.percentile(err, 95)))
-            out["slot_error_max_m"] = _r(float(err.max()))
+            out["slot_error_rms_m"] = rounded(float(np.sqrt(np.mean(err * err))))
+            out["slot_error_p95_m"] = rounded(float(np.percentile(err, 95)))
+            out["slot_error_max_m"] = rounded(float(err.max()))
     cusps = [cusp_times(ts, vs[:, i, :2]) for i in range(pos.shape[1])]
     out["cusps"] = [len(c) for c in cusps]
     out["cusps_total"] = int(sum(out["cusps"]))
     jerk = true_jerk(ts, vs)
     if jerk.size:
         per = [float(np.percentile(jerk[:, i], 99)) for i in range(jerk.shape[1])]
-        out["jerk_p99_m_s3"] = [_r(x, 3) for x in per]
-        out["jerk_p99_max_m_s3"] = _r(max(per), 3)
-    out["leader_path_ratio"] = _r(path_ratio(ps[:, leader], leader_route))
-    below_s, smallest = time_below(t, pos, d_emg, closest)
-    out["min_separation_whole_flight_m"] = _r(smallest)
-    out["time_below_d_emg_s"] = _r(below_s, 3)
+        out["jerk_p99_m_s3"] = [rounded(x, 3) for x in per]
+        out["jerk_p99_max_m_s3"] = rounded(max(per), 3)
+    out["leader_path_ratio"] = rounded(path_ratio(ps[:, leader], leader_route))
+    out["min_separation_whole_flight_m"] = rounded(below[1])
+    out["time_below_d_emg_s"] = rounded(below[0])
     if sel.any():
         z = ps[:, :, 2]
-        out["min_altitude_in_formation_m"] = _r(float(np.nanmin(z)))
-        out["max_drop_below_formation_altitude_m"] = _r(float(np.nanmax(formation_altitude[None, :] - z)))
+        out["min_altitude_in_formation_m"] = rounded(float(np.nanmin(z)))
+        out["max_drop_below_formation_altitude_m"] = rounded(
+            float(np.nanmax(formation_altitude[None, :] - z))
+        )
     if commands is not None and len(commands[0]) > 2:
         ct, att = commands
         mid, rates = command_rates(ct, att)
@@ -196,9 +193,9 @@ def whole_flight_figures(
             tilt = np.fmax(np.abs(rates[..., 0]), np.abs(rates[..., 1]))
             yaw_rate = rates[..., 2]
             yaw_step = np.abs(np.diff(yaw_rate, axis=0))
-        out["max_tilt_command_rate_rad_s"] = _r(float(np.nanmax(tilt)), 3)
-        out["max_yaw_command_rate_rad_s"] = _r(float(np.nanmax(np.abs(yaw_rate))), 3)
-        out["max_yaw_rate_step_rad_s"] = _r(float(np.nanmax(yaw_step)) if yaw_step.size else 0.0, 3)
+        out["max_tilt_command_rate_rad_s"] = rounded(float(np.nanmax(tilt)), 3)
+        out["max_yaw_command_rate_rad_s"] = rounded(float(np.nanmax(np.abs(yaw_rate))), 3)
+        out["max_yaw_rate_step_rad_s"] = rounded(float(np.nanmax(yaw_step)) if yaw_step.size else 0.0, 3)
         chatter, rate_chatter = [], []
         for i in range(att.shape[1]):
             pitch = att[:, i, 1]
@@ -211,8 +208,8 @@ def whole_flight_figures(
                 rate_chatter.append(
                     metrics.chattering_amplitude(mid[okq], q[okq], (mid[okq][0], mid[okq][-1]))
                 )
-        out["pitch_command_chatter_rad"] = [_r(c, 4) for c in chatter]
-        out["pitch_command_chatter_max_rad"] = _r(max(chatter), 4) if chatter else None
-        out["pitch_rate_chatter_whole_flight_rad_s"] = _r(max(rate_chatter), 4) if rate_chatter else None
+        out["pitch_command_chatter_rad"] = [rounded(c, 4) for c in chatter]
+        out["pitch_command_chatter_max_rad"] = rounded(max(chatter), 4) if chatter else None
+        out["pitch_rate_chatter_whole_flight_rad_s"] = rounded(max(rate_chatter), 4) if rate_chatter else None
     out["vehicles"] = names
     return out

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gcs_swarm.evaluation import metrics
 from gcs_swarm.evaluation.run_data import load_truth
 from gcs_swarm.guidance.failsafe_speed import distance_along_course
 
@@ -109,11 +110,7 @@ def outcome_after(run_dir: Path, killed_at: float, exit_s: float | None) -> Kill
     after = traj.t >= killed_at
     pos = traj.pos[after]
     n = pos.shape[1]
-    gaps = [np.linalg.norm(pos[:, i] - pos[:, j], axis=1).min() for i in range(n) for j in range(i + 1, n)]
-    clearance = np.inf
-    if len(traj.obstacle_radii):
-        d = np.linalg.norm(pos[:, :, None, :] - traj.obstacle_centres[after][:, None, :, :], axis=-1)
-        clearance = float((d - traj.obstacle_radii).min())
+    clearance, _ = metrics.min_obstacle_clearance(pos, traj.obstacle_centres[after], traj.obstacle_radii)
     ends = []
     for i in range(n):
         last = truth[truth["vehicle"] == i][-1]
@@ -133,9 +130,9 @@ def outcome_after(run_dir: Path, killed_at: float, exit_s: float | None) -> Kill
         record_ok = bool(rows) and float(rows[-1].split(",")[0]) >= killed_at - 1.5
     return KillOutcome(
         killed_at=killed_at,
-        crashed=sum(int(truth["crashed"][truth["vehicle"] == i].max() > 0) for i in range(n)),
+        crashed=int(traj.crashed.any(axis=0).sum()),
         clearance_after_m=clearance,
-        separation_after_m=float(min(gaps)) if gaps else np.inf,
+        separation_after_m=metrics.min_separation(pos),
         ends=tuple(ends),
         simulator_exit_s=exit_s,
         record_to_kill=record_ok,

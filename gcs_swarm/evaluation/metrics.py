@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.distance import pdist, squareform
 
-from gcs_swarm.guidance.formation import rotate_z
+from gcs_swarm.guidance.formation import slot_positions
 
 
 def reach_time(t: np.ndarray, distance: np.ndarray, r_goal: float, hold_s: float = 2.0) -> float | None:
@@ -156,7 +156,7 @@ def formation_error(
     p = np.asarray(p, dtype=float)
     lead = np.broadcast_to(np.asarray(leader, dtype=int), (len(p),))
     p_leader = p[np.arange(len(p)), lead]
-    slots = p_leader[:, None, :] + rotate_z(np.asarray(offsets, dtype=float), np.asarray(psi_leader)[:, None])
+    slots = slot_positions(p_leader, psi_leader, offsets)
     err = np.linalg.norm(p - slots, axis=-1)
     with np.errstate(invalid="ignore"):
         worst = np.fmax.reduce(err, axis=1)  # NaN only where no vehicle is in the formation
@@ -199,10 +199,20 @@ def chattering_amplitude(
     sel = (t >= window[0]) & (t <= window[1])
     if not sel.any():
         raise ValueError(f"no samples inside the window {window}")
-    dt = float(np.median(np.diff(t)))
-    k = np.arange(len(y))
-    half = np.minimum(max(1, int(round(ma_s / dt / 2.0))), np.minimum(k, len(y) - 1 - k))
-    sums = np.concatenate([[0.0], np.cumsum(y)])
-    avg = (sums[k + half + 1] - sums[k - half]) / (2 * half + 1)
-    resid = (y - avg)[sel]
+    resid = (y - moving_average(t, y, ma_s))[sel]
     return float(resid.max() - resid.min())
+
+
+def moving_average(t: np.ndarray, y: np.ndarray, span_s: float = 1.0) -> np.ndarray:
+    """Centred moving average (T,) of y (T,) over span_s s (uniform sampling, t (T,) s), narrowed
+    symmetrically near the ends of the log: the trend of a chattering signal."""
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    k = np.arange(len(y))
+    half = np.minimum(max(1, int(round(span_s / dt / 2.0))), np.minimum(k, len(y) - 1 - k))
+    sums = np.concatenate([[0.0], np.cumsum(y)])
+    return (sums[k + half + 1] - sums[k - half]) / (2 * half + 1)
+
+
+def rounded(x: float | None, digits: int = 4) -> float | None:
+    """x rounded to `digits` decimals for a report, None when it is None or not finite."""
+    return None if x is None or not math.isfinite(x) else round(float(x), digits)

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gcs_swarm.evaluation import figures, flight_quality, metrics, signals
+from gcs_swarm.evaluation.metrics import rounded
 from gcs_swarm.evaluation.run_data import CommandLog, Trajectories, load_commands, load_trajectories
 from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE
 from gcs_swarm.guidance.formation import slot_positions
@@ -31,12 +32,8 @@ def _reach_time(t: np.ndarray, distance: np.ndarray, tol: float, hold: float, ar
     return float(t[outside[-1] + 1]) if len(outside) else float(t[0])
 
 
-def _finite(x: float | None) -> float | None:
-    return None if x is None or not math.isfinite(x) else round(float(x), 4)
-
-
 def _deg(x: float) -> float | None:
-    return _finite(math.degrees(x)) if math.isfinite(x) else None
+    return rounded(math.degrees(x)) if math.isfinite(x) else None
 
 
 def emergency_distance(mission: Any) -> float:
@@ -48,13 +45,6 @@ def emergency_distance(mission: Any) -> float:
 def _commands_between(commands: CommandLog, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
     keep = (commands.t >= t0) & (commands.t <= t1)
     return commands.t[keep], commands.attitude_d[keep]
-
-
-def compute_report(run_dir: Path, mission: Any, flight: dict[str, Any]) -> dict[str, Any]:
-    """All figures of report.json from the files in run_dir and the flight summary (flight.json)."""
-    return report_from(
-        load_trajectories(run_dir, mission), load_commands(run_dir / RECORD_FILE), mission, flight
-    )
 
 
 def report_from(
@@ -93,10 +83,7 @@ def report_from(
     settling: float | None
     angles = np.full((len(tw), len(names)), np.nan)
     if psi is not None and len(tw) > 1:
-        leaders, flown = flight_quality.formation_schedule(flight, tw, leader, offsets)
-        fe = metrics.formation_error(tw, pw, leaders, psi, flown)
-        slot_error = fe.error.copy()
-        slot_error[np.arange(len(tw)), leaders] = np.nan  # the leader's own slot is where it is
+        fe, slot_error = flight_quality.scheduled_formation_error(tw, pw, psi, flight, leader, offsets)
         formation_rms, formation_max = fe.rms, fe.max
         settling = None if fe.t_settle is None else fe.t_settle - tw[0]
         d_g = mission.field.d_g if mission.field.d_g is not None else mission.limits.v_xy_leader
@@ -122,13 +109,13 @@ def report_from(
                 # the autopilot the ground station spoke to (flight.json "autopilots"; None in older runs)
                 "autopilot": flight.get("autopilots", {}).get(name),
                 "reached": reach[i] is not None,
-                "time_to_goal_s": _finite(None if reach[i] is None or t0 is None else reach[i] - t0),
-                "final_error_m": _finite(float(np.linalg.norm(pw[-1, i] - goals[i]))),
-                "min_separation_m": _finite(
+                "time_to_goal_s": rounded(None if reach[i] is None or t0 is None else reach[i] - t0),
+                "final_error_m": rounded(float(np.linalg.norm(pw[-1, i] - goals[i]))),
+                "min_separation_m": rounded(
                     float(nearest[:, i].min()) if len(names) > 1 and len(nearest) else None
                 ),
-                "min_obstacle_clearance_m": _finite(clear_i),
-                "max_speed_m_s": _finite(float(np.linalg.norm(traj.vel[:, i], axis=1).max())),
+                "min_obstacle_clearance_m": rounded(clear_i),
+                "max_speed_m_s": rounded(float(np.linalg.norm(traj.vel[:, i], axis=1).max())),
                 "relative_angle_deg": _deg(float(np.nanmedian(final_angle)))
                 if np.isfinite(final_angle).any()
                 else None,
@@ -139,26 +126,21 @@ def report_from(
     times = [r for r in reach if r is not None]
     t_arrival = max(times) if reached and times else float(tw[-1])
     route = np.vstack([pw[0, leader][None, :], np.asarray(mission.waypoints, dtype=float).reshape(-1, 3)])
+    d_emg = emergency_distance(mission)
+    below_s, closest = flight_quality.time_below(traj.t, traj.pos, d_emg, traj.closest_pair)
     whole = flight_quality.whole_flight_figures(
         tw,
         pw,
         vw,
         slot_error,
-        np.ones(len(names), dtype=bool),
         route,
         leader,
         (float(tw[0]), t_arrival),
         mission.formation.altitude + offsets[:, 2],
-        emergency_distance(mission),
+        (below_s, closest),
         None if commands is None else _commands_between(commands, float(tw[0]), t_arrival),
         names,
-        traj.closest_pair[window],
     )
-    below_s, closest = flight_quality.time_below(
-        traj.t, traj.pos, emergency_distance(mission), traj.closest_pair
-    )
-    whole["min_separation_whole_flight_m"] = _finite(closest)
-    whole["time_below_d_emg_s"] = _finite(below_s)
     safety_events = []
     if crashed_any.any():
         safety_events.append(
@@ -166,8 +148,7 @@ def report_from(
         )
     if below_s > 0.0:
         safety_events.append(
-            f"separation below D_Emg ({emergency_distance(mission):g} m) for {below_s:.2f} s, "
-            f"down to {closest:.2f} m"
+            f"separation below D_Emg ({d_emg:g} m) for {below_s:.2f} s, down to {closest:.2f} m"
         )
     rates = None
     if commands is not None and len(commands.t) > 2:
@@ -178,15 +159,15 @@ def report_from(
     return {
         "mission": mission.name,
         "reached": bool(reached),
-        "time_to_goal_s": _finite(max(times) - t0) if reached and t0 is not None else None,
+        "time_to_goal_s": rounded(max(times) - t0) if reached and t0 is not None else None,
         "collisions": int(crashed_any.sum()),
-        "min_separation_m": _finite(min_sep),
-        "min_obstacle_clearance_m": _finite(clearance),
-        "formation_rms_m": _finite(formation_rms),
-        "formation_max_m": _finite(formation_max),
-        "oscillation_time_s": _finite(t_osc),
+        "min_separation_m": rounded(min_sep),
+        "min_obstacle_clearance_m": rounded(clearance),
+        "formation_rms_m": rounded(formation_rms),
+        "formation_max_m": rounded(formation_max),
+        "oscillation_time_s": rounded(t_osc),
         "heading_reversals": int(reversals),
-        "settling_time_s": _finite(settling),
+        "settling_time_s": rounded(settling),
         "command_rate_settling_s": None if rates is None else rates["settling_s"],
         "command_rate_trend_settling_s": None if rates is None else rates["trend_settling_s"],
         "command_rate_first_settled_s": None if rates is None else rates["trend_first_settled_s"],
@@ -196,8 +177,8 @@ def report_from(
         "cruise": cruise,
         "whole_flight": whole,
         "safety_events": safety_events,
-        "sim_duration_s": _finite(float(traj.t[-1] - traj.t[0])),  # on the run's own clock (docs/metrics.md)
-        "wall_duration_s": _finite(flight.get("wall_duration_s")),
+        "sim_duration_s": rounded(float(traj.t[-1] - traj.t[0])),  # on the run's own clock (docs/metrics.md)
+        "wall_duration_s": rounded(flight.get("wall_duration_s")),
         "commands_limited": flight.get("commands_limited"),  # None: a flight.json from before it was kept
         "vehicles": per_vehicle,
         "lost": list(flight.get("lost", [])),

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm.evaluation import metrics
+from gcs_swarm.evaluation.metrics import rounded
 from gcs_swarm.guidance.formation import leader_frame_offsets
 
 RATE_SETTLE_ABS = 0.02  # rad/s, y_abs of the settling time of rate signals (spec 10)
@@ -71,16 +72,6 @@ def attitude_rates(t: np.ndarray, attitude: np.ndarray) -> np.ndarray:
     return np.gradient(unwrapped, t, axis=0)
 
 
-def moving_average(t: np.ndarray, y: np.ndarray, span_s: float = 1.0) -> np.ndarray:
-    """Centred moving average (T,) of y (T,) over span_s s (uniform sampling), narrowed near the ends as in
-    metrics.chattering_amplitude: the trend of a chattering signal."""
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    k = np.arange(len(y))
-    half = np.minimum(max(1, int(round(span_s / dt / 2.0))), np.minimum(k, len(y) - 1 - k))
-    sums = np.concatenate([[0.0], np.cumsum(y)])
-    return (sums[k + half + 1] - sums[k - half]) / (2 * half + 1)
-
-
 def _rate_figures(t: np.ndarray, y: np.ndarray) -> dict[str, float | None]:
     """Settling time (s after t[0]) of the rate signal y (T,) rad/s and of its 1 s moving average (the trend,
     without the chattering) (spec 10), the end of the trend's initial transient (first entry into its settling
@@ -96,7 +87,7 @@ def _rate_figures(t: np.ndarray, y: np.ndarray) -> dict[str, float | None]:
     last = (max(t[0], t[-1] - CHATTER_WINDOW_S), t[-1])
     # The trend's last half second averages fewer samples (the window narrows): leave it out.
     inner = slice(None, max(3, len(t) - int(round(0.5 / float(np.median(np.diff(t)))))))
-    trend = moving_average(t, y)[inner]
+    trend = metrics.moving_average(t, y)[inner]
     trend_ss = float(np.mean(trend[-max(1, len(trend) // 10) :]))
     band = max(0.02 * abs(trend[0] - trend_ss), RATE_SETTLE_ABS)
     settled = metrics.reach_time(t[inner], np.abs(trend - trend_ss), band, FIRST_SETTLED_HOLD_S)
@@ -108,10 +99,6 @@ def _rate_figures(t: np.ndarray, y: np.ndarray) -> dict[str, float | None]:
         "chatter_first_20s": metrics.chattering_amplitude(t, y, first),
         "chatter_last_20s": metrics.chattering_amplitude(t, y, last),
     }
-
-
-def _rounded(x: float | None) -> float | None:
-    return None if x is None or not math.isfinite(x) else round(float(x), 4)
 
 
 def command_rate_figures(
@@ -129,7 +116,7 @@ def command_rate_figures(
     for i, name in enumerate(names):
         entry: dict[str, Any] = {"name": name}
         for axis, k in (("pitch_rate", 1), ("yaw_rate", 2)):
-            entry[axis] = {key: _rounded(v) for key, v in _rate_figures(t, rates[:, i, k]).items()}
+            entry[axis] = {key: rounded(v) for key, v in _rate_figures(t, rates[:, i, k]).items()}
         per_vehicle.append(entry)
 
     def worst(key: str) -> float | None:
@@ -194,11 +181,11 @@ def cruise_figures(
     measured = np.array([np.linalg.norm(p[window, i] - p[window, j], axis=-1) for i, j in pairs]).T
     error = np.abs(measured - desired) if pairs else np.zeros((1, 1))
     return {
-        "window_s": [_rounded(float(t[window][0])), _rounded(float(t[window][-1]))],
-        "speed_median_m_s": [_rounded(float(s)) for s in np.median(speed, axis=0)],
-        "spacing_desired_m": [_rounded(float(d)) for d in desired],
-        "spacing_median_m": [_rounded(float(m)) for m in np.median(measured, axis=0)] if pairs else [],
-        "spacing_max_abs_error_m": _rounded(float(error.max())),
-        "spacing_within_1m_fraction": _rounded(float(np.mean(error.max(axis=1) <= SPACING_BAND_M))),
-        "formation_max_m": _rounded(float(np.nanmax(formation_error[window]))),
+        "window_s": [rounded(float(t[window][0])), rounded(float(t[window][-1]))],
+        "speed_median_m_s": [rounded(float(s)) for s in np.median(speed, axis=0)],
+        "spacing_desired_m": [rounded(float(d)) for d in desired],
+        "spacing_median_m": [rounded(float(m)) for m in np.median(measured, axis=0)] if pairs else [],
+        "spacing_max_abs_error_m": rounded(float(error.max())),
+        "spacing_within_1m_fraction": rounded(float(np.mean(error.max(axis=1) <= SPACING_BAND_M))),
+        "formation_max_m": rounded(float(np.nanmax(formation_error[window]))),
     }

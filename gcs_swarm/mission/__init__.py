@@ -5,37 +5,14 @@ world = mission.world()                               # what the simulator needs
 """
 
 from gcs_swarm.mission.loader import load_mission, load_world, parse_mission
-from gcs_swarm.mission.model import (
-    FormationSpec,
-    LinkSpec,
-    Mission,
-    Obstacle,
-    OutageSpec,
-    PlannerSpec,
-    RunSpec,
-    SafetySpec,
-    SimulatorSpec,
-    StartState,
-    VehicleSpec,
-    WindSpec,
-    World,
-)
+from gcs_swarm.mission.model import LinkSpec, Mission, OutageSpec, World
 from gcs_swarm.mission.yaml_tree import MissionError
 
 __all__ = [
-    "FormationSpec",
     "LinkSpec",
     "Mission",
     "MissionError",
-    "Obstacle",
     "OutageSpec",
-    "PlannerSpec",
-    "RunSpec",
-    "SafetySpec",
-    "SimulatorSpec",
-    "StartState",
-    "VehicleSpec",
-    "WindSpec",
     "World",
     "load_mission",
     "load_world",

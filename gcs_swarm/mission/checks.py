@@ -11,10 +11,11 @@ import difflib
 import re
 
 import numpy as np
+from scipy.sparse.csgraph import breadth_first_order
 
 from gcs_swarm.mission.model import Mission
 from gcs_swarm.mission.schema import MissionFile, Range, SafetySection, describe
-from gcs_swarm.mission.yaml_tree import MissionError, Node
+from gcs_swarm.mission.yaml_tree import Node
 
 # pymavlink connection strings: network forms "kind:host:port", serial "/dev/ttyX[,baud]" or "COMn[,baud]"
 _NETWORK = re.compile(r"(udpin|udpout|udp|udpbcast|tcp|tcpin):([^:\s]+):([0-9]{1,5})")
@@ -145,22 +146,20 @@ def check_mission(mission: Mission, root: Node) -> None:
     route and the planner start; formation altitude; the leader's speed cap."""
     _one_leader(mission, root)
     _unique_identities(mission, root)
-    placed = _Placement(mission, root)
-    _starts(mission, root, placed)
+    _starts(mission, root)
     for i, vehicle in enumerate(mission.vehicles):
         if vehicle.target is not None:
-            placed.check(vehicle.target, ("vehicles", i, "target"), "this target")
+            _place(mission, root, vehicle.target, ("vehicles", i, "target"), "this target")
     _slots(mission, root)
     _relay(mission, root)
     if len(mission.waypoints) == 1 and root.at(("waypoints",)).value is None:  # written as `goal`
-        placed.check(mission.goal, ("goal",), "the goal")
+        _place(mission, root, mission.goal, ("goal",), "the goal")
     else:
         for k, point in enumerate(mission.waypoints):
-            placed.check(point, ("waypoints", k), "this waypoint")
+            _place(mission, root, point, ("waypoints", k), "this waypoint")
     if mission.planner.start is not None:
-        placed.check(
-            mission.planner.start, ("planner", "start"), "the planner start", fenced=False, floor=False
-        )
+        start = mission.planner.start
+        _place(mission, root, start, ("planner", "start"), "the planner start", fenced=False, floor=False)
     formation, safety = mission.formation, mission.safety
     if not safety.min_altitude <= formation.altitude <= safety.geofence_max_alt:
         raise root.at(("formation", "altitude")).error(
@@ -192,50 +191,45 @@ def endpoint(connection: str, blamed: Node) -> tuple[str, str, int]:
     raise blamed.error(f"{_CONNECTION_HINT}, got {value!r}")
 
 
-class _Placement:
-    """Checks that points lie outside every obstacle (at t = 0) and inside the geofence and altitude band."""
-
-    def __init__(self, mission: Mission, root: Node) -> None:
-        self.mission = mission
-        self.root = root
-
-    def check(
-        self,
-        point: np.ndarray,
-        loc: tuple[str | int, ...],
-        what: str,
-        *,
-        fenced: bool = True,
-        floor: bool = True,
-    ) -> None:
-        """`point` (3,) m ENU at key path `loc`; `what` names it in the sentence ("the goal", "a target")."""
-        safety, node = self.mission.safety, self.root.at(loc)
-        margin = safety.collision_radius
-        for k, obstacle in enumerate(self.mission.obstacles):
-            distance = float(np.linalg.norm(point - obstacle.center))
-            if distance <= obstacle.radius + margin:
-                where = self.root.at(("world", "obstacles", k))
-                raise node.error(
-                    f"{what} lies inside obstacle {where.path} (line {where.line}): "
-                    f"{distance:.2f} m from its centre, which needs more than radius {obstacle.radius:g} m "
-                    f"+ vehicle radius {margin:g} m"
-                )
-        if fenced:
-            horizontal = float(np.hypot(point[0], point[1]))
-            if horizontal > safety.geofence_radius:
-                raise node.error(
-                    f"{what} is {horizontal:.0f} m from the origin, outside the geofence "
-                    f"(safety.geofence.radius = {safety.geofence_radius:g} m)"
-                )
-            if point[2] > safety.geofence_max_alt:
-                raise node.error(
-                    f"{what} is at {point[2]:g} m, above the geofence "
-                    f"(safety.geofence.max_alt = {safety.geofence_max_alt:g} m)"
-                )
-        if floor and point[2] < safety.min_altitude:
+def _place(
+    mission: Mission,
+    root: Node,
+    point: np.ndarray,
+    loc: tuple[str | int, ...],
+    what: str,
+    *,
+    fenced: bool = True,
+    floor: bool = True,
+) -> None:
+    """`point` (3,) m ENU at key path `loc` lies outside every obstacle (at t = 0), and inside the geofence
+    (`fenced`) and above the altitude floor (`floor`); `what` names it in the sentence ("the goal")."""
+    safety, node = mission.safety, root.at(loc)
+    margin = safety.collision_radius
+    for k, obstacle in enumerate(mission.obstacles):
+        distance = float(np.linalg.norm(point - obstacle.center))
+        if distance <= obstacle.radius + margin:
+            where = root.at(("world", "obstacles", k))
             raise node.error(
-                f"{what} is at {point[2]:g} m, below safety.min_altitude ({safety.min_altitude:g} m)"
+                f"{what} lies inside obstacle {where.path} (line {where.line}): "
+                f"{distance:.2f} m from its centre, which needs more than radius {obstacle.radius:g} m "
+                f"+ vehicle radius {margin:g} m"
             )
+    if fenced:
+        horizontal = float(np.hypot(point[0], point[1]))
+        if horizontal > safety.geofence_radius:
+            raise node.error(
+                f"{what} is {horizontal:.0f} m from the origin, outside the geofence "
+                f"(safety.geofence.radius = {safety.geofence_radius:g} m)"
+            )
+        if point[2] > safety.geofence_max_alt:
+            raise node.error(
+                f"{what} is at {point[2]:g} m, above the geofence "
+                f"(safety.geofence.max_alt = {safety.geofence_max_alt:g} m)"
+            )
+    if floor and point[2] < safety.min_altitude:
+        raise node.error(
+            f"{what} is at {point[2]:g} m, below safety.min_altitude ({safety.min_altitude:g} m)"
+        )
 
 
 def _one_leader(mission: Mission, root: Node) -> None:
@@ -295,7 +289,7 @@ def _unique_identities(mission: Mission, root: Node) -> None:
         raise root.at(("vehicles", last)).error(f"needs port {last_port}; lower run.simulator.base_port")
 
 
-def _starts(mission: Mission, root: Node, placed: _Placement) -> None:
+def _starts(mission: Mission, root: Node) -> None:
     run, safety = mission.run, mission.safety
     for index, vehicle in enumerate(mission.vehicles):
         start, loc = vehicle.start, ("vehicles", index, "start", "position")
@@ -315,7 +309,7 @@ def _starts(mission: Mission, root: Node, placed: _Placement) -> None:
                 raise root.at(("vehicles", index, "start", "velocity")).error(
                     "a ground start needs zero velocity (set run.airborne_start: true to start in flight)"
                 )
-        placed.check(start.position, loc, "this start position", floor=False)
+        _place(mission, root, start.position, loc, "this start position", floor=False)
         for other_index, other in enumerate(mission.vehicles[:index]):
             gap = float(np.linalg.norm(start.position - other.start.position))
             if gap < 2 * safety.collision_radius:
@@ -352,18 +346,11 @@ def _relay(mission: Mission, root: Node) -> None:
     adjacency, n = mission.formation.adjacency, len(mission.vehicles)
     if mission.formation.topology != "relay" or adjacency is None:
         return
-    reached = {mission.leader_index}
-    grew = True
-    while grew:
-        hearing = {i for i in range(n) if i not in reached and any(adjacency[i, j] for j in reached)}
-        reached |= hearing
-        grew = bool(hearing)
+    # who hears the leader, directly or through others: a search from it along j -> i wherever A[i, j] = 1
+    reached = breadth_first_order(adjacency.T, mission.leader_index, return_predecessors=False)
     deaf = [i for i in range(n) if i not in reached]
     if deaf:
         raise root.at(("formation", "adjacency")).error(
             f"with topology 'relay' vehicles[{deaf[0]}] ({mission.vehicles[deaf[0]].name}) never hears the "
             "leader; row i lists whom vehicle i hears"
         )
-
-
-__all__ = ["MissionError", "check_file", "check_mission", "endpoint", "failsafe_timeout"]

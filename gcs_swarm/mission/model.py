@@ -258,21 +258,3 @@ class Mission(_ValueEquality):
                 self.run.simulator.autopilot if v.autopilot == "auto" else v.autopilot for v in self.vehicles
             ),
         )
-
-
-__all__ = [
-    "FormationSpec",
-    "LinkSpec",
-    "Mission",
-    "Obstacle",
-    "OutageSpec",
-    "PlannerSpec",
-    "RunSpec",
-    "SafetySpec",
-    "SimulatorSpec",
-    "StartState",
-    "VehicleSpec",
-    "WindSpec",
-    "World",
-    "frozen_vector",
-]

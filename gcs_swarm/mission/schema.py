@@ -47,7 +47,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
     TelemetryParams,
 )
-from gcs_swarm.mission.yaml_tree import MissionError, Node, loc_path
+from gcs_swarm.mission.yaml_tree import Node, loc_path
 
 DEFAULT_ORIGIN = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's CMAC field, Canberra
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
@@ -494,14 +494,3 @@ def settings_problem(settings: Mapping[str, object]) -> str | None:
             if error["type"] != "missing":
                 return f"{loc_path(_where(error))}: {_sentence(error)}"
     return None
-
-
-__all__ = [
-    "DEFAULT_ORIGIN",
-    "MissionError",
-    "MissionFile",
-    "Range",
-    "describe",
-    "settings_problem",
-    "validate_file",
-]

@@ -116,8 +116,8 @@ def test_whole_flight_figures_of_a_known_flight():
     att = np.zeros((len(t), 2, 3))
     att[:, :, 1] = 0.01 * t[:, None]
     out = fq.whole_flight_figures(
-        t, pos, vel, slot_error, np.array([True, True]), np.array([[0.0, 0, 9], [100.0, 0, 9]]), 0,
-        (0.0, 10.0), np.array([10.0, 10.0]), 3.0, (t, att), ["lead", "f"],
+        t, pos, vel, slot_error, np.array([[0.0, 0, 9], [100.0, 0, 9]]), 0,
+        (0.0, 10.0), np.array([10.0, 10.0]), (0.0, 10.0), (t, att), ["lead", "f"],
     )  # fmt: skip
     assert out["slot_error_rms_m"] == pytest.approx(math.sqrt(8.0), rel=0.01)
     assert out["slot_error_max_m"] == 4.0
