@@ -41,7 +41,6 @@ class CommandHandlers:
     capabilities = CAPABILITIES  # AUTOPILOT_VERSION.capabilities
     flight_sw_version = FLIGHT_SW_VERSION  # AUTOPILOT_VERSION.flight_sw_version
     unavailable_result = mavlink2.MAV_RESULT_FAILED  # REQUEST_MESSAGE of a message not sent (yet)
-    bytewise_params = False  # PARAM_VALUE of integer parameters: value cast to float (False) or bytewise
 
     def __init__(
         self, index: int, sysid: int, counters: LinkCounters, outbox: Outbox, sim: SimulatorServices
@@ -208,7 +207,8 @@ class CommandHandlers:
             self.sim.streams.set_interval(self.index, msg_id, interval, self.sim.time_us)
 
     def _send_param(self, j: int) -> None:
-        self.outbox.send_param(self.sim.params, self.index, j, bytewise=self.bytewise_params)
+        bytewise = self.sim.autopilot.persona(self.index).bytewise_params  # how its integers travel
+        self.outbox.send_param(self.sim.params, self.index, j, bytewise=bytewise)
 
     def _on_param_request_list(self, msg: mavlink2.MAVLink_message, addr: tuple[str, int]) -> None:
         for j in self.sim.params.listing(self.index):

@@ -46,7 +46,6 @@ class Px4CommandHandlers(CommandHandlers):
     capabilities = PX4_CAPABILITIES
     flight_sw_version = PX4_VERSION
     unavailable_result = M.MAV_RESULT_DENIED  # handle_request_message_command: a stream PX4 lacks -> DENIED
-    bytewise_params = True  # MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     _source_compid = 0  # component id of the command being handled (commander's printRejectMode rule)
 
     def _on_heartbeat(self, msg: mavlink2.MAVLink_heartbeat_message, addr: tuple[str, int]) -> None:
