@@ -6,6 +6,10 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from gcs_swarm.mission import Mission
 
 EXIT_USER_ERROR = 2
 
@@ -13,23 +17,30 @@ EXIT_USER_ERROR = 2
 VARIANTS_HELP = "guidance methods and forms, e.g. apf,iaapf or paper,smooth (the plain method, the smoothing)"
 
 
+def _flight_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The options `run` and `console` share (`_add_flight_flags`), as keyword arguments."""
+    return {
+        "out_dir": Path(args.out) if args.out else None,
+        "connect_only": args.connect_only,
+        "base_port": args.base_port,
+        "keep_params": args.keep_params,
+        "forward": tuple(args.forward),
+        "forward_rw": args.forward_rw,
+    }
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from gcs_swarm.cli.run import run_command
     from gcs_swarm.flight.fly import RunOptions
 
     options = RunOptions(
-        out_dir=Path(args.out) if args.out else None,
-        connect_only=args.connect_only,
-        base_port=args.base_port,
+        **_flight_options(args),
         time_mode=args.time_mode,
         seed=args.seed,
         quiet=args.quiet,
         sim_args=tuple(args.sim_arg),
-        keep_params=args.keep_params,
         crash_at=args.crash_at,
         airborne=args.airborne,
-        forward=tuple(args.forward),
-        forward_rw=args.forward_rw,
     )
     return run_command(args.mission, options)
 
@@ -37,21 +48,30 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_console(args: argparse.Namespace) -> int:
     from gcs_swarm.console.main import ConsoleOptions, console_command
 
-    options = ConsoleOptions(
-        out_dir=Path(args.out) if args.out else None,
-        connect_only=args.connect_only,
-        base_port=args.base_port,
-        script=Path(args.script) if args.script else None,
-        yes=args.yes,
-        keep_params=args.keep_params,
-        forward=tuple(args.forward),
-        forward_rw=args.forward_rw,
+    script = Path(args.script) if args.script else None
+    return console_command(args.mission, ConsoleOptions(**_flight_options(args), script=script, yes=args.yes))
+
+
+def _add_flight_flags(parser: argparse.ArgumentParser, verb: str) -> None:
+    """The flags `run` and `console` share: the mission, the run folder, the embedded simulator or running
+    vehicles (`verb` says what is done to them), the flight parameters, the forwards
+    (docs/watching-with-qgc.md)."""
+    parser.add_argument("mission", help="mission file (YAML)")
+    parser.add_argument("--out", help="run folder (default runs/<time>-<mission>/)")
+    parser.add_argument(
+        "--connect-only",
+        action="store_true",
+        help=f"{verb} vehicles that are already running (no embedded simulator)",
     )
-    return console_command(args.mission, options)
-
-
-def _add_forward_flags(parser: argparse.ArgumentParser) -> None:
-    """--forward ENDPOINT (repeatable) and --forward-rw of `run` and `console` (docs/watching-with-qgc.md)."""
+    parser.add_argument(
+        "--base-port", type=int, help="embedded simulator: first UDP port (vehicle i on port+i)"
+    )
+    parser.add_argument(
+        "--keep-params",
+        action="store_true",
+        help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
+        "restoring them on the ground (also run.keep_params)",
+    )
     parser.add_argument(
         "--forward",
         action="append",
@@ -69,13 +89,20 @@ def _add_forward_flags(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _cmd_check(args: argparse.Namespace) -> int:
+def _load(path: str) -> Mission | None:
+    """The mission file loaded, or None after printing its mistake."""
     from gcs_swarm.mission import MissionError, load_mission
 
     try:
-        mission = load_mission(args.mission)
+        return load_mission(path)
     except MissionError as exc:
         print(f"error: {exc}")
+        return None
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    mission = _load(args.mission)
+    if mission is None:
         return EXIT_USER_ERROR
     leader = mission.vehicles[mission.leader_index].name
     print(
@@ -87,12 +114,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 def _cmd_plan(args: argparse.Namespace) -> int:
     from gcs_swarm.evaluation.planning import plan_json, plan_mission, plot_plan
-    from gcs_swarm.mission import MissionError, load_mission
 
-    try:
-        mission = load_mission(args.mission)
-    except MissionError as exc:
-        print(f"error: {exc}")
+    mission = _load(args.mission)
+    if mission is None:
         return EXIT_USER_ERROR
     result = plan_mission(mission, args.method)
     figures = plan_json(result)
@@ -109,19 +133,14 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from gcs_swarm.evaluation.report import write_report
-    from gcs_swarm.mission import MissionError, load_mission
 
     run_dir = Path(args.run_dir)
     flight_path = run_dir / "flight.json"
     if not flight_path.exists():
         print(f"error: {run_dir} is not a run folder (no flight.json)")
         return EXIT_USER_ERROR
-    flight = json.loads(flight_path.read_text())
-    mission_path = args.mission or flight.get("mission_path")
-    try:
-        mission = load_mission(mission_path)
-    except MissionError as exc:
-        print(f"error: {exc}")
+    mission = _load(args.mission or json.loads(flight_path.read_text()).get("mission_path"))
+    if mission is None:
         return EXIT_USER_ERROR
     report = write_report(run_dir, mission)
     print((run_dir / "report.md").read_text())
@@ -171,14 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="fly a mission and write a run folder with its report")
-    run.add_argument("mission", help="mission file (YAML)")
-    run.add_argument("--out", help="run folder (default runs/<time>-<mission>/)")
-    run.add_argument(
-        "--connect-only",
-        action="store_true",
-        help="fly vehicles that are already running (no embedded simulator)",
-    )
-    run.add_argument("--base-port", type=int, help="embedded simulator: first UDP port (vehicle i on port+i)")
+    _add_flight_flags(run, "fly")
     run.add_argument(
         "--time-mode",
         choices=("lockstep", "realtime", "speedup"),
@@ -194,12 +206,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="pass ARG verbatim to the embedded simulator, e.g. --sim-arg=--link-loss=0.1 (repeatable)",
     )
     run.add_argument(
-        "--keep-params",
-        action="store_true",
-        help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
-        "restoring them on the ground (also run.keep_params)",
-    )
-    run.add_argument(
         "--airborne",
         choices=("finish", "land"),
         help="with --connect-only, vehicles found already flying (a crashed ground station left them holding "
@@ -213,31 +219,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="rehearse a ground-station crash: SIGKILL this process at vehicle time T s (time since the "
         "vehicles booted), as an out-of-memory kill would; the vehicles' failsafes take over",
     )
-    _add_forward_flags(run)
     run.set_defaults(func=_cmd_run)
 
     console = sub.add_parser("console", help="operator console: watch and command the swarm live")
-    console.add_argument("mission", help="mission file (YAML)")
+    _add_flight_flags(console, "command")
     console.add_argument("--yes", action="store_true", help="do not ask before commands that arm or launch")
     console.add_argument(
         "--script", metavar="FILE", help="run the commands in FILE (plain output, no full-screen UI)"
     )
-    console.add_argument(
-        "--connect-only",
-        action="store_true",
-        help="command vehicles that are already running (no embedded simulator)",
-    )
-    console.add_argument(
-        "--base-port", type=int, help="embedded simulator: first UDP port (vehicle i on port+i)"
-    )
-    console.add_argument("--out", help="run folder (default runs/<time>-<mission>/)")
-    console.add_argument(
-        "--keep-params",
-        action="store_true",
-        help="leave the parameters the run sets (GUID_OPTIONS, FS_GCS_*, GUID_TIMEOUT) as flown instead of "
-        "restoring them on the ground (also run.keep_params)",
-    )
-    _add_forward_flags(console)
     console.set_defaults(func=_cmd_console)
 
     check = sub.add_parser("check", help="validate a mission file without flying")
