@@ -148,7 +148,8 @@ def summarise(results: list[dict[str, Any]], variants: list[str]) -> dict[str, A
     return summary
 
 
-def _fmt(x: Any) -> str:
+def table_cell(x: Any) -> str:
+    """A figure in a summary or comparison table: 3 significant digits, "-" for None."""
     return "-" if x is None else (f"{x:.3g}" if isinstance(x, float) else str(x))
 
 
@@ -162,13 +163,15 @@ def render_summary(summary: dict[str, Any], title: str) -> str:
         lines.append(f"| {label} | " + " | ".join(cell(g) for g in groups.values()) + " |")
 
     row("runs", lambda g: str(g["runs"]))
-    row("success rate", lambda g: _fmt(g["success_rate"]))
+    row("success rate", lambda g: table_cell(g["success_rate"]))
     row("success 95 % CI (Wilson)", lambda g: f"{g['success_ci95'][0]:.3f}-{g['success_ci95'][1]:.3f}")
-    row("collision rate", lambda g: _fmt(g["collision_rate"]))
+    row("collision rate", lambda g: table_cell(g["collision_rate"]))
     row("runs with errors (not counted)", lambda g: str(g["errors"]))
     for key, label in DISTRIBUTIONS.items():
         row(
             f"{label}: median [p5, p95]",
-            lambda g, key=key: f"{_fmt(g[key]['median'])} [{_fmt(g[key]['p5'])}, {_fmt(g[key]['p95'])}]",
+            lambda g, key=key: (
+                f"{table_cell(g[key]['median'])} [{table_cell(g[key]['p5'])}, {table_cell(g[key]['p95'])}]"
+            ),
         )
     return "\n".join(lines) + "\n"

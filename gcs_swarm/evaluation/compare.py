@@ -16,11 +16,12 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm.evaluation import figures, flights, variants
+from gcs_swarm.evaluation.campaign_store import table_cell
 from gcs_swarm.evaluation.run_data import load_commands, load_trajectories
+from gcs_swarm.flight.fly import EXIT_FAILED, EXIT_OK, EXIT_USER_ERROR
 from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE
 from gcs_swarm.mission import MissionError, load_mission
 
-EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR = 0, 1, 2
 COMPARE_KEYS = ("status", "success", "collision", *flights.RESULT_KEYS, *flights.WHOLE_FLIGHT_RESULT_KEYS)
 
 
@@ -36,14 +37,10 @@ class CompareOptions:
 
 def render_table(mission_name: str, rows: list[dict[str, Any]]) -> str:
     """compare.md: one column per variant, one row per figure."""
-
-    def fmt(x: Any) -> str:
-        return "-" if x is None else (f"{x:.3g}" if isinstance(x, float) else str(x))
-
     lines = [f"# Comparison: {mission_name}", "", "| figure | " + " | ".join(r["label"] for r in rows) + " |"]
     lines.append("|---|" + "---|" * len(rows))
     for key in COMPARE_KEYS:
-        lines.append(f"| {key} | " + " | ".join(fmt(r.get(key)) for r in rows) + " |")
+        lines.append(f"| {key} | " + " | ".join(table_cell(r.get(key)) for r in rows) + " |")
     lines += ["", "Run folders: " + ", ".join(f"`{r['run_dir']}`" for r in rows)]
     return "\n".join(lines) + "\n"
 

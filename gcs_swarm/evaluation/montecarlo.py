@@ -28,9 +28,10 @@ from typing import IO, Any
 from gcs_swarm.evaluation import campaign_store, figures, flights, variants
 from gcs_swarm.evaluation.campaign_store import CampaignError, CampaignStore
 from gcs_swarm.evaluation.error_log import log_exception, traceback_note
+from gcs_swarm.flight.fly import EXIT_FAILED, EXIT_OK, EXIT_USER_ERROR
 from gcs_swarm.mission import MissionError, load_mission
 
-EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_INTERRUPTED = 130
 BULKY_FILES = ("truth.csv", "truth.obstacles.csv", "record.csv", "telemetry.tlog")
 
 
