@@ -45,35 +45,22 @@ def _every(n: int) -> slice:
     return slice(None, None, max(1, n // MAX_POINTS))
 
 
-def _legend(ax: Any, entries: int, **style: Any) -> None:
-    """A legend of up to MAX_LEGEND entries (vehicles); none beyond."""
-    if entries <= MAX_LEGEND:
-        ax.legend(fontsize=7, loc="best", **style)
-
-
-def _draw_obstacle_discs(ax: Any, plt: ModuleType, traj: Trajectories) -> None:
-    """The obstacles at the start of the log (top view)."""
-    for k, r in enumerate(traj.obstacle_radii):
-        c = traj.obstacle_centres[0, k]
-        ax.add_patch(plt.Circle((c[0], c[1]), r, color="0.4", alpha=0.6))
-
-
 def _draw_top_view(ax: Any, plt: ModuleType, traj: Trajectories, names: list[str], goal: np.ndarray) -> None:
     s = _every(len(traj.t))
     for i, name in enumerate(names):
         ax.plot(traj.pos[s, i, 0], traj.pos[s, i, 1], lw=1.1, label=name)
-    _draw_obstacle_discs(ax, plt, traj)
-    for k in range(len(traj.obstacle_radii)):
-        if len(traj.obstacle_centres) > 1 and np.any(
-            traj.obstacle_centres[-1, k] != traj.obstacle_centres[0, k]
-        ):
+    for k, r in enumerate(traj.obstacle_radii):
+        c = traj.obstacle_centres[0, k]
+        ax.add_patch(plt.Circle((c[0], c[1]), r, color="0.4", alpha=0.6))
+        if len(traj.obstacle_centres) > 1 and np.any(traj.obstacle_centres[-1, k] != c):
             ax.plot(traj.obstacle_centres[s, k, 0], traj.obstacle_centres[s, k, 1], ":", color="0.4", lw=0.8)
     ax.plot(goal[0], goal[1], "k*", ms=12, label="goal")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("East x (m)")
     ax.set_ylabel("North y (m)")
     ax.set_title("Trajectories, top view")
-    _legend(ax, len(names))
+    if len(names) <= MAX_LEGEND:
+        ax.legend(fontsize=7, loc="best")
 
 
 def _pair_distances(traj: Trajectories) -> tuple[np.ndarray, list[tuple[int, int]]]:
@@ -129,7 +116,8 @@ def _draw_slot_errors(
     for i, name in enumerate(names):
         if np.isfinite(err[:, i]).any():
             ax.plot(t[s] - t0, err[s, i], lw=0.9, label=name, color=f"C{i % 10}")  # as in the top view
-    _legend(ax, len(names))
+    if len(names) <= MAX_LEGEND:
+        ax.legend(fontsize=7, loc="best")
 
 
 def _draw_tilt_commands(ax: Any, commands: CommandLog | None, names: list[str], t0: float) -> None:
@@ -145,7 +133,8 @@ def _draw_tilt_commands(ax: Any, commands: CommandLog | None, names: list[str], 
         color = f"C{i % 10}"
         ax.plot(commands.t[s] - t0, np.degrees(commands.attitude_d[s, i, 1]), lw=0.9, label=name, color=color)
         ax.plot(commands.t[s] - t0, np.degrees(commands.attitude_d[s, i, 0]), lw=0.7, ls="--", color=color)
-    _legend(ax, len(names))
+    if len(names) <= MAX_LEGEND:
+        ax.legend(fontsize=7, loc="best")
 
 
 def _save(plt: ModuleType, fig: Any, path: Path) -> Path:
@@ -198,7 +187,8 @@ def _velocity_figure(plt: ModuleType, traj: Trajectories, names: list[str], t0: 
         axes[row, 1].set_title(f"Acceleration, {axis}-direction")
     for ax in axes[-1]:
         ax.set_xlabel("time since formation start (s)")
-    _legend(axes[0, 0], len(names))
+    if len(names) <= MAX_LEGEND:
+        axes[0, 0].legend(fontsize=7, loc="best")
     return _save(plt, fig, path)
 
 
@@ -227,7 +217,8 @@ def _relative_angle_figure(
     ax.set_xlabel("time since formation start (s)")
     ax.set_ylabel("angle from the leader's heading (deg)")
     ax.set_title("Relative angle of each follower (Fig 19; dashed: its slot)")
-    _legend(ax, len(mission.vehicles))
+    if len(mission.vehicles) <= MAX_LEGEND:
+        ax.legend(fontsize=7, loc="best")
     return _save(plt, fig, path)
 
 
@@ -242,7 +233,8 @@ def _rates_figure(plt: ModuleType, commands: CommandLog, names: list[str], path:
         ax.set_ylabel(f"commanded {label} rate (rad/s)")
         ax.set_title(f"Virtual control signal: {label} angular velocity (Fig 26)")
     axes[-1].set_xlabel("time since formation start (s)")
-    _legend(axes[0], len(names), ncol=2)
+    if len(names) <= MAX_LEGEND:
+        axes[0].legend(fontsize=7, loc="best", ncol=2)
     return _save(plt, fig, path)
 
 
@@ -311,7 +303,10 @@ def plot_compare(runs: list[CompareRun], goal: np.ndarray, path: Path) -> bool:
     if plt is None or not runs:
         return False
     fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(18, 5.5))
-    _draw_obstacle_discs(ax1, plt, runs[0].traj)
+    first = runs[0].traj
+    for k, r in enumerate(first.obstacle_radii):
+        c = first.obstacle_centres[0, k]
+        ax1.add_patch(plt.Circle((c[0], c[1]), r, color="0.4", alpha=0.6))
     for run in runs:
         s = _every(len(run.traj.t))
         ax1.plot(run.traj.pos[s, run.leader, 0], run.traj.pos[s, run.leader, 1], lw=1.1, label=run.label)
