@@ -177,7 +177,7 @@ class VehicleEndpoint:
     def _configured_link_rates(self) -> tuple[float, ...]:
         """This vehicle's SIM_LINK_* parameter values in link_rates order, whether they apply yet or not."""
         row = self.sim.params.values[self.index]
-        return tuple(map(row.item, self._link_columns))  # twice as fast as a fancy index and tolist()
+        return tuple(map(row.item, self._link_columns))
 
     def _faulty_link_rates(self) -> tuple[float, ...] | None:
         """link_rates() when the faulty link acts on this vehicle's packets now (FaultChannel.active), None
