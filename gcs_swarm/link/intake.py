@@ -89,7 +89,6 @@ class Intake:
         self._endpoint_of: list[Endpoint | None] = [None] * MAX_DATAGRAMS
         self._count = 0  # datagrams gathered
         self._used = 0  # buffer bytes gathered
-        self.packets_taken = 0  # packets the kernel took, since the fleet connected
 
     def add(self, endpoint: Endpoint) -> None:
         """Serve `endpoint` (a vehicle endpoint, once)."""
@@ -156,14 +155,7 @@ class Intake:
                 self.signing,
                 verified[0],
                 verified[1],
-                st.alive,
-                st.times,
-                st.latest_ms,
-                st.walls,
-                st.clock,
-                st.geodetic,
-                st.vel,
-                st.att,
+                st.law,
                 self.received,
                 self._taken_sysid,
                 records,
@@ -202,7 +194,6 @@ class Intake:
             else:
                 self._general(endpoint, data[offset:packet_end], d, now)
                 p = start + packet_end
-        self.packets_taken += int(self.received.sum())
         for row in np.flatnonzero(self.received):
             self.links[row].channel.stats.received += int(self.received[row])
         self.received[:] = 0

@@ -27,6 +27,7 @@ Python. Payload fields are read in MAVLink's byte order (little-endian), whateve
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -55,6 +56,20 @@ TIMES_ROWS = (
 )  # TelemetryState.times (9, N) int64, row by row
 (_TIME, _POSITION, _TICK, _COUNT, _MISSED, _PROGRESS, _HEARD_CLOCK, _GCS_HEARTBEAT, _FRAME) = range(9)
 _PROGRESS_WALL, _LAST_RX_WALL = 0, 1  # rows of TelemetryState.walls (2, N) float64, time.monotonic() s
+
+
+class LawArrays(NamedTuple):
+    """The arrays of telemetry.TelemetryState the law reads and writes (row or column i = vehicle i)."""
+
+    times: np.ndarray  # (9, N) int64, the rows of TIMES_ROWS
+    latest_ms: np.ndarray  # (N, 3) int64: newest time_boot_ms per lateness kind (-1: none yet)
+    walls: np.ndarray  # (2, N) float64 time.monotonic() s: progress_wall, last_rx_wall
+    clock: np.ndarray  # (2,) float64: the fleet clock's ms (largest progress) and its last advance's wall s
+    alive: np.ndarray  # (N,) bool
+    geodetic: np.ndarray  # (N, 3) lat deg, lon deg, alt m AMSL
+    vel: np.ndarray  # (N, 3) ENU m/s
+    att: np.ndarray  # (N, 3) roll, pitch, yaw rad, body FLU in world ENU
+
 
 # outcome bits
 HEARTBEAT_DUE = 1  # the vehicle's time moved and a vehicle-time GCS HEARTBEAT is due
@@ -99,31 +114,22 @@ def heartbeat_due(i: int, t_ms: int, last_ms: int) -> bool:
 
 
 @kernel
-def on_time(
-    i: int,
-    t_ms: int,
-    kind: int,
-    times: np.ndarray,
-    latest_ms: np.ndarray,
-    walls: np.ndarray,
-    clock: np.ndarray,
-    wall_now: float,
-) -> int:
+def on_time(i: int, t_ms: int, kind: int, s: LawArrays, wall_now: float) -> int:
     """Vehicle i sent a packet stamped with time_boot_ms `t_ms`, of lateness `kind` (POSITION_KIND,
-    ATTITUDE_KIND, CLOCK_KIND; -1: none). times (9, N) int64 (TIMES_ROWS), latest_ms (N, 3) int64, walls
-    (2, N) float64, clock (2,) float64 (the fleet clock: ms of the largest progress, time.monotonic() of its
-    last advance) are updated; `wall_now`: time.monotonic() now. Returns HEARTBEAT_DUE | REBOOTED | LATE.
+    ATTITUDE_KIND, CLOCK_KIND; -1: none); `wall_now`: time.monotonic() now. Returns HEARTBEAT_DUE |
+    REBOOTED | LATE.
 
     A stamp newer than the vehicle's newest advances its progress (and the fleet clock); one older by more
     than REBOOT_BACKSTEP_MS is a reboot, after which its frames start again from none. Lateness is per kind:
     a delayed position report older than the latest attitude is still the newest position."""
+    times, latest_ms, clock = s.times, s.latest_ms, s.clock
     prev = times[_TIME, i]
     outcome = 0
     if t_ms > prev or t_ms < prev - REBOOT_BACKSTEP_MS:
         if t_ms > prev and prev >= 0:
             progress = times[_PROGRESS, i] + t_ms - prev
             times[_PROGRESS, i] = progress
-            walls[_PROGRESS_WALL, i] = wall_now
+            s.walls[_PROGRESS_WALL, i] = wall_now
             if progress > clock[0]:
                 clock[0], clock[1] = progress, wall_now
         elif t_ms < prev:
@@ -145,29 +151,16 @@ def on_time(
 
 @kernel
 def position_packet(
-    i: int,
-    t_ms: int,
-    lat: int,
-    lon: int,
-    alt: int,
-    vx: int,
-    vy: int,
-    vz: int,
-    times: np.ndarray,
-    latest_ms: np.ndarray,
-    walls: np.ndarray,
-    clock: np.ndarray,
-    geodetic: np.ndarray,
-    vel: np.ndarray,
-    wall_now: float,
+    i: int, t_ms: int, lat: int, lon: int, alt: int, vx: int, vy: int, vz: int, s: LawArrays, wall_now: float
 ) -> int:
-    """GLOBAL_POSITION_INT's fields (lat, lon degE7, alt mm AMSL, vx, vy, vz cm/s NED) into geodetic (N, 3)
-    lat deg, lon deg, alt m and vel (N, 3) ENU m/s (spec 1.1); the rest as `on_time`. Returns its outcome."""
+    """GLOBAL_POSITION_INT's fields (lat, lon degE7, alt mm AMSL, vx, vy, vz cm/s NED) into the geodetic
+    row (deg, deg, m) and the ENU velocity m/s (spec 1.1); the rest as `on_time`. Returns its outcome."""
     if abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000:
         return INVALID
-    outcome = on_time(i, t_ms, POSITION_KIND, times, latest_ms, walls, clock, wall_now)
+    outcome = on_time(i, t_ms, POSITION_KIND, s, wall_now)
     if outcome & LATE:
         return outcome
+    geodetic, vel, times = s.geodetic, s.vel, s.times
     geodetic[i, 0] = lat * 1e-7
     geodetic[i, 1] = lon * 1e-7
     geodetic[i, 2] = alt * 1e-3
@@ -183,42 +176,30 @@ def position_packet(
 
 @kernel
 def attitude_packet(
-    i: int,
-    t_ms: int,
-    roll: float,
-    pitch: float,
-    yaw: float,
-    times: np.ndarray,
-    latest_ms: np.ndarray,
-    walls: np.ndarray,
-    clock: np.ndarray,
-    att: np.ndarray,
-    wall_now: float,
+    i: int, t_ms: int, roll: float, pitch: float, yaw: float, s: LawArrays, wall_now: float
 ) -> int:
-    """ATTITUDE's roll, pitch, yaw rad (body FRD in world NED) into att (N, 3) roll, pitch, yaw rad (body
-    FLU in world ENU, spec 1.1); the rest as `on_time`. Returns its outcome."""
+    """ATTITUDE's roll, pitch, yaw rad (body FRD in world NED) into the attitude row roll, pitch, yaw rad
+    (body FLU in world ENU, spec 1.1); the rest as `on_time`. Returns its outcome."""
     if not (math.isfinite(roll) and math.isfinite(pitch) and math.isfinite(yaw)):
         return INVALID
-    outcome = on_time(i, t_ms, ATTITUDE_KIND, times, latest_ms, walls, clock, wall_now)
+    outcome = on_time(i, t_ms, ATTITUDE_KIND, s, wall_now)
     if outcome & LATE:
         return outcome
-    att[i, 0] = roll
-    att[i, 1] = -pitch
-    att[i, 2] = yaw_ned_enu(yaw)
+    s.att[i, 0] = roll
+    s.att[i, 1] = -pitch
+    s.att[i, 2] = yaw_ned_enu(yaw)
     return outcome
 
 
 @kernel
-def heard(
-    i: int, now: float, alive: np.ndarray, times: np.ndarray, walls: np.ndarray, clock: np.ndarray
-) -> int:
+def heard(i: int, now: float, s: LawArrays) -> int:
     """A packet from vehicle i's autopilot arrived at `now` (time.monotonic()): its link is alive. REGAINED
     when it was not."""
-    walls[_LAST_RX_WALL, i] = now
-    times[_HEARD_CLOCK, i] = np.int64(clock[0])
-    if alive[i]:
+    s.walls[_LAST_RX_WALL, i] = now
+    s.times[_HEARD_CLOCK, i] = np.int64(s.clock[0])
+    if s.alive[i]:
         return 0
-    alive[i] = True
+    s.alive[i] = True
     return REGAINED
 
 
@@ -283,14 +264,7 @@ def take_packets(
     signing: bool,
     verified_d: int,
     verified_p: int,
-    alive: np.ndarray,
-    times: np.ndarray,
-    latest_ms: np.ndarray,
-    walls: np.ndarray,
-    clock: np.ndarray,
-    geodetic: np.ndarray,
-    vel: np.ndarray,
-    att: np.ndarray,
+    s: LawArrays,
     received: np.ndarray,
     taken_sysid: np.ndarray,
     records: np.ndarray,
@@ -305,7 +279,7 @@ def take_packets(
     general path); routes (E, 256) int64: the vehicle a sysid's packets on endpoint e belong to (-1: none
     bound); compid (N,) int64: each vehicle's autopilot component. `signing`: a signing key is set, so only
     signed packets are taken, and only the one at (verified_d, verified_p), whose signature the caller has
-    checked, without stopping first. State arrays as TelemetryState (on_time); received (N,) int64 counts
+    checked, without stopping first. `s`: the state (LawArrays); received (N,) int64 counts
     the packets taken per vehicle; taken_sysid (count,) int64: the sysid of datagram k's latest taken packet.
     records: uint8 output for the tlog records of the packets taken (8-byte `stamp`, then the packet; empty:
     none written), record k starting at byte record_starts[k]. `now`: time.monotonic()
@@ -355,12 +329,7 @@ def take_packets(
                     _i16(payload, 20),
                     _i16(payload, 22),
                     _i16(payload, 24),
-                    times,
-                    latest_ms,
-                    walls,
-                    clock,
-                    geodetic,
-                    vel,
+                    s,
                     wall_now,
                 )
                 position_stored = position_stored or outcome & POSITION_STORED != 0
@@ -371,14 +340,10 @@ def take_packets(
                     _f32(payload, 4, word),
                     _f32(payload, 8, word),
                     _f32(payload, 12, word),
-                    times,
-                    latest_ms,
-                    walls,
-                    clock,
-                    att,
+                    s,
                     wall_now,
                 )
-            outcome |= heard(i, now, alive, times, walls, clock)
+            outcome |= heard(i, now, s)
             received[i] += 1
             taken_sysid[d] = buf[p + 5]
             if write_records:
@@ -402,41 +367,43 @@ def take_packets(
 def warm_up() -> None:
     """Compile every function of the law for the argument types the link gives them, or load them from
     numba's cache, before the first receive needs them."""
-    n = 1
-    times, latest_ms = np.full((len(TIMES_ROWS), n), -1, dtype=np.int64), np.full((n, 3), -1, dtype=np.int64)
-    walls, clock, rows = np.zeros((2, n)), np.zeros(2), np.zeros((n, 3))
-    alive = np.zeros(n, dtype=np.bool_)
-    on_time(0, 1, -1, times, latest_ms, walls, clock, 0.0)
-    position_packet(0, 1, 0, 0, 0, 0, 0, 0, times, latest_ms, walls, clock, rows, rows, 0.0)
-    attitude_packet(0, 1, 0.0, 0.0, 0.0, times, latest_ms, walls, clock, rows, 0.0)
-    heard(0, 0.0, alive, times, walls, clock)
-    empty = np.zeros(1, dtype=np.int64)
+    rows = np.zeros((1, 3))
+    s = LawArrays(
+        np.full((len(TIMES_ROWS), 1), -1, dtype=np.int64),
+        np.full((1, 3), -1, dtype=np.int64),
+        np.zeros((2, 1)),
+        np.zeros(2),
+        np.zeros(1, dtype=np.bool_),
+        rows,
+        rows,
+        rows,
+    )
+    on_time(0, 1, -1, s, 0.0)
+    position_packet(0, 1, 0, 0, 0, 0, 0, 0, s, 0.0)
+    attitude_packet(0, 1, 0.0, 0.0, 0.0, s, 0.0)
+    heard(0, 0.0, s)
+    one = np.zeros(1, dtype=np.int64)
+    routes = np.full((1, 256), -1, dtype=np.int64)
+    bytes_ = np.zeros(8, dtype=np.uint8)
     take_packets(
-        np.zeros(1, dtype=np.uint8),
-        empty,
-        empty,
-        empty,
+        bytes_,
+        one,
+        one,
+        one,
         0,
         0,
         0,
-        np.full((1, 256), -1, dtype=np.int64),
-        empty,
+        routes,
+        one,
         False,
         -1,
         -1,
-        alive,
-        times,
-        latest_ms,
-        walls,
-        clock,
-        rows,
-        rows,
-        rows,
-        empty,
-        empty,
-        np.zeros(0, dtype=np.uint8),
-        empty,
-        np.zeros(8, dtype=np.uint8),
+        s,
+        one,
+        one,
+        bytes_[:0],
+        one,
+        bytes_,
         0.0,
         0.0,
     )

@@ -32,6 +32,7 @@ from gcs_swarm.link.intake_kernel import (
     REBOOTED,
     REGAINED,
     TIMES_ROWS,
+    LawArrays,
 )
 from swarm_common import rotations
 
@@ -112,6 +113,9 @@ class TelemetryState:
         # (N, 3) the time_boot_ms of its newest packet of each kind (columns POSITION_KIND, ATTITUDE_KIND,
         # CLOCK_KIND; -1: none yet)
         self.latest_ms = np.full((n, 3), -1, dtype=np.int64)
+        self.law = LawArrays(
+            self.times, self.latest_ms, self.walls, self.clock, self.alive, self.geodetic, self.vel, self.att
+        )  # what the law of link.intake_kernel reads and writes
         self._pos = np.full((n, 3), np.nan)
         self.pos_stale = False  # set by GLOBAL_POSITION_INT: `pos` recomputes lazily
 
@@ -223,8 +227,7 @@ class VehicleTelemetry:
 
     def heard(self, now: float) -> None:
         """A packet from the autopilot arrived at `now` (time.monotonic()): the link is alive."""
-        st = self.state
-        self.follow_up(intake_kernel.heard(self.index, now, st.alive, st.times, st.walls, st.clock))
+        self.follow_up(intake_kernel.heard(self.index, now, self.state.law))
 
     def follow_up(self, outcome: int) -> None:
         """What the law's `outcome` (link.intake_kernel bits) leaves to Python: counters, the reboot and
@@ -246,10 +249,7 @@ class VehicleTelemetry:
         """A packet stamped with the vehicle's time_boot_ms (link.intake_kernel.on_time, then `follow_up`).
         False for a late packet of `kind` (POSITION_KIND, ATTITUDE_KIND, CLOCK_KIND; -1: none), whose data
         must not overwrite newer data."""
-        st = self.state
-        outcome = intake_kernel.on_time(
-            self.index, t_ms, kind, st.times, st.latest_ms, st.walls, st.clock, time.monotonic()
-        )
+        outcome = intake_kernel.on_time(self.index, t_ms, kind, self.state.law, time.monotonic())
         self.follow_up(outcome)
         return not outcome & LATE
 
@@ -260,44 +260,14 @@ class VehicleTelemetry:
         st.system_status[i] = m.system_status
 
     def _on_global_position_int(self, m: MAVLinkMessage) -> None:
-        st = self.state
-        self.follow_up(
-            intake_kernel.position_packet(
-                self.index,
-                m.time_boot_ms,
-                m.lat,
-                m.lon,
-                m.alt,
-                m.vx,
-                m.vy,
-                m.vz,
-                st.times,
-                st.latest_ms,
-                st.walls,
-                st.clock,
-                st.geodetic,
-                st.vel,
-                time.monotonic(),
-            )
-        )
+        law, i = self.state.law, self.index
+        fields = (m.time_boot_ms, m.lat, m.lon, m.alt, m.vx, m.vy, m.vz)
+        self.follow_up(intake_kernel.position_packet(i, *fields, law, time.monotonic()))
 
     def _on_attitude(self, m: MAVLinkMessage) -> None:
-        st = self.state
-        self.follow_up(
-            intake_kernel.attitude_packet(
-                self.index,
-                m.time_boot_ms,
-                m.roll,
-                m.pitch,
-                m.yaw,
-                st.times,
-                st.latest_ms,
-                st.walls,
-                st.clock,
-                st.att,
-                time.monotonic(),
-            )
-        )
+        law, i = self.state.law, self.index
+        fields = (m.time_boot_ms, m.roll, m.pitch, m.yaw)
+        self.follow_up(intake_kernel.attitude_packet(i, *fields, law, time.monotonic()))
 
     def _on_attitude_quaternion(self, m: MAVLinkMessage) -> None:
         q = (m.q1, m.q2, m.q3, m.q4)
