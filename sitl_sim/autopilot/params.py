@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -132,7 +133,7 @@ class ParamTable:
         self,
         n: int,
         specs: tuple[ParamSpec, ...],
-        overrides: dict[str, np.ndarray | float],
+        overrides: Mapping[str, np.ndarray | float],
         visible: np.ndarray | None = None,
     ) -> None:
         self.specs = specs

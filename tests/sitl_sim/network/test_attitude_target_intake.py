@@ -48,7 +48,7 @@ DAMAGE = ["none"] * 6 + [
 
 
 @st.composite
-def attitude_targets(draw: st.DrawFn) -> ATTITUDE_TARGET:
+def attitude_targets(draw: st.DrawFn) -> mavlink2.MAVLink_set_attitude_target_message:
     """SET_ATTITUDE_TARGET, mostly one the vehicle obeys, else with one field wrong for a check: NaN/inf in
     the quaternion, thrust or rates, a rate beyond MAX_RATE, a quaternion off unit length (and about the
     1e-3 bound); any type_mask, own, broadcast and foreign targets."""
@@ -125,7 +125,7 @@ def datagrams(draw: st.DrawFn) -> bytes:
     return bytes(packet)
 
 
-def msg_wire_values(msg: ATTITUDE_TARGET) -> list[Any]:
+def msg_wire_values(msg: mavlink2.MAVLink_set_attitude_target_message) -> list[Any]:
     """The field values of msg in wire order, arrays flattened."""
     time_boot_ms, q, *rest = (getattr(msg, name) for name in ATTITUDE_TARGET.ordered_fieldnames)
     return [time_boot_ms, *q, *rest]

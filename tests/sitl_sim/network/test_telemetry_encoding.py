@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -87,9 +88,9 @@ def expected_fields(sim: Simulator, view: TelemetryView, i: int) -> dict[int, di
     return fields
 
 
-def wire_values(cls: type[M.MAVLink_message], fields: dict[str, object]) -> list[object]:
+def wire_values(cls: type[M.MAVLink_message], fields: dict[str, object]) -> list[Any]:
     """Field values in wire order, arrays flattened (Framer.frame's arguments)."""
-    values: list[object] = []
+    values: list[Any] = []
     for name in cls.ordered_fieldnames:
         value = fields[name]
         values.extend(value if isinstance(value, list) else [value])

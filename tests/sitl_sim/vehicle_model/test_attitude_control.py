@@ -53,7 +53,9 @@ def attitude_error(quat: np.ndarray, target: np.ndarray) -> np.ndarray:
 def limit_tilt(target: np.ndarray, tilt_max: float | np.ndarray) -> np.ndarray:
     """The kernel over rows: (N, 4), tilt_max scalar or (N,) -> (N, 4)."""
     tilt = np.broadcast_to(tilt_max, (len(target),))
-    return np.array([limit_tilt_kernel(*q, float(t)) for q, t in zip(target, tilt, strict=True)])
+    return np.array(
+        [limit_tilt_kernel(w, x, y, z, float(t)) for (w, x, y, z), t in zip(target, tilt, strict=True)]
+    )
 
 
 def motor_wrench(motor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -164,7 +166,8 @@ def mix(collective: float, torque: np.ndarray) -> np.ndarray:
     """Motor thrusts (1, 4) of the mixer kernel for one collective N and torques (1, 3) N m."""
     f_cmd = np.empty(4)
     inv_4d = 1.0 / (4.0 * P.arm * math.sqrt(0.5))
-    mix_x_quad(*np.ravel(torque), collective, inv_4d, P.yaw_coef, P.f_max, np.empty(4), np.empty(4), f_cmd)
+    tx, ty, tz = np.ravel(torque)
+    mix_x_quad(tx, ty, tz, collective, inv_4d, P.yaw_coef, P.f_max, np.empty(4), np.empty(4), f_cmd)
     return f_cmd[None]
 
 
