@@ -193,10 +193,6 @@ class Autopilot:
         """Vehicle i's persona (the instance holding its persona's rules and state)."""
         return self._persona_of[i]
 
-    def heartbeat(self, i: int) -> tuple[int, int, int, int]:
-        """(autopilot, base_mode, custom_mode, system_status) of vehicle i's HEARTBEAT (its persona's)."""
-        return self.persona(i).heartbeat(i)
-
     def climb_to(self, i: int, z: float) -> None:
         """Take off vertically to world height z (m) under position control (the shared takeoff law)."""
         pos = self.state.pos[i]

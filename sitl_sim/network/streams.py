@@ -393,7 +393,7 @@ class TelemetryView:
 
 
 def _heartbeat(v: TelemetryView, f: Framer, i: int) -> bytes:
-    autopilot, base_mode, custom_mode, system_status = v.ap.heartbeat(i)
+    autopilot, base_mode, custom_mode, system_status = v.ap.persona(i).heartbeat(i)
     return f.pack(
         f.mav.heartbeat_encode(
             mavlink2.MAV_TYPE_QUADROTOR, autopilot, base_mode, custom_mode, system_status, 3

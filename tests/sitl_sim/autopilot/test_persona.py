@@ -76,7 +76,9 @@ def test_the_autopilot_hands_each_vehicles_descent_to_the_loop_as_data():
     zeros = np.zeros((2, 3))
     ap = Autopilot(dyn, table, zeros, zeros, np.zeros(2, dtype=bool), zeros, 0.0, personas)
     assert isinstance(ap.persona(0), ArduCopter) and isinstance(ap.persona(1), Px4)
-    assert ap.heartbeat(1)[0] != ap.heartbeat(0)[0]  # MAV_AUTOPILOT_PX4 vs ARDUPILOTMEGA
+    assert (
+        ap.persona(1).heartbeat(1)[0] != ap.persona(0).heartbeat(0)[0]
+    )  # MAV_AUTOPILOT_PX4 vs ARDUPILOTMEGA
     descent = ap._descent
     assert descent.profile.tolist() == [DESCENT_TWO_SPEED, DESCENT_INTERPOLATED]
     read = [table.specs[j].name for j in descent.columns[1]]
