@@ -161,6 +161,8 @@ def obstacle_repulsion(
     obstacles centres (K, 3), radii (K,). `circulation` overrides fp.circulation (the 2-D planner: 0)."""
     adaptive = fp.law is FieldMethod.IAAPF
     vehicle, l, n_o, n_g, rho = obstacle_pairs(q, ahead, dest, centres, radii, float(fp.l0), float(fp.l_min))
+    if not len(vehicle):
+        return np.zeros((len(q), 3))
     rho_n = rho**fp.n if adaptive else rho
     gain = fp.circulation if circulation is None else circulation
     return obstacle_forces(

@@ -356,6 +356,8 @@ def uav_repulsion(
     pairs, e_ji, l = uav_pairs(
         p_at, p_src, vel, at_vel, src_valid, float(d_max), float(fp.l_min), brake_accel
     )
+    if not len(l):
+        return np.zeros((len(p_at), 3)), np.zeros(len(p_at), dtype=bool)
     l_pow = l ** (fp.n_uav - 2.0)
     return uav_forces(
         len(p_at), pairs, e_ji, l, l_pow, vel, float(fp.k_uav), float(fp.n_uav), float(d_max), formula,
