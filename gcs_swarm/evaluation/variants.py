@@ -30,22 +30,22 @@ The link loss is not part of the mission file: a run passes it to the embedded s
 from __future__ import annotations
 
 import copy
-import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import yaml
+from pydantic import ValidationError
 
 from gcs_swarm.guidance.formation import rotate_to_world
 from gcs_swarm.guidance.params import PAPER_PLAIN
 from gcs_swarm.mission import Mission, MissionError, load_mission
 from gcs_swarm.mission.geometry import mission_offsets
-from gcs_swarm.mission.schema import settings_problem
+from gcs_swarm.mission.schema import Range, Section, error_sentence, pair, settings_problem
 from gcs_swarm.mission.yaml_tree import YamlLoader
 
 FORMS = ("paper", "smooth")  # the spec's plain method (PAPER_PLAIN) or the mission's smoothing as written
@@ -156,101 +156,51 @@ def apply_variant(data: dict[str, Any], variant: Variant, name: str) -> dict[str
 # ----- Monte Carlo ranges -----
 
 
-@dataclass(frozen=True)
-class Ranges:
-    """Randomisation ranges of a Monte Carlo run (module docstring); pairs are (low, high)."""
+Pair = tuple[float, float]
 
-    obstacle_count: tuple[float, float] = (2, 4)
-    obstacle_radius: tuple[float, float] = (2.0, 4.0)
-    along_track: tuple[float, float] = (0.2, 0.8)
-    cross_track: tuple[float, float] = (-10.0, 10.0)
-    altitude: tuple[float, float] = (0.0, 0.0)
-    obstacle_speed: tuple[float, float] = (0.0, 0.0)
-    keep_out: float = 4.0
+
+class ObstacleRanges(Section):
+    count: Annotated[tuple[int, int], pair(Range(ge=0))] = (2, 4)
+    radius: Annotated[Pair, pair(Range(gt=0, unit="m"))] = (2.0, 4.0)
+    along_track: Annotated[Pair, pair(Range(ge=0, le=1))] = (0.2, 0.8)
+    cross_track: Annotated[Pair, pair()] = (-10.0, 10.0)
+    altitude: Annotated[Pair, pair()] = (0.0, 0.0)
+    speed: Annotated[Pair, pair(Range(ge=0, unit="m/s"))] = (0.0, 0.0)
+    keep_out: Annotated[float, Range(ge=0, unit="m")] = 4.0
     replace: bool = True
-    position_jitter: float = 2.0
-    start_velocity: float = 1.0
-    wind_speed: tuple[float, float] = (0.0, 5.0)
-    wind_direction_deg: tuple[float, float] = (0.0, 360.0)
-    turbulence: tuple[float, float] = (0.0, 0.5)
-    link_loss: tuple[float, float] = (0.0, 0.0)
 
 
-# YAML section.key -> (Ranges field, kind); kind "pair", "scalar" (>= 0) or "bool"
-_RANGE_KEYS = {
-    "obstacles": {
-        "count": ("obstacle_count", "pair"),
-        "radius": ("obstacle_radius", "pair"),
-        "along_track": ("along_track", "pair"),
-        "cross_track": ("cross_track", "pair"),
-        "altitude": ("altitude", "pair"),
-        "speed": ("obstacle_speed", "pair"),
-        "keep_out": ("keep_out", "scalar"),
-        "replace": ("replace", "bool"),
-    },
-    "starts": {"position_jitter": ("position_jitter", "scalar"), "velocity": ("start_velocity", "scalar")},
-    "wind": {
-        "speed": ("wind_speed", "pair"),
-        "direction_deg": ("wind_direction_deg", "pair"),
-        "turbulence": ("turbulence", "pair"),
-    },
-    "link": {"loss": ("link_loss", "pair")},
-}
+class StartRanges(Section):
+    position_jitter: Annotated[float, Range(ge=0, unit="m")] = 2.0
+    velocity: Annotated[float, Range(ge=0, unit="m/s")] = 1.0
 
 
-def _is_number(x: Any) -> bool:
-    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+class WindRanges(Section):
+    speed: Annotated[Pair, pair(Range(ge=0, unit="m/s"))] = (0.0, 5.0)
+    direction_deg: Annotated[Pair, pair()] = (0.0, 360.0)
+    turbulence: Annotated[Pair, pair(Range(ge=0, unit="m/s"))] = (0.0, 0.5)
 
 
-def _check_value(where: str, kind: str, value: Any) -> Any:
-    if kind == "bool":
-        if not isinstance(value, bool):
-            raise VariantError(f"{where}: expected true or false, got {value!r}")
-        return value
-    if kind == "scalar":
-        if not _is_number(value) or value < 0:
-            raise VariantError(f"{where}: expected a number >= 0, got {value!r}")
-        return float(value)
-    if not (isinstance(value, list) and len(value) == 2 and all(_is_number(x) for x in value)):
-        raise VariantError(f"{where}: expected two numbers [low, high], got {value!r}")
-    if value[0] > value[1]:
-        raise VariantError(f"{where}: low {value[0]:g} is above high {value[1]:g}")
-    return (float(value[0]), float(value[1]))
+class LinkRanges(Section):
+    loss: Annotated[Pair, pair(Range(ge=0, lt=1))] = (0.0, 0.0)
+
+
+class Ranges(Section):
+    """Randomisation ranges of a Monte Carlo run (module docstring), as the ranges file is validated: pairs
+    are (low, high), unknown keys refused with a "did you mean"."""
+
+    obstacles: ObstacleRanges = ObstacleRanges()
+    starts: StartRanges = StartRanges()
+    wind: WindRanges = WindRanges()
+    link: LinkRanges = LinkRanges()
 
 
 def parse_ranges(data: Any, source: str) -> Ranges:
     """Ranges from parsed YAML (None or {} = the defaults); VariantError naming the key on any mistake."""
-    if data is None:
-        return Ranges()
-    if not isinstance(data, dict):
-        raise VariantError(f"{source}: expected sections obstacles, starts, wind")
-    changes: dict[str, Any] = {}
-    for section, body in data.items():
-        keys = _RANGE_KEYS.get(section)
-        if keys is None:
-            raise VariantError(f"{source}: unknown section {section!r} (sections: {', '.join(_RANGE_KEYS)})")
-        if body is None:
-            continue
-        if not isinstance(body, dict):
-            raise VariantError(f"{source}: {section}: expected keys {', '.join(keys)}")
-        for key, value in body.items():
-            if key not in keys:
-                raise VariantError(f"{source}: {section}.{key}: unknown key (keys: {', '.join(keys)})")
-            field, kind = keys[key]
-            changes[field] = _check_value(f"{source}: {section}.{key}", kind, value)
-    ranges = dataclasses.replace(Ranges(), **changes)
-    lo, hi = ranges.obstacle_count
-    if lo < 0 or lo != int(lo) or hi != int(hi):
-        raise VariantError(f"{source}: obstacles.count: expected whole numbers >= 0, got [{lo:g}, {hi:g}]")
-    if ranges.obstacle_radius[0] <= 0:
-        raise VariantError(f"{source}: obstacles.radius: radii must be > 0")
-    if not (0.0 <= ranges.along_track[0] and ranges.along_track[1] <= 1.0):
-        raise VariantError(f"{source}: obstacles.along_track: fractions must lie in 0..1")
-    if ranges.wind_speed[0] < 0 or ranges.turbulence[0] < 0 or ranges.obstacle_speed[0] < 0:
-        raise VariantError(f"{source}: speeds must be >= 0")
-    if not (0.0 <= ranges.link_loss[0] and ranges.link_loss[1] < 1.0):
-        raise VariantError(f"{source}: link.loss: probabilities must lie in 0..1 (1 excluded)")
-    return ranges
+    try:
+        return Ranges.model_validate(data)
+    except ValidationError as exc:
+        raise VariantError(f"{source}: {error_sentence(exc)}") from None
 
 
 def load_ranges(path: Path | None) -> Ranges:
@@ -309,7 +259,9 @@ def _random_starts(mission: Mission, ranges: Ranges, rng: np.random.Generator) -
     base = np.array([v.start.position for v in mission.vehicles], dtype=float)
     for _ in range(PLACEMENT_TRIES):
         pos = base.copy()
-        pos[:, :2] += rng.uniform(-ranges.position_jitter, ranges.position_jitter, size=(len(base), 2))
+        pos[:, :2] += rng.uniform(
+            -ranges.starts.position_jitter, ranges.starts.position_jitter, size=(len(base), 2)
+        )
         gaps = np.linalg.norm(pos[:, None] - pos[None], axis=-1) + np.eye(len(pos)) * 1e9
         if gaps.min() >= MIN_START_GAP_M:
             break
@@ -320,7 +272,7 @@ def _random_starts(mission: Mission, ranges: Ranges, rng: np.random.Generator) -
         vel = np.zeros(3)
         if mission.run.airborne_start:
             vel = np.asarray(v.start.velocity, dtype=float) + rng.uniform(
-                -ranges.start_velocity, ranges.start_velocity, size=3
+                -ranges.starts.velocity, ranges.starts.velocity, size=3
             )
         starts.append(
             {"position": [round(float(x), 3) for x in p], "velocity": [round(float(x), 3) for x in vel]}
@@ -335,17 +287,17 @@ def _random_obstacles(
     """Obstacles in the flight corridor, each clear of the protected points by keep_out beyond its radius."""
     route = _route(mission)
     points, column = _protected_points(mission, starts)
-    lo, hi = int(ranges.obstacle_count[0]), int(ranges.obstacle_count[1])
+    lo, hi = int(ranges.obstacles.count[0]), int(ranges.obstacles.count[1])
     count = int(rng.integers(lo, hi + 1))
-    gap = ranges.keep_out + mission.safety.collision_radius
+    gap = ranges.obstacles.keep_out + mission.safety.collision_radius
     obstacles = []
     for k in range(count):
         for _ in range(PLACEMENT_TRIES):
-            point, direction = _point_on_route(route, rng.uniform(*ranges.along_track))
+            point, direction = _point_on_route(route, rng.uniform(*ranges.obstacles.along_track))
             left = np.array([-direction[1], direction[0], 0.0])
-            centre = point + left * rng.uniform(*ranges.cross_track)
-            centre[2] += rng.uniform(*ranges.altitude)
-            radius = rng.uniform(*ranges.obstacle_radius)
+            centre = point + left * rng.uniform(*ranges.obstacles.cross_track)
+            centre[2] += rng.uniform(*ranges.obstacles.altitude)
+            radius = rng.uniform(*ranges.obstacles.radius)
             if _clear(centre, radius, points, column, gap):
                 break
         else:
@@ -354,7 +306,7 @@ def _random_obstacles(
                 "obstacles.along_track / cross_track or lower obstacles.radius / keep_out"
             )
         heading = rng.uniform(0.0, 2.0 * math.pi)
-        speed = rng.uniform(*ranges.obstacle_speed)
+        speed = rng.uniform(*ranges.obstacles.speed)
         obstacles.append(
             {
                 "center": [round(float(x), 3) for x in centre],
@@ -375,12 +327,12 @@ def randomise(data: dict[str, Any], mission: Mission, ranges: Ranges, seed: int)
         vehicle["start"] = start
     obstacles = _random_obstacles(mission, ranges, np.array([s["position"] for s in starts]), rng)
     world = dict(out.get("world") or {})
-    kept = [] if ranges.replace else list(world.get("obstacles") or [])
+    kept = [] if ranges.obstacles.replace else list(world.get("obstacles") or [])
     world["obstacles"] = kept + obstacles
     world["wind"] = {
-        "speed": round(float(rng.uniform(*ranges.wind_speed)), 3),
-        "direction_deg": round(float(rng.uniform(*ranges.wind_direction_deg)) % 360.0, 3),
-        "turbulence": round(float(rng.uniform(*ranges.turbulence)), 3),
+        "speed": round(float(rng.uniform(*ranges.wind.speed)), 3),
+        "direction_deg": round(float(rng.uniform(*ranges.wind.direction_deg)) % 360.0, 3),
+        "turbulence": round(float(rng.uniform(*ranges.wind.turbulence)), 3),
     }
     out["world"] = world
     run = dict(out.get("run") or {})
@@ -392,7 +344,7 @@ def randomise(data: dict[str, Any], mission: Mission, ranges: Ranges, seed: int)
 def link_loss(ranges: Ranges, seed: int) -> float:
     """The link loss probability of run `seed`, drawn from its own stream (so adding it leaves the worlds of
     `randomise` unchanged)."""
-    lo, hi = ranges.link_loss
+    lo, hi = ranges.link.loss
     return 0.0 if hi <= 0.0 else round(float(np.random.default_rng([seed, 1]).uniform(lo, hi)), 4)
 
 

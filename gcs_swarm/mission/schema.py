@@ -175,6 +175,23 @@ Vec = Annotated[list[float], WrapValidator(_vector)]
 OptionalVec = Vec | None  # null: not given
 
 
+def pair(bounds: Range = Range()) -> WrapValidator:
+    """Two numbers [low, high], each within `bounds` and low <= high, read as a tuple (low, high)."""
+
+    def check(value: object, validate: ValidatorFunctionWrapHandler) -> object:
+        if not isinstance(value, list | tuple) or len(value) != 2:
+            raise _refuse(f"expected two numbers [low, high], got {describe(value)}")
+        low, high = validate(tuple(value))
+        problem = bounds.problem(low) or bounds.problem(high)
+        if problem:
+            raise _refuse(problem)
+        if low > high:
+            raise _refuse(f"low {low:g} is above high {high:g}")
+        return (low, high)
+
+    return WrapValidator(check)
+
+
 @dataclasses.dataclass(frozen=True)
 class Params:
     """A params dataclass of `gcs_swarm.guidance.params` read from a mapping of its fields; keys not given
@@ -474,6 +491,13 @@ def validate_file(root: Node) -> MissionFile:
     except ValidationError as exc:
         error = exc.errors()[0]
         raise root.at(_where(error)).error(_sentence(error)) from None
+
+
+def error_sentence(exc: ValidationError) -> str:
+    """The first mistake pydantic found, as "path: sentence" ("sentence" for the whole document)."""
+    error = exc.errors()[0]
+    path = loc_path(_where(error))
+    return f"{path}: {_sentence(error)}" if path else _sentence(error)
 
 
 def settings_problem(settings: Mapping[str, object]) -> str | None:

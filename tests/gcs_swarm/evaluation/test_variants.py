@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from gcs_swarm.evaluation import variants
-from gcs_swarm.evaluation.variants import Ranges, Variant, VariantError
+from gcs_swarm.evaluation.variants import ObstacleRanges, Ranges, Variant, VariantError
 from gcs_swarm.guidance.formation import rotate_to_world
 from gcs_swarm.guidance.params import PAPER_PLAIN
 from gcs_swarm.mission import load_mission
@@ -66,7 +66,7 @@ def _obstacles(mission) -> tuple[np.ndarray, np.ndarray]:
 def test_random_worlds_are_reproducible_within_ranges_and_clear_of_starts(
     source: Path, tmp_path: Path
 ) -> None:
-    ranges = Ranges(obstacle_count=(3, 5), obstacle_radius=(2.0, 5.0), cross_track=(-8.0, 8.0))
+    ranges = Ranges(obstacles=ObstacleRanges(count=(3, 5), radius=(2.0, 5.0), cross_track=(-8.0, 8.0)))
     base = load_mission(source)
     seen = set()
     for seed in range(6):
@@ -86,19 +86,19 @@ def test_random_worlds_are_reproducible_within_ranges_and_clear_of_starts(
         assert 0.0 <= a.wind.speed <= 5.0 and 0.0 <= a.wind.turbulence <= 0.5
         starts = np.array([v.start.position for v in a.vehicles])
         base_starts = np.array([v.start.position for v in base.vehicles])
-        assert np.abs(starts - base_starts).max() <= ranges.position_jitter + 1e-9
+        assert np.abs(starts - base_starts).max() <= ranges.starts.position_jitter + 1e-9
         if base.run.airborne_start:
             gaps = np.linalg.norm(starts[:, None] - centres[None], axis=-1) - radii
         else:  # ground start: the vehicle climbs a vertical column above its start
             gaps = np.linalg.norm(starts[:, None, :2] - centres[None, :, :2], axis=-1) - radii
-        assert gaps.min() > ranges.keep_out
+        assert gaps.min() > ranges.obstacles.keep_out
         leg = np.asarray(a.goal) - np.asarray(a.vehicles[a.leader_index].start.position)
         slots = np.asarray(a.goal) + rotate_to_world(mission_offsets(a), np.arctan2(leg[1], leg[0]))
         slot_gaps = np.linalg.norm(slots[:, None] - centres[None], axis=-1) - radii
-        assert slot_gaps.min() > ranges.keep_out
+        assert slot_gaps.min() > ranges.obstacles.keep_out
         velocities = np.array([v.start.velocity for v in a.vehicles])
         base_velocities = np.array([v.start.velocity for v in base.vehicles])
-        assert np.abs(velocities - base_velocities).max() <= ranges.start_velocity + 1e-9
+        assert np.abs(velocities - base_velocities).max() <= ranges.starts.velocity + 1e-9
     assert len(seen) == 6  # different seeds, different worlds
     first = (tmp_path / "a0.yaml").read_text()
     variants.derive_monte_carlo_run(source, ranges, 0, Variant("apf"), tmp_path / "again.yaml")
@@ -115,22 +115,26 @@ def test_ranges_file_sets_keys_and_refuses_mistakes(tmp_path: Path) -> None:
     good = tmp_path / "ranges.yaml"
     good.write_text("obstacles: {count: [1, 1], radius: [3, 3], replace: false}\nwind: {speed: [2, 2]}\n")
     ranges = variants.load_ranges(good)
-    assert ranges.obstacle_count == (1, 1) and ranges.replace is False and ranges.wind_speed == (2.0, 2.0)
-    assert ranges.position_jitter == Ranges().position_jitter
+    assert (
+        ranges.obstacles.count == (1, 1)
+        and ranges.obstacles.replace is False
+        and ranges.wind.speed == (2.0, 2.0)
+    )
+    assert ranges.starts == Ranges().starts
     mission = variants.derive_monte_carlo_run(QUICKSTART, ranges, 0, Variant(), tmp_path / "m.yaml")
     assert len(mission.obstacles) == len(load_mission(QUICKSTART).obstacles) + 1
     assert mission.wind.speed == 2.0
     assert variants.load_ranges(None) == Ranges()
     for text, message in [
-        ("obstacle: {count: [1, 2]}", "unknown section 'obstacle'"),
+        ("obstacle: {count: [1, 2]}", "obstacle: unknown key; did you mean 'obstacles'"),
         ("obstacles: {cnt: [1, 2]}", r"obstacles.cnt: unknown key"),
         ("obstacles: {count: 3}", r"obstacles.count: expected two numbers"),
         ("obstacles: {radius: [5, 2]}", "low 5 is above high 2"),
-        ("obstacles: {count: [1.5, 2]}", "whole numbers"),
-        ("starts: {position_jitter: -1}", "expected a number >= 0"),
+        ("obstacles: {count: [1.5, 2]}", r"obstacles.count\[0\]: expected a whole number"),
+        ("starts: {position_jitter: -1}", "starts.position_jitter: must be >= 0 m"),
         ("obstacles: {replace: 1}", "expected true or false"),
         ("obstacles: [", "not valid YAML"),
-        ("- 1", "expected sections"),
+        ("- 1", "expected a mapping of keys to values"),
     ]:
         bad = tmp_path / "bad.yaml"
         bad.write_text(text)
@@ -158,7 +162,7 @@ def test_link_loss_is_drawn_per_seed_within_its_range(tmp_path: Path) -> None:
 
 
 def test_impossible_placement_is_a_clear_error(tmp_path: Path) -> None:
-    ranges = Ranges(obstacle_count=(1, 1), obstacle_radius=(500.0, 500.0))
+    ranges = Ranges(obstacles=ObstacleRanges(count=(1, 1), radius=(500.0, 500.0)))
     with pytest.raises(VariantError, match="cannot place obstacle 1"):
         variants.derive_monte_carlo_run(QUICKSTART, ranges, 0, Variant(), tmp_path / "m.yaml")
 
