@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -118,7 +119,7 @@ def test_quickstart_spells_out_the_defaults() -> None:
     """The commented example names every parameter of the guidance, reference and limits sections (so a
     new parameter cannot go undocumented there) and each has its default value."""
     data = yaml.safe_load((MISSIONS / "quickstart.yaml").read_text())
-    sections = {
+    sections: dict[str, tuple[dict, Any]] = {
         "guidance": (data["guidance"], FieldParams()),
         "guidance.reference": (data["guidance"]["reference"], ReferenceParams()),
         "limits": (data["limits"], Limits()),

@@ -375,7 +375,7 @@ MISTAKES = [
     ),
     ("float-int", MINIMAL + "run: {simulator: {seed: 1.5}}  # <-\n", "run.simulator.seed", "whole number"),
     ("bad-choice", MINIMAL + "formation: {shape: lien}  # <-\n", "formation.shape", "did you mean 'line'?"),
-    ("bad-method", MINIMAL + "guidance: {method: potential}  # <-\n", "guidance.method", "one of 'apf', 'iaapf'"),
+    ("bad-method", MINIMAL + "guidance: {method: potential}  # <-\n", "guidance.method", "'apf', 'iaapf'"),
     ("section-not-mapping", MINIMAL + "limits: [10, 20]  # <-\n", "limits", "expected a mapping"),
     ("vehicles-not-list", "vehicles: {name: lead}  # <-\n" + GOAL, "vehicles", "expected a list"),
     (
