@@ -23,7 +23,6 @@ from gcs_swarm.mission.model import (
     PlannerSpec,
     RunSpec,
     SafetySpec,
-    SimulatorSpec,
     StartState,
     VehicleSpec,
     WindSpec,
@@ -153,7 +152,7 @@ def _vehicle(vehicle: VehicleEntry, name: str, index: int, run: RunSpec) -> Vehi
 def _run(run: RunSection, source: str) -> RunSpec:
     return RunSpec(
         **run.model_dump(exclude={"simulator", "signing_key_file", "forward"}),
-        simulator=SimulatorSpec(**run.simulator.model_dump()),
+        simulator=run.simulator,
         forward=tuple(run.forward),
         signing_key_file=_signing_key_file(run.signing_key_file, source),
     )

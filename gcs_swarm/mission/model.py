@@ -22,6 +22,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
     TelemetryParams,
 )
+from gcs_swarm.mission.schema import SimulatorSection
 
 
 def frozen_vector(values: Any) -> np.ndarray:
@@ -153,21 +154,6 @@ class FormationSpec(_ValueEquality):
 
 
 @dataclasses.dataclass(frozen=True)
-class SimulatorSpec:
-    """The simulator the ground station starts for this mission (when `embedded`)."""
-
-    embedded: bool
-    time_mode: str  # "lockstep" | "realtime" | "speedup"
-    lockstep_delay_frames: int  # lockstep frames before the answer to a frame takes effect (0 or 1)
-    lockstep_spin_us: float  # us each side of a lockstep exchange polls for the other's packets, then blocks
-    speedup: float  # simulated seconds per wall second in "speedup" mode
-    seed: int
-    rate_hz: float  # physics rate
-    base_port: int  # vehicle i listens on base_port + i
-    autopilot: str  # "ardupilot" | "px4": the persona of vehicles whose own `autopilot` is "auto"
-
-
-@dataclasses.dataclass(frozen=True)
 class RunSpec:
     """How a mission is flown."""
 
@@ -181,7 +167,7 @@ class RunSpec:
     land_timeout_s: float  # s to wait, after LAND, until every vehicle has disarmed
     # s the others hold after the leader was taken over, in `gcs-swarm run`, before they land
     leader_takeover_timeout_s: float
-    simulator: SimulatorSpec
+    simulator: SimulatorSection  # the embedded simulator, as the file gives it (schema.py)
     signing_key_file: Path | None = None  # MAVLink 2 signing key (64 hex chars); relative to the mission file
     keep_params: bool = False  # leave the parameters the run set (GUID_OPTIONS, FS_GCS_*, ...) as flown
     forward: tuple[str, ...] = ()  # connection strings of ground stations watching through this one

@@ -385,14 +385,19 @@ class SafetySection(Section):
 
 
 class SimulatorSection(Section):
+    """The simulator the ground station starts for this mission (when `embedded`)."""
+
     embedded: bool = True
     time_mode: Annotated[str, one_of("lockstep", "realtime", "speedup")] = "lockstep"
+    # lockstep frames before the answer to a frame takes effect
     lockstep_delay_frames: Annotated[int, Range(ge=0, le=1, unit="frames")] = 1
+    # us each side of a lockstep exchange polls for the other's packets, then blocks
     lockstep_spin_us: Annotated[float, Range(ge=0, le=20000, unit="us")] = 1000.0
-    speedup: Annotated[float, Range(gt=0, le=10000)] = 1.0
+    speedup: Annotated[float, Range(gt=0, le=10000)] = 1.0  # simulated seconds per wall second ("speedup")
     seed: Annotated[int, Range(ge=0, le=2**32 - 1)] = 0
-    rate_hz: Annotated[float, Range(le=100000, unit="Hz")] = 1000.0  # >= run.control_rate_hz (checks.py)
-    base_port: Annotated[int, Range(ge=1024, le=65535)] = 14540
+    # physics rate, >= run.control_rate_hz (checks.py)
+    rate_hz: Annotated[float, Range(le=100000, unit="Hz")] = 1000.0
+    base_port: Annotated[int, Range(ge=1024, le=65535)] = 14540  # vehicle i listens on base_port + i
     # the persona of vehicles whose `autopilot` is auto (a vehicle's explicit autopilot wins)
     autopilot: Annotated[str, one_of("ardupilot", "px4")] = "ardupilot"
 
