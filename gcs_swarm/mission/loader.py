@@ -25,7 +25,6 @@ from gcs_swarm.mission.model import (
     SafetySpec,
     StartState,
     VehicleSpec,
-    WindSpec,
     World,
     frozen_vector,
 )
@@ -92,7 +91,6 @@ def _mission(file: MissionFile, source: str) -> Mission:
     if file.formation.adjacency is not None:
         adjacency = np.array(file.formation.adjacency, dtype=int)
         adjacency.flags.writeable = False
-    wind = file.world.wind
     return Mission(
         name=file.mission.name or _stem_name(source),
         description=file.mission.description,
@@ -106,7 +104,7 @@ def _mission(file: MissionFile, source: str) -> Mission:
             Obstacle(frozen_vector(o.center), o.radius, frozen_vector(o.velocity))
             for o in file.world.obstacles or ()
         ),
-        wind=WindSpec(wind.speed, wind.direction_deg % 360.0, wind.turbulence),
+        wind=file.world.wind,
         link=LinkSpec(
             **link.model_dump(exclude={"outages"}),
             outages=tuple(

@@ -22,7 +22,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
     TelemetryParams,
 )
-from gcs_swarm.mission.schema import SimulatorSection
+from gcs_swarm.mission.schema import SimulatorSection, WindSection
 
 
 def frozen_vector(values: Any) -> np.ndarray:
@@ -77,15 +77,6 @@ class StartState(_ValueEquality):
 
 
 @dataclasses.dataclass(frozen=True)
-class WindSpec:
-    """Steady wind plus turbulence, for the simulator."""
-
-    speed: float = 0.0  # m/s
-    direction_deg: float = 0.0  # direction the wind blows FROM, compass degrees (0 = north, 90 = east)
-    turbulence: float = 0.0  # m/s, standard deviation of the gusts
-
-
-@dataclasses.dataclass(frozen=True)
 class OutageSpec:
     """No packet crosses a vehicle's link (None: every vehicle's) for duration_s simulated s from start_s."""
 
@@ -115,7 +106,7 @@ class World(_ValueEquality):
     origin: tuple[float, float, float]  # lat deg, lon deg, alt m AMSL of the local ENU origin
     starts: tuple[StartState, ...]  # in vehicle order (vehicle i has sysid i + 1 in the simulator)
     obstacles: tuple[Obstacle, ...]
-    wind: WindSpec
+    wind: WindSection  # steady wind and gusts for the simulator (schema.py)
     link: LinkSpec = LinkSpec()
     # in vehicle order, the autopilot each simulated vehicle behaves as: "ardupilot" | "px4" (empty: all
     # "ardupilot")
@@ -215,7 +206,7 @@ class Mission(_ValueEquality):
     goal: np.ndarray  # (3,) m ENU, the leader's final goal (= waypoints[-1])
     waypoints: tuple[np.ndarray, ...]  # leader waypoints, ending at the goal
     obstacles: tuple[Obstacle, ...]
-    wind: WindSpec
+    wind: WindSection  # steady wind and gusts for the simulator (schema.py)
     link: LinkSpec
     field: FieldParams
     reference: ReferenceParams

@@ -331,9 +331,14 @@ class ObstacleEntry(Entry):
 
 
 class WindSection(Section):
+    """Steady wind plus turbulence, for the simulator."""
+
     speed: Annotated[float, Range(ge=0, le=100, unit="m/s")] = 0.0
-    direction_deg: Annotated[float, Range(ge=-360, le=360, unit="deg")] = 0.0
-    turbulence: Annotated[float, Range(ge=0, le=50, unit="m/s")] = 0.0
+    # the direction the wind blows FROM, compass degrees (0 = north, 90 = east), read into 0..360
+    direction_deg: Annotated[
+        float, Range(ge=-360, le=360, unit="deg"), AfterValidator(lambda deg: deg % 360.0)
+    ] = 0.0
+    turbulence: Annotated[float, Range(ge=0, le=50, unit="m/s")] = 0.0  # standard deviation of the gusts
 
 
 class OutageEntry(Entry):
