@@ -2,6 +2,7 @@
 
 Vectors are read-only float numpy arrays of shape (3,). Equality compares arrays by value, so two loads of the
 same file compare equal. The loader (`gcs_swarm.mission.loader`) is the only code that builds these from text.
+Sections the file gives as they are used (the simulator, the wind) are the schema's frozen models.
 """
 
 from __future__ import annotations
