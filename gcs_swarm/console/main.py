@@ -8,7 +8,6 @@ simulator, vehicles not reachable).
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 import time
 from dataclasses import dataclass
@@ -19,12 +18,11 @@ from gcs_swarm.console.session import FlightSession
 from gcs_swarm.evaluation.report import write_report
 from gcs_swarm.flight.embedded_sim import EmbeddedSimulator, SimulatorError
 from gcs_swarm.flight.fly import (
-    default_run_dir,
+    SetupChoices,
     lockstep_spin_s,
     mission_fleet,
-    signing_key,
+    set_up_run,
     start_embedded_simulator,
-    with_forwards,
     write_flight,
 )
 from gcs_swarm.flight.result import FlightResult
@@ -32,36 +30,22 @@ from gcs_swarm.flight.run_folder import RECORD_FILE
 from gcs_swarm.flight.run_record import RunRecord
 from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.signing import SigningKeyError
-from gcs_swarm.mission import MissionError, load_mission
+from gcs_swarm.mission import MissionError
 
 EXIT_OK, EXIT_USER_ERROR = 0, 2
 HISTORY_FILE = "console_history.txt"
 
 
 @dataclass(frozen=True)
-class ConsoleOptions:
+class ConsoleOptions(SetupChoices):
     """Command-line choices of `gcs-swarm console`."""
 
-    out_dir: Path | None = None
-    connect_only: bool = False
-    base_port: int | None = None
     script: Path | None = None
     yes: bool = False
-    keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
-    forward: tuple[str, ...] = ()  # other ground stations watching through this one (added to run.forward)
-    forward_rw: bool = False  # the forwards may command the vehicles (also run.forward_rw)
 
 
 def console_command(mission_path: str, options: ConsoleOptions) -> int:
     """The whole `console` command."""
-    try:
-        mission = load_mission(mission_path)
-    except MissionError as exc:
-        print(f"error: {exc}")
-        return EXIT_USER_ERROR
-    if options.keep_params:
-        mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
-    mission = with_forwards(mission, options.forward, options.forward_rw)
     script = None
     if options.script is not None:
         try:
@@ -70,16 +54,13 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
             print(f"error: cannot read the script {options.script}: {exc}")
             return EXIT_USER_ERROR
     try:
-        key_file, key = signing_key(mission)
-    except SigningKeyError as exc:
+        setup = set_up_run(mission_path, options)
+    except (MissionError, SigningKeyError) as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
+    mission, run_dir, base_port = setup.mission, setup.run_dir, setup.base_port
+    embedded = base_port is not None
     interactive = script is None and sys.stdin.isatty() and sys.stdout.isatty()
-    run_dir = options.out_dir or default_run_dir(mission)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    sim_spec = mission.run.simulator
-    embedded = sim_spec.embedded and not options.connect_only
-    base_port = (options.base_port or sim_spec.base_port) if embedded else None
     wall0 = time.monotonic()
     sim: EmbeddedSimulator | None = None
     result = FlightResult()
@@ -90,13 +71,13 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     if not interactive:
         print(f"run folder {run_dir}", flush=True)
     try:
-        if embedded:
-            assert base_port is not None
-            sim = start_embedded_simulator(mission, run_dir, base_port, key_file)
+        if base_port is not None:
+            sim = start_embedded_simulator(mission, run_dir, base_port, setup.key_file)
         where = (
             f"embedded simulator on 127.0.0.1:{base_port}.." if embedded else "vehicles of the mission file"
         )
-        with mission_fleet(mission, base_port, run_dir, key, lockstep_spin_s(mission, embedded)) as fleet:
+        spin_s = lockstep_spin_s(mission, embedded)
+        with mission_fleet(mission, base_port, run_dir, setup.key, spin_s) as fleet:
             record = RunRecord(run_dir / RECORD_FILE)
             runner = MissionRunner(
                 mission,

@@ -40,21 +40,57 @@ EXIT_OK, EXIT_FAILED, EXIT_USER_ERROR = 0, 1, 2
 
 
 @dataclass(frozen=True)
-class RunOptions:
-    """Command-line choices of `gcs-swarm run`."""
+class SetupChoices:
+    """The command-line choices every flying command shares (`gcs-swarm run`, `gcs-swarm console`)."""
 
     out_dir: Path | None = None
     connect_only: bool = False
     base_port: int | None = None
+    keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
+    forward: tuple[str, ...] = ()  # other ground stations watching through this one (added to run.forward)
+    forward_rw: bool = False  # the forwards may command the vehicles (also run.forward_rw)
+
+
+@dataclass(frozen=True)
+class RunOptions(SetupChoices):
+    """Command-line choices of `gcs-swarm run`."""
+
     time_mode: str | None = None  # override of run.simulator.time_mode
     seed: int | None = None
     quiet: bool = False
     sim_args: tuple[str, ...] = ()  # passed verbatim to the embedded simulator (e.g. --link-loss=0.1)
-    keep_params: bool = False  # leave the flight parameters as flown (else run.keep_params decides)
     crash_at: float | None = None  # vehicle s at which the ground station SIGKILLs itself (a rehearsal)
     airborne: str | None = None  # vehicles found flying: "finish" the mission or "land" them (None: refuse)
-    forward: tuple[str, ...] = ()  # other ground stations watching through this one (added to run.forward)
-    forward_rw: bool = False  # the forwards may command the vehicles (also run.forward_rw)
+
+
+@dataclass(frozen=True)
+class RunSetup:
+    """A mission as the command line amends it (keep_params, forwards), its run folder (created), its signing
+    key file and key (None: unsigned), and the embedded simulator's first UDP port (None: the mission's own
+    connections, no embedded simulator)."""
+
+    mission: Mission
+    run_dir: Path
+    key_file: Path | None
+    key: bytes | None
+    base_port: int | None
+
+
+def set_up_run(mission_path: str, choices: SetupChoices) -> RunSetup:
+    """Load the mission and apply the command line's choices; MissionError or signing.SigningKeyError (one
+    sentence) when it cannot fly."""
+    mission = load_mission(mission_path)
+    if choices.keep_params:
+        mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
+    mission = with_forwards(mission, choices.forward, choices.forward_rw)
+    key_file, key = signing_key(mission)
+    run_dir = choices.out_dir or default_run_dir(mission)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    spec = mission.run.simulator
+    embedded = spec.embedded and not choices.connect_only
+    return RunSetup(
+        mission, run_dir, key_file, key, (choices.base_port or spec.base_port) if embedded else None
+    )
 
 
 def latency_summary(latencies_s: list[float]) -> dict[str, float] | None:
@@ -227,21 +263,13 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     """Load and fly the mission with the command-line choices; progress lines go to `say`, the error that
     ended the flight early to `Flown.error`."""
     try:
-        mission = load_mission(mission_path)
-    except MissionError as exc:
+        setup = set_up_run(mission_path, options)
+    except (MissionError, signing.SigningKeyError) as exc:
         return Flown(EXIT_USER_ERROR, FlightResult(), error=str(exc))
-    if options.keep_params:
-        mission = dataclasses.replace(mission, run=dataclasses.replace(mission.run, keep_params=True))
-    mission = with_forwards(mission, options.forward, options.forward_rw)
-    try:
-        key_file, key = signing_key(mission)
-    except signing.SigningKeyError as exc:
-        return Flown(EXIT_USER_ERROR, FlightResult(), mission, error=str(exc))
-    run_dir = options.out_dir or default_run_dir(mission)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    sim_spec = mission.run.simulator
-    embedded = sim_spec.embedded and not options.connect_only
-    base_port = (options.base_port or sim_spec.base_port) if embedded else None
+    mission, run_dir, key_file, key, base_port = (
+        setup.mission, setup.run_dir, setup.key_file, setup.key, setup.base_port
+    )  # fmt: skip
+    embedded = base_port is not None
     sim: EmbeddedSimulator | None = None
     wall0 = time.monotonic()
     result = FlightResult()
@@ -255,8 +283,7 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     for text in mission.run.forward:
         say(f"forwarding to {text} ({'read-write' if mission.run.forward_rw else 'read-only'})")
     try:
-        if embedded:
-            assert base_port is not None
+        if base_port is not None:
             sim = start_embedded_simulator(
                 mission,
                 run_dir,
