@@ -220,6 +220,7 @@ class MissionRunner:
         their launch mode), then initialise the guidance at the measured state and fly the first tick."""
         if not self._take_control():
             return
+        self.fleet.answer_frame()  # the frames the mode change waited through are answered (lockstep)
         self.tick_timing.begin(self.fleet)
         if not self.fleet.wait_tick(timeout_s=10.0):
             raise LinkError("no telemetry tick arrived after launch")
