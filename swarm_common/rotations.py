@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from swarm_common.jit import kernel
+from swarm_common.jit import kernel_with
 
 FloatArray = NDArray[np.float64]
 
@@ -24,7 +24,7 @@ def wrap_pi_float(angle: float) -> float:
     return (float(angle) + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@kernel
+@kernel_with("float64(float64)")  # compiled (or loaded) at import: Python callers never wait for the JIT
 def yaw_ned_enu(yaw: float) -> float:
     """A yaw (heading) in rad between the two world frames, either way: NED (clockwise from North) <-> ENU
     (counter-clockwise from East), wrap_pi(pi/2 - yaw) in [-pi, pi); the map is its own inverse (spec 1.1).

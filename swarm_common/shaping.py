@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import math
 
-from swarm_common.jit import kernel
+from swarm_common.jit import kernel_with
 
 
-@kernel
+@kernel_with("float64(float64, float64, float64, float64)")  # compiled (or loaded) at import
 def sqrt_controller(error: float, p: float, second_order_limit: float, dt: float) -> float:
     """Correction rate for `error`: `p * error` near zero, `sign(e) sqrt(2 L (|e| - L / (2 p^2)))` beyond
     `L / p^2` (L = second_order_limit, e.g. m/s^2 for a position error in m giving m/s), never more than
