@@ -8,11 +8,13 @@ the adjacency matrix), fleet consistency, placement against obstacles and geofen
 from __future__ import annotations
 
 import difflib
+import math
 import re
 
 import numpy as np
 from scipy.sparse.csgraph import breadth_first_order
 
+from gcs_swarm.link.autopilots import DIALECTS
 from gcs_swarm.mission.model import Mission
 from gcs_swarm.mission.schema import MissionFile, Range, SafetySection, describe
 from gcs_swarm.mission.yaml_tree import Node
@@ -25,13 +27,20 @@ _CONNECTION_HINT = (
     "expected a pymavlink connection string such as 'udpout:127.0.0.1:14541', 'udpin:0.0.0.0:14550', "
     "'tcp:192.168.1.10:5760' or '/dev/ttyUSB0,57600'"
 )
-FS_GCS_TIMEOUT_S = (2.0, 120.0)  # ArduCopter's FS_GCS_TIMEOUT range (DeadGcsParams)
+# safety.dead_gcs key -> the FailsafeSettings timing it becomes (gcs_swarm.flight.preflight)
+FAILSAFE_TIMINGS = {
+    "failsafe_timeout_s": "gcs_loss_s",
+    "guided_timeout_s": "guided_timeout_s",
+    "offboard_loss_timeout_s": "offboard_loss_s",
+}
 
 
 def failsafe_timeout(safety: SafetySection) -> float:
-    """safety.dead_gcs.failsafe_timeout_s, or its default telemetry.lost_s (at least 2 s), in s."""
+    """safety.dead_gcs.failsafe_timeout_s, or its default telemetry.lost_s (at least what every autopilot
+    accepts), in s."""
     given = safety.dead_gcs.failsafe_timeout_s
-    return max(safety.telemetry.lost_s, FS_GCS_TIMEOUT_S[0]) if given is None else given
+    lowest = max(d.failsafe_ranges["gcs_loss_s"][0] for d in DIALECTS if "gcs_loss_s" in d.failsafe_ranges)
+    return max(safety.telemetry.lost_s, lowest) if given is None else given
 
 
 # ---------------------------------------------------------------- on the validated file
@@ -78,11 +87,19 @@ def _safety(safety: SafetySection, root: Node) -> None:
             f"failsafe_timeout_s ({timeout:g} s) must be at least telemetry.lost_s "
             f"({lost_s:g} s): a vehicle would brake on a link outage the fleet still rides out"
         )
-    if timeout > FS_GCS_TIMEOUT_S[1]:
-        raise blamed.error(
-            f"failsafe_timeout_s defaults to telemetry.lost_s ({lost_s:g} s), outside 2..120 s "
-            "(ArduCopter's FS_GCS_TIMEOUT range); lower telemetry.lost_s"
-        )
+    dead_gcs = safety.dead_gcs
+    values = {"failsafe_timeout_s": timeout}
+    values |= {key: getattr(dead_gcs, key) for key in ("guided_timeout_s", "offboard_loss_timeout_s")}
+    for key, value in values.items():
+        for dialect in DIALECTS:  # any vehicle may turn out to be any of them (autopilot: auto)
+            low, high, param = dialect.failsafe_ranges.get(FAILSAFE_TIMINGS[key], (-math.inf, math.inf, ""))
+            if not low <= value <= high:
+                defaulted = key == "failsafe_timeout_s" and dead_gcs.failsafe_timeout_s is None
+                hint = " (it defaults to telemetry.lost_s: lower that)" if defaulted else ""
+                raise root.at(("safety", "dead_gcs", key)).error(
+                    f"{key} ({value:g} s) must lie in {low:g}..{high:g} s "
+                    f"({dialect.name}'s {param} range){hint}"
+                )
 
 
 def _route(file: MissionFile, root: Node) -> None:

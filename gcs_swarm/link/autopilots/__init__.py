@@ -36,6 +36,9 @@ class AutopilotDialect(Protocol):
     takeoff_mode: str  # the mode NAV_TAKEOFF puts the vehicle in by itself (launch_mode if none)
     # s of vehicle time a setpoint stream must already flow before formation_mode is accepted (0: none)
     setpoint_proof_s: float
+    # FailsafeSettings field -> (lowest, highest, parameter): the values of the failsafe timings it sets that
+    # the autopilot accepts; a mission outside them is refused where it is loaded (gcs_swarm.mission.checks)
+    failsafe_ranges: Mapping[str, tuple[float, float, str]]
     hover_param: str  # the parameter holding the normalised thrust that hovers
     angle_boost_param: str | None  # the parameter that makes the autopilot add 1/cos(tilt) to thrust, if any
     failsafe_params: tuple[tuple[str, float], ...]  # (name, factor to SI) of: failsafe timeout s, Return
@@ -123,6 +126,7 @@ _REGISTRY: dict[int, AutopilotDialect] = {
     mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA: ARDUPILOT,
     mavlink2.MAV_AUTOPILOT_PX4: PX4,
 }
+DIALECTS: tuple[AutopilotDialect, ...] = tuple(_REGISTRY.values())
 _BY_KEY: dict[str, AutopilotDialect] = {dialect.key: dialect for dialect in _REGISTRY.values()}
 
 MODE_NAMES: tuple[str, ...] = tuple(dict.fromkeys(name for d in _REGISTRY.values() for name in d.modes))

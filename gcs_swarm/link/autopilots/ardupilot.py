@@ -102,6 +102,10 @@ class ArduPilotDialect:
     launch_mode = "GUIDED"  # NAV_TAKEOFF is accepted in GUIDED (Mode::do_user_takeoff)
     takeoff_mode = "GUIDED"  # and the climb stays in GUIDED
     setpoint_proof_s = 0.0  # GUIDED is accepted without setpoints
+    # the failsafe timings a flight sets, and the ranges ArduCopter accepts (their parameters' @Range)
+    failsafe_ranges: Mapping[str, tuple[float, float, str]] = MappingProxyType(
+        {"gcs_loss_s": (2.0, 120.0, "FS_GCS_TIMEOUT"), "guided_timeout_s": (0.1, 5.0, "GUID_TIMEOUT")}
+    )
     hover_param = "MOT_THST_HOVER"
     angle_boost_param: str | None = "ATC_ANGLE_BOOST"
     # how a vehicle that lost its ground station flies (gcs_swarm.guidance.lost_vehicles): parameter and the

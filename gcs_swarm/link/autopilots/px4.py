@@ -94,6 +94,10 @@ class PX4Dialect:
     # handle_command VEHICLE_CMD_NAV_TAKEOFF; navigator Takeoff::on_active -> loiter)
     takeoff_mode = "TAKEOFF"
     setpoint_proof_s = OFFBOARD_PROOF_S
+    # COM_OF_LOSS_T from 0.1 s (PX4 takes 0, a failover at the first late frame); COM_DL_LOSS_T is clamped
+    failsafe_ranges: Mapping[str, tuple[float, float, str]] = MappingProxyType(
+        {"offboard_loss_s": (0.1, COM_OF_LOSS_T_RANGE[1], "COM_OF_LOSS_T")}
+    )
     hover_param = "MPC_THR_HOVER"  # normalised thrust that hovers (mc_pos_control_params.c)
     angle_boost_param: str | None = (
         None  # offboard thrust is body-z collective, no tilt compensation (mavlink_receiver)

@@ -898,3 +898,30 @@ def test_signing_key_file_is_relative_to_the_mission_file(tmp_path) -> None:
     absolute = parse_mission(MINIMAL + "run:\n  signing_key_file: /etc/swarm.key\n")
     assert str(absolute.run.signing_key_file) == "/etc/swarm.key"
     assert "signing_key_file" in error_of(MINIMAL + "run:\n  signing_key_file: [1, 2]\n")
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "autopilot_range"),
+    [  # each autopilot's own range for the timing it is given (its dialect's failsafe_ranges)
+        ("guided_timeout_s", 5.5, "0.1..5 s (ArduCopter's GUID_TIMEOUT range)"),
+        ("guided_timeout_s", 0.05, "0.1..5 s (ArduCopter's GUID_TIMEOUT range)"),
+        ("offboard_loss_timeout_s", 61, "0.1..60 s (PX4's COM_OF_LOSS_T range)"),
+        ("failsafe_timeout_s", 121, "2..120 s (ArduCopter's FS_GCS_TIMEOUT range)"),
+    ],
+)
+def test_failsafe_timings_outside_an_autopilots_range_are_refused(
+    key: str, value: float, autopilot_range: str
+):
+    message = error_of(MINIMAL + f"safety: {{dead_gcs: {{{key}: {value}}}}}\n")
+    assert f"safety.dead_gcs.{key}: {key} ({value:g} s) must lie in {autopilot_range}" in message
+
+
+def test_failsafe_timings_at_the_ends_of_the_ranges_load() -> None:
+    dead_gcs = "{guided_timeout_s: 5, offboard_loss_timeout_s: 0.1, failsafe_timeout_s: 120}"
+    mission = parse_mission(MINIMAL + f"safety: {{dead_gcs: {dead_gcs}}}\n")
+    assert (mission.safety.dead_gcs.guided_timeout_s, mission.safety.dead_gcs.failsafe_timeout_s) == (5, 120)
+
+
+def test_a_defaulted_failsafe_timeout_outside_the_range_says_what_to_lower() -> None:
+    message = error_of(MINIMAL + "safety: {telemetry: {lost_s: 130}}\n")
+    assert "failsafe_timeout_s (130 s) must lie in 2..120 s" in message and "lower that" in message
