@@ -325,14 +325,14 @@ class DeadGcsParams:
     """What the vehicles do if the ground station dies, and the speed scheduling that keeps it safe [add]
     (docs/reliability.md "When the ground station dies"; the action itself is safety.gcs_failsafe)."""
 
-    guided_timeout_s: float = 0.5  # s, GUID_TIMEOUT set for the flight: the last attitude target is flown
-    # this long, then the vehicle levels and holds its altitude (ArduCopter mode_guided.cpp angle_control_run)
-    # s, COM_OF_LOSS_T set on PX4 vehicles: the last OFFBOARD target is flown this long, then the failsafe
-    # (safety.gcs_failsafe through COM_OBL_RC_ACT) switches the vehicle out of OFFBOARD for good; PX4's
-    # default 1 s, so that a stall of the ground station shorter than that does not end the flight
+    # s an ArduCopter flies its last attitude target before it levels and holds its altitude; s a PX4 flies
+    # its last OFFBOARD target before the failsafe (safety.gcs_failsafe) takes it out of OFFBOARD for good
+    # (PX4's default 1 s, so a ground-station stall shorter than that does not end the flight); and s without
+    # the ground station before the GCS failsafe, >= telemetry.lost_s so that an outage the fleet rides out
+    # fires none (None: telemetry.lost_s, filled in by the mission loader). Each autopilot's dialect turns
+    # them into its parameters and says which values it accepts (gcs_swarm.link.autopilots)
+    guided_timeout_s: float = 0.5
     offboard_loss_timeout_s: float = 1.0
-    # s, FS_GCS_TIMEOUT set for the flight (2..120), >= telemetry.lost_s so that an outage the fleet rides out
-    # fires no failsafe; None: telemetry.lost_s (the mission loader fills it in)
     failsafe_timeout_s: float | None = None
     # m/s^2 and m/s^3, acceleration and jerk limits of the failsafe's shaped stop (failsafe_speed
     # .brake_distances); None: the failsafe action's own (STOP_SHAPING; the mission loader fills them in)
