@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gcs_swarm.guidance.params import FieldMethod
+
 if TYPE_CHECKING:
     from gcs_swarm.mission import Mission
 
@@ -235,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     plan = sub.add_parser("plan", help="kinematic APF/IAAPF path of the leader (preview, Table 1 experiment)")
     plan.add_argument("mission")
-    plan.add_argument("--method", choices=("apf", "iaapf"), default="iaapf")
+    plan.add_argument("--method", choices=[law.value for law in FieldMethod], default="iaapf")
     plan.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     plan.add_argument("--plot", metavar="FILE.png", help="write the path plot (needs matplotlib)")
     plan.set_defaults(func=_cmd_plan)

@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm.evaluation.planner import PlannerSettings, PlanResult, plan_path
+from gcs_swarm.guidance.params import FieldMethod
 
-METHODS = ("apf", "iaapf")
+METHODS = tuple(law.value for law in FieldMethod)
 JSON_KEYS = (
     "reached",
     "time_s",
