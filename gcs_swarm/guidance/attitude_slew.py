@@ -14,36 +14,6 @@ import numpy as np
 from swarm_common.jit import kernel
 
 
-class TiltSlew:
-    """Per-vehicle slewed roll/pitch commands. `rate_max` rad/s; 0 or less: no limit (the spec's plain
-    inversion output)."""
-
-    def __init__(self, rate_max: float) -> None:
-        self.rate_max = rate_max
-        self.roll = np.zeros(0)
-        self.pitch = np.zeros(0)
-
-    def reset(self, roll: np.ndarray, pitch: np.ndarray) -> None:
-        """Start from the measured attitude (N,) rad (NaN rows start at the first demand)."""
-        self.roll = np.array(roll, dtype=float)
-        self.pitch = np.array(pitch, dtype=float)
-
-    def reset_rows(self, rows: np.ndarray, roll: np.ndarray, pitch: np.ndarray) -> None:
-        """Restart the (N,) bool-selected vehicles at their measured attitude."""
-        self.roll[rows] = roll[rows]
-        self.pitch[rows] = pitch[rows]
-
-    def __call__(
-        self, roll_d: np.ndarray, pitch_d: np.ndarray, dt: float, rows: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Commanded (roll, pitch) (N,) rad after one step of dt s toward the demand (N,) for the (N,) bool
-        rows; other rows keep their last command."""
-        self.roll, self.pitch = slew_step(
-            roll_d, pitch_d, self.roll, self.pitch, float(self.rate_max * dt), rows
-        )
-        return self.roll.copy(), self.pitch.copy()
-
-
 @kernel
 def slew_step(
     roll_d: np.ndarray,

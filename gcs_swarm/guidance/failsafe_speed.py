@@ -4,9 +4,9 @@ ground station dies").
 If the ground station stops, a vehicle flies on: up to GUID_TIMEOUT on its last attitude target, then level
 at constant altitude without braking, until its GCS failsafe (FS_GCS_TIMEOUT after the last ground-station
 heartbeat) puts it in BRAKE. Bounded from above (drag ignored), it covers `v T + D(v)` along its current
-course: T = FS_GCS_TIMEOUT and D(v) the distance ArduCopter's BRAKE needs to stop from v
-(`brake_distance`). So the horizontal speed of each vehicle is capped at the largest v for which that
-distance, plus a clearance, fits before the first obstacle its course meets (inf if it meets none).
+course: T = FS_GCS_TIMEOUT and D(v) the distance ArduCopter's BRAKE needs to stop from v (`stopping_table`).
+So the horizontal speed of each vehicle is capped at the largest v for which that distance, plus a clearance,
+fits before the first obstacle its course meets (inf if it meets none).
 
 BRAKE does not stop at a constant deceleration: AC_PosControl shapes the stop (AP_Math control.cpp
 shape_vel_accel, BRAKE_MODE_DECEL_RATE a = 7.5 m/s^2, PSC_JERK_XY j = 5 m/s^3): the deceleration ramps up
@@ -56,33 +56,16 @@ def brake_distances(speeds: np.ndarray, accel: float, jerk: float, dt: float, st
 
 
 @lru_cache(maxsize=8)
-def _brake_table(accel: float, jerk: float) -> tuple[np.ndarray, np.ndarray]:
-    """(speeds, stopping distances) (S,) each of the BRAKE shaping for start speeds 0 to SPEED_TABLE_MAX."""
+def stopping_table(reaction_s: float, accel: float, jerk: float) -> tuple[np.ndarray, np.ndarray]:
+    """(total (S,) m, speeds (S,) m/s): the distance v T + D(v) covered from each speed v from 0 to
+    SPEED_TABLE_MAX (T = reaction_s; D the BRAKE distance `brake_distances` for the shaping's acceleration
+    limit `accel` m/s^2 and jerk limit `jerk` m/s^3, the vehicle's own tracking lag not included: about 0.2 s
+    of travel at the start speed on the real SITL quad), increasing in v, so that `interp` inverts it."""
     if not (accel > 0 and jerk > 0):
         raise ValueError("accel and jerk must be > 0")
     speeds = np.linspace(0.0, SPEED_TABLE_MAX, 601)
     steps = int((SPEED_TABLE_MAX / accel + 27.0 * accel / jerk) / TABLE_DT)
-    return speeds, brake_distances(speeds, accel, jerk, TABLE_DT, steps)
-
-
-def brake_distance(speed: np.ndarray | float, accel: float, jerk: float) -> np.ndarray:
-    """m: horizontal distance ArduCopter's BRAKE needs to stop from `speed` m/s (module docstring), for the
-    shaping's acceleration limit `accel` m/s^2 and jerk limit `jerk` m/s^3; the vehicle's own tracking lag is
-    not included (about 0.2 s of travel at the start speed on the real SITL quad)."""
-    speeds, distances = _brake_table(float(accel), float(jerk))
-    v = np.asarray(speed, dtype=float)
-    slope = (distances[-1] - distances[-2]) / (speeds[-1] - speeds[-2])
-    return np.where(
-        v <= speeds[-1], np.interp(v, speeds, distances), distances[-1] + slope * (v - speeds[-1])
-    )
-
-
-@lru_cache(maxsize=8)
-def stopping_table(reaction_s: float, accel: float, jerk: float) -> tuple[np.ndarray, np.ndarray]:
-    """(total (S,) m, speeds (S,) m/s): the distance v T + D(v) covered from each speed v of the table
-    (T = reaction_s, D the BRAKE distance), increasing in v, so that it can be inverted by interpolation."""
-    speeds, distances = _brake_table(accel, jerk)
-    return speeds * reaction_s + distances, speeds
+    return speeds * reaction_s + brake_distances(speeds, accel, jerk, TABLE_DT, steps), speeds
 
 
 @kernel
@@ -121,7 +104,7 @@ def distance_along_course(
 
 
 @kernel
-def _interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
+def interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
     """np.interp of one x on an increasing table xp, fp (numpy's compiled_base.c arr_interp): fp[0] left of
     the table, fp[-1] right of it and at its last point, fp[j] at a table point, else the slope
     (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]) times (x - xp[j]) plus fp[j]."""
@@ -161,7 +144,7 @@ def speed_caps_from_table(
     caps = distance_along_course(pos, vel, centres, radii, clearance)
     for i in range(caps.shape[0]):
         if np.isfinite(caps[i]):
-            caps[i] = _interp(caps[i], total, speeds)
+            caps[i] = interp(caps[i], total, speeds)
     return caps
 
 

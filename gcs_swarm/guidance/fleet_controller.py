@@ -21,7 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
-from gcs_swarm.guidance.attitude_slew import TiltSlew
+from gcs_swarm.guidance.attitude_slew import slew_step
 from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.degradation import stale_verdict
 from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_caps, speed_caps_from_table
@@ -208,7 +208,7 @@ class FleetController:
         self.position_controller: PositionController = position_controller or SMCController(
             SMCParams(), g, self.limits
         )
-        self.slew = TiltSlew(np.deg2rad(self.limits.tilt_rate_max_deg))
+        self.tilt_rate_max = np.deg2rad(self.limits.tilt_rate_max_deg)  # rad/s, <= 0: no slew limit
         self.heading: LeaderHeading | None = None
         self.relay: LeaderRelay | None = None
         self.speed_scale = 1.0
@@ -280,7 +280,7 @@ class FleetController:
         vel = _as_array("vel", vel, (self.n, 3))
         yaw = _as_array("yaw", yaw, (self.n,))
         att = np.zeros((self.n, 3)) if att is None else _as_array("att", att, (self.n, 3))
-        self.slew.reset(att[:, 0], att[:, 1])
+        self.roll_cmd, self.pitch_cmd = att[:, 0].copy(), att[:, 1].copy()  # rad, the slewed tilt commands
         known = np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
         if not known[self.leader] or not np.isfinite(yaw[self.leader]):
             raise ValueError(f"reset needs a finite state of the leader (vehicle {self.leader})")
@@ -371,7 +371,7 @@ class FleetController:
         if returning.any():
             self.generator.reset_rows(returning, pos, vel)
             self.position_controller.reset_rows(returning)
-            self.slew.reset_rows(returning, att[:, 0], att[:, 1])
+            self.roll_cmd[returning], self.pitch_cmd[returning] = att[returning, 0], att[returning, 1]
 
         # Leader goal and heading (spec 6 [add]); the heading follows the leader's reference velocity.
         lead = self.leader
@@ -448,7 +448,9 @@ class FleetController:
             cmd = invert(u, att[:, 2], self.limits, self.g, att[:, 0], att[:, 1])
         else:
             cmd = invert(u, att[:, 2], self.limits, self.g)
-        roll_cmd, pitch_cmd = self.slew(cmd.roll, cmd.pitch, dt, active)
+        self.roll_cmd, self.pitch_cmd = slew_step(
+            cmd.roll, cmd.pitch, self.roll_cmd, self.pitch_cmd, float(self.tilt_rate_max * dt), active
+        )
         off = ~active if not active.all() else None
 
         def masked(fresh: np.ndarray) -> np.ndarray:
@@ -458,9 +460,9 @@ class FleetController:
             return fresh
 
         return Command(
-            active=active, roll_d=masked(roll_cmd), pitch_d=masked(pitch_cmd), yaw_d=masked(psi_l.copy()),
-            thrust_acc=masked(cmd.thrust_acc), ref_pos=x_d, ref_vel=xd_dot, ref_acc=xd_ddot,
-            field_force=force, slots=targets, u=masked(cmd.u_limited), emergency=emergency & active,
-            psi_leader=self.heading.psi, waypoint_index=self.waypoint_index, leader_goal_distance=goal_dist,
-            measured_pos=pos.copy(), obstacles=(obs_c.copy(), obs_r.copy()),
+            active=active, roll_d=masked(self.roll_cmd.copy()), pitch_d=masked(self.pitch_cmd.copy()),
+            yaw_d=masked(psi_l.copy()), thrust_acc=masked(cmd.thrust_acc), ref_pos=x_d, ref_vel=xd_dot,
+            ref_acc=xd_ddot, field_force=force, slots=targets, u=masked(cmd.u_limited),
+            emergency=emergency & active, psi_leader=self.heading.psi, waypoint_index=self.waypoint_index,
+            leader_goal_distance=goal_dist, measured_pos=pos.copy(), obstacles=(obs_c.copy(), obs_r.copy()),
         )  # fmt: skip

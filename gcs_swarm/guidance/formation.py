@@ -66,21 +66,16 @@ def check_offsets(offsets: np.ndarray, n: int, leader: int) -> np.ndarray:
     return arr
 
 
-def rotate_z(vec: np.ndarray, psi: np.ndarray | float) -> np.ndarray:
-    """Rotate vectors (..., 3) about world z by psi (...) rad, elementwise with broadcasting, (..., 3)."""
-    vec = np.asarray(vec, dtype=float)
-    psi = np.asarray(psi, dtype=float)
-    c, s = np.cos(psi), np.sin(psi)
-    out = np.empty(np.broadcast_shapes(vec.shape, psi.shape + (3,)))
-    out[..., 0] = vec[..., 0] * c - vec[..., 1] * s
-    out[..., 1] = vec[..., 0] * s + vec[..., 1] * c
-    out[..., 2] = vec[..., 2]
-    return out
-
-
 def rotate_to_world(offsets: np.ndarray, psi: np.ndarray | float) -> np.ndarray:
-    """Leader-frame offsets (N, 3) rotated by psi (...,) into world ENU, (..., N, 3) (spec 6, Eqs 26-27)."""
-    return rotate_z(offsets, np.asarray(psi, dtype=float)[..., None])
+    """Leader-frame offsets (..., N, 3) rotated about z by psi (...,) rad into world ENU, (..., N, 3) (spec 6,
+    Eqs 26-27)."""
+    offsets, psi = np.asarray(offsets, dtype=float), np.asarray(psi, dtype=float)[..., None]
+    c, s = np.cos(psi), np.sin(psi)
+    out = np.empty(np.broadcast_shapes(offsets.shape, psi.shape + (3,)))
+    out[..., 0] = offsets[..., 0] * c - offsets[..., 1] * s
+    out[..., 1] = offsets[..., 0] * s + offsets[..., 1] * c
+    out[..., 2] = offsets[..., 2]
+    return out
 
 
 def slot_positions(p_leader: np.ndarray, psi_leader: np.ndarray | float, offsets: np.ndarray) -> np.ndarray:
@@ -145,15 +140,8 @@ def formation_targets(
 
 def leader_frame_offsets(p: np.ndarray, p_leader: np.ndarray, psi_leader: np.ndarray | float) -> np.ndarray:
     """Measured offsets (..., N, 3) of positions p (..., N, 3) in the leader heading frame (spec 6, Eq 29
-    corrected: the transpose rotation)."""
-    psi = np.asarray(psi_leader, dtype=float)[..., None]
-    c, s = np.cos(psi), np.sin(psi)
-    d = p - np.asarray(p_leader, dtype=float)[..., None, :]
-    out = np.empty_like(d)
-    out[..., 0] = d[..., 0] * c + d[..., 1] * s
-    out[..., 1] = -d[..., 0] * s + d[..., 1] * c
-    out[..., 2] = d[..., 2]
-    return out
+    corrected: the transpose rotation, by -psi_leader)."""
+    return rotate_to_world(p - np.asarray(p_leader, dtype=float)[..., None, :], -np.asarray(psi_leader))
 
 
 def assign_slots(

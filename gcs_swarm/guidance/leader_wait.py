@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gcs_swarm.guidance.formation import rotate_z
+from gcs_swarm.guidance.formation import rotate_to_world
 
 
 def worst_slot_error(pos: np.ndarray, leader: int, world_offsets: np.ndarray, followers: np.ndarray) -> float:
@@ -59,5 +59,5 @@ def leader_cap_scale(
     if wait_m <= 0.0:
         return 1.0
     known = followers & np.isfinite(pos).all(axis=1)
-    error = worst_slot_error(pos, leader, rotate_z(offsets, psi_leader), known)
+    error = worst_slot_error(pos, leader, rotate_to_world(offsets, psi_leader), known)
     return leader_wait_scale(error, wait_m, span_m, floor)

@@ -11,7 +11,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gcs_swarm.guidance.failsafe_speed import brake_distance, distance_along_course, failsafe_speed_caps
+from gcs_swarm.guidance.failsafe_speed import (
+    distance_along_course,
+    failsafe_speed_caps,
+    interp,
+    stopping_table,
+)
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.params import Limits, SeparationParams
 from gcs_swarm.guidance.separation import (
@@ -22,6 +27,13 @@ from gcs_swarm.guidance.separation import (
 )
 
 A, J = 7.5, 5.0  # BRAKE_MODE_DECEL_RATE m/s^2, PSC_JERK_XY m/s^3
+
+
+def brake_distance(speed: np.ndarray | float, accel: float, jerk: float) -> np.ndarray:
+    """m: the BRAKE distance from each speed (up to the table's 60 m/s): the stopping table with no reaction
+    time, read as the speed caps read it."""
+    distances, speeds = stopping_table(0.0, accel, jerk)
+    return np.vectorize(lambda v: interp(float(v), speeds, distances), otypes=[float])(speed)
 
 
 def closed_form(v: float, a: float = A, j: float = J) -> float:

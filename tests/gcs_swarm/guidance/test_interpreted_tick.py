@@ -1,6 +1,6 @@
-"""Compiled and interpreted guidance fly the same: a FleetController flown on a synthetic scene in this process
-(numba-compiled kernels) and in a subprocess with NUMBA_DISABLE_JIT=1 (the same kernels run as plain Python)
-gives the same commands, bit for bit.
+"""Compiled and interpreted guidance fly the same: a FleetController flown on a synthetic scene in this
+process (numba-compiled kernels) and in a subprocess with NUMBA_DISABLE_JIT=1 (the same kernels run as plain
+Python) gives the same commands, bit for bit.
 
 The scene: a leader and four followers in a V, two obstacles beside and across the path, a point-mass plant
 driven by the commands (so any difference would grow), a stretch of degraded flight (wider spacing), a

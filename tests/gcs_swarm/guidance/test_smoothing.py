@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gcs_swarm.guidance.attitude_slew import TiltSlew
+from gcs_swarm.guidance.attitude_slew import slew_step
 from gcs_swarm.guidance.field import obstacle_repulsion
 from gcs_swarm.guidance.formation import LeaderHeading, assign_slots, formation_offsets, slot_positions
 from gcs_swarm.guidance.obstacles import push_out_horizontally
@@ -265,17 +265,18 @@ def test_inter_uav_force_along_the_relative_braking_path():
 def test_tilt_slew_ramps_a_step_along_its_direction():
     """A step from level to (roll 0.3, pitch 0.4) = 0.5 rad of tilt at 2 rad/s takes 0.25 s (12.5 ticks of
     20 ms): each tick moves 0.04 rad along (0.6, 0.8)."""
-    slew = TiltSlew(2.0)
-    slew.reset(np.zeros(1), np.zeros(1))
     rows = np.ones(1, dtype=bool)
-    roll, pitch = slew(np.array([0.3]), np.array([0.4]), DT, rows)
+    demand = np.array([0.3]), np.array([0.4])
+    roll, pitch = slew_step(*demand, np.zeros(1), np.zeros(1), 2.0 * DT, rows)
     assert roll[0] == pytest.approx(0.024) and pitch[0] == pytest.approx(0.032)
     for _ in range(12):
-        roll, pitch = slew(np.array([0.3]), np.array([0.4]), DT, rows)
+        roll, pitch = slew_step(*demand, roll, pitch, 2.0 * DT, rows)
     assert roll[0] == pytest.approx(0.3) and pitch[0] == pytest.approx(0.4)
-    off = TiltSlew(0.0)
-    off.reset(np.zeros(1), np.zeros(1))
-    assert off(np.array([0.3]), np.array([0.4]), DT, rows)[1][0] == 0.4
+    assert slew_step(*demand, np.zeros(1), np.zeros(1), 0.0, rows)[1][0] == 0.4  # limit 0: no slew
+    held = slew_step(*demand, np.full(1, 0.1), np.full(1, 0.2), 2.0 * DT, ~rows)  # rows not commanded
+    assert held[0][0] == 0.1 and held[1][0] == 0.2
+    fresh = slew_step(*demand, np.full(1, np.nan), np.zeros(1), 2.0 * DT, rows)  # no last command: the demand
+    assert fresh[0][0] == 0.3 and fresh[1][0] == 0.4
 
 
 def test_leader_heading_turn_rate_and_its_change_are_limited():
