@@ -154,8 +154,8 @@ class SMCController:
         self.params = params
         self.g = g
         self.limits = limits
-        self.k_d = _per_axis(params, "disturbance_gain")
-        self.gains = np.array([_per_axis(params, name) for name in ("c1", "k1", "k2", "k3")] + [self.k_d])
+        names = ("c1", "k1", "k2", "k3", "disturbance_gain")
+        self.gains = np.array([_per_axis(params, name) for name in names])  # (5, 3), smc_output's rows
         self.xi1, self.xi2 = _per_axis(params, "xi1"), _per_axis(params, "xi2")
         self.settings = SMCSettings(
             boundary_layer=float(params.boundary_layer), g=float(g),
@@ -164,7 +164,7 @@ class SMCController:
             uz_floor=float(limits.uz_min_g * g) if limits else 0.0,
             thrust_cap=float(limits.thrust_max_g * g) if limits else 0.0,
             d_max_xy=float(params.xy.disturbance_max), d_max_z=float(params.z.disturbance_max),
-            estimate=bool(self.k_d.any()),
+            estimate=bool(self.gains[4].any()),
         )  # fmt: skip
         self.s = np.zeros((0, 3))  # last sliding variable (N, 3), m/s, for diagnostics
         self.d_hat = np.zeros((0, 3))  # disturbance estimate (N, 3), m/s^2, added to U
@@ -194,23 +194,16 @@ class SMCController:
         (unused with both off, where the law is static Eq 49). Without a reset the estimates start at
         zero."""
         n = len(x)
-        adapting = self.settings.drag_adaptation > 0.0
-        if adapting and self.c_hat.shape != (n,):
+        if self.c_hat.shape != (n,):
             self.c_hat = np.zeros(n)
-        if self.settings.estimate and self.d_hat.shape != (n, 3):
-            if len(self.d_hat):
+        if self.d_hat.shape != (n, 3):
+            if self.settings.estimate and len(self.d_hat):
                 raise ValueError(f"SMCController was reset for {len(self.d_hat)} vehicles, got {n}")
             self.d_hat = np.zeros((n, 3))
         x, v = np.ascontiguousarray(x), np.ascontiguousarray(v)
         e1, self.s, abs_s = smc_sliding(x_d, xd_dot, x, v, self.gains[0])
-        c_hat = self.c_hat if self.c_hat.shape == (n,) else np.zeros(n)
-        d_hat = self.d_hat if self.d_hat.shape == (n, 3) else np.zeros((n, 3))
-        u, c_next, d_next = smc_output(
-            e1, self.s, abs_s**self.xi1, abs_s**self.xi2, xd_ddot, v, self.gains, c_hat, d_hat, float(dt),
-            *self.settings,
+        u, self.c_hat, self.d_hat = smc_output(
+            e1, self.s, abs_s**self.xi1, abs_s**self.xi2, xd_ddot, v, self.gains, self.c_hat, self.d_hat,
+            float(dt), *self.settings,
         )  # fmt: skip
-        if adapting:
-            self.c_hat = c_next
-        if self.settings.estimate:
-            self.d_hat = d_next
         return u
