@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gcs_swarm.guidance.obstacles import surface_geometry
+from gcs_swarm.guidance.obstacles import surface_distance
 
 
 def attraction_potential(q: np.ndarray, goal: np.ndarray, k_att: float) -> np.ndarray:
@@ -22,6 +22,6 @@ def repulsion_potential(
     q: np.ndarray, centres: np.ndarray, radii: np.ndarray, k_rep: float, l0: float, l_min: float
 ) -> np.ndarray:
     """Sum over obstacles of U_rep = 0.5 k_rep (1/l - 1/l0)^2 (l <= l0), (N,) (spec 2, Eq 3)."""
-    l = surface_geometry(q, centres, radii, l_min).l
+    l = surface_distance(q, centres, radii, l_min)
     bracket = np.where(l <= l0, 1.0 / l - 1.0 / l0, 0.0)
     return 0.5 * k_rep * (bracket * bracket).sum(axis=1)

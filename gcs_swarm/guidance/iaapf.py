@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gcs_swarm.guidance.obstacles import surface_geometry
+from gcs_swarm.guidance.apf import repulsion_potential
 
 
 def segmented_attraction_potential(q: np.ndarray, goal: np.ndarray, k_att: float, d_g: float) -> np.ndarray:
@@ -30,8 +30,6 @@ def adaptive_repulsion_potential(
     n: float,
     l_min: float,
 ) -> np.ndarray:
-    """Sum over obstacles of U*_rep = 0.5 k_rep (1/l - 1/l0)^2 rho^n (l <= l0), (N,) (spec 3.2, Eq 9)."""
-    l = surface_geometry(q, centres, radii, l_min).l
-    rho = np.linalg.norm(q - dest, axis=-1)
-    bracket = np.where(l <= l0, 1.0 / l - 1.0 / l0, 0.0)
-    return 0.5 * k_rep * (bracket * bracket).sum(axis=1) * rho**n
+    """Sum over obstacles of U*_rep = 0.5 k_rep (1/l - 1/l0)^2 rho^n (l <= l0), (N,) (spec 3.2, Eq 9): the APF
+    repulsion potential times the adaptive factor rho^n, rho = |q - dest|."""
+    return repulsion_potential(q, centres, radii, k_rep, l0, l_min) * np.linalg.norm(q - dest, axis=-1) ** n

@@ -1,6 +1,5 @@
-"""Spherical obstacles: surface distance, its gradient direction and the inside case (spec 2.1), the
-measured clearance, and the push of a formation slot out of an obstacle (compiled, for the tick's
-formation kernel).
+"""Spherical obstacles: surface distance (spec 2.1), the measured clearance, and the push of a formation
+slot out of an obstacle (compiled, for the tick's formation kernel).
 
 Shapes: `q` (N, D) query points, `centres` (K, D), `radii` (K,), D = 2 (circles) or 3 (spheres).
 """
@@ -8,22 +7,11 @@ Shapes: `q` (N, D) query points, `centres` (K, D), `radii` (K,), D = 2 (circles)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from gcs_swarm.guidance.numpy_rules import maximum
 from swarm_common.jit import kernel
-
-
-@dataclass(frozen=True)
-class SurfaceGeometry:
-    """Distance of N points to the surfaces of K obstacles: `l` (N, K) surface distance floored at `l_min`
-    (spec 2.1 l_eff), `n_o` (N, K, D) unit vector obstacle centre -> point (+last axis, i.e. +z in 3-D, where
-    the point sits on the centre)."""
-
-    l: np.ndarray
-    n_o: np.ndarray
 
 
 def centres_at(centres0: np.ndarray, velocities: np.ndarray | None, t: float | np.ndarray) -> np.ndarray:
@@ -34,18 +22,11 @@ def centres_at(centres0: np.ndarray, velocities: np.ndarray | None, t: float | n
     return centres0 + np.asarray(velocities, dtype=float) * t
 
 
-def surface_geometry(q: np.ndarray, centres: np.ndarray, radii: np.ndarray, l_min: float) -> SurfaceGeometry:
-    """Surface distances and directions of points q (N, D) to obstacles (K, D), (K,) (spec 2.1)."""
+def surface_distance(q: np.ndarray, centres: np.ndarray, radii: np.ndarray, l_min: float) -> np.ndarray:
+    """Surface distances (N, K) of points q (N, D) to obstacles (K, D), (K,), floored at `l_min` (spec 2.1
+    l_eff)."""
     diff = q[:, None, :] - centres[None, :, :]
-    dist = np.sqrt(np.einsum("nkd,nkd->nk", diff, diff))
-    raw = dist - radii[None, :]
-    on_centre = dist == 0.0
-    safe = np.where(on_centre, 1.0, dist)
-    n_o = diff / safe[..., None]
-    if on_centre.any():
-        n_o[on_centre] = 0.0
-        n_o[on_centre, -1] = 1.0
-    return SurfaceGeometry(l=np.maximum(raw, l_min), n_o=n_o)
+    return np.maximum(np.sqrt(np.einsum("nkd,nkd->nk", diff, diff)) - radii[None, :], l_min)
 
 
 def squared_distances(q: np.ndarray, points: np.ndarray) -> np.ndarray:
