@@ -198,7 +198,7 @@ class LeaderHeading:
 
     def update(self, v_ref_xy: np.ndarray, distance_to_goal: float, dt: float) -> float:
         """Advance psi_L by one step of dt s from the leader's reference velocity (2,) and goal distance m.
-        Plain float arithmetic, the operations of the array form (a tick calls it once)."""
+        Plain float arithmetic (a tick calls it once)."""
         vx, vy, dt = float(v_ref_xy[0]), float(v_ref_xy[1]), float(dt)
         if self.v_filtered is not None and self.filter_s > 0.0:
             fx, fy = self.v_filtered

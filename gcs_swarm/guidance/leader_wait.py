@@ -56,8 +56,6 @@ def leader_cap_scale(
 ) -> float:
     """The leader's speed-cap factor this tick from positions pos (N, 3) ENU m, leader-frame slot offsets
     (N, 3) m, the formation heading psi_leader (rad) and the (N,) bool mask of followers to wait for."""
-    if wait_m <= 0.0:
-        return 1.0
     known = followers & np.isfinite(pos).all(axis=1)
     error = worst_slot_error(pos, leader, rotate_to_world(offsets, psi_leader), known)
     return leader_wait_scale(error, wait_m, span_m, floor)
