@@ -291,26 +291,21 @@ class MavutilEndpoint(Endpoint):
             except ImportError as err:
                 raise OSError("serial connections need pyserial (pip install pyserial)") from err
             self._conn = mavutil.mavlink_connection(spec.device, baud=spec.baud, source_system=255)
-            self._datagrams = False
-            self.stream = True
-            self._stream_parser = new_parser(key)
-            return
-        if spec.kind == "tcp":
+        elif spec.kind == "tcp":
             previous = socket.getdefaulttimeout()
             socket.setdefaulttimeout(connect_timeout_s)  # bound mavtcp's blocking connect()
             try:
                 self._conn = mavutil.mavlink_connection(spec.text, retries=0)
             finally:
                 socket.setdefaulttimeout(previous)
-            self._datagrams = False
-            self.stream = True
-            self._stream_parser = new_parser(key)
-            return
-        self._destination = (socket.gethostbyname(spec.host), spec.port)
-        self._conn = mavutil.mavlink_connection(spec.text)
-        self._datagrams = True
-        self.reads_per_poll = _MAX_READS_PER_POLL
+        else:
+            self._destination = (socket.gethostbyname(spec.host), spec.port)
+            self._conn = mavutil.mavlink_connection(spec.text)
+            self.reads_per_poll = _MAX_READS_PER_POLL
+        self._datagrams = spec.kind == "udpout"
+        self.stream = not self._datagrams
         self._udp_parser = _DatagramParser(key)
+        self._stream_parser = new_parser(key)
 
     def fileno(self) -> int:
         fd = self._conn.fd

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gcs_swarm.link import attitude_commands, frames
+from gcs_swarm.link import attitude_commands, frames, intake_kernel
 from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
@@ -226,10 +226,10 @@ class Fleet:
         # what the ticks run compiled is compiled now (or loaded from numba's cache), not in the first tick
         frames.warm_up()
         attitude_commands.warm_up()
+        intake_kernel.warm_up()
         take_new_frame(np.zeros(1, dtype=bool), *np.full((3, 1), -1, dtype=np.int64))
         try:
             self.network.open(min(timeout_s, 5.0), self.tlog_path)
-            self.network.warm_up()
             deadline = time.monotonic() + timeout_s
             while True:
                 self.network.check_identities()

@@ -74,17 +74,20 @@ class Intake:
         self._routers = False  # a shared udpin endpoint is served: it learns its vehicles' addresses
         self._index: dict[Endpoint, int] = {}
         self.routes = np.full((0, 256), -1, dtype=np.int64)  # (E, 256): endpoint, sysid -> vehicle
-        self.compid = np.zeros(len(links), dtype=np.int64)
-        self.received = np.zeros(len(links), dtype=np.int64)  # packets taken per vehicle, since the flush
         self._buffer = np.empty(BUFFER_BYTES, dtype=np.uint8)
         self._view = memoryview(self._buffer)  # type: ignore[arg-type]
-        self._records = np.empty(_RECORDS_BYTES, dtype=np.uint8)
-        self._record_starts = np.empty(_MAX_RECORDS, dtype=np.int64)
-        self._no_records = np.empty(0, dtype=np.uint8)
-        self._starts = np.empty(MAX_DATAGRAMS, dtype=np.int64)
-        self._ends = np.empty(MAX_DATAGRAMS, dtype=np.int64)
-        self._sources = np.empty(MAX_DATAGRAMS, dtype=np.int64)  # endpoint index (-1: general path only)
-        self._taken_sysid = np.full(MAX_DATAGRAMS, -1, dtype=np.int64)
+        self.gathered = intake_kernel.Gathered(
+            self._buffer,
+            np.empty(MAX_DATAGRAMS, dtype=np.int64),
+            np.empty(MAX_DATAGRAMS, dtype=np.int64),
+            np.empty(MAX_DATAGRAMS, dtype=np.int64),
+            np.zeros(len(links), dtype=np.int64),
+            np.zeros(len(links), dtype=np.int64),
+            np.full(MAX_DATAGRAMS, -1, dtype=np.int64),
+            np.empty(_RECORDS_BYTES, dtype=np.uint8),
+            np.empty(_MAX_RECORDS, dtype=np.int64),
+            np.empty(8, dtype=np.uint8),
+        )
         self._peers: list[Any] = [None] * MAX_DATAGRAMS
         self._endpoint_of: list[Endpoint | None] = [None] * MAX_DATAGRAMS
         self._count = 0  # datagrams gathered
@@ -105,12 +108,12 @@ class Intake:
         if source is None or channel.sysid is None:
             return
         self.routes[source, channel.sysid] = link.index
-        self.compid[link.index] = channel.compid
+        self.gathered.compid[link.index] = channel.compid
 
     def read(self, endpoint: Endpoint, now: float) -> None:
         """Read what `endpoint` has now (up to its reads_per_poll) into the buffer; `now`: time.monotonic()
         of this receive."""
-        source = self._index[endpoint]
+        source, g = self._index[endpoint], self.gathered
         for _ in range(endpoint.reads_per_poll):
             if self._used + _UDP_MAX > BUFFER_BYTES or self._count == MAX_DATAGRAMS:
                 self.flush(now)
@@ -119,10 +122,10 @@ class Intake:
             if got is None:
                 return
             k = self._count
-            self._starts[k] = self._used
+            g.starts[k] = self._used
             self._used += got[0]
-            self._ends[k] = self._used
-            self._sources[k] = -1 if busy else source
+            g.ends[k] = self._used
+            g.sources[k] = -1 if busy else source
             self._peers[k] = got[1]
             self._endpoint_of[k] = endpoint
             self._count = k + 1
@@ -132,37 +135,17 @@ class Intake:
         count = self._count
         if count == 0:
             return
-        st = self.state
+        st, g = self.state, self.gathered
         tlog = self._tlog()
         keep = tlog is not None or self._outgoing is not None
-        records = self._records if keep else self._no_records
         wall_now = time.monotonic()
-        d, p = 0, int(self._starts[0])
+        d, p = 0, int(g.starts[0])
         verified = (-1, -1)
         learned = 0  # datagrams before this one have taught their udpin endpoints their vehicles' addresses
         while True:
-            stamp = np.frombuffer(int(time.time() * 1e6).to_bytes(8, "big"), dtype=np.uint8)
+            g.stamp[:] = np.frombuffer(int(time.time() * 1e6).to_bytes(8, "big"), dtype=np.uint8)
             d, p, outcome, vehicle, written, recorded, stored = intake_kernel.take_packets(
-                self._buffer,
-                self._starts,
-                self._ends,
-                self._sources,
-                d,
-                p,
-                count,
-                self.routes,
-                self.compid,
-                self.signing,
-                verified[0],
-                verified[1],
-                st.law,
-                self.received,
-                self._taken_sysid,
-                records,
-                self._record_starts,
-                stamp,
-                now,
-                wall_now,
+                g, d, p, count, self.routes, self.signing, *verified, keep, st.law, now, wall_now
             )
             if stored:
                 st.pos_stale = True
@@ -174,7 +157,7 @@ class Intake:
             if outcome >= 0:  # a taken packet's follow-up
                 self.links[vehicle].telemetry.follow_up(outcome)
                 continue
-            start, end = int(self._starts[d]), int(self._ends[d])
+            start, end = int(g.starts[d]), int(g.ends[d])
             data = self._view[start:end].tobytes()
             endpoint = self._endpoint_of[d]
             assert endpoint is not None
@@ -185,18 +168,18 @@ class Intake:
                 if endpoint.check_signature(packet, packet[5], packet[6]):
                     verified = (d, p)
                     continue
-            if packet_end is None or self._sources[d] < 0:
+            if packet_end is None or g.sources[d] < 0:
                 self._general(endpoint, data[offset:], d, now)
                 d += 1
                 if d == count:
                     break
-                p = int(self._starts[d])
+                p = int(g.starts[d])
             else:
                 self._general(endpoint, data[offset:packet_end], d, now)
                 p = start + packet_end
-        for row in np.flatnonzero(self.received):
-            self.links[row].channel.stats.received += int(self.received[row])
-        self.received[:] = 0
+        for row in np.flatnonzero(g.received):
+            self.links[row].channel.stats.received += int(g.received[row])
+        g.received[:] = 0
         self._count = 0
         self._used = 0
 
@@ -209,11 +192,11 @@ class Intake:
     def _keep(self, tlog: TlogWriter | None, written: int, recorded: int) -> None:
         """The tlog records the kernel wrote (`written` bytes, `recorded` records) to the tlog, and their
         packets to the forwards."""
-        records = self._records[:written].tobytes()
+        records = self.gathered.records[:written].tobytes()
         if tlog is not None:
             tlog.write_records(records, recorded)
         if self._outgoing is not None:
-            starts = self._record_starts[:recorded].tolist() + [written]
+            starts = self.gathered.record_starts[:recorded].tolist() + [written]
             self._outgoing.extend(records[a + 8 : b] for a, b in zip(starts, starts[1:], strict=False))
 
     def _learn(self, first: int, last: int) -> int:
@@ -221,7 +204,7 @@ class Intake:
         is, as the general path's `parse` does; returns the datagram to start from next time."""
         if not self._routers:
             return last
-        taken = self._taken_sysid
+        taken = self.gathered.taken_sysid
         for k in np.flatnonzero(taken[first : last + 1] >= 0) + first:
             endpoint = self._endpoint_of[k]
             assert endpoint is not None

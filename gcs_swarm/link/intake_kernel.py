@@ -250,53 +250,59 @@ def _f32(p: np.ndarray, k: int, word: np.ndarray) -> float:
     return np.float64(word.view(np.float32)[0])
 
 
+class Gathered(NamedTuple):
+    """One receive's datagrams, gathered by link.intake, and what `take_packets` writes about them (D: the
+    most datagrams one flush holds, N: vehicles)."""
+
+    buf: np.ndarray  # uint8: the datagrams back to back, datagram k = buf[starts[k]:ends[k]]
+    starts: np.ndarray  # (D,) int64
+    ends: np.ndarray  # (D,) int64
+    sources: (
+        np.ndarray
+    )  # (D,) int64: the endpoint datagram k was read from (-1: all of it to the general path)
+    compid: np.ndarray  # (N,) int64: each vehicle's autopilot component
+    received: np.ndarray  # (N,) int64: packets taken per vehicle
+    taken_sysid: np.ndarray  # (D,) int64: the sysid of datagram k's latest taken packet (-1: none)
+    records: np.ndarray  # uint8: the tlog records of the packets taken (8-byte `stamp`, then the packet)
+    record_starts: np.ndarray  # int64: record k starts at byte record_starts[k]
+    stamp: np.ndarray  # (8,) uint8: the tlog stamp of this run of the walk (big-endian unix us)
+
+
 @kernel
 def take_packets(
-    buf: np.ndarray,
-    starts: np.ndarray,
-    ends: np.ndarray,
-    endpoints: np.ndarray,
+    g: Gathered,
     d: int,
     p: int,
     count: int,
     routes: np.ndarray,
-    compid: np.ndarray,
     signing: bool,
     verified_d: int,
     verified_p: int,
+    keep: bool,
     s: LawArrays,
-    received: np.ndarray,
-    taken_sysid: np.ndarray,
-    records: np.ndarray,
-    record_starts: np.ndarray,
-    stamp: np.ndarray,
     now: float,
     wall_now: float,
 ) -> tuple[int, int, int, int, int, int, bool]:
-    """Take the packets from offset p of datagram d on, up to the `count` gathered (module doc).
+    """Take the packets from offset p of datagram d on, up to the `count` gathered in `g` (module doc).
 
-    Datagram k is buf[starts[k]:ends[k]] (uint8), read from endpoint endpoints[k] (-1: leave it whole to the
-    general path); routes (E, 256) int64: the vehicle a sysid's packets on endpoint e belong to (-1: none
-    bound); compid (N,) int64: each vehicle's autopilot component. `signing`: a signing key is set, so only
-    signed packets are taken, and only the one at (verified_d, verified_p), whose signature the caller has
-    checked, without stopping first. `s`: the state (LawArrays); received (N,) int64 counts
-    the packets taken per vehicle; taken_sysid (count,) int64: the sysid of datagram k's latest taken packet.
-    records: uint8 output for the tlog records of the packets taken (8-byte `stamp`, then the packet; empty:
-    none written), record k starting at byte record_starts[k]. `now`: time.monotonic()
-    when the datagrams were read; `wall_now`: time.monotonic() now.
+    routes (E, 256) int64: the vehicle a sysid's packets on endpoint e belong to (-1: none bound).
+    `signing`: a signing key is set, so only signed packets are taken, and only the one at (verified_d,
+    verified_p), whose signature the caller has checked, without stopping first. `keep`: write the tlog
+    records. `s`: the state (LawArrays). `now`: time.monotonic() when the datagrams were read; `wall_now`:
+    time.monotonic() now.
 
     Returns (d, p, outcome, vehicle, record bytes written, records written, any position stored): it
     stopped at offset p of datagram d (d == count: all done) with outcome NOT_TAKEN or UNVERIFIED before the
     packet there, or with the FOLLOW_UP outcome of vehicle's packet just before it.
     """
+    buf, compid, records = g.buf, g.compid, g.records
     payload = np.zeros(_PAYLOAD, dtype=np.uint8)
     word = np.empty(1, dtype=np.uint32)
-    write_records = records.shape[0] > 0
     written, recorded = 0, 0
     position_stored = False
     while d < count:
-        end = ends[d]
-        e = endpoints[d]
+        end = g.ends[d]
+        e = g.sources[d]
         while p < end:
             if e < 0 or end - p < MIN_PACKET or buf[p] != _MARKER_V2 or buf[p + 2] & ~_SIGNED:
                 return d, p, NOT_TAKEN, -1, written, recorded, position_stored
@@ -344,13 +350,13 @@ def take_packets(
                     wall_now,
                 )
             outcome |= heard(i, now, s)
-            received[i] += 1
-            taken_sysid[d] = buf[p + 5]
-            if write_records:
-                record_starts[recorded] = written
+            g.received[i] += 1
+            g.taken_sysid[d] = buf[p + 5]
+            if keep:
+                g.record_starts[recorded] = written
                 recorded += 1
                 for k in range(8):
-                    records[written + k] = stamp[k]
+                    records[written + k] = g.stamp[k]
                 written += 8
                 for k in range(p, packet_end):
                     records[written] = buf[k]
@@ -360,7 +366,7 @@ def take_packets(
                 return d, p, outcome, i, written, recorded, position_stored
         d += 1
         if d < count:
-            p = starts[d]
+            p = g.starts[d]
     return d, p, 0, -1, written, recorded, position_stored
 
 
@@ -383,27 +389,6 @@ def warm_up() -> None:
     attitude_packet(0, 1, 0.0, 0.0, 0.0, s, 0.0)
     heard(0, 0.0, s)
     one = np.zeros(1, dtype=np.int64)
-    routes = np.full((1, 256), -1, dtype=np.int64)
     bytes_ = np.zeros(8, dtype=np.uint8)
-    take_packets(
-        bytes_,
-        one,
-        one,
-        one,
-        0,
-        0,
-        0,
-        routes,
-        one,
-        False,
-        -1,
-        -1,
-        s,
-        one,
-        one,
-        bytes_[:0],
-        one,
-        bytes_,
-        0.0,
-        0.0,
-    )
+    g = Gathered(bytes_, one, one, one, one, one, one, bytes_, one, bytes_)
+    take_packets(g, 0, 0, 0, np.full((1, 256), -1, dtype=np.int64), False, -1, -1, False, s, 0.0, 0.0)

@@ -24,7 +24,6 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link import intake_kernel
 from gcs_swarm.link.autopilots import dialect_for, dialect_named
 from gcs_swarm.link.connection import (
     ConnectionSpec,
@@ -129,10 +128,6 @@ class Network:
             self._tlog = TlogWriter(tlog_path)
             for link in self.links:
                 link.channel.tlog = self._tlog
-
-    def warm_up(self) -> None:
-        """Compile (or load from numba's cache) the intake's law now rather than in the first receive."""
-        intake_kernel.warm_up()
 
     def close(self) -> None:
         """Close every endpoint and the tlog (idempotent)."""

@@ -124,14 +124,9 @@ class TelemetryState:
         """The fleet vehicle clock: the largest time progress of any vehicle since connect, ms."""
         return int(self.clock[0])
 
-    @property
-    def clock_wall(self) -> float:
-        """time.monotonic() at which `clock_ms` last advanced (-inf: never)."""
-        return float(self.clock[1])
-
     def vehicle_clock(self) -> tuple[int, float]:
-        """The fleet vehicle clock for a `Timeout`: (clock_ms, wall time it last advanced)."""
-        return self.clock_ms, self.clock_wall
+        """The fleet vehicle clock for a `Timeout`: (clock_ms, time.monotonic() it last advanced)."""
+        return self.clock_ms, float(self.clock[1])
 
     @property
     def pos(self) -> NDArray[np.float64]:
