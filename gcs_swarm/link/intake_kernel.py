@@ -224,29 +224,18 @@ def _load_payload(buf: np.ndarray, start: int, stop: int, payload: np.ndarray) -
 
 
 @kernel
-def _u32(p: np.ndarray, k: int) -> int:
-    """The little-endian uint32 at payload byte k."""
-    return int(p[k]) | (int(p[k + 1]) << 8) | (int(p[k + 2]) << 16) | (int(p[k + 3]) << 24)
-
-
-@kernel
-def _i32(p: np.ndarray, k: int) -> int:
-    """The little-endian int32 at payload byte k."""
-    u = _u32(p, k)
-    return u - (1 << 32) if u >= 1 << 31 else u
-
-
-@kernel
-def _i16(p: np.ndarray, k: int) -> int:
-    """The little-endian int16 at payload byte k."""
-    u = int(p[k]) | (int(p[k + 1]) << 8)
-    return u - (1 << 16) if u >= 1 << 15 else u
+def _int(p: np.ndarray, k: int, size: int, signed: bool) -> int:
+    """The little-endian integer of `size` bytes at payload byte k (two's complement when `signed`)."""
+    u = 0
+    for b in range(size):
+        u |= int(p[k + b]) << (8 * b)
+    return u - (1 << (8 * size)) if signed and u >= 1 << (8 * size - 1) else u
 
 
 @kernel
 def _f32(p: np.ndarray, k: int, word: np.ndarray) -> float:
     """The little-endian IEEE float32 at payload byte k, as float64 (`word`: a (1,) uint32 scratch)."""
-    word[0] = _u32(p, k)
+    word[0] = _int(p, k, 4, False)
     return np.float64(word.view(np.float32)[0])
 
 
@@ -324,17 +313,17 @@ def take_packets(
             if signing and not (d == verified_d and p == verified_p):
                 return d, p, UNVERIFIED, i, written, recorded, position_stored
             _load_payload(buf, p + _HEADER_LEN, crc_at, payload)
-            t_ms = _u32(payload, 0)
+            t_ms = _int(payload, 0, 4, False)
             if msgid == _POSITION_ID:
                 outcome = position_packet(
                     i,
                     t_ms,
-                    _i32(payload, 4),
-                    _i32(payload, 8),
-                    _i32(payload, 12),
-                    _i16(payload, 20),
-                    _i16(payload, 22),
-                    _i16(payload, 24),
+                    _int(payload, 4, 4, True),
+                    _int(payload, 8, 4, True),
+                    _int(payload, 12, 4, True),
+                    _int(payload, 20, 2, True),
+                    _int(payload, 22, 2, True),
+                    _int(payload, 24, 2, True),
                     s,
                     wall_now,
                 )
