@@ -135,7 +135,8 @@ class Command:
 
 
 def _as_array(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
+    """`value` as a C-contiguous float array (the kernels take such rows); ValueError if not of `shape`."""
+    arr = np.ascontiguousarray(value, dtype=float)
     if arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
     return arr
@@ -266,7 +267,7 @@ class FleetController:
         return cap
 
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
-        arr = np.ascontiguousarray(_as_array("follower_targets", targets, (self.n, 3)))
+        arr = _as_array("follower_targets", targets, (self.n, 3))
         if not np.isfinite(arr).all():
             raise ValueError("follower_targets must be finite")
         return arr
@@ -331,8 +332,8 @@ class FleetController:
         active = np.asarray(active, dtype=bool)
         if active.shape != (self.n,):
             raise ValueError(f"active must have shape ({self.n},), got {active.shape}")
-        obstacles_c = np.asarray(obstacles_c, dtype=float).reshape(-1, 3)
-        obstacles_r = np.asarray(obstacles_r, dtype=float).reshape(-1)
+        obstacles_c = np.ascontiguousarray(obstacles_c, dtype=float).reshape(-1, 3)
+        obstacles_r = np.ascontiguousarray(obstacles_r, dtype=float).reshape(-1)
         if len(obstacles_c) != len(obstacles_r):
             raise ValueError(f"{len(obstacles_c)} obstacle centres but {len(obstacles_r)} radii")
         if not (
@@ -359,10 +360,9 @@ class FleetController:
         obstacles (K, 3), (K,) at time t, and the (N,) mask of vehicles to command (spec 8 steps 1-7)."""
         if self.heading is None or self.relay is None:
             raise RuntimeError("FleetController.reset must be called before tick")
-        pos, vel, att, obs_c, obs_r, active = self._check_tick_inputs(
+        pos, vel, att, centres, radii, active = self._check_tick_inputs(
             pos, vel, att, obstacles_c, obstacles_r, active
         )
-        pos, vel = np.ascontiguousarray(pos), np.ascontiguousarray(vel)
         dt = self._tick_dt(t)
         returning = active & ~self.was_active
         self.last_pos[active] = pos[active]
@@ -393,7 +393,6 @@ class FleetController:
         self.relay.push(self._leader_state())
         heard = self.relay.read()
         psi_l = heard[:, 6]
-        centres, radii = np.ascontiguousarray(obs_c), np.ascontiguousarray(obs_r)
         destinations = NO_ROWS if self.follower_targets is None else self.follower_targets
         targets, v_ff, a_ff, dest = formation_targets(
             heard, np.cos(psi_l), np.sin(psi_l), self.offsets, float(self.spacing_scale), centres, radii,
@@ -464,5 +463,5 @@ class FleetController:
             yaw_d=masked(psi_l.copy()), thrust_acc=masked(cmd.thrust_acc), ref_pos=x_d, ref_vel=xd_dot,
             ref_acc=xd_ddot, field_force=force, slots=targets, u=masked(cmd.u_limited),
             emergency=emergency & active, psi_leader=self.heading.psi, waypoint_index=self.waypoint_index,
-            leader_goal_distance=goal_dist, measured_pos=pos.copy(), obstacles=(obs_c.copy(), obs_r.copy()),
+            leader_goal_distance=goal_dist, measured_pos=pos.copy(), obstacles=(centres.copy(), radii.copy()),
         )  # fmt: skip
