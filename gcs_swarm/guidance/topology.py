@@ -1,4 +1,4 @@
-"""Communication topology (spec 6, Sec 5.2): adjacency, degree, Laplacian, hop counts, and the relay
+"""Communication topology (spec 6, Sec 5.2): adjacency, Laplacian (with the degrees), hops, and the relay
 delay line that makes the topology matter to the controller.
 
 Convention: `A[i, j] != 0` means vehicle i hears vehicle j (information flows j -> i).
@@ -26,15 +26,10 @@ PAPER_SIX_UAV_ADJACENCY = np.array(
 )
 
 
-def degree_matrix(adjacency: np.ndarray) -> np.ndarray:
-    """D = diag(row sums of A), (N, N)."""
-    return np.diag(np.asarray(adjacency, dtype=float).sum(axis=1))
-
-
 def laplacian(adjacency: np.ndarray) -> np.ndarray:
-    """L = D - A, (N, N)."""
+    """L = D - A, (N, N), D = diag(row sums of A) the degree matrix."""
     a = np.asarray(adjacency, dtype=float)
-    return degree_matrix(a) - a
+    return np.diag(a.sum(axis=1)) - a
 
 
 def star_adjacency(n: int, leader: int) -> np.ndarray:
