@@ -220,7 +220,6 @@ class MissionRunner:
         their launch mode), then initialise the guidance at the measured state and fly the first tick."""
         if not self._take_control():
             return
-        self.fleet.answer_frame()  # the frames the mode change waited through are answered (lockstep)
         self.tick_timing.begin(self.fleet)
         if not self.fleet.wait_tick(timeout_s=10.0):
             raise LinkError("no telemetry tick arrived after launch")
@@ -248,6 +247,7 @@ class MissionRunner:
         self.takeover.commanded(formation_mode, rows)
         try:
             fleet.take_control_all(rows)
+            fleet.answer_frame()  # the frame the mode change ended on: the formation starts on the next one
         except LinkError as exc:
             self.result.events.append(f"formation not started: {exc}")
             self.progress(f"! formation not started: {exc}")
