@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, NoReturn
 import numpy as np
 
 from sitl_sim.autopilot.params import PARAM_NAME_RELEASES
-from sitl_sim.autopilot.persona import parse_autopilots
+from sitl_sim.autopilot.registry import parse_autopilots
 from sitl_sim.clock import plan_timing
 from sitl_sim.network.link_faults import LinkFaults, Outage, parse_outage
 from sitl_sim.orphan import ParentWatch, detach_output

@@ -24,7 +24,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_sim.autopilot.copter import Autopilot
 from sitl_sim.autopilot.fence import FenceItem
 from sitl_sim.autopilot.params import ParamTable, param_specs
-from sitl_sim.autopilot.persona import Persona, fleet_params, fleet_personas
+from sitl_sim.autopilot.persona import Persona
+from sitl_sim.autopilot.registry import fleet_params, fleet_personas
 from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
 from sitl_sim.network.endpoint import VehicleEndpoint
 from sitl_sim.network.link_faults import UP, LinkFaults
@@ -547,7 +548,7 @@ def simulator_params(
     hover_fraction: float, param_names: str, personas: tuple[type[Persona], ...]
 ) -> ParamTable:
     """The fleet's parameter table: the shared table of ArduCopter's `param_names` release (hover_fraction:
-    MOT_THST_HOVER's default) and each persona's own (autopilot.persona.fleet_params)."""
+    MOT_THST_HOVER's default) and each persona's own (autopilot.registry.fleet_params)."""
     return fleet_params(param_specs(hover_fraction, param_names), hover_fraction, personas)
 
 

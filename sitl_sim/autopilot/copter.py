@@ -66,7 +66,8 @@ from sitl_sim.autopilot.outer_loop import (
     outer_loop,
 )
 from sitl_sim.autopilot.params import ParamTable
-from sitl_sim.autopilot.persona import Persona, fleet_personas
+from sitl_sim.autopilot.persona import Persona
+from sitl_sim.autopilot.registry import fleet_personas
 from sitl_sim.vehicle_model.attitude_control import level_quat, yaw_from_quat
 from sitl_sim.vehicle_model.dynamics import FleetDynamics
 

@@ -1,6 +1,6 @@
 """The parameter table of N simulated vehicles: the shared columns in ArduCopter's names, types and ranges
 (the release chosen by PARAM_NAME_RELEASES), which the shared autopilot reads, and the columns a persona adds
-(sitl_sim.autopilot.persona.fleet_params puts them together; each vehicle lists what its persona shows).
+(sitl_sim.autopilot.registry.fleet_params puts them together; each vehicle lists what its persona shows).
 
 Values live in one (N, P) float64 array so the vectorised autopilot reads a whole column per parameter.
 Parameters are listed (PARAM_REQUEST_LIST, param_index) in alphabetical order. World parameters (SIM_WIND_*)

@@ -10,22 +10,19 @@ their MAVLink surfaces in sitl_sim.network.commands / .px4_commands, chosen by s
 
 A persona class answers the fleet-wide questions asked before the autopilot exists (class attributes and
 class methods); an instance holds the persona's own state for its vehicles of one Autopilot (`rows`) and
-plays its rules. The registry knows every persona by its `--autopilot` name and refuses any other name:
-there is no silent default persona.
+plays its rules. The registry (sitl_sim.autopilot.registry) knows every persona by its `--autopilot` name and
+refuses any other name: there is no silent default persona.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from sitl_sim.autopilot.outer_loop import DESCENT_TWO_SPEED
 from sitl_sim.autopilot.params import ParamSpec, ParamTable
-
-if TYPE_CHECKING:
-    from sitl_sim.autopilot.copter import Autopilot
 
 
 class Persona:
@@ -51,7 +48,7 @@ class Persona:
     mirrors: ClassVar[Mapping[str, tuple[str, float]]] = {}
     hidden_fixed: ClassVar[Mapping[str, float]] = {}
 
-    def __init__(self, ap: Autopilot, rows: np.ndarray) -> None:
+    def __init__(self, ap: Any, rows: np.ndarray) -> None:  # ap: the shared copter.Autopilot
         self.ap = ap
         self.rows = np.asarray(rows, dtype=bool)
 
@@ -100,59 +97,3 @@ class Persona:
 
     def after_loop(self, t: float, events: np.ndarray) -> None:
         """Its rules after the shared loop's tick; events (N,): the loop's outer_loop.EVENT_* per vehicle."""
-
-
-def persona_classes() -> dict[str, type[Persona]]:
-    """Every persona by its `--autopilot` name."""
-    from sitl_sim.autopilot.arducopter import ArduCopter  # noqa: PLC0415 - the persona modules import this one
-    from sitl_sim.autopilot.px4 import Px4  # noqa: PLC0415
-
-    return {persona.name: persona for persona in (ArduCopter, Px4)}
-
-
-def persona_named(name: str) -> type[Persona]:
-    """The persona called `name`; ValueError (a one-line reason) for a name no persona has."""
-    personas = persona_classes()
-    if name not in personas:
-        raise ValueError(f"--autopilot {name!r} is not one of {', '.join(personas)}")
-    return personas[name]
-
-
-def parse_autopilots(text: str, vehicles: int) -> tuple[str, ...]:
-    """`--autopilot` text -> one persona name per vehicle: a single name applies to all, a comma list gives
-    one per vehicle. Raises ValueError (a one-line reason) for an unknown name or a wrong count."""
-    names = tuple(part.strip().lower() for part in text.split(","))
-    for name in names:
-        persona_named(name)
-    if len(names) == 1:
-        return names * vehicles
-    if len(names) != vehicles:
-        raise ValueError(f"--autopilot lists {len(names)} autopilots for {vehicles} vehicles")
-    return names
-
-
-def fleet_personas(names: tuple[str, ...], vehicles: int) -> tuple[type[Persona], ...]:
-    """The persona of each of `vehicles` vehicles from their names (() : ArduCopter for all)."""
-    return tuple(persona_named(name) for name in names) if names else (persona_named("ardupilot"),) * vehicles
-
-
-def fleet_params(
-    shared: tuple[ParamSpec, ...], hover_fraction: float, personas: tuple[type[Persona], ...]
-) -> ParamTable:
-    """One parameter table for a fleet whose vehicle i is personas[i]: the `shared` specs (the shared loop's
-    columns, in ArduCopter's names and units) plus every persona's own (whether or not the fleet has one);
-    each vehicle lists what its persona shows, and its hidden shared columns follow its persona's values
-    (Persona.configure)."""
-    kinds = tuple(persona_classes().values())
-    own = {kind: kind.param_specs(hover_fraction) for kind in kinds}
-    specs = tuple(sorted(shared + tuple(s for kind in kinds for s in own[kind]), key=lambda spec: spec.name))
-    is_shared = [spec in shared for spec in specs]
-    shown = {
-        kind: [kind.shows(spec, own[kind], flag) for spec, flag in zip(specs, is_shared, strict=True)]
-        for kind in kinds
-    }
-    visible = np.array([shown[kind] for kind in personas])
-    table = ParamTable(len(personas), specs, {}, visible)
-    for kind in kinds:
-        kind.configure(table, np.flatnonzero([persona is kind for persona in personas]))
-    return table

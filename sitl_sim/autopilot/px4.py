@@ -11,7 +11,7 @@ facts are also listed in docs/sitl.md (PX4 persona). Times are simulated seconds
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -20,9 +20,6 @@ from sitl_sim.autopilot import modes as internal
 from sitl_sim.autopilot.outer_loop import DESCENT_INTERPOLATED, jerk_limited_step
 from sitl_sim.autopilot.params import INT32, REAL32, ParamSpec
 from sitl_sim.autopilot.persona import Persona
-
-if TYPE_CHECKING:
-    from sitl_sim.autopilot.copter import Autopilot
 
 M = mavlink2
 ACCEPTED, REJECTED = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_TEMPORARILY_REJECTED
@@ -201,7 +198,7 @@ class Px4(Persona):
         """PX4's own parameters (param_specs)."""
         return param_specs(hover_fraction)
 
-    def __init__(self, ap: Autopilot, rows: np.ndarray) -> None:
+    def __init__(self, ap: Any, rows: np.ndarray) -> None:  # ap: the shared copter.Autopilot
         super().__init__(ap, rows)
         n = ap.n
         # UserModeIntention.hpp: the user intended nav state starts as AUTO_LOITER (Hold)

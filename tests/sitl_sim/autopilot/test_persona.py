@@ -10,8 +10,8 @@ from sitl_sim.autopilot.arducopter import ArduCopter
 from sitl_sim.autopilot.copter import Autopilot
 from sitl_sim.autopilot.outer_loop import DESCENT_INTERPOLATED, DESCENT_TWO_SPEED, interpolated_land_speed
 from sitl_sim.autopilot.params import param_specs
-from sitl_sim.autopilot.persona import fleet_params, fleet_personas, parse_autopilots, persona_named
 from sitl_sim.autopilot.px4 import Px4
+from sitl_sim.autopilot.registry import fleet_params, fleet_personas, parse_autopilots, persona_named
 from sitl_sim.vehicle_model.dynamics import FleetDynamics, FleetState
 
 HOVER = 0.4
