@@ -1,8 +1,9 @@
 """Figures in the paper's style, drawn with matplotlib (the optional extra `plot`); every function returns
 what it wrote, nothing (an empty list or False) when matplotlib is not installed.
 
-Run figures (one run folder, `write_run_figures`): report.png (overview: top view, inter-vehicle distances,
-each follower's distance from its slot over the whole formation flight, commanded roll and pitch),
+Run figures (one run folder, `write_run_figures`): report.png (overview: top view with the formation's shape
+at eight moments, inter-vehicle distances, each follower's distance from its slot over the whole formation
+flight with the reshapes marked, commanded roll and pitch),
 fig_trajectories.png (3-D paths with obstacle spheres and the 2-D top view, paper Figs 13, 18, 20, 22, 25),
 fig_velocity_acceleration.png (per-axis velocity and acceleration, Figs 14-16), fig_distances.png
 (inter-vehicle distances with the safe-distance line, Fig 17), fig_relative_angle.png (angle of each follower
@@ -12,6 +13,7 @@ Comparison and Monte Carlo figures: `plot_compare`, `plot_histograms`.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -27,6 +29,8 @@ if TYPE_CHECKING:
 ENABLED = True  # False: write_run_figures draws nothing (Monte Carlo workers)
 MAX_POINTS = 4000  # samples per plotted series; longer logs are decimated for drawing only
 MAX_LEGEND = 10  # vehicles (or pairs) beyond which legends are left out
+FORMATION_SNAPSHOTS = 8  # moments of formation flight whose shape the top view shows
+RESHAPE_EVENT = re.compile(r"t=([0-9.]+) s formation (narrows: .+|widens: .+|restored)$")
 
 
 def pyplot() -> ModuleType | None:
@@ -116,8 +120,43 @@ def _draw_slot_errors(
     for i, name in enumerate(names):
         if np.isfinite(err[:, i]).any():
             ax.plot(t[s] - t0, err[s, i], lw=0.9, label=name, color=f"C{i % 10}")  # as in the top view
+    for when, what in reshape_events(flight):  # the formation's changes of shape (guidance.reshape)
+        ax.axvline(when - t0, color="0.5", lw=0.8, ls="--")
+        ax.text(
+            when - t0,
+            1.0,
+            what,
+            rotation=90,
+            va="top",
+            ha="right",
+            fontsize=6,
+            transform=ax.get_xaxis_transform(),
+        )
     if len(names) <= MAX_LEGEND:
         ax.legend(fontsize=7, loc="best")
+
+
+def reshape_events(flight: dict[str, Any]) -> list[tuple[float, str]]:
+    """(t s, what) of each change of the formation's shape in flight.json's events ("t=12.30 s formation
+    narrows: column", ... "formation restored")."""
+    out = []
+    for event in flight.get("events", []):
+        match = RESHAPE_EVENT.match(event)
+        if match:
+            out.append((float(match.group(1)), match.group(2)))
+    return out
+
+
+def _draw_formation_shapes(ax: Any, traj: Trajectories, leader: int, t0: float, t1: float) -> None:
+    """The formation's shape at FORMATION_SNAPSHOTS moments of formation flight on the top view: a line from
+    the leader to each follower, where they truly were."""
+    for when in np.linspace(t0, t1, FORMATION_SNAPSHOTS):
+        k = int(np.clip(np.searchsorted(traj.t, when), 0, len(traj.t) - 1))
+        p = traj.pos[k]
+        for i in range(p.shape[0]):
+            if i != leader:
+                ax.plot([p[leader, 0], p[i, 0]], [p[leader, 1], p[i, 1]], color="0.25", lw=0.6, alpha=0.7)
+        ax.plot(p[:, 0], p[:, 1], "o", color="0.25", ms=2.5, alpha=0.8)
 
 
 def _draw_tilt_commands(ax: Any, commands: CommandLog | None, names: list[str], t0: float) -> None:
@@ -253,6 +292,8 @@ def write_run_figures(
     written = []
     fig, axes = plt.subplots(2, 2, figsize=(14, 10.5))
     _draw_top_view(axes[0, 0], plt, traj, names, goal)
+    t1 = float(flight.get("t_formation_end") or traj.t[-1])
+    _draw_formation_shapes(axes[0, 0], traj, int(flight.get("leader", mission.leader_index)), t0, t1)
     _draw_distances(axes[0, 1], traj, names, mission, t0)
     _draw_slot_errors(axes[1, 0], traj, commands, flight, mission, names, t0)
     _draw_tilt_commands(axes[1, 1], commands, names, t0)

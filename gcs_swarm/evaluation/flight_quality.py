@@ -139,6 +139,29 @@ def scheduled_formation_error(
     return fe, err
 
 
+ASSEMBLED_M = 2.0  # m: the formation has assembled when every follower is this close to its slot
+
+
+def assembled_figures(t: np.ndarray, slot_error: np.ndarray) -> dict[str, Any]:
+    """Figures once the formation has assembled, from the follower-to-slot error (T, N) m (NaN: the leader,
+    vehicles out of the formation) at times t (T,) s: `assembly_s` from t[0] until every follower is within
+    ASSEMBLED_M of its slot for the first time (None if never), and the slot error's RMS and maximum m from
+    then on (docs/metrics.md)."""
+    with np.errstate(invalid="ignore"):
+        worst = np.fmax.reduce(slot_error, axis=1) if slot_error.shape[1] else np.zeros(len(t))
+    inside = np.flatnonzero(worst <= ASSEMBLED_M)
+    if not len(t) or not len(inside):
+        return {"assembly_s": None}
+    k = int(inside[0])
+    err = slot_error[k:]
+    err = err[np.isfinite(err)]
+    return {
+        "assembly_s": rounded(float(t[k] - t[0]), 2),
+        "slot_error_assembled_rms_m": rounded(float(np.sqrt(np.mean(err * err)))) if err.size else None,
+        "slot_error_assembled_max_m": rounded(float(err.max())) if err.size else None,
+    }
+
+
 def whole_flight_figures(
     t: np.ndarray,
     pos: np.ndarray,
@@ -169,6 +192,7 @@ def whole_flight_figures(
             out["slot_error_rms_m"] = rounded(float(np.sqrt(np.mean(err * err))))
             out["slot_error_p95_m"] = rounded(float(np.percentile(err, 95)))
             out["slot_error_max_m"] = rounded(float(err.max()))
+        out |= assembled_figures(ts, slot_error[sel])
     cusps = [cusp_times(ts, vs[:, i, :2]) for i in range(pos.shape[1])]
     out["cusps"] = [len(c) for c in cusps]
     out["cusps_total"] = int(sum(out["cusps"]))

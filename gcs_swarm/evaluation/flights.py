@@ -25,6 +25,10 @@ WHOLE_FLIGHT_RESULT_KEYS = (  # ... and these of report.json's whole_flight (doc
     "pitch_command_chatter_max_rad",
     "min_separation_whole_flight_m",
     "min_altitude_in_formation_m",
+    "assembly_s",
+    "slot_error_assembled_rms_m",
+    "slot_error_assembled_max_m",
+    "leader_path_ratio",
 )
 
 

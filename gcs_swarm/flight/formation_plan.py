@@ -1,6 +1,6 @@
 """The formation the guidance flies: the FleetController configured from the mission file, the slot offsets
-of the live vehicles (re-forming after a loss or a reshape), slot assignment by least travel, and the
-timeline of formations flown."""
+of the live vehicles (re-forming after a loss or a reshape), slot assignment by the shortest longest move, and
+the timeline of formations flown."""
 
 from __future__ import annotations
 
@@ -9,9 +9,12 @@ import numpy as np
 from gcs_swarm.guidance.controller import make_position_controller
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import assign_slots, formation_offsets
+from gcs_swarm.guidance.slot_assignment import AssignmentRule
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.mission import Mission
 from gcs_swarm.mission.geometry import follower_targets, mission_offsets
+
+ASSIGNMENT_GAP_M = 1.0  # m beyond D_Emg kept between followers moving to their slots
 
 
 def live_offsets(
@@ -56,6 +59,7 @@ def build_controller(
         control_dt=1.0 / mission.run.control_rate_hz,
         z_min=mission.safety.min_altitude,
         dead_gcs=mission.safety.dead_gcs,
+        reshape=mission.reshape,
     )
 
 
@@ -68,30 +72,32 @@ def slots_assignable(mission: Mission) -> bool:
 
 def assign_slots_by_travel(
     mission: Mission, controller: FleetController, fleet: Fleet, flown: np.ndarray
-) -> bool:
+) -> AssignmentRule | None:
     """Give the controller's current slots to the followers of the (N,) bool mask `flown` (live, not taken
-    over) by least total travel (formation.assign_slots) from where they are now, the leader's slot frame as
-    it is now; True if a follower changed slot."""
+    over) by the shortest longest move that neither crosses nor comes within D_Emg + 1 m of another
+    (formation.assign_slots) from where they are now, the leader's slot frame as it is now; the rule that
+    decided if a follower changed slot, else None."""
     if not slots_assignable(mission):
-        return False
+        return None
     movable = flown & np.isfinite(fleet.pos).all(axis=1)
     movable[controller.leader] = False
     assert controller.heading is not None
-    offsets = assign_slots(
-        fleet.pos, fleet.pos[controller.leader], controller.heading.psi, controller.offsets, movable
-    )
+    offsets, rule = assign_slots(
+        fleet.pos, fleet.pos[controller.leader], controller.heading.psi, controller.offsets, movable,
+        mission.safety.separation.d_emg + ASSIGNMENT_GAP_M,
+    )  # fmt: skip
     if np.array_equal(offsets, controller.offsets):
-        return False
+        return None
     controller.set_offsets(offsets)
-    return True
+    return rule
 
 
 def note_formation(
     timeline: list[tuple[float, int, np.ndarray]], t: float, controller: FleetController, alive: np.ndarray
 ) -> None:
-    """Append (t, leader, (N, 3) offsets flown with degraded widening, NaN rows for the (N,) not `alive`) to
-    the timeline when the formation changed."""
-    offsets = np.where(alive[:, None], controller.offsets * controller.spacing_scale, np.nan)
+    """Append (t, leader, (N, 3) offsets flown (reshaped or not) with degraded widening, NaN rows for the (N,)
+    not `alive`) to the timeline when the formation changed."""
+    offsets = np.where(alive[:, None], controller.flown_offsets * controller.spacing_scale, np.nan)
     if timeline and timeline[-1][1] == controller.leader:
         last = timeline[-1][2]
         # np.array_equal(last, offsets, equal_nan=True), in fewer calls (once a tick)

@@ -455,6 +455,11 @@ class MissionRunner:
         self.result.final_targets = targets
         self.result.leader, self.result.offsets = ctl.leader, ctl.offsets
         note_formation(self.result.formation_timeline, t, ctl, flown)
+        if ctl.shaper is not None and ctl.shaper.events:  # reshapes around obstacles
+            for event in ctl.shaper.events:
+                self.result.events.append(event)
+                self.progress(event)
+            ctl.shaper.events.clear()
         errors = np.linalg.norm(pos - targets, axis=1)
         self.formation_rms = formation_rms(errors, active, ctl.leader)
         last_leg = cmd.waypoint_index == len(ctl.waypoints) - 1
@@ -473,9 +478,10 @@ class MissionRunner:
             self._set_phase(Phase.LAND)
 
     def _assign_slots(self) -> None:
-        """Give the current slots to the live followers by least total travel from where they are now."""
-        if assign_slots_by_travel(self.mission, self.controller, self.fleet, self.takeover.flown):
-            self.result.events.append("slots assigned by least travel")
+        """Give the current slots to the live followers by the shortest longest move from where they are."""
+        rule = assign_slots_by_travel(self.mission, self.controller, self.fleet, self.takeover.flown)
+        if rule is not None:
+            self.result.events.append(f"slots assigned by {rule}")
 
     # ----- helpers -----
 
@@ -662,4 +668,5 @@ class MissionRunner:
         self.progress(
             f"t={t:7.1f} s  leader to goal {cmd.leader_goal_distance:8.1f} m  "
             f"formation rms {self.formation_rms:6.2f} m"
+            + ("" if self.controller.shaper is None else f"  shape {self.controller.shaper.shape_name}")
         )

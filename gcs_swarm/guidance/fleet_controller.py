@@ -36,10 +36,12 @@ from gcs_swarm.guidance.params import (
     G,
     Limits,
     ReferenceParams,
+    ReshapeParams,
     SeparationParams,
     SMCParams,
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
+from gcs_swarm.guidance.reshape import FormationShaper
 from gcs_swarm.guidance.separation import (
     closing_deceleration,
     closing_range,
@@ -51,6 +53,8 @@ from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
 
 NO_ROWS = np.zeros((0, 3))
+RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in a reshape
+RESHAPE_CUSHION_M = 1.0  # m: in a tighter shape, neighbours repel once this much closer than min_spacing_m
 _prepared = False  # every kernel was called once in this process (prepare_kernels)
 
 
@@ -165,6 +169,7 @@ class FleetController:
         g: float = G,
         z_min: float | None = None,
         dead_gcs: DeadGcsParams | None = None,
+        reshape: ReshapeParams | None = None,
     ) -> None:
         """`n` vehicles, `leader` its index; `offsets` (N, 3) leader-frame slots (leader row zero),
         `goal_waypoints` (W, 3) the leader's goals in order, `follower_targets` (N, 3) final destinations g_i
@@ -173,7 +178,9 @@ class FleetController:
         default the star graph), `position_controller` the control law of step 7 (None: the SMC with the
         spec's gains and `limits`; gcs_swarm.guidance.controller.make_position_controller builds a mission's
         choice), `thrust_mode` "measured" (Eq 36) or "norm" (m|U|), `control_dt` s the nominal tick,
-        `dead_gcs` the failsafe speed scheduling (None: off, gcs_swarm.guidance.failsafe_speed).
+        `dead_gcs` the failsafe speed scheduling (None: off, gcs_swarm.guidance.failsafe_speed), `reshape`
+        the deliberate reshaping around obstacles (None or not enabled: the paper's fixed formation,
+        gcs_swarm.guidance.reshape).
         """
         if n < 1 or not 0 <= leader < n:
             raise ValueError(f"leader index {leader} is not a vehicle of a fleet of {n}")
@@ -193,6 +200,7 @@ class FleetController:
         self.thrust_mode = thrust_mode
         self.g = g
         self.offsets = check_offsets(offsets, n, leader)
+        self.flown_offsets = self.offsets  # (N, 3) the offsets of the latest tick (reshaped or not)
         self.set_goal_waypoints(goal_waypoints)
         self.follower_targets = None if follower_targets is None else self._checked_targets(follower_targets)
         self.d_g = default_d_g(self.field, self.limits.v_xy, self.reference.k_v)
@@ -210,7 +218,9 @@ class FleetController:
             SMCParams(), g, self.limits
         )
         self.tilt_rate_max = np.deg2rad(self.limits.tilt_rate_max_deg)  # rad/s, <= 0: no slew limit
+        self.heading_rate_max = float(np.deg2rad(self.reference.heading_rate_max_deg))  # rad/s, psi_L's limit
         self.heading: LeaderHeading | None = None
+        self.last_t: float | None = None  # s, the previous tick's time
         self.relay: LeaderRelay | None = None
         self.speed_scale = 1.0
         self.spacing_scale = 1.0
@@ -222,6 +232,12 @@ class FleetController:
         ):
             raise ValueError("dead_gcs timeout and stop limits must be set (the mission loader sets them)")
         self.dead_gcs = dead_gcs
+        self.reshape = reshape if reshape is not None and reshape.enabled else None
+        self.shaper = (
+            None
+            if self.reshape is None
+            else FormationShaper(self.reshape, self.offsets, leader, self.separation.d_emg + RESHAPE_GAP_M)
+        )
         prepare_kernels(dead_gcs)  # now, not in the first formation tick, where it stalled the control loop
 
     # ----- live changes (operator console) -----
@@ -242,8 +258,13 @@ class FleetController:
         self.follower_targets = None
 
     def set_offsets(self, offsets: np.ndarray) -> None:
-        """New leader-frame slot offsets (N, 3), leader row zero."""
+        """New leader-frame slot offsets (N, 3), leader row zero: with reshaping on, reached smoothly from
+        the offsets flown (gcs_swarm.guidance.reshape) once the flight has begun, else at once."""
         self.offsets = check_offsets(offsets, self.n, self.leader)
+        if self.shaper is not None:
+            self.shaper.set_nominal(self.offsets, self.leader, self.last_t if self.heading else None)
+        else:
+            self.flown_offsets = self.offsets
 
     def set_degraded(self, speed_scale: float, spacing_scale: float) -> None:
         """Degraded flight on stale telemetry (gcs_swarm.guidance.degradation): speed caps x speed_scale in
@@ -260,10 +281,13 @@ class FleetController:
 
     def speed_caps(self) -> np.ndarray:
         """(N,) m/s: each vehicle's horizontal speed cap before the closing-speed and failsafe caps: v_xy
-        (leader v_xy_leader x leader_speed_scale) x the degraded-flight speed_scale."""
+        (leader v_xy_leader x leader_speed_scale) x the degraded-flight speed_scale; the leader's also within
+        the reshape's pace (gcs_swarm.guidance.reshape)."""
         cap = self.v_xy_cap * self.speed_scale
         if self.leader_speed_scale < 1.0:
             cap[self.leader] *= self.leader_speed_scale
+        if self.shaper is not None:  # [add] the leader gives its followers time to change shape (reshape)
+            cap[self.leader] = min(cap[self.leader], self.shaper.pace_cap)
         return cap
 
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
@@ -288,10 +312,10 @@ class FleetController:
         self.last_pos = np.where(known[:, None], pos, np.nan)
         self.last_vel = np.where(known[:, None], vel, 0.0)
         self.was_active = known.copy()
-        self.last_t: float | None = None
+        self.last_t = None
         self.generator.reset(self.last_pos, self.last_vel)
         self.position_controller.reset(self.n)
-        rate = np.deg2rad(self.reference.heading_rate_max_deg)
+        rate = self.heading_rate_max
         ref = self.reference
         self.heading = LeaderHeading(
             yaw[self.leader],
@@ -381,11 +405,30 @@ class FleetController:
             self.waypoint_index += 1
             goal_dist = float(np.linalg.norm(self.waypoints[self.waypoint_index] - p_lead))
         goal = self.waypoints[self.waypoint_index]
-        self.heading.update(self.generator.v[lead, :2], goal_dist, dt)
+        course = self.generator.v[lead, :2]
+        to_goal = goal[:2] - p_lead[:2]
+        across = float(np.hypot(to_goal[0], to_goal[1]))
+        if self.reference.heading_from_route and across > 0.0:  # [add] the route's direction, at that speed
+            course = to_goal * (float(np.hypot(course[0], course[1])) / across)
+        if self.reference.heading_sweep_max > 0.0:  # [add] the farthest slot swings at most this fast
+            flown = self.flown_offsets
+            reach = float(np.max(np.hypot(flown[:, 0], flown[:, 1]))) * self.spacing_scale
+            sweep_rate = self.reference.heading_sweep_max / reach if reach > 0.0 else np.inf
+            self.heading.rate_max = min(self.heading_rate_max, sweep_rate)
+        self.heading.update(course, goal_dist, dt)
         ref = self.reference
+        offsets, offset_rate, shrink = self.offsets, None, 1.0
+        if self.shaper is not None:  # [add] deliberate reshaping around obstacles (reshape)
+            self.shaper.decide(
+                t, p_lead, self.heading.psi, self.waypoints[self.waypoint_index :],
+                float(self.v_xy_cap[lead] * self.speed_scale), centres, radii,
+            )  # fmt: skip
+            offsets, offset_rate = self.shaper.flown(t)
+            shrink = self.shaper.scale(t)
+        self.flown_offsets = offsets
         if ref.leader_wait_m > 0.0:  # [add] the leader waits for followers behind their slots (leader_wait)
             self.leader_speed_scale = leader_cap_scale(
-                self.last_pos, lead, self.offsets * self.spacing_scale, self.heading.psi,
+                self.last_pos, lead, offsets * self.spacing_scale, self.heading.psi,
                 active & ~self.is_leader, ref.leader_wait_m, ref.leader_wait_span_m, ref.leader_wait_floor,
             )  # fmt: skip
 
@@ -394,10 +437,16 @@ class FleetController:
         heard = self.relay.read()
         psi_l = heard[:, 6]
         destinations = NO_ROWS if self.follower_targets is None else self.follower_targets
+        cos_l, sin_l = np.cos(psi_l), np.sin(psi_l)
         targets, v_ff, a_ff, dest = formation_targets(
-            heard, np.cos(psi_l), np.sin(psi_l), self.offsets, float(self.spacing_scale), centres, radii,
-            float(ref.slot_margin), int(lead), goal, destinations,
+            heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
+            int(lead), goal, destinations,
         )  # fmt: skip
+        if offset_rate is not None and offset_rate.any():  # the slots' own motion in the leader frame
+            rate = offset_rate * self.spacing_scale
+            v_ff[:, 0] += rate[:, 0] * cos_l - rate[:, 1] * sin_l
+            v_ff[:, 1] += rate[:, 0] * sin_l + rate[:, 1] * cos_l
+            v_ff[:, 2] += rate[:, 2]
         gen = self.generator
         literal = ref.paper_literal & ~self.is_leader
         if ref.paper_literal:
@@ -412,6 +461,10 @@ class FleetController:
         sep = self.separation
         d_emg, s_s = (sep.d_emg, sep.s_s) if wide == 1.0 else (sep.d_emg * wide, sep.s_s * wide)
         d_max = self.d_max * wide
+        if shrink < 1.0:  # a tighter shape: its neighbours are not repelled out of their slots
+            assert self.reshape is not None
+            cushion = self.reshape.min_spacing_m + RESHAPE_CUSHION_M
+            d_max = min(self.d_max, max(self.d_max * shrink, cushion)) * wide
         known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
         f_uav, emergency = uav_repulsion(
             p_r, self.last_pos, self.last_vel, known, gen.v, float(ref.brake_accel), self.field, d_max,

@@ -10,9 +10,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from gcs_swarm.guidance.obstacles import push_out_horizontally
+from gcs_swarm.guidance.slot_assignment import AssignmentRule, assign_moves
 from swarm_common.jit import kernel
 from swarm_common.rotations import wrap_pi, wrap_pi_float
 from swarm_common.shaping import sqrt_controller
@@ -145,23 +145,26 @@ def leader_frame_offsets(p: np.ndarray, p_leader: np.ndarray, psi_leader: np.nda
 
 
 def assign_slots(
-    pos: np.ndarray, p_leader: np.ndarray, psi_leader: float, offsets: np.ndarray, movable: np.ndarray
-) -> np.ndarray:
+    pos: np.ndarray,
+    p_leader: np.ndarray,
+    psi_leader: float,
+    offsets: np.ndarray,
+    movable: np.ndarray,
+    min_gap: float,
+) -> tuple[np.ndarray, AssignmentRule]:
     """Offsets (N, 3) with the slots of the `movable` (N,) bool vehicles permuted among them so that the
-    sum of straight-line distances from each vehicle's position (N, 3) to its slot (at the leader's
-    position (3,) and heading psi rad) is least [add]. Straight paths of a least-total-distance assignment
-    do not cross in the plane (two crossing paths could swap ends and both get shorter, by the triangle
-    inequality), so followers do not cut across each other while assembling. Solved exactly by
-    scipy.optimize.linear_sum_assignment; rows with a non-finite position keep their slot."""
+    longest straight move from a vehicle's position (N, 3) to its slot (at the leader's position (3,) and
+    heading psi rad) is least, the moves not crossing and keeping min_gap m between vehicles
+    (gcs_swarm.guidance.slot_assignment) [add], and the rule that decided. Rows with a non-finite position
+    keep their slot."""
     out = np.array(offsets, dtype=float)
     rows = np.flatnonzero(np.asarray(movable, dtype=bool) & np.isfinite(pos).all(axis=1))
     if len(rows) < 2:
-        return out
+        return out, AssignmentRule.BOTTLENECK
     slots = slot_positions(p_leader, psi_leader, out[rows])
-    cost = np.linalg.norm(pos[rows][:, None, :] - slots[None, :, :], axis=-1)
-    vehicle, slot = linear_sum_assignment(cost)
-    out[rows[vehicle]] = offsets[rows[slot]]
-    return out
+    order, rule = assign_moves(pos[rows], slots, min_gap)
+    out[rows] = offsets[rows[order]]
+    return out, rule
 
 
 class LeaderHeading:

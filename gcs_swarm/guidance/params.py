@@ -211,6 +211,13 @@ class ReferenceParams:
         1.0  # s, time constant of the leader velocity low-pass psi_L follows [add]; 0 = off
     )
     heading_gain: float = 1.0  # 1/s, turn rate of psi_L per rad of course error, small errors [add]
+    # [add] psi_L follows the direction from the leader to its current waypoint instead of its velocity's
+    # course, so the formation does not swing its tail when the leader swerves round an obstacle
+    heading_from_route: bool = True
+    # [add] m/s: the formation turns no faster than lets its farthest slot swing round the leader at this
+    # speed (rate <= heading_sweep_max / farthest slot distance), so a long formation keeps up in a turn;
+    # 0 = off (only heading_rate_max_deg)
+    heading_sweep_max: float = 4.0
     paper_literal: bool = False  # spec 8 option: x_d = slot + K_f * sum F_rep
     waypoint_radius: float = 5.0  # m, the leader moves on to its next goal waypoint within this distance
     jerk_max: float = (
@@ -229,9 +236,9 @@ class ReferenceParams:
     # [add] the leader waits for its followers (gcs_swarm.guidance.leader_wait): its speed cap falls once the
     # worst follower is more than leader_wait_m (m) from its slot, linearly over leader_wait_span_m (m) down
     # to leader_wait_floor x v_xy_leader; 0 = off (the paper's leader ignores its followers)
-    leader_wait_m: float = 0.0
+    leader_wait_m: float = 3.0
     leader_wait_span_m: float = 5.0
-    leader_wait_floor: float = 0.2
+    leader_wait_floor: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius", "accel_xy_max"):
@@ -239,6 +246,8 @@ class ReferenceParams:
                 raise ValueError(f"reference parameter {name} must be > 0")
         if self.heading_min_speed < 0:
             raise ValueError("heading_min_speed must be >= 0")
+        if not self.heading_sweep_max >= 0:
+            raise ValueError("heading_sweep_max must be >= 0 (0 turns it off)")
         if not (self.heading_accel_max_deg >= 0 and self.heading_filter_s >= 0 and self.heading_gain > 0):
             raise ValueError("need heading_accel_max_deg >= 0, heading_filter_s >= 0 and heading_gain > 0")
         if not self.slot_margin >= 0:
@@ -279,6 +288,35 @@ class TelemetryParams:
             raise ValueError("recover_s must be >= 0")
         if not (0 < self.lost_radius <= self.lost_radius_max and self.lost_radius_growth >= 0):
             raise ValueError("need 0 < lost_radius <= lost_radius_max and lost_radius_growth >= 0")
+
+
+@dataclass(frozen=True)
+class ReshapeParams:
+    """Deliberate reshaping of the formation where obstacles leave it too little room [add]
+    (gcs_swarm.guidance.reshape; docs/iaapf-smc-spec.md section 6a): the formation narrows (its spacing
+    scaled down to `min_spacing_m`) or falls into a column while every slot would pass closer than
+    `clearance_m` to an obstacle along the look-ahead, and re-forms when the wider shape fits again."""
+
+    enabled: bool = True  # false: the paper's fixed formation (each follower avoids on its own repulsion)
+    clearance_m: float = 4.0  # m between every slot and an obstacle surface along the look-ahead
+    lookahead_s: float = 6.0  # s of leader travel at its speed cap checked ahead ...
+    lookahead_min_m: float = 30.0  # m, ... but at least this far
+    # m, the tightest spacing a narrowed formation or column flies: D_Emg (3 m) plus 2 m of slot error on
+    # each of two neighbours before they are in an emergency separation
+    min_spacing_m: float = 7.0
+    steps: int = 3  # spacings tried between the mission's and min_spacing_m
+    column: bool = True  # may fall into a column (line astern) when no narrowed shape fits
+    speed_m_s: float = 2.5  # m/s, fastest a slot moves relative to the leader while the shape changes
+    restore_after_s: float = 1.5  # s a wider shape must keep fitting before the formation widens to it
+    decide_every_s: float = 0.2  # s between decisions
+
+    def __post_init__(self) -> None:
+        if not (self.clearance_m >= 0 and self.lookahead_s > 0 and self.lookahead_min_m >= 0):
+            raise ValueError("need clearance_m >= 0, lookahead_s > 0 and lookahead_min_m >= 0")
+        if not (self.min_spacing_m > 0 and self.speed_m_s > 0 and self.steps >= 1):
+            raise ValueError("need min_spacing_m > 0, speed_m_s > 0 and steps >= 1")
+        if not (self.restore_after_s >= 0 and self.decide_every_s > 0):
+            raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
 
 
 FENCE_ACTIONS = ("brake", "land", "rtl", "report")  # safety.dead_gcs.fence.action -> FENCE_ACTION 4, 2, 1, 0
@@ -362,11 +400,15 @@ PAPER_PLAIN: dict[str, dict[str, float]] = {
         "stop_accel": 0.0,
         "heading_accel_max_deg": 0.0,
         "heading_filter_s": 0.0,
+        "heading_from_route": False,
+        "heading_sweep_max": 0.0,
+        "leader_wait_m": 0.0,
     },
     "limits": {"tilt_rate_max_deg": 0.0},
     "control.smc": {"drag_adaptation": 0.0},
     "control.smc.xy": {"disturbance_gain": 0.0},
     "safety.separation": {"closing_brake_accel": 0.0},
+    "guidance.reshape": {"enabled": False},
 }
 
 

@@ -118,6 +118,7 @@ def _mission(file: MissionFile, source: str) -> Mission:
         ),
         field=file.guidance,
         reference=file.reference,
+        reshape=file.reshape,
         controller=file.control.controller,
         smc=file.control.smc,
         pid=file.control.pid,

@@ -19,6 +19,7 @@ from gcs_swarm.guidance.params import (
     Limits,
     PIDParams,
     ReferenceParams,
+    ReshapeParams,
     SeparationParams,
     SMCParams,
     TelemetryParams,
@@ -211,6 +212,7 @@ class Mission(_ValueEquality):
     link: LinkSpec
     field: FieldParams
     reference: ReferenceParams
+    reshape: ReshapeParams  # [add] deliberate reshaping around obstacles (guidance.reshape)
     controller: str  # "smc" | "pid"
     smc: SMCParams
     pid: PIDParams

@@ -43,6 +43,7 @@ from gcs_swarm.guidance.params import (
     Limits,
     PIDParams,
     ReferenceParams,
+    ReshapeParams,
     SeparationParams,
     SMCParams,
     TelemetryParams,
@@ -456,9 +457,12 @@ class MissionFile(Section):
     goal: Vec = ZERO
     waypoints: list[Vec] = []
     world: WorldSection = WorldSection()
-    guidance: Annotated[FieldParams, Params(skip=("reference",))] = FieldParams()
+    guidance: Annotated[FieldParams, Params(skip=("reference", "reshape"))] = FieldParams()
     reference: Annotated[ReferenceParams, Params()] = Field(
         ReferenceParams(), validation_alias=AliasPath("guidance", "reference")
+    )
+    reshape: Annotated[ReshapeParams, Params()] = Field(
+        ReshapeParams(), validation_alias=AliasPath("guidance", "reshape")
     )
     control: ControlSection = ControlSection()
     limits: Annotated[Limits, Params()] = Limits()

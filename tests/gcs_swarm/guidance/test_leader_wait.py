@@ -110,7 +110,7 @@ def slot_errors(reference: ReferenceParams, seconds: float = 60.0) -> tuple[np.n
 def test_a_waiting_leader_keeps_followers_that_cannot_outrun_it_near_their_slots():
     """(The compiled tick when numba is installed; tick_replay's grid_7_slow shows the numpy steps give the
     same bytes.)"""
-    plain, plain_arrival = slot_errors(ReferenceParams(), 80.0)
+    plain, plain_arrival = slot_errors(ReferenceParams(leader_wait_m=0.0), 80.0)
     waiting, waiting_arrival = slot_errors(ReferenceParams(leader_wait_m=3.0, leader_wait_span_m=10.0), 80.0)
     # straight flight after the V assembled (15-30 s) and after the turn at the first waypoint (50-60 s)
     straight = np.r_[int(15.0 / DT) : int(30.0 / DT), int(50.0 / DT) : int(60.0 / DT)]
@@ -136,7 +136,7 @@ def test_a_tight_formation_flies_as_if_the_wait_were_off():
     pos = slot_positions(np.array([0.0, 0.0, 20.0]), 0.0, offsets)
     pos[1:, :2] += [[1.0, -0.5], [-0.5, 1.0]]  # within 3 m of the slots
     commands = []
-    for reference in (ReferenceParams(), ReferenceParams(leader_wait_m=3.0)):
+    for reference in (ReferenceParams(leader_wait_m=0.0), ReferenceParams(leader_wait_m=3.0)):
         ctl = FleetController(n, 0, offsets, goal, reference=reference, control_dt=DT)
         ctl.reset(pos, np.zeros((n, 3)), np.zeros(n))
         cmd = ctl.tick(

@@ -4,7 +4,6 @@ ahead, slot assignment and slot push-out. Expected values are worked out by hand
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -339,45 +338,22 @@ def test_the_scalar_wrap_gives_the_array_bits(angle):
 # ----- slots -----
 
 
-def test_slot_assignment_uncrosses_and_is_least_total_distance():
-    """Four followers of a V, each started next to another's slot: the assignment gives every one the
-    nearest free slot, and no permutation has a smaller total distance (brute force over all 24)."""
+def test_slot_assignment_gives_each_swapped_follower_its_nearest_slot():
+    """Four followers of a V, each started next to another's slot: every one gets the slot it stands by
+    (a move of sqrt(3 x 0.25) m, the shortest possible longest move), the leader's row stays zero, and a
+    follower that may not move keeps its slot."""
     offsets = np.zeros((5, 3))
     offsets[1:] = formation_offsets("v", 4, 10.0)
     slots = slot_positions(np.zeros(3), 0.3, offsets)
     pos = slots[[0, 2, 1, 4, 3]] + 0.5  # followers swapped pairwise
     movable = np.array([False, True, True, True, True])
-    out = assign_slots(pos, np.zeros(3), 0.3, offsets, movable)
+    out, _ = assign_slots(pos, np.zeros(3), 0.3, offsets, movable, 4.0)
     new_slots = slot_positions(np.zeros(3), 0.3, out)
     np.testing.assert_allclose(np.linalg.norm(new_slots[1:] - pos[1:], axis=1), math.sqrt(0.75))
-    best = min(
-        sum(np.linalg.norm(slots[1 + j] - pos[1 + i]) for i, j in enumerate(perm))
-        for perm in itertools.permutations(range(4))
-    )
-    assert np.linalg.norm(new_slots[1:] - pos[1:], axis=1).sum() == pytest.approx(best)
     np.testing.assert_array_equal(out[0], 0.0)
-
-
-@settings(max_examples=50, deadline=None)
-@given(st.integers(0, 10_000))
-def test_assigned_paths_never_cross(seed):
-    """Random starts for six followers: no two straight paths start -> assigned slot intersect (a crossing
-    pair could swap slots and both paths would get shorter, so the least total cannot have one)."""
-    rng = np.random.default_rng(seed)
-    offsets = np.zeros((7, 3))
-    offsets[1:] = formation_offsets("v", 6, 10.0)
-    pos = np.column_stack([rng.uniform(-40, 40, (7, 2)), np.zeros(7)])
-    out = assign_slots(pos, np.zeros(3), 0.0, offsets, np.arange(7) > 0)
-    ends = slot_positions(np.zeros(3), 0.0, out)
-
-    def cross(a, b, c, d):
-        def orient(p, q, r):
-            return np.sign((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]))
-
-        return orient(a, b, c) * orient(a, b, d) < 0 and orient(c, d, a) * orient(c, d, b) < 0
-
-    for i, j in itertools.combinations(range(1, 7), 2):
-        assert not cross(pos[i], ends[i], pos[j], ends[j])
+    movable[4] = False
+    out, _ = assign_slots(pos, np.zeros(3), 0.3, offsets, movable, 4.0)
+    np.testing.assert_array_equal(out[4], offsets[4])
 
 
 def test_push_out_moves_points_to_the_grown_circle_only():

@@ -1,0 +1,344 @@
+"""Deliberate reshaping of the formation around obstacles [add] (docs/iaapf-smc-spec.md section 6a).
+
+The paper flies one rigid formation and lets every follower go round an obstacle on its own repulsion, so a
+formation meeting a slalom or a gap narrower than itself comes apart. Here the formation changes shape on
+purpose instead, and its followers' slots move with it:
+
+- **Candidates**, widest first: the mission's formation; the same shape with its spacing scaled down in
+  `steps` steps to `min_spacing_m` between nearest slots; a column (line astern) min_spacing_m apart (short,
+  so that its tail swings little when the leader turns).
+- **Look-ahead**: the leader's route from where it is (through its remaining waypoints) for
+  max(lookahead_min_m, lookahead_s x its speed cap), sampled every SAMPLE_STEP_M, the formation turned to
+  each piece of the route (and, where the leader is now, to its present heading psi_L). A candidate fits when
+  every follower's slot keeps `clearance_m` from every obstacle surface at every sample.
+- **Choice**, every `decide_every_s`: the widest candidate that fits. When none does (an obstacle on the
+  leader's own route, which the leader will swerve round in a way the route does not tell), the one with the
+  most clearance, but only if all its slots stay outside the obstacles and it clears them by CLEARER_M more
+  than the shape flown; else the shape flown is kept. Narrower than the shape flown: at once; wider: once it
+  has kept fitting for `restore_after_s`, so the formation does not flap at the edge of a gap.
+- **Change**: the followers are assigned to the new slots by the shortest longest move
+  (gcs_swarm.guidance.slot_assignment), and the slots move from the old to the new offsets straight, or first
+  along the leader's heading and then across it, or the other way round (MOVE_ORDERS): whichever keeps the
+  vehicles farthest apart (a column opening into a line moves across first, each follower still 7 m behind
+  the next, then forward, each in its own lane). Each phase follows a minimum-jerk profile (quintic, zero
+  velocity and acceleration at both ends) that takes 1.875 x (its longest move) / speed_m_s, so no slot moves
+  faster than speed_m_s relative to the leader.
+  The offsets' rate of change goes to the followers as a velocity feed-forward.
+- **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
+  reach the first place it does not fit before the change is done (`pace_cap`).
+
+Offsets are (N, 3) leader-frame metres (x forward, y left, z up), the leader's row zero. `scale` is the
+spacing of the flown shape over the mission's (1 unreshaped); the inter-UAV repulsion range shrinks with it
+(FleetController) so that followers in a tighter shape are not pushed out of their slots.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs_swarm.guidance.formation import formation_offsets
+from gcs_swarm.guidance.params import ReshapeParams
+from gcs_swarm.guidance.slot_assignment import assign_moves
+
+SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
+PACE_FLOOR_M_S = 1.0  # m/s, the leader never slows below this for a change of shape
+CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One candidate: `name` (for events), leader-frame offsets (N, 3), spacing scale (1: the mission's)."""
+
+    name: str
+    offsets: np.ndarray
+    scale: float
+
+
+def nearest_slot_spacing(offsets: np.ndarray, rows: np.ndarray) -> float:
+    """Smallest distance m between two of the (N, 3) offsets of `rows` (N,) bool, the leader's (zero) among
+    them; inf for fewer than two."""
+    pts = offsets[rows]
+    if len(pts) < 2:
+        return math.inf
+    d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    return float(d.min())
+
+
+def candidate_shapes(nominal: np.ndarray, leader: int, params: ReshapeParams) -> list[Shape]:
+    """The candidates of the module docstring for the mission's offsets `nominal` (N, 3), widest first."""
+    rows = np.any(nominal != 0.0, axis=1)
+    rows[leader] = True
+    followers = np.flatnonzero(rows & (np.arange(len(nominal)) != leader))
+    spacing = nearest_slot_spacing(nominal, rows)
+    shapes = [Shape("formation", nominal, 1.0)]
+    if not followers.size or not math.isfinite(spacing):
+        return shapes
+    floor = min(1.0, params.min_spacing_m / spacing)
+    for k in range(1, params.steps + 1):
+        scale = 1.0 - (1.0 - floor) * k / params.steps
+        if scale < 1.0:
+            shapes.append(Shape(f"narrowed to {scale:.0%}", nominal * scale, scale))
+    if params.column:
+        column = np.zeros_like(nominal)
+        column[followers] = formation_offsets("column", len(followers), spacing * floor)
+        shapes.append(Shape("column", column, floor))
+    return shapes
+
+
+def route_samples(
+    p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, length: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points (P, 3) ENU m along the leader's route from p_leader (3,) through `waypoints` (W, 3), every
+    SAMPLE_STEP_M up to `length` m, the heading (P,) rad the formation has at each (psi_leader at the
+    leader's position, the direction of the route's piece elsewhere) and their distance (P,) m along the
+    route from the leader."""
+    points, headings, along_route = [np.asarray(p_leader, dtype=float)], [float(psi_leader)], [0.0]
+    here, done = points[0], 0.0
+    for wp in waypoints:
+        leg = wp - here
+        size = float(np.hypot(leg[0], leg[1]))
+        if size < 1e-6:
+            continue
+        heading = math.atan2(leg[1], leg[0])
+        along = np.arange(SAMPLE_STEP_M, min(size, length - done) + 1e-9, SAMPLE_STEP_M)
+        points.extend(here + leg * (a / size) for a in along)
+        headings.extend([heading] * len(along))
+        along_route.extend(done + along)
+        done += size
+        here = wp
+        if done >= length:
+            break
+    return np.array(points), np.array(headings), np.array(along_route)
+
+
+def shape_clearance(
+    offsets: np.ndarray, followers: np.ndarray, points: np.ndarray, headings: np.ndarray,
+    centres: np.ndarray, radii: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """Smallest distance (P,) m from a follower slot (rows `followers` of the (N, 3) offsets) to an obstacle
+    surface ((K, 3) centres, (K,) radii) with the leader at each of points (P, 3), heading (P,); inf
+    without obstacles or followers."""
+    if not len(radii) or not followers.size:
+        return np.full(len(points), math.inf)
+    off = offsets[followers]  # (F, 3)
+    c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]  # (P, 1)
+    slots = np.empty((len(points), len(off), 3))
+    slots[..., 0] = points[:, None, 0] + off[None, :, 0] * c - off[None, :, 1] * s
+    slots[..., 1] = points[:, None, 1] + off[None, :, 0] * s + off[None, :, 1] * c
+    slots[..., 2] = points[:, None, 2] + off[None, :, 2]
+    gap = np.linalg.norm(slots[:, :, None, :] - centres[None, None, :, :], axis=-1) - radii
+    return gap.min(axis=(1, 2))
+
+
+def min_jerk(tau: float) -> tuple[float, float]:
+    """The quintic 10 t^3 - 15 t^4 + 6 t^5 and its derivative at tau in [0, 1] (clipped)."""
+    tau = min(max(tau, 0.0), 1.0)
+    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau), 30.0 * tau * tau * (1.0 - tau) ** 2
+
+
+# The ways the slots may move from one shape to another: which axes of the leader frame move in each phase, in
+# order (the vertical moves with the first phase).
+MOVE_ORDERS: dict[str, tuple[tuple[int, ...], ...]] = {
+    "straight": ((0, 1, 2),),
+    "along, then across": ((0, 2), (1,)),
+    "across, then along": ((1, 2), (0,)),
+}
+GAP_SAMPLES = 11  # positions checked along each phase of a move
+
+
+@dataclass(frozen=True)
+class SlotMove:
+    """The slots moving from `start` to `end` (N, 3) leader-frame m from t0 s: in each phase the `axes` of
+    that phase go from where they are to `end` along a minimum-jerk profile of its `duration` s."""
+
+    start: np.ndarray
+    end: np.ndarray
+    t0: float
+    phases: tuple[tuple[tuple[int, ...], float], ...]
+
+    @property
+    def duration(self) -> float:
+        """s, the whole move."""
+        return sum(d for _, d in self.phases)
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets (N, 3) at time t s and their rate (N, 3) m/s."""
+        offsets, rate = self.start.copy(), np.zeros_like(self.start)
+        elapsed = t - self.t0
+        for axes, duration in self.phases:
+            cols = list(axes)
+            if duration <= 0.0 or elapsed >= duration:
+                offsets[:, cols] = self.end[:, cols]
+            else:
+                lam, dlam = min_jerk(max(elapsed, 0.0) / duration)
+                delta = self.end[:, cols] - self.start[:, cols]
+                offsets[:, cols] = self.start[:, cols] + lam * delta
+                rate[:, cols] = delta * (dlam / duration)
+                break
+            elapsed -= duration
+        return offsets, rate
+
+
+def closest_pair_along(start: np.ndarray, end: np.ndarray, axes_order: tuple[tuple[int, ...], ...]) -> float:
+    """Smallest distance m between two rows of start/end (M, 3) moving phase by phase as `axes_order` says
+    (each phase's axes together, proportionally), checked at GAP_SAMPLES positions per phase."""
+    if len(start) < 2:
+        return math.inf
+    here, best = start.copy(), math.inf
+    for axes in axes_order:
+        cols = list(axes)
+        for lam in np.linspace(0.0, 1.0, GAP_SAMPLES):
+            pts = here.copy()
+            pts[:, cols] = here[:, cols] + lam * (end[:, cols] - here[:, cols])
+            d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
+            np.fill_diagonal(d, np.inf)
+            best = min(best, float(d.min()))
+        here[:, cols] = end[:, cols]
+    return best
+
+
+def plan_move(start: np.ndarray, end: np.ndarray, rows: np.ndarray, t0: float, speed: float) -> SlotMove:
+    """The move from `start` to `end` (N, 3) among the MOVE_ORDERS that keeps the (N,) bool `rows` (the
+    leader's among them) farthest apart, straight when none does better; each phase lasts 1.875 x its
+    longest move / speed (m/s), so no slot moves faster than speed."""
+    best_order, best_gap = MOVE_ORDERS["straight"], -math.inf
+    for order in MOVE_ORDERS.values():
+        gap = closest_pair_along(start[rows], end[rows], order)
+        if gap > best_gap + 1e-6:
+            best_order, best_gap = order, gap
+    phases = tuple(
+        (
+            axes,
+            1.875 * float(np.max(np.linalg.norm((end - start)[:, list(axes)], axis=1), initial=0.0)) / speed,
+        )
+        for axes in best_order
+    )
+    return SlotMove(start, end, t0, phases)
+
+
+class FormationShaper:
+    """The shape the formation flies (module docstring): `flown(t)` the offsets and their rate now, `decide`
+    the choice of shape, `set_nominal` a new mission formation (a re-form, a console reshape)."""
+
+    def __init__(self, params: ReshapeParams, nominal: np.ndarray, leader: int, min_gap: float) -> None:
+        """`nominal` (N, 3) the mission's offsets; `min_gap` m the distance followers moving to new slots
+        keep from each other (slot_assignment)."""
+        self.params = params
+        self.leader = leader
+        self.min_gap = min_gap
+        self.events: list[str] = []  # what changed, for the flight's events; the caller empties it
+        self._set(np.array(nominal, dtype=float))
+        self.next_decision = -math.inf
+        self.wider_since: float | None = None
+        self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
+
+    def _set(self, nominal: np.ndarray) -> None:
+        self.shapes = candidate_shapes(nominal, self.leader, self.params)
+        self.current = 0  # index into shapes of the shape flown (or being formed)
+        self.move = SlotMove(nominal, nominal, 0.0, ())
+        self.start_scale = self.end_scale = 1.0
+
+    def set_nominal(self, nominal: np.ndarray, leader: int, t: float | None) -> None:
+        """A new mission formation (N, 3) around `leader`: flown at once when t is None, else reached from
+        the offsets flown now along a reshape that starts at t s."""
+        was = None if t is None else self.flown(t)[0]
+        self.leader = leader
+        self._set(np.array(nominal, dtype=float))
+        if was is not None and t is not None:
+            self._change_to(0, was, t, announce=False)
+
+    def flown(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets (N, 3) flown at time t s and their rate of change (N, 3) m/s."""
+        return self.move.at(t)
+
+    def scale(self, t: float) -> float:
+        """Spacing scale of the shape flown at t (interpolated during a change)."""
+        duration = self.move.duration
+        if duration <= 0.0 or t >= self.move.t0 + duration:
+            return self.end_scale
+        lam, _ = min_jerk((t - self.move.t0) / duration)
+        return self.start_scale + lam * (self.end_scale - self.start_scale)
+
+    @property
+    def shape_name(self) -> str:
+        """Name of the shape flown or being formed."""
+        return self.shapes[self.current].name
+
+    def _change_to(self, index: int, now: np.ndarray, t: float, announce: bool = True) -> None:
+        """Start moving the slots from the offsets `now` (N, 3) to shape `index` at t."""
+        target = self.shapes[index]
+        followers = np.flatnonzero(np.any(target.offsets != 0.0, axis=1))
+        end = np.array(target.offsets)
+        if followers.size > 1:
+            order, _ = assign_moves(now[followers], target.offsets[followers], self.min_gap)
+            end[followers] = target.offsets[followers[order]]
+        rows = np.any(now != 0.0, axis=1) | np.any(end != 0.0, axis=1)
+        rows[self.leader] = True
+        self.start_scale, self.end_scale = self.scale(t), target.scale
+        self.move = plan_move(now, end, rows, t, self.params.speed_m_s)
+        if announce:
+            change = "narrows" if index > self.current else "widens"
+            self.events.append(
+                f"t={t:.2f} s formation {change}: {target.name}"
+                if index
+                else f"t={t:.2f} s formation restored"
+            )
+        self.current = index
+
+    def decide(
+        self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
+        centres: np.ndarray, radii: np.ndarray,
+    ) -> None:  # fmt: skip
+        """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
+        psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, among obstacles (K, 3), (K,) m."""
+        if t < self.next_decision or len(self.shapes) < 2:
+            return
+        self.next_decision = t + self.params.decide_every_s
+        length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap)
+        points, headings, along = route_samples(p_leader, psi_leader, waypoints, length)
+        best, best_gap, gaps = 0, -math.inf, {}
+        for k, shape in enumerate(self.shapes):
+            followers = np.flatnonzero(np.any(shape.offsets != 0.0, axis=1))
+            gaps[k] = float(shape_clearance(shape.offsets, followers, points, headings, centres, radii).min())
+            if gaps[k] >= self.params.clearance_m:
+                best = k
+                break
+            if gaps[k] > best_gap + 1e-9:
+                best, best_gap = k, gaps[k]
+        else:  # none fits: a shape whose slots all stay outside obstacles, clearly clearer than the one flown
+            if not (best_gap > max(0.0, gaps[self.current] + CLEARER_M)):
+                best = self.current
+        if best > self.current:
+            self.wider_since = None
+            self._change_to(best, self.flown(t)[0], t)
+        elif best < self.current:
+            if self.wider_since is None:
+                self.wider_since = t
+            if t - self.wider_since >= self.params.restore_after_s:
+                self.wider_since = None
+                self._change_to(best, self.flown(t)[0], t)
+        else:
+            self.wider_since = None
+        self._pace(t, points, headings, along, centres, radii)
+
+    def _pace(
+        self, t: float, points: np.ndarray, headings: np.ndarray, along: np.ndarray, centres: np.ndarray,
+        radii: np.ndarray,
+    ) -> None:  # fmt: skip
+        """The leader's speed cap while the slots move (`pace_cap`): the shape flown now must not reach the
+        first place along the route where it does not fit before the change is done, so the leader covers at
+        most that distance in the change's remaining time (at least PACE_FLOOR_M_S); inf otherwise."""
+        left = self.move.t0 + self.move.duration - t
+        self.pace_cap = math.inf
+        if left <= 0.0 or self.current == 0:
+            return
+        offsets = self.flown(t)[0]
+        followers = np.flatnonzero(np.any(offsets != 0.0, axis=1))
+        gap = shape_clearance(offsets, followers, points, headings, centres, radii)
+        tight = np.flatnonzero(gap < self.params.clearance_m)
+        if len(tight):
+            self.pace_cap = max(PACE_FLOOR_M_S, float(along[tight[0]]) / left)

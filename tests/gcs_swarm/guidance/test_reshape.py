@@ -1,0 +1,189 @@
+"""Deliberate reshaping around obstacles (gcs_swarm.guidance.reshape): the candidates, the look-ahead, the
+choice and the smooth change, on hand-built worlds whose answers follow from their geometry."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gcs_swarm.guidance.fleet_controller import FleetController
+from gcs_swarm.guidance.formation import formation_offsets
+from gcs_swarm.guidance.params import PAPER_PLAIN, ReshapeParams
+from gcs_swarm.guidance.reshape import (
+    FormationShaper,
+    candidate_shapes,
+    min_jerk,
+    nearest_slot_spacing,
+    route_samples,
+    shape_clearance,
+)
+
+PARAMS = ReshapeParams()
+
+
+def _v(followers: int = 4, spacing: float = 10.0) -> np.ndarray:
+    out = np.zeros((followers + 1, 3))
+    out[1:] = formation_offsets("v", followers, spacing)
+    return out
+
+
+def _gap_world(gap: float, x: float = 60.0, radius: float = 8.0) -> tuple[np.ndarray, np.ndarray]:
+    """Two spheres at x m east at the formation's height, their surfaces `gap` m apart across y = 0."""
+    centres = np.array([[x, gap / 2 + radius, 10.0], [x, -(gap / 2 + radius), 10.0]])
+    return centres, np.array([radius, radius])
+
+
+def test_candidates_run_from_the_mission_shape_down_to_the_minimum_spacing_then_a_column():
+    """A V 10 m apart, min spacing 7 m in 3 steps: spacings 10, 9, 8, 7, then a column 7 m apart."""
+    shapes = candidate_shapes(_v(), 0, PARAMS)
+    rows = np.ones(5, dtype=bool)
+    spacings = [nearest_slot_spacing(s.offsets, rows) for s in shapes]
+    assert spacings == pytest.approx([10.0, 9.0, 8.0, 7.0, 7.0])
+    assert [s.scale for s in shapes] == pytest.approx([1.0, 0.9, 0.8, 0.7, 0.7])
+    column = shapes[-1].offsets
+    assert shapes[-1].name == "column"
+    np.testing.assert_allclose(column[1:, 1:], 0.0)
+    assert sorted(column[1:, 0]) == pytest.approx([-28.0, -21.0, -14.0, -7.0])
+
+
+def test_lost_followers_rows_stay_out_of_every_candidate():
+    nominal = _v()
+    nominal[2] = 0.0  # a lost follower's row
+    for shape in candidate_shapes(nominal, 0, PARAMS):
+        np.testing.assert_array_equal(shape.offsets[2], 0.0)
+        assert np.count_nonzero(np.any(shape.offsets != 0.0, axis=1)) == 3
+
+
+def test_route_samples_follow_the_waypoints_and_stop_at_the_look_ahead():
+    points, headings, along = route_samples(
+        np.array([0.0, 0.0, 10.0]), 0.3, np.array([[10.0, 0.0, 10.0], [10.0, 100.0, 10.0]]), 20.0
+    )
+    assert headings[0] == 0.3  # the formation's present heading where the leader is
+    np.testing.assert_allclose(points[1:6, 0], [2, 4, 6, 8, 10])
+    np.testing.assert_allclose(headings[1:6], 0.0)
+    np.testing.assert_allclose(points[6:, 1], [2, 4, 6, 8, 10])  # 10 m along the second leg: 20 m in all
+    np.testing.assert_allclose(headings[6:], math.pi / 2)
+    np.testing.assert_allclose(along, np.arange(11) * 2.0)
+
+
+def test_clearance_of_a_slot_is_its_distance_to_the_surface():
+    """One follower 5 m back and 5 m left of a leader heading east at the origin: its slot (-5, 5) is 3 m
+    from a sphere of radius 2 centred at (-5, 10); heading north the slot moves to (-5, -5), 15 m from the
+    centre."""
+    offsets = np.array([[0.0, 0.0, 0.0], [-5.0, 5.0, 0.0]])
+    centre, radius = np.array([[-5.0, 10.0, 0.0]]), np.array([2.0])
+    points = np.zeros((2, 3))
+    gaps = shape_clearance(offsets, np.array([1]), points, np.array([0.0, math.pi / 2]), centre, radius)
+    np.testing.assert_allclose(gaps, [3.0, 15.0 - 2.0])
+
+
+def test_min_jerk_profile_starts_and_ends_at_rest():
+    assert min_jerk(0.0) == (0.0, 0.0)
+    assert min_jerk(1.0) == (1.0, 0.0)
+    assert min_jerk(0.5)[0] == pytest.approx(0.5)
+    assert min_jerk(0.5)[1] == pytest.approx(1.875)  # the peak rate: 1.875 x the move per unit time
+
+
+def _fly_shaper(shaper: FormationShaper, centres, radii, x0: float, x1: float, speed: float = 10.0):
+    """Move the leader east from x0 to x1 at `speed` (or the shaper's pace cap), deciding every 0.02 s; the
+    flown offsets per step."""
+    flown, t, x = [], 0.0, x0
+    wp = np.array([[400.0, 0.0, 10.0]])
+    while x < x1:
+        shaper.decide(t, np.array([x, 0.0, 10.0]), 0.0, wp, speed, centres, radii)
+        flown.append((t, x, *shaper.flown(t), shaper.shape_name))
+        t += 0.02
+        x += min(speed, shaper.pace_cap) * 0.02
+    return flown
+
+
+def test_a_v_wider_than_a_gap_narrows_or_falls_into_a_column_before_it_and_is_restored_after():
+    """A V of four 10 m apart (28 m wide) meets a gap 12 m wide at x = 60: before its slots reach the gap the
+    shape flown fits through it with 4 m to spare (every slot >= 4 m from both spheres), the slots never move
+    faster than speed_m_s relative to the leader nor bring two followers within D_Emg + 1 m, and once the
+    gap is behind the whole shape the V is restored. The leader flies at 10 m/s or the reshape's pace."""
+    centres, radii = _gap_world(12.0)
+    shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
+    steps = _fly_shaper(shaper, centres, radii, -100.0, 160.0)
+    for t, x, offsets, rate, name in steps:
+        slots = np.array([x, 0.0, 10.0]) + offsets[1:]
+        if 40.0 <= x <= 65.0 and name != "formation":
+            gap = np.linalg.norm(slots[:, None, :] - centres[None], axis=-1) - radii
+            assert gap.min() >= PARAMS.clearance_m - 1e-9, (t, x, name)
+        assert np.linalg.norm(rate, axis=1).max() <= PARAMS.speed_m_s + 1e-9
+        d = np.linalg.norm(offsets[1:, None] - offsets[None, 1:], axis=-1)
+        assert d[np.triu_indices(4, 1)].min() >= 4.0 - 1e-9
+    names = [s[4] for s in steps]
+    assert names[0] == "formation"
+    assert any(n != "formation" for n in names)
+    assert names[-1] == "formation"
+    assert "formation restored" in shaper.events[-1]
+    assert any("narrows" in e for e in shaper.events)
+
+
+def test_a_wider_shape_waits_restore_after_s_before_the_formation_widens():
+    centres, radii = _gap_world(12.0)
+    shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
+    shaper.decide(0.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, centres, radii)
+    narrowed = shaper.current
+    assert narrowed > 0
+    far = np.array([[1000.0, 0.0, 10.0]])  # the obstacles gone: the V fits again
+    shaper.decide(1.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, far, radii)
+    shaper.decide(
+        1.0 + PARAMS.restore_after_s / 2, np.zeros(3), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, far, radii
+    )
+    assert shaper.current == narrowed
+    shaper.decide(
+        1.0 + PARAMS.restore_after_s + 0.01,
+        np.zeros(3),
+        0.0,
+        np.array([[400.0, 0.0, 10.0]]),
+        10.0,
+        far,
+        radii,
+    )
+    assert shaper.current == 0
+
+
+def test_paper_plain_turns_reshaping_off_and_the_controller_flies_the_mission_offsets():
+    assert PAPER_PLAIN["guidance.reshape"] == {"enabled": False}
+    paper = ReshapeParams(**PAPER_PLAIN["guidance.reshape"])
+    off = FleetController(5, 0, _v(), np.array([[100.0, 0.0, 10.0]]), reshape=paper)
+    on = FleetController(5, 0, _v(), np.array([[100.0, 0.0, 10.0]]), reshape=ReshapeParams())
+    assert off.shaper is None and on.shaper is not None
+    np.testing.assert_array_equal(off.flown_offsets, _v())
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"speed_m_s": 0.0}, {"min_spacing_m": -1.0}, {"steps": 0}, {"lookahead_s": 0.0}, {"clearance_m": -1.0}],
+)
+def test_impossible_settings_are_refused(bad):
+    with pytest.raises(ValueError):
+        ReshapeParams(**bad)
+
+
+def test_a_column_opens_into_a_line_across_first_so_everyone_keeps_the_column_spacing():
+    """Column 7 m apart -> line abreast 10 m apart. Moving across first, the followers stay at their column
+    places 7 m apart along the heading while they spread, then each moves forward in its own lane 10 m from
+    the next (and from the leader's lane), so the closest pair stays 7 m apart; straight diagonal moves would
+    not do as well, so the plan moves across first."""
+    from gcs_swarm.guidance.reshape import closest_pair_along, plan_move
+
+    column = np.zeros((5, 3))
+    column[1:, 0] = [-7.0, -14.0, -21.0, -28.0]
+    line = np.zeros((5, 3))
+    line[1:] = formation_offsets("line", 4, 10.0)
+    rows = np.ones(5, dtype=bool)
+    move = plan_move(column, line, rows, 0.0, 2.5)
+    assert [axes for axes, _ in move.phases] == [(1, 2), (0,)]
+    assert closest_pair_along(column, line, ((1, 2), (0,))) == pytest.approx(7.0)
+    assert closest_pair_along(column, line, ((0, 1, 2),)) < 7.0
+    # each phase lasts 1.875 x its longest move / speed: across 20 m, along 28 m
+    assert [d for _, d in move.phases] == pytest.approx([1.875 * 20 / 2.5, 1.875 * 28 / 2.5])
+    np.testing.assert_allclose(move.at(move.duration)[0], line)
+    half, rate = move.at(move.phases[0][1])  # the end of the first phase: spread, not yet forward
+    np.testing.assert_allclose(half[:, 0], column[:, 0])
+    np.testing.assert_allclose(half[:, 1], line[:, 1])
