@@ -203,7 +203,7 @@ class Simulator:
             self.selector.register(wakeup, selectors.EVENT_READ)
         self._write_truth()
         while not self._orphan_done():
-            if self.orphaned_at is None and self.parent_gone():
+            if self.orphaned_at is None and self._parent_gone:
                 self._become_orphan()
             if self.lockstep is None and stop():
                 break
@@ -213,13 +213,9 @@ class Simulator:
             elif self.ticks % self.timing.ticks_per_frame == 0 and not self._end_frame(stop):
                 break  # stopped while waiting for the clients
 
-    def parent_gone(self) -> bool:
-        """Whether the ground station that started the simulator has died (mark_parent_gone, called by the
-        CLI's sitl_sim.orphan watch)."""
-        return self._parent_gone
-
     def mark_parent_gone(self) -> None:
-        """Called from the parent-watch thread: the main loop turns orphan at its next tick."""
+        """The ground station that started the simulator has died (called from the CLI's sitl_sim.orphan
+        watch thread): the main loop turns orphan at its next tick."""
         self._parent_gone = True
 
     def _become_orphan(self) -> None:
@@ -379,7 +375,7 @@ class Simulator:
         clients = self.lockstep
         assert clients is not None
         frame_wall = keepalive = time.monotonic()
-        while not (stop() or self.parent_gone()):
+        while not (stop() or self._parent_gone):
             now = time.monotonic()
             if not self.lockstep_started:
                 ready = clients.every_vehicle_has_client() and not clients.pending(frame_ms)

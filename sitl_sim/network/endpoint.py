@@ -113,8 +113,8 @@ class VehicleEndpoint:
         self._attitude_target: AttitudeTargetHandler | None = (
             setpoints.attitude_target if surface.attitude_short_cut and signing_key is None else None
         )
-        for msg_id in self.missions.handlers:
-            self.handlers[msg_id] = lambda msg, addr: self.missions.handle(msg)
+        for msg_id in self.missions.handlers:  # the fence's MISSION_* handlers take no sender address
+            self.handlers[msg_id] = lambda msg, addr: self.missions.handlers[msg.get_msgId()](msg)
 
     def fileno(self) -> int:
         """The socket's file descriptor (for selectors)."""

@@ -101,7 +101,8 @@ class FleetState:
         self.motor = _float_array(motor, (n, 4), "motor")
         self.landed = _bool_array(landed, n, "landed")
         self.crashed = _bool_array(crashed, n, "crashed")
-        self.world_accel = np.zeros((n, 3))  # last computed acceleration, see accel()
+        # (N,3) world acceleration of the last step, m/s^2 (zero while landed; IMU-style outputs)
+        self.world_accel = np.zeros((n, 3))
 
     @classmethod
     def at_rest(
@@ -134,10 +135,6 @@ class FleetState:
     def euler(self) -> np.ndarray:
         """(N,3) roll, pitch, yaw (ZYX, rad, spec 1.1)."""
         return euler_from_quat(self.quat)
-
-    def accel(self) -> np.ndarray:
-        """(N,3) world acceleration of the last step, m/s^2 (zero while landed; IMU-style outputs)."""
-        return self.world_accel
 
 
 class FleetDynamics:
@@ -259,17 +256,6 @@ class FleetDynamics:
             self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on, self._rate_mode,
             self._rate_cmd, self._integrator, self._d_state, self._prev_error, wind, self._work,
         )  # fmt: skip
-
-    def reset_vehicle(self, i: int, pos: np.ndarray, yaw: float, vel: np.ndarray | None = None) -> None:
-        """Put vehicle i back at rest like FleetState.at_rest (crash cleared, controller reset)."""
-        if not (isinstance(i, int | np.integer) and 0 <= i < self.n):
-            raise ValueError(f"vehicle index must be in 0..{self.n - 1}, not {i!r}")
-        vel = None if vel is None else np.reshape(vel, (1, 3))
-        fresh = FleetState.at_rest(np.reshape(pos, (1, 3)), np.array([yaw]), vel, self.params)
-        s = self._state
-        for name in ("pos", "vel", "quat", "omega", "motor", "landed", "crashed", "world_accel"):
-            getattr(s, name)[i] = getattr(fresh, name)[0]
-        self._hold_current(i)
 
     def _hold_current(self, i: int) -> None:
         """Targets and controller memory of vehicle i that hold its current state (hover or idle)."""
