@@ -152,8 +152,8 @@ class ArduPilotDialect:
         ]
 
     def is_angle_boost_on(self, value: float) -> bool:
-        """ATC_ANGLE_BOOST as read (is_boost_on)."""
-        return is_boost_on(value)
+        """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
+        return not (math.isfinite(value) and value == 0.0)
 
     def thrust(
         self,
@@ -253,8 +253,3 @@ def _thrust(
             acc = acc * cos_tilt
         out[i] = normalised_thrust(acc, hover[i], g)
     return out
-
-
-def is_boost_on(value: float) -> bool:
-    """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
-    return not (math.isfinite(value) and value == 0.0)

@@ -25,7 +25,6 @@ from swarm_common.jit import kernel
 
 # src/modules/commander/px4_custom_mode.h: custom_mode = main_mode << 16 | sub_mode << 24
 MAIN_MODE_SHIFT, SUB_MODE_SHIFT = 16, 24
-MAIN_AUTO, MAIN_OFFBOARD = 4, 6
 
 PX4_MODES: Mapping[str, int] = MappingProxyType(
     {
