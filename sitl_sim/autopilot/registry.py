@@ -62,7 +62,7 @@ def fleet_params(
         for kind in kinds
     }
     visible = np.array([shown[kind] for kind in personas])
-    table = ParamTable(len(personas), specs, {}, visible)
+    table = ParamTable(len(personas), specs, visible)
     for kind in kinds:
         kind.configure(table, np.flatnonzero([persona is kind for persona in personas]))
     return table

@@ -19,7 +19,7 @@ import hashlib
 import heapq
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 REORDER_HOLD_MS = 60  # extra simulated ms a reordered packet is held back (3 frames at 50 Hz)
 UP, DOWN = 0, 1  # directions: ground station -> vehicle, vehicle -> ground station
@@ -123,11 +123,7 @@ class FaultChannel:
 
     def summary(self) -> str:
         """One line "link_lost=... link_corrupted=... link_duplicated=... link_delayed=..."."""
-        d = self.drops
-        return (
-            f"link_lost={d.lost} link_corrupted={d.corrupted} link_duplicated={d.duplicated} "
-            f"link_delayed={d.delayed}"
-        )
+        return " ".join(f"link_{f.name}={getattr(self.drops, f.name)}" for f in fields(self.drops))
 
     def active(self, rates: tuple[float, ...]) -> bool:
         """Any fault configured (rates: loss, dup, corrupt, reorder, delay_ms, jitter_ms) or any outage."""
