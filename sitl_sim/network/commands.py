@@ -94,14 +94,17 @@ class CommandHandlers:
 
     def _on_command_long(self, msg: mavlink2.MAVLink_command_long_message, addr: tuple[str, int]) -> None:
         params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
-        self.outbox.ack(msg.command, self._command(msg.command, params, None), msg)
+        self.outbox.ack(msg.command, self._command(msg.command, params, None, msg.get_srcComponent()), msg)
 
     def _on_command_int(self, msg: mavlink2.MAVLink_command_int_message, addr: tuple[str, int]) -> None:
         params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y), msg.z)
-        self.outbox.ack(msg.command, self._command(msg.command, params, msg.frame), msg)
+        self.outbox.ack(
+            msg.command, self._command(msg.command, params, msg.frame, msg.get_srcComponent()), msg
+        )
 
-    def _command(self, command: int, p: tuple[float, ...], frame: int | None) -> int:
-        """Run a COMMAND_LONG/COMMAND_INT (frame None for COMMAND_LONG); returns the MAV_RESULT."""
+    def _command(self, command: int, p: tuple[float, ...], frame: int | None, source: int) -> int:
+        """Run a COMMAND_LONG/COMMAND_INT (frame None for COMMAND_LONG) from component `source` (PX4's rules
+        read it); returns the MAV_RESULT."""
         i = self.index
         autopilot = self.sim.autopilot
         if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
