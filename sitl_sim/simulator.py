@@ -107,7 +107,7 @@ class Simulator:
         quad = QuadParams()
         self.sysids = config.sysid_base + np.arange(n)
         speed, direction, turbulence = config.wind
-        direction = wind_from_degrees(direction)
+        direction %= 360.0  # a from-direction in SIM_WIND_DIR's range [0, 360)
         personas = fleet_personas(config.autopilots, n)
         self.params = simulator_params(quad.hover_fraction, config.param_names, personas)
         p = self.params
@@ -546,8 +546,3 @@ def simulator_params(
     """The fleet's parameter table: the shared table of ArduCopter's `param_names` release (hover_fraction:
     MOT_THST_HOVER's default) and each persona's own (autopilot.registry.fleet_params)."""
     return fleet_params(param_specs(hover_fraction, param_names), hover_fraction, personas)
-
-
-def wind_from_degrees(direction_deg: float) -> float:
-    """Normalise a from-direction to [0, 360) degrees (SIM_WIND_DIR's range)."""
-    return math.fmod(math.fmod(direction_deg, 360.0) + 360.0, 360.0)

@@ -274,7 +274,7 @@ class Autopilot:
         """EXTENDED_SYS_STATE landed_state (ArduCopter's GCS_MAVLINK_Copter::landed_state)."""
         if self.land_complete[i]:
             return mavlink2.MAV_LANDED_STATE_ON_GROUND
-        if self._landing(i):
+        if self.mode[i] == LAND or (self.mode[i] == RTL and self.rtl_stage[i] == RTL_DESCEND):  # descending
             return mavlink2.MAV_LANDED_STATE_LANDING
         if self.takeoff_active[i]:
             return mavlink2.MAV_LANDED_STATE_TAKEOFF
@@ -539,10 +539,6 @@ class Autopilot:
         )
 
     # --- internals ------------------------------------------------------------------------------------------
-
-    def _landing(self, i: int) -> bool:
-        """Vehicle i is in a landing descent (LAND, or RTL's final descent)."""
-        return bool(self.mode[i] == LAND or (self.mode[i] == RTL and self.rtl_stage[i] == RTL_DESCEND))
 
     def disarm_motors(self, i: int) -> None:
         """Vehicle i disarms now (motors stop), saying so."""

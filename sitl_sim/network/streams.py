@@ -254,12 +254,6 @@ FLEET_DTYPES = {
 }
 
 
-def fleet_payloads(payload: np.ndarray) -> list[bytes]:
-    """(N,) structured array of wire_dtype -> N truncated payloads (truncate), one per row."""
-    blob, size = payload.tobytes(), payload.dtype.itemsize
-    return [truncate(blob[k : k + size]) for k in range(0, len(blob), size)]
-
-
 class Framer:
     """MAVLink 2 framing of one sender (sysid, compid) with its own sequence number.
 
@@ -335,7 +329,8 @@ class TelemetryView:
         payload["time_boot_ms"] = self.time_boot_ms
         for name, column in fields.items():
             payload[name] = column
-        return fleet_payloads(payload)
+        blob, size = payload.tobytes(), payload.dtype.itemsize
+        return [truncate(blob[k : k + size]) for k in range(0, len(blob), size)]
 
     @cached_property
     def attitude_payloads(self) -> list[bytes]:
