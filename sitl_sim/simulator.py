@@ -123,6 +123,12 @@ class Simulator:
         origin = state.pos.copy()
         home = origin * np.array([1.0, 1.0, 0.0])
         airborne = ~state.landed
+        # simulated s from boot to the position estimate: --ready-delay for all, else each persona's own
+        ready_delay: float | np.ndarray = (
+            np.array([persona.ready_delay_s for persona in personas])
+            if config.ready_delay is None
+            else config.ready_delay
+        )
         self.autopilot = Autopilot(
             self.dyn,
             self.params,
@@ -130,7 +136,7 @@ class Simulator:
             home,
             airborne,
             config.start_vel,
-            ready_delays(config, personas),
+            ready_delay,
             personas,
         )
         self.wind = Wind(n, config.seed, speed, direction, turbulence)
@@ -530,14 +536,6 @@ def warm_up_kernels() -> None:
     Geodesy((0.0, 0.0, 0.0)).to_geodetic(zeros)
     ned_telemetry(zeros, zeros, np.array([[1.0, 0.0, 0.0, 0.0]]), zeros, zeros)
     find_collisions(zeros, zeros, Obstacles(zeros, np.ones(1), zeros), 0.0, 0.01, np.zeros(1, dtype=bool))
-
-
-def ready_delays(config: SimConfig, personas: tuple[type[Persona], ...]) -> np.ndarray:
-    """(N,) simulated s from boot to each vehicle's position estimate: config.ready_delay for all when given,
-    else each vehicle's persona's ready_delay_s."""
-    if config.ready_delay is not None:
-        return np.full(len(personas), float(config.ready_delay))
-    return np.array([persona.ready_delay_s for persona in personas])
 
 
 def simulator_params(

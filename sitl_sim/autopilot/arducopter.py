@@ -72,8 +72,9 @@ class ArduCopter(Persona):
         return M.MAV_AUTOPILOT_ARDUPILOTMEGA, bits, int(ap.mode[i]), status
 
     def prearm_ok(self, i: int) -> bool:
-        """The pre-arm checks pass (Autopilot.prearm_ok)."""
-        return self.ap.prearm_ok(i)
+        """The pre-arm checks pass: a position estimate, not crashed, the fence's checks."""
+        ap = self.ap
+        return bool(ap.ready[i] and not ap.state.crashed[i] and ap.fence_prearm(i) is None)
 
     def before_loop(self, t: float, dt: float) -> None:
         """AP_Arming::update: a vehicle that cannot arm says why by itself, "PreArm: Need Position Estimate",

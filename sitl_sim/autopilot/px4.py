@@ -195,10 +195,7 @@ class Px4(Persona):
     mirrors = MIRRORS
     hidden_fixed = HIDDEN_FIXED
 
-    @classmethod
-    def param_specs(cls, hover_fraction: float) -> tuple[ParamSpec, ...]:
-        """PX4's own parameters (param_specs)."""
-        return param_specs(hover_fraction)
+    param_specs = staticmethod(param_specs)  # PX4's own parameters
 
     def __init__(self, ap: Any, rows: np.ndarray) -> None:  # ap: the shared copter.Autopilot
         super().__init__(ap, rows)

@@ -256,7 +256,7 @@ class FenceProtocol:
         if self.receiving:
             self._ack(msg, mavlink2.MAV_MISSION_DENIED)
             return
-        count = self.sim.autopilot.fence.count(self.index)
+        count = len(self.sim.autopilot.fence.items[self.index])
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         self.outbox.send(self.outbox.tx.mission_count_encode(sysid, compid, count, FENCE))
 
