@@ -27,7 +27,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.network import signing
 from sitl_sim.network.counters import LinkCounters
-from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, Outage
+from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, LinkFaults, Outage
 from sitl_sim.network.mission_protocol import FenceProtocol
 from sitl_sim.network.outbox import Outbox
 from sitl_sim.network.services import SimulatorServices
@@ -45,14 +45,7 @@ LOCKSTEP_ANSWERS = (
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED,
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT,
 )
-LINK_PARAMS = (  # the order of link_rates and of FaultChannel's rates
-    "SIM_LINK_LOSS",
-    "SIM_LINK_DUP",
-    "SIM_LINK_CORRUPT",
-    "SIM_LINK_REORDER",
-    "SIM_LINK_DELAY",
-    "SIM_LINK_JITTER",
-)
+LINK_PARAMS = tuple(LinkFaults().params())  # SIM_LINK_*, in the order of link_rates and FaultChannel's rates
 NO_LINK_FAULTS = (0.0,) * len(LINK_PARAMS)
 Handler = Callable[[mavlink2.MAVLink_message, tuple[str, int]], None]
 AttitudeTargetHandler = Callable[[int, tuple[float, ...], float, float, float, float], None]

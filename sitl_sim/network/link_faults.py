@@ -55,14 +55,14 @@ class LinkFaults:
     start_s: float = 0.0  # loss/delay/jitter/dup/corrupt/reorder act from this simulated time on
 
     def params(self) -> dict[str, float]:
-        """The SIM_LINK_* parameter defaults these settings give."""
+        """The SIM_LINK_* parameter defaults these settings give, in FaultChannel.push's order of rates."""
         return {
             "SIM_LINK_LOSS": self.loss,
-            "SIM_LINK_DELAY": self.delay_ms,
-            "SIM_LINK_JITTER": self.jitter_ms,
             "SIM_LINK_DUP": self.dup,
             "SIM_LINK_CORRUPT": self.corrupt,
             "SIM_LINK_REORDER": self.reorder,
+            "SIM_LINK_DELAY": self.delay_ms,
+            "SIM_LINK_JITTER": self.jitter_ms,
         }
 
 
