@@ -428,7 +428,7 @@ class Simulator:
         handled = 0
         if any(self._inboxes) or any(self._uplinks):  # first what arrived after the clients' previous answers
             for endpoint in self.endpoints:
-                if endpoint.inbox or endpoint.channel.pending(UP):
+                if endpoint.inbox or endpoint.channel.waiting(UP):
                     handled += endpoint.receive(wall, frame_ms)
         # waiting for lockstep answers (frame_ms), which come within a fraction of a millisecond: poll first
         spin_s = self.config.lockstep_spin_s if frame_ms is not None else 0.0

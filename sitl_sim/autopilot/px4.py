@@ -352,9 +352,7 @@ class Px4(Persona):
         ap.armed[i] = False
         ap.takeoff_active[i] = False
         ap.say(i, M.MAV_SEVERITY_INFO, f"Disarmed by {reason}")
-        self.failsafe[i] = False
-        self.failsafe_action_at[i] = math.inf
-        self._enter(i, int(self.nav_after_disarm[i]))
+        self._clear_failsafe(i)
 
     def takeoff(self, i: int, altitude_amsl: float, home_amsl: float) -> int:
         """VEHICLE_CMD_NAV_TAKEOFF: switch to AUTO.TAKEOFF (navigator takeoff: param7 altitude AMSL, NaN ->
@@ -557,6 +555,7 @@ class Px4(Persona):
             self._enter(i, mode)
 
     def _clear_failsafe(self, i: int) -> None:
+        """No failsafe any more: vehicle i returns to the last mode the user chose that it may arm in."""
         self.failsafe[i] = False
         self.failsafe_action_at[i] = math.inf
         self._enter(i, int(self.nav_after_disarm[i]))

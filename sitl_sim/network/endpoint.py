@@ -32,9 +32,9 @@ from sitl_sim.network.mission_protocol import FenceProtocol
 from sitl_sim.network.outbox import Outbox
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.streams import Framer
-from sitl_sim.network.surfaces import surface_of
+from sitl_sim.network.surfaces import SURFACES
 from swarm_common.mavlink_datagrams import decode_leading_packets
-from swarm_common.signing import is_signature_rejection
+from swarm_common.signing import is_signature_rejection, new_parser
 
 logger = logging.getLogger(__name__)
 PEER_TIMEOUT_S = 5.0  # wall seconds a silent peer keeps receiving traffic
@@ -84,8 +84,8 @@ class VehicleEndpoint:
         except OSError:
             self.sock.close()
             raise
-        self.rx = signing.new_parser(signing_key)
-        self.clock_rx = signing.new_parser(signing_key)  # reads lockstep answers before the faulty link
+        self.rx = new_parser(signing_key)
+        self.clock_rx = new_parser(signing_key)  # reads lockstep answers before the faulty link
         self.signer = None if signing_key is None else signing.FrameSigner(signing_key)
         self.channel = FaultChannel(seed, index, outages)
         self._link_columns = [sim.params.column_index(name) for name in LINK_PARAMS]
@@ -96,7 +96,7 @@ class VehicleEndpoint:
         self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
         self.counters = LinkCounters()
         self.missions = FenceProtocol(index, self.counters, self.outbox, sim)  # MISSION_* of the fence
-        surface = surface_of(sim.autopilot.persona(index))  # the handlers of its persona's MAVLink surface
+        surface = SURFACES[type(sim.autopilot.persona(index))]  # its persona's MAVLink surface
         setpoints = surface.setpoints(index, self.counters, sim)
         self.handlers: dict[int, Handler] = {
             **surface.commands(index, sysid, self.counters, self.outbox, sim).handlers(),
@@ -187,7 +187,7 @@ class VehicleEndpoint:
 
     def _deliver_due(self, wall_now: float) -> int:
         """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""
-        if not self.channel.pending(UP):
+        if not self.channel.waiting(UP):
             return 0
         due = self.channel.due(UP, self.sim.time_us // 1000)
         for data, addr in due:

@@ -129,13 +129,9 @@ class FaultChannel:
         """Any fault configured (rates: loss, dup, corrupt, reorder, delay_ms, jitter_ms) or any outage."""
         return bool(self.outages) or any(r > 0 for r in rates)
 
-    def pending(self, direction: int) -> bool:
-        """Packets are waiting in `direction`."""
-        return bool(self._queues[direction])
-
     def waiting(self, direction: int) -> list[tuple[int, int, bytes, object]]:
-        """The queue of `direction` itself (the same list for the channel's life; read only): one C-level
-        any() over many channels' queues finds whether any has packets waiting."""
+        """The queue of `direction` itself (the same list for the channel's life; read only; empty when no
+        packet waits): one C-level any() over many channels' queues finds whether any has packets waiting."""
         return self._queues[direction]
 
     def push(self, direction: int, packet: bytes, tag: object, now_ms: int, rates: tuple[float, ...]) -> None:
