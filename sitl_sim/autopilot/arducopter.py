@@ -14,7 +14,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot.modes import GCS_FAILSAFE_ACTIONS, GUIDED_ENABLED_MODES, LAND, RTL
-from sitl_sim.autopilot.outer_loop import DESCENT_TWO_SPEED, EVENT_DISARM
+from sitl_sim.autopilot.outer_loop import EVENT_DISARM
 from sitl_sim.autopilot.persona import Persona
 
 M = mavlink2
@@ -49,7 +49,6 @@ class ArduCopter(Persona):
     ready_delay_s: ClassVar[float] = 40.0
     default_rates_hz = DEFAULT_RATES_HZ
     reports_ekf_status: ClassVar[bool] = True
-    descent_profile: ClassVar[int] = DESCENT_TWO_SPEED
 
     def heartbeat(self, i: int) -> tuple[int, int, int, int]:
         """ArduCopter's HEARTBEAT: base_mode as GCS_MAVLINK_Copter::base_mode computes it, custom_mode the
