@@ -111,9 +111,8 @@ class Simulator:
         personas = fleet_personas(config.autopilots, n)
         self.params = simulator_params(quad.hover_fraction, config.param_names, personas)
         p = self.params
-        p.values[:, p.column_index("MAV_SYSID")] = self.sysids
-        p.values[:, p.column_index("MAV_SYS_ID")] = self.sysids
         for name, value in {
+            "MAV_SYSID": self.sysids, "MAV_SYS_ID": self.sysids,
             "SIM_WIND_SPD": speed, "SIM_WIND_DIR": direction, "SIM_WIND_TURB": turbulence,
             **config.link.params(),
         }.items():  # fmt: skip
@@ -241,12 +240,12 @@ class Simulator:
         if self.orphaned_at is None:
             return False
         down = (~self.autopilot.armed & self.dyn.state.landed) | self.dyn.state.crashed
-        if bool(down.all()) or self.t - self.orphaned_at >= self.orphan_grace_s:
-            self._write_truth()  # the final state, whatever the sample rate
-        if bool(down.all()):
+        if not down.all() and self.t - self.orphaned_at < self.orphan_grace_s:
+            return False
+        self._write_truth()  # the final state, whatever the sample rate
+        if down.all():
             logger.warning("every vehicle is down at t=%.2f s: exiting", self.t)
-            return True
-        if self.t - self.orphaned_at >= self.orphan_grace_s:
+        else:
             up = ", ".join(str(i) for i in np.flatnonzero(~down))
             logger.warning(
                 "grace time %g s over at t=%.2f s, vehicle(s) %s still flying: exit",
@@ -254,8 +253,7 @@ class Simulator:
                 self.t,
                 up,
             )
-            return True
-        return False
+        return True
 
     def _tick(self) -> None:
         """One autopilot tick and the physics it covers."""
@@ -291,10 +289,9 @@ class Simulator:
             if endpoint.missions.receiving:
                 endpoint.missions.update()
         fence = self.autopilot.fence
-        if fence.status_now:
-            for i in fence.status_now:
-                self._send_now(i, (mavlink2.MAVLINK_MSG_ID_FENCE_STATUS,))
-            fence.status_now = []
+        for i in fence.status_now:
+            self._send_now(i, (mavlink2.MAVLINK_MSG_ID_FENCE_STATUS,))
+        fence.status_now = []
         for line in self.autopilot.fence_log:
             logger.warning("%s", line)
         self.autopilot.fence_log.clear()

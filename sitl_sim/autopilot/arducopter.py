@@ -60,14 +60,7 @@ class ArduCopter(Persona):
             bits |= M.MAV_MODE_FLAG_GUIDED_ENABLED
         if ap.armed[i]:
             bits |= M.MAV_MODE_FLAG_SAFETY_ARMED
-        if ap.state.crashed[i]:
-            status = M.MAV_STATE_EMERGENCY
-        elif ap.failsafe_gcs[i]:
-            status = M.MAV_STATE_CRITICAL
-        elif ap.t < ap.boot_end[i]:
-            status = M.MAV_STATE_BOOT
-        else:
-            status = M.MAV_STATE_ACTIVE if ap.armed[i] else M.MAV_STATE_STANDBY
+        status = self.system_status(i, bool(ap.failsafe_gcs[i]))
         return M.MAV_AUTOPILOT_ARDUPILOTMEGA, bits, int(ap.mode[i]), status
 
     def prearm_ok(self, i: int) -> bool:

@@ -235,15 +235,7 @@ class Px4(Persona):
         base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
         if self.ap.armed[i]:
             base |= M.MAV_MODE_FLAG_SAFETY_ARMED
-        if self.ap.state.crashed[i]:
-            status = M.MAV_STATE_EMERGENCY
-        elif self.failsafe[i]:
-            status = M.MAV_STATE_CRITICAL
-        elif self.ap.t < self.ap.boot_end[i]:
-            status = M.MAV_STATE_BOOT
-        else:
-            status = M.MAV_STATE_ACTIVE if self.ap.armed[i] else M.MAV_STATE_STANDBY
-        return M.MAV_AUTOPILOT_PX4, base, int(self.nav[i]), status
+        return M.MAV_AUTOPILOT_PX4, base, int(self.nav[i]), self.system_status(i, bool(self.failsafe[i]))
 
     def prearm_ok(self, i: int) -> bool:
         """Commander::run's pre_flight_checks_pass: vehicle i could arm in its current mode."""

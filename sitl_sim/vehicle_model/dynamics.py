@@ -127,11 +127,6 @@ class FleetState:
         motor = np.where(landed[:, None], 0.0, params.mass * params.g / 4.0) * np.ones((n, 4))
         return cls(pos, vel, level_quat(yaw), np.zeros((n, 3)), motor, landed, np.zeros(n, dtype=bool))
 
-    @property
-    def n(self) -> int:
-        """Number of vehicles."""
-        return len(self.pos)
-
     def euler(self) -> np.ndarray:
         """(N,3) roll, pitch, yaw (ZYX, rad, spec 1.1)."""
         return euler_from_quat(self.quat)
@@ -176,8 +171,8 @@ class FleetDynamics:
         self._work = np.zeros((5, 4))  # advance's scratch
         if state is None:
             state = FleetState.at_rest(np.zeros((self.n, 3)), np.zeros(self.n), params=params)
-        if state.n != self.n:
-            raise ValueError(f"state holds {state.n} vehicles, the dynamics {self.n}")
+        if len(state.pos) != self.n:
+            raise ValueError(f"state holds {len(state.pos)} vehicles, the dynamics {self.n}")
         self.state = state  # the fleet's FleetState (arrays mutated in place by step)
         airborne = ~state.landed & ~state.crashed  # the targets hold it: hover if airborne, idle if landed
         self._targets_quat[:] = state.quat
