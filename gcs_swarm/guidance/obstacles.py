@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import maximum
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import maximum
 
 
 def centres_at(centres0: np.ndarray, velocities: np.ndarray | None, t: float | np.ndarray) -> np.ndarray:
