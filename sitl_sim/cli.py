@@ -24,7 +24,7 @@ import signal
 import socket
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import NoReturn
 
 import numpy as np
 
@@ -36,9 +36,6 @@ from sitl_sim.orphan import ParentWatch, detach_output
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
 from swarm_common.signing_keys import SigningKeyError, read_key
-
-if TYPE_CHECKING:
-    from gcs_swarm.mission import World
 
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's default location (CMAC)
 LINE_SPACING_M = 5.0  # default start line along East
@@ -215,14 +212,6 @@ def link_faults(
     return dataclasses.replace(base, **{field: value for field, value in given.items() if value is not None})
 
 
-def mission_link(world: World) -> LinkFaults:
-    """The mission's world.link as the simulator's LinkFaults (outage vehicles are indices already)."""
-    link = world.link
-    outages = tuple(Outage(o.vehicle, o.start_s, o.duration_s) for o in link.outages)
-    rates = {field: getattr(link, field) for field in LINK_RATE_FIELDS}
-    return LinkFaults(**rates, outages=outages, start_s=link.from_s)
-
-
 def _check(parser: OneLineParser, ok: bool, message: str) -> None:
     if not ok:
         parser.error(message)
@@ -284,7 +273,10 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         wind = (world.wind.speed, world.wind.direction_deg, world.wind.turbulence)
         lat, lon, alt = world.origin
         home = (float(lat), float(lon), float(alt))
-        link = mission_link(world)
+        # the mission's world.link as the simulator's LinkFaults (outage vehicles are indices already)
+        outages = tuple(Outage(o.vehicle, o.start_s, o.duration_s) for o in world.link.outages)
+        rates = {field: getattr(world.link, field) for field in LINK_RATE_FIELDS}
+        link = LinkFaults(**rates, outages=outages, start_s=world.link.from_s)
         autopilots = tuple(world.autopilots)
     else:
         _check(parser, args.vehicles is not None, "--vehicles N is required without --mission")

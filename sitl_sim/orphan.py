@@ -28,7 +28,6 @@ class ParentWatch:
     _enter_buffered_busy") when it tries to flush that reader."""
 
     def __init__(self, fd: int, on_gone: Callable[[], None]) -> None:
-        self.gone = threading.Event()
         self._fd = fd
         self._on_gone = on_gone
         self._thread = threading.Thread(target=self._watch, name="parent-watch", daemon=True)
@@ -42,7 +41,6 @@ class ParentWatch:
                 pass
         except OSError:
             pass  # a closed or broken pipe means the same: the parent is gone
-        self.gone.set()
         self._on_gone()
 
 

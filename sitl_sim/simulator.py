@@ -107,13 +107,12 @@ class Simulator:
         quad = QuadParams()
         self.sysids = config.sysid_base + np.arange(n)
         speed, direction, turbulence = config.wind
-        direction = wind_from_degrees(direction)
+        direction %= 360.0  # a from-direction in SIM_WIND_DIR's range [0, 360)
         personas = fleet_personas(config.autopilots, n)
         self.params = simulator_params(quad.hover_fraction, config.param_names, personas)
         p = self.params
-        p.values[:, p.column_index("MAV_SYSID")] = self.sysids
-        p.values[:, p.column_index("MAV_SYS_ID")] = self.sysids
         for name, value in {
+            "MAV_SYSID": self.sysids, "MAV_SYS_ID": self.sysids,
             "SIM_WIND_SPD": speed, "SIM_WIND_DIR": direction, "SIM_WIND_TURB": turbulence,
             **config.link.params(),
         }.items():  # fmt: skip
@@ -123,6 +122,12 @@ class Simulator:
         origin = state.pos.copy()
         home = origin * np.array([1.0, 1.0, 0.0])
         airborne = ~state.landed
+        # simulated s from boot to the position estimate: --ready-delay for all, else each persona's own
+        ready_delay: float | np.ndarray = (
+            np.array([persona.ready_delay_s for persona in personas])
+            if config.ready_delay is None
+            else config.ready_delay
+        )
         self.autopilot = Autopilot(
             self.dyn,
             self.params,
@@ -130,7 +135,7 @@ class Simulator:
             home,
             airborne,
             config.start_vel,
-            ready_delays(config, personas),
+            ready_delay,
             personas,
         )
         self.wind = Wind(n, config.seed, speed, direction, turbulence)
@@ -203,7 +208,7 @@ class Simulator:
             self.selector.register(wakeup, selectors.EVENT_READ)
         self._write_truth()
         while not self._orphan_done():
-            if self.orphaned_at is None and self.parent_gone():
+            if self.orphaned_at is None and self._parent_gone:
                 self._become_orphan()
             if self.lockstep is None and stop():
                 break
@@ -213,13 +218,9 @@ class Simulator:
             elif self.ticks % self.timing.ticks_per_frame == 0 and not self._end_frame(stop):
                 break  # stopped while waiting for the clients
 
-    def parent_gone(self) -> bool:
-        """Whether the ground station that started the simulator has died (mark_parent_gone, called by the
-        CLI's sitl_sim.orphan watch)."""
-        return self._parent_gone
-
     def mark_parent_gone(self) -> None:
-        """Called from the parent-watch thread: the main loop turns orphan at its next tick."""
+        """The ground station that started the simulator has died (called from the CLI's sitl_sim.orphan
+        watch thread): the main loop turns orphan at its next tick."""
         self._parent_gone = True
 
     def _become_orphan(self) -> None:
@@ -239,12 +240,12 @@ class Simulator:
         if self.orphaned_at is None:
             return False
         down = (~self.autopilot.armed & self.dyn.state.landed) | self.dyn.state.crashed
-        if bool(down.all()) or self.t - self.orphaned_at >= self.orphan_grace_s:
-            self._write_truth()  # the final state, whatever the sample rate
-        if bool(down.all()):
+        if not down.all() and self.t - self.orphaned_at < self.orphan_grace_s:
+            return False
+        self._write_truth()  # the final state, whatever the sample rate
+        if down.all():
             logger.warning("every vehicle is down at t=%.2f s: exiting", self.t)
-            return True
-        if self.t - self.orphaned_at >= self.orphan_grace_s:
+        else:
             up = ", ".join(str(i) for i in np.flatnonzero(~down))
             logger.warning(
                 "grace time %g s over at t=%.2f s, vehicle(s) %s still flying: exit",
@@ -252,8 +253,7 @@ class Simulator:
                 self.t,
                 up,
             )
-            return True
-        return False
+        return True
 
     def _tick(self) -> None:
         """One autopilot tick and the physics it covers."""
@@ -289,10 +289,9 @@ class Simulator:
             if endpoint.missions.receiving:
                 endpoint.missions.update()
         fence = self.autopilot.fence
-        if fence.status_now:
-            for i in fence.status_now:
-                self._send_now(i, (mavlink2.MAVLINK_MSG_ID_FENCE_STATUS,))
-            fence.status_now = []
+        for i in fence.status_now:
+            self._send_now(i, (mavlink2.MAVLINK_MSG_ID_FENCE_STATUS,))
+        fence.status_now = []
         for line in self.autopilot.fence_log:
             logger.warning("%s", line)
         self.autopilot.fence_log.clear()
@@ -379,7 +378,7 @@ class Simulator:
         clients = self.lockstep
         assert clients is not None
         frame_wall = keepalive = time.monotonic()
-        while not (stop() or self.parent_gone()):
+        while not (stop() or self._parent_gone):
             now = time.monotonic()
             if not self.lockstep_started:
                 ready = clients.every_vehicle_has_client() and not clients.pending(frame_ms)
@@ -426,7 +425,7 @@ class Simulator:
         handled = 0
         if any(self._inboxes) or any(self._uplinks):  # first what arrived after the clients' previous answers
             for endpoint in self.endpoints:
-                if endpoint.inbox or endpoint.channel.pending(UP):
+                if endpoint.inbox or endpoint.channel.waiting(UP):
                     handled += endpoint.receive(wall, frame_ms)
         # waiting for lockstep answers (frame_ms), which come within a fraction of a millisecond: poll first
         spin_s = self.config.lockstep_spin_s if frame_ms is not None else 0.0
@@ -536,22 +535,9 @@ def warm_up_kernels() -> None:
     find_collisions(zeros, zeros, Obstacles(zeros, np.ones(1), zeros), 0.0, 0.01, np.zeros(1, dtype=bool))
 
 
-def ready_delays(config: SimConfig, personas: tuple[type[Persona], ...]) -> np.ndarray:
-    """(N,) simulated s from boot to each vehicle's position estimate: config.ready_delay for all when given,
-    else each vehicle's persona's ready_delay_s."""
-    if config.ready_delay is not None:
-        return np.full(len(personas), float(config.ready_delay))
-    return np.array([persona.ready_delay_s for persona in personas])
-
-
 def simulator_params(
     hover_fraction: float, param_names: str, personas: tuple[type[Persona], ...]
 ) -> ParamTable:
     """The fleet's parameter table: the shared table of ArduCopter's `param_names` release (hover_fraction:
     MOT_THST_HOVER's default) and each persona's own (autopilot.registry.fleet_params)."""
     return fleet_params(param_specs(hover_fraction, param_names), hover_fraction, personas)
-
-
-def wind_from_degrees(direction_deg: float) -> float:
-    """Normalise a from-direction to [0, 360) degrees (SIM_WIND_DIR's range)."""
-    return math.fmod(math.fmod(direction_deg, 360.0) + 360.0, 360.0)

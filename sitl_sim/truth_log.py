@@ -81,11 +81,6 @@ class TruthLog:
             rows = np.column_stack((np.full(k, t), np.arange(k), obstacle_centers, obstacle_radii))
             self.obstacles.write_rows(OBSTACLE_ROW, rows)
 
-    def flush(self) -> None:
-        """Return once every sample so far is in the files."""
-        self.vehicles.flush()
-        self.obstacles.flush()
-
     def close(self) -> None:
         """Write every sample and close both files (idempotent)."""
         try:

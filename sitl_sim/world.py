@@ -27,9 +27,6 @@ class Obstacles:
         if not (len(self.centers) == len(self.radii) == len(self.velocities)):
             raise ValueError("obstacle centres, radii and velocities must have the same length")
 
-    def __len__(self) -> int:
-        return len(self.radii)
-
     def at(self, t: float) -> np.ndarray:
         """(K,3) centres at simulated time t (s)."""
         return self.centers + self.velocities * t

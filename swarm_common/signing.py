@@ -59,6 +59,17 @@ class VerifyingParser(mavlink2.MAVLink):
         return True
 
 
+def new_parser(key: bytes | None = None) -> mavlink2.MAVLink:
+    """A MAVLink 2 (reads MAVLink 1 too) ardupilotmega parser that turns garbage into BAD_DATA messages; with
+    a signing `key` it also refuses what fails the signature check (VerifyingParser): BAD_DATA whose reason is
+    SIGNATURE_REJECTED."""
+    if key is not None:
+        return VerifyingParser(key)
+    parser = mavlink2.MAVLink(None)
+    parser.robust_parsing = True
+    return parser
+
+
 def is_signature_rejection(msg: mavlink2.MAVLink_message) -> bool:
     """`msg` is the BAD_DATA of a packet the signature check refused (unsigned, forged, replayed)."""
     return msg.get_type() == "BAD_DATA" and getattr(msg, "reason", "") == SIGNATURE_REJECTED

@@ -528,14 +528,11 @@ class FlightSession:
 
     def _param_get(self, request: Request) -> bool:
         links = [self.fleet.links[i] for i in request.vehicles]
-        results = self.fleet.run((link.parameters.op_get(request.name) for link in links), strict=False)
-        ok = True
-        for link, result in zip(links, results, strict=True):
-            if isinstance(result, LinkError):
-                ok = self._refuse(str(result))
-            else:
-                self._reply(f"{request.name} = {result:g}", link.name)
-        return ok
+        return self._vehicle_ops(
+            links,
+            lambda link: link.parameters.op_get(request.name),
+            lambda value: f"{request.name} = {value:g}",
+        )
 
     def _param_set(self, request: Request) -> bool:
         links = [self.fleet.links[i] for i in request.vehicles]
@@ -550,24 +547,25 @@ class FlightSession:
                 "param fetch pauses the formation controller for seconds: not while the mission flies"
             )
         links = [self.fleet.links[i] for i in request.vehicles]
-        results = self.fleet.run((link.parameters.op_all() for link in links), strict=False)
-        ok = True
-        for link, result in zip(links, results, strict=True):
-            if isinstance(result, LinkError):
-                ok = self._refuse(str(result))
-            else:
-                self._reply(f"{len(result)} parameters", link.name)
-        return ok
+        return self._vehicle_ops(
+            links, lambda link: link.parameters.op_all(), lambda values: f"{len(values)} parameters"
+        )
 
-    def _vehicle_ops(self, links: list[VehicleLink], make: Callable[[VehicleLink], Any], done: str) -> bool:
-        """Run one operation per vehicle together; one line per vehicle: done, or why it refused."""
+    def _vehicle_ops(
+        self,
+        links: list[VehicleLink],
+        make: Callable[[VehicleLink], Any],
+        done: str | Callable[[Any], str],
+    ) -> bool:
+        """Run one operation per vehicle together; one line per vehicle: `done` (or `done` of the
+        operation's result), or why it refused."""
         results = self.fleet.run((make(link) for link in links), strict=False)
         ok = True
         for link, result in zip(links, results, strict=True):
             if isinstance(result, LinkError):
                 ok = self._refuse(str(result))
             else:
-                self._reply(done, link.name)
+                self._reply(done if isinstance(done, str) else done(result), link.name)
         return ok
 
 

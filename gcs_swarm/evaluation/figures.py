@@ -60,9 +60,7 @@ def _draw_top_view(ax: Any, plt: ModuleType, traj: Trajectories, names: list[str
             ax.plot(traj.obstacle_centres[s, k, 0], traj.obstacle_centres[s, k, 1], ":", color="0.4", lw=0.8)
     ax.plot(goal[0], goal[1], "k*", ms=12, label="goal")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("East x (m)")
-    ax.set_ylabel("North y (m)")
-    ax.set_title("Trajectories, top view")
+    ax.set(xlabel="East x (m)", ylabel="North y (m)", title="Trajectories, top view")
     if len(names) <= MAX_LEGEND:
         ax.legend(fontsize=7, loc="best")
 
@@ -87,9 +85,7 @@ def _draw_distances(ax: Any, traj: Trajectories, names: list[str], mission: Any,
     sep = mission.safety.separation
     ax.axhline(sep.d_emg, color="r", ls="--", lw=1, label=f"safe distance D_Emg {sep.d_emg:g} m")
     ax.axhline(sep.d_max, color="orange", ls=":", lw=1, label=f"D_max {sep.d_max:g} m")
-    ax.set_xlabel("time since formation start (s)")
-    ax.set_ylabel("distance (m)")
-    ax.set_title("Inter-vehicle distances")
+    ax.set(xlabel="time since formation start (s)", ylabel="distance (m)", title="Inter-vehicle distances")
     if len(pairs) <= 15:
         ax.legend(fontsize=6, loc="best")
 
@@ -105,8 +101,7 @@ def _draw_slot_errors(
 ) -> None:
     """Each follower's distance from its slot over the whole formation flight (docs/metrics.md)."""
     ax.set_title("Follower-to-slot error, whole formation flight")
-    ax.set_xlabel("time since formation start (s)")
-    ax.set_ylabel("distance from slot (m)")
+    ax.set(xlabel="time since formation start (s)", ylabel="distance from slot (m)")
     if commands is None or len(commands.t) < 2 or len(names) < 2:
         ax.text(0.5, 0.5, "no record of the formation", ha="center", transform=ax.transAxes)
         return
@@ -204,10 +199,7 @@ def _trajectories_figure(plt: ModuleType, traj: Trajectories, names: list[str], 
     for k, r in enumerate(traj.obstacle_radii):
         _sphere(ax3, traj.obstacle_centres[0, k], float(r))
     ax3.scatter([goal[0]], [goal[1]], [goal[2]], marker="*", color="k", s=80)
-    ax3.set_xlabel("x (m)")
-    ax3.set_ylabel("y (m)")
-    ax3.set_zlabel("z (m)")
-    ax3.set_title("Trajectories in O-XYZ")
+    ax3.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Trajectories in O-XYZ")
     _draw_top_view(fig.add_subplot(1, 2, 2), plt, traj, names, goal)
     return _save(plt, fig, path)
 

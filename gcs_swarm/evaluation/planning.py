@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from gcs_swarm.evaluation import figures
 from gcs_swarm.evaluation.planner import PlannerSettings, PlanResult, plan_path
 from gcs_swarm.guidance.params import FieldMethod
 
@@ -101,9 +102,7 @@ def draw_plan(
         ax.plot(*first.start[:2], "ks", label="start")
         ax.plot(*first.goal[:2], "r*", ms=12, label="goal")
     ax.set_aspect("equal")
-    ax.set_title(title)
-    ax.set_xlabel("x East (m)")
-    ax.set_ylabel("y North (m)")
+    ax.set(title=title, xlabel="x East (m)", ylabel="y North (m)")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
 
@@ -113,12 +112,8 @@ def plot_plan(
 ) -> bool:
     """Save the top view of `draw_plan` as a PNG at `path_png`. Returns False (writing nothing) when
     matplotlib, the optional `plot` extra, is not installed."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    plt = figures.pyplot()
+    if plt is None:
         return False
     fig, ax = plt.subplots(figsize=(7, 6))
     draw_plan(ax, results_by_method, obstacles, "planned path")

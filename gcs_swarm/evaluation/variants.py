@@ -81,9 +81,8 @@ class Variant:
     method: str | None = None  # guidance.method: "apf" | "iaapf"
     controller: str | None = None  # control.controller: "smc" | "pid"
     wind_speed: float | None = None  # world.wind.speed, m/s
-    form: str | None = (
-        None  # "paper": every [add] smoothing off (guidance.params.PAPER_PLAIN); "smooth": as is
-    )
+    # "paper": every [add] smoothing off (guidance.params.PAPER_PLAIN); "smooth": as is
+    form: str | None = None
 
     @property
     def label(self) -> str:

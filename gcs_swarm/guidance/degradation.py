@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import clip
 from gcs_swarm.guidance.params import TelemetryParams
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip
 
 
 @dataclass(frozen=True)

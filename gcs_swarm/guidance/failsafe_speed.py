@@ -25,9 +25,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import maximum, minimum
 from gcs_swarm.guidance.shaping import shape_vel_accel
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import maximum, minimum
 
 SPEED_TABLE_MAX = 60.0  # m/s, the largest speed of the stopping-distance table (beyond: extrapolated)
 TABLE_DT = 0.002  # s, the integration step of the stopping-distance table

@@ -19,9 +19,9 @@ import math
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import clip_to_scalars, dot3, maximum, norm3
 from gcs_swarm.guidance.params import FieldMethod, FieldParams
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip_to_scalars, dot3, maximum, norm3
 
 HEAD_ON_BIAS = 0.05  # share of the right-hand side mixed into the way round, so a dead-ahead obstacle has one
 

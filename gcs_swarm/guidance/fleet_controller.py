@@ -16,8 +16,7 @@ every kernel ahead of the first tick.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cached_property
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,7 +28,6 @@ from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.leader_wait import leader_cap_scale
-from gcs_swarm.guidance.obstacles import clearance
 from gcs_swarm.guidance.params import (
     DeadGcsParams,
     FieldParams,
@@ -98,7 +96,6 @@ class Command:
     thrust = MOT_THST_HOVER * thrust_acc / g). Diagnostics: ref_pos/ref_vel/ref_acc (N, 3) the SMC's desired
     state, field_force (N, 3) field units, slots (N, 3) formation targets (the leader's row is its current
     waypoint), u (N, 3) limited thrust acceleration, emergency (N,) inside D_Emg of another vehicle,
-    collision (N,) measured position at/inside an obstacle, clearance (N,) m smallest surface distance,
     psi_leader rad, waypoint_index, leader_goal_distance m (leader to its current waypoint).
     """
 
@@ -117,25 +114,6 @@ class Command:
     psi_leader: float
     waypoint_index: int
     leader_goal_distance: float
-    measured_pos: np.ndarray = field(repr=False)  # (N, 3) ENU m, the tick's input
-    obstacles: tuple[np.ndarray, np.ndarray] = field(repr=False)  # (K, 3) ENU m centres, (K,) m radii
-
-    @cached_property
-    def _surface_distance(self) -> np.ndarray:
-        """(N,) m from each measured position to the nearest obstacle surface (< 0 inside; inf: none)."""
-        return clearance(self.measured_pos, *self.obstacles)
-
-    @property
-    def clearance(self) -> np.ndarray:
-        """(N,) m smallest surface distance of each active vehicle to an obstacle, NaN rows inactive."""
-        gap = np.array(self._surface_distance, dtype=float)
-        gap[~self.active] = np.nan
-        return gap
-
-    @property
-    def collision(self) -> np.ndarray:
-        """(N,) bool: an active vehicle's measured position is at or inside an obstacle."""
-        return (self._surface_distance <= 0.0) & self.active
 
 
 def _as_array(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
@@ -516,5 +494,5 @@ class FleetController:
             yaw_d=masked(psi_l.copy()), thrust_acc=masked(cmd.thrust_acc), ref_pos=x_d, ref_vel=xd_dot,
             ref_acc=xd_ddot, field_force=force, slots=targets, u=masked(cmd.u_limited),
             emergency=emergency & active, psi_leader=self.heading.psi, waypoint_index=self.waypoint_index,
-            leader_goal_distance=goal_dist, measured_pos=pos.copy(), obstacles=(centres.copy(), radii.copy()),
+            leader_goal_distance=goal_dist,
         )  # fmt: skip

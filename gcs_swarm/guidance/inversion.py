@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import clip_to_scalars, maximum, minimum, norm3
 from gcs_swarm.guidance.params import G, Limits
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip_to_scalars, maximum, minimum, norm3
 
 THRUST_MODES = ("measured", "norm")
 NO_VALUES = np.zeros(0)

@@ -1,5 +1,5 @@
-"""Spherical obstacles: surface distance (spec 2.1), the measured clearance, and the push of a formation
-slot out of an obstacle (compiled, for the tick's formation kernel).
+"""Spherical obstacles: moving centres and surface distance (spec 2.1), and the push of a formation slot out
+of an obstacle (compiled, for the tick's formation kernel).
 
 Shapes: `q` (N, D) query points, `centres` (K, D), `radii` (K,), D = 2 (circles) or 3 (spheres).
 """
@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import maximum
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import maximum
 
 
 def centres_at(centres0: np.ndarray, velocities: np.ndarray | None, t: float | np.ndarray) -> np.ndarray:
@@ -27,24 +27,6 @@ def surface_distance(q: np.ndarray, centres: np.ndarray, radii: np.ndarray, l_mi
     l_eff)."""
     diff = q[:, None, :] - centres[None, :, :]
     return np.maximum(np.sqrt(np.einsum("nkd,nkd->nk", diff, diff)) - radii[None, :], l_min)
-
-
-def squared_distances(q: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """|q_i - points_k|^2 (N, K) by one matrix product about the points' centroid, so the cancellation error
-    stays near 1e-16 * (extent of the scene)^2; callers recompute exact differences for the pairs that matter.
-    NaN rows of q give NaN rows."""
-    origin = points.mean(axis=0) if len(points) else 0.0
-    a = q - origin
-    b = points - origin
-    d2 = np.einsum("nd,nd->n", a, a)[:, None] + np.einsum("kd,kd->k", b, b)[None, :] - 2.0 * (a @ b.T)
-    return np.maximum(d2, 0.0)
-
-
-def clearance(q: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """Smallest surface distance (N,) of each point to any obstacle (< 0 inside); +inf without obstacles."""
-    if len(radii) == 0:
-        return np.full(len(q), np.inf)
-    return (np.sqrt(squared_distances(q, centres)) - radii[None, :]).min(axis=1)
 
 
 @kernel

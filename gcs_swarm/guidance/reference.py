@@ -14,10 +14,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import clip_to_scalars, maximum, minimum, norm3
 from gcs_swarm.guidance.params import FieldParams, G, Limits, ReferenceParams
 from gcs_swarm.guidance.shaping import shape_vel_accel, shape_vel_accel_xy
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip_to_scalars, maximum, minimum, norm3
 from swarm_common.shaping import sqrt_controller
 
 

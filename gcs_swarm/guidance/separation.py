@@ -18,9 +18,9 @@ import math
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import clip, dot3, maximum, minimum, norm3
 from gcs_swarm.guidance.params import FieldParams, SeparationParams
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip, dot3, maximum, minimum, norm3
 
 DENSE_PAIRS_MAX = 40_000  # above this many (i, j) candidates, use the hash grid instead of testing all
 CLOSING_MARGIN_M = 1.0  # m kept beyond d_emg by the closing-speed cap

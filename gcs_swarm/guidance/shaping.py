@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 
-from gcs_swarm.guidance.numpy_rules import clip, clip_to_scalars, maximum
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip, clip_to_scalars, maximum
 from swarm_common.shaping import sqrt_controller
 
 CORNER_ACCELERATION_RATIO = 1.0 / math.sqrt(2.0)  # control.cpp: lateral share kept for cross-track correction

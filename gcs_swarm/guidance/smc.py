@@ -31,9 +31,9 @@ from typing import NamedTuple
 import numpy as np
 
 from gcs_swarm.guidance.inversion import limited_thrust
-from gcs_swarm.guidance.numpy_rules import clip_to_scalars, maximum, norm3, sign
 from gcs_swarm.guidance.params import G, Limits, SMCAxisGains, SMCParams
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip_to_scalars, maximum, norm3, sign
 
 
 def _per_axis(params: SMCParams, name: str) -> np.ndarray:

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from gcs_swarm.link.autopilots.thrust import nan_to_num
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip, maximum, minimum
 
 FloatArray = NDArray[np.float64]
 TILT_SLACK = 1e-9  # rad: the guidance's own limit, met to rounding, is left untouched
@@ -76,30 +77,6 @@ def guard_attitude_commands(
 
 
 @kernel
-def _clip_to_array_bound(x: float, low: float, high: float) -> float:
-    """numpy.clip of one float64 whose upper bound is an array's element, numpy's generic loop, which
-    differs from clip only in signed zeros: x equal to a bound gives the bound."""
-    if x != x:
-        return x
-    m = x if x > low else low
-    if m != m:
-        return m
-    return m if m < high else high
-
-
-@kernel
-def _minimum(a: float, b: float) -> float:
-    """numpy.minimum of two float64: a NaN wins; of equal values (signed zeros) the second."""
-    return a if (a < b or a != a) else b
-
-
-@kernel
-def _maximum(a: float, b: float) -> float:
-    """numpy.maximum of two float64: a NaN wins; of equal values (signed zeros) the second."""
-    return a if (a > b or a != a) else b
-
-
-@kernel
 def _guard(
     roll: np.ndarray,
     pitch: np.ndarray,
@@ -127,7 +104,7 @@ def _guard(
             y = nan_to_num(measured_yaw[i])
         steep = not bad and commanded_tilt[i] > tilt_max + tilt_slack  # a bad row is level: tilt 0
         if steep:
-            scale = tilt_max / _maximum(math.hypot(r, p), 1e-12)
+            scale = tilt_max / maximum(math.hypot(r, p), 1e-12)
             r, p = r * scale, p * scale
         x_e, y_n, z_u = pos[i, 0], pos[i, 1], pos[i, 2]
         outward = False
@@ -147,10 +124,10 @@ def _guard(
         if outward:
             r, p = 0.0, 0.0
         if z_u >= geofence_max_alt:
-            t = _minimum(t, hover[i])
+            t = minimum(t, hover[i])
         if z_u <= min_altitude:
-            t = _maximum(t, hover[i])
-        t = _clip_to_array_bound(t, 0.0, _minimum(1.0, hover[i] * thrust_max_g))
+            t = maximum(t, hover[i])
+        t = clip(t, 0.0, minimum(1.0, hover[i] * thrust_max_g))
         r_out[i], p_out[i], y_out[i], t_out[i] = r, p, y, t
         changed[i] = bad or steep or outward or t != thrust[i]
     return r_out, p_out, y_out, t_out, changed

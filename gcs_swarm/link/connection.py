@@ -30,7 +30,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from swarm_common.mavlink_datagrams import decode_leading_packets
-from swarm_common.signing import VerifyingParser
+from swarm_common.signing import new_parser
 
 MAVLinkMessage: TypeAlias = mavlink2.MAVLink_message
 Address = tuple[str, int]
@@ -86,16 +86,6 @@ def _serial_spec(text: str, device: str, baud: str) -> ConnectionSpec:
     if not device or not baud.isdigit() or int(baud) <= 0:
         raise ValueError(f"connection {text!r} needs serial:DEVICE[:BAUD] with a positive integer baud rate")
     return ConnectionSpec(text=text, kind="serial", device=device, baud=int(baud))
-
-
-def new_parser(key: bytes | None = None) -> mavlink2.MAVLink:
-    """A MAVLink 2 (reads MAVLink 1 too) ardupilotmega parser that turns garbage into BAD_DATA messages; with
-    a signing `key` it also refuses what fails the signature check (swarm_common.signing.VerifyingParser)."""
-    if key is not None:
-        return VerifyingParser(key)
-    parser = mavlink2.MAVLink(None, 0, 0)
-    parser.robust_parsing = True
-    return parser
 
 
 class _DatagramParser:

@@ -4,7 +4,7 @@ Flight loop (spec 8; the same code runs against hardware in real time and agains
 
     with Fleet(configs, origin, tlog_path=run_dir / "flight.tlog") as fleet:
         fleet.connect(timeout_s=10)
-        ...preflight with fleet.request_streams_all / wait_ready / param_set_all / set_mode_all / arm_all...
+        ...preflight with fleet.wait_ready / param_set_all / set_mode_all / arm_all...
         while flying:
             if not fleet.wait_tick(timeout_s=0.5):   # every alive vehicle sent a new GLOBAL_POSITION_INT
                 fleet.answer_frame()                 # keep a lockstep simulator going for the others
@@ -31,7 +31,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,6 +50,19 @@ from gcs_swarm.link.vehicle import VehicleConfig, VehicleLink
 
 _POLL_S = 0.02  # longest single select() inside blocking waits; they return as soon as packets arrive
 _FRAME_GRACE_S = 0.25  # wall s a blocking wait waits for a complete telemetry frame before acting anyway
+
+
+_S = TypeVar("_S", bound=np.generic)
+
+
+class _StateCopy(Generic[_S]):
+    """A Fleet attribute that reads a copy of the fleet's TelemetryState array of the same name."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, fleet: Fleet, owner: type | None = None) -> NDArray[_S]:
+        return getattr(fleet.state, self.name).copy()  # type: ignore[no-any-return]
 
 
 class Fleet:
@@ -110,38 +123,23 @@ class Fleet:
     def names(self) -> list[str]:
         return [link.name for link in self.links]
 
-    @property
-    def pos(self) -> NDArray[np.float64]:
-        """(N,3) ENU m around the origin, from GLOBAL_POSITION_INT."""
-        return self.state.pos.copy()
-
-    @property
-    def vel(self) -> NDArray[np.float64]:
-        """(N,3) ENU m/s."""
-        return self.state.vel.copy()
-
-    @property
-    def att(self) -> NDArray[np.float64]:
-        """(N,3) roll, pitch, yaw rad, body FLU in world ENU (yaw 0 = facing East)."""
-        return self.state.att.copy()
-
-    @property
-    def time_ms(self) -> NDArray[np.int64]:
-        """(N,) latest time_boot_ms of each vehicle (-1 before any)."""
-        return self.state.time_ms.copy()
-
-    @property
-    def alive(self) -> NDArray[np.bool_]:
-        return self.state.alive.copy()
-
-    @property
-    def armed(self) -> NDArray[np.bool_]:
-        return self.state.armed.copy()
-
-    @property
-    def mode(self) -> NDArray[np.int64]:
-        """(N,) the autopilots' custom_mode from HEARTBEAT (-1 unknown); names via VehicleLink.mode_name."""
-        return self.state.mode.copy()
+    # copies of the TelemetryState arrays (row i = vehicles[i]), so a caller cannot change the link's state
+    pos: _StateCopy[np.float64] = _StateCopy()  # (N,3) ENU m around the origin, from GLOBAL_POSITION_INT
+    vel: _StateCopy[np.float64] = _StateCopy()  # (N,3) ENU m/s
+    # (N,3) roll, pitch, yaw rad, body FLU in world ENU (yaw 0 = facing East)
+    att: _StateCopy[np.float64] = _StateCopy()
+    time_ms: _StateCopy[np.int64] = _StateCopy()  # (N,) latest time_boot_ms of each vehicle (-1 before any)
+    alive: _StateCopy[np.bool_] = _StateCopy()
+    armed: _StateCopy[np.bool_] = _StateCopy()
+    # (N,) the autopilots' custom_mode from HEARTBEAT (-1 unknown); names via VehicleLink.mode_name
+    mode: _StateCopy[np.int64] = _StateCopy()
+    # (N,) usable position estimate and pre-arm checks passing (EKF_STATUS_REPORT, SYS_STATUS)
+    ready: _StateCopy[np.bool_] = _StateCopy()
+    # (N,) wall ms of each link's latest TIMESYNC round trip (NaN until measured)
+    rtt_ms: _StateCopy[np.float64] = _StateCopy()
+    # (N,) MAV_LANDED_STATE from EXTENDED_SYS_STATE (0 undefined, 1 on ground, 2 in air, ...)
+    landed_state: _StateCopy[np.int64] = _StateCopy()
+    system_status: _StateCopy[np.int64] = _StateCopy()  # (N,) MAV_STATE from HEARTBEAT (-1 unknown)
 
     def in_mode(self, mode: ModeChoice) -> NDArray[np.bool_]:
         """(N,) each vehicle's HEARTBEAT shows flight mode `mode`, named in its autopilot's dialect or a
@@ -160,26 +158,6 @@ class Fleet:
     def dialects(self) -> list[AutopilotDialect]:
         """Each vehicle's autopilot dialect (from its HEARTBEAT or the mission; ArduPilot until heard)."""
         return [link.channel.autopilot for link in self.links]
-
-    @property
-    def ready(self) -> NDArray[np.bool_]:
-        """(N,) usable position estimate and pre-arm checks passing (EKF_STATUS_REPORT, SYS_STATUS)."""
-        return self.state.ready.copy()
-
-    @property
-    def rtt_ms(self) -> NDArray[np.float64]:
-        """(N,) wall ms of each link's latest TIMESYNC round trip (NaN until measured)."""
-        return self.state.rtt_ms.copy()
-
-    @property
-    def landed_state(self) -> NDArray[np.int64]:
-        """(N,) MAV_LANDED_STATE from EXTENDED_SYS_STATE (0 undefined, 1 on ground, 2 in air, ...)."""
-        return self.state.landed_state.copy()
-
-    @property
-    def system_status(self) -> NDArray[np.int64]:
-        """(N,) MAV_STATE from HEARTBEAT (-1 unknown)."""
-        return self.state.system_status.copy()
 
     def vehicle(self, key: int | str) -> VehicleLink:
         """The link of vehicle `key` (index or name)."""
@@ -472,17 +450,6 @@ class Fleet:
                 report.restart()
             self._pump_answering(_FRAME_GRACE_S)
 
-    def request_streams_all(
-        self,
-        control_hz: float,
-        status_hz: float = 2.0,
-        local_position: bool = False,
-        vehicles: Iterable[int | str] | None = None,
-    ) -> None:
-        """SET_MESSAGE_INTERVAL for the telemetry the ground station uses (see `telemetry_rates`)."""
-        rates = telemetry_rates(control_hz, status_hz, local_position)
-        self.run(link.streams.op_request_streams(rates) for link in self.select(vehicles))
-
     def set_mode_all(self, mode: ModeChoice, vehicles: Iterable[int | str] | None = None) -> None:
         """Set a flight mode (named in each vehicle's autopilot dialect, or a ModeChoice function of it),
         confirmed by HEARTBEAT."""
@@ -495,9 +462,6 @@ class Fleet:
 
     def arm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
         self.run(link.commands.op_arm(force) for link in self.select(vehicles))
-
-    def disarm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
-        self.run(link.commands.op_disarm(force) for link in self.select(vehicles))
 
     def takeoff_all(self, alt_m: ArrayLike, vehicles: Iterable[int | str] | None = None) -> None:
         """MAV_CMD_NAV_TAKEOFF; alt_m (m above each home) is a scalar or one value per selected vehicle."""

@@ -117,11 +117,6 @@ def quaternion_ned_to_enu(q_frd_ned: ArrayLike) -> FloatArray:
     return quaternion_multiply(quaternion_multiply(_Q_ENU_NED, q_frd_ned), _Q_FRD_FLU)
 
 
-def quaternion_enu_to_ned(q_flu_enu: ArrayLike) -> FloatArray:
-    """Attitude quaternion body FLU -> world ENU -> body FRD -> world NED (MAVLink), (..., 4)."""
-    return quaternion_ned_to_enu(q_flu_enu)
-
-
 def attitude_target_quaternion(euler_flu_enu: ArrayLike) -> FloatArray:
     """Desired roll, pitch, yaw rad (body FLU in world ENU) (..., 3) -> SET_ATTITUDE_TARGET quaternion
     (w, x, y, z) world NED -> body FRD (..., 4): roll kept, pitch negated, yaw_ned_enu(yaw) (spec 1.1),

@@ -57,13 +57,6 @@ class Setpoints:
         self.lockstep = lockstep
         self.name = channel.name
 
-    def send_attitude_target(self, roll: float, pitch: float, yaw: float, thrust: float) -> None:
-        """SET_ATTITUDE_TARGET from FLU/ENU angles (rad) and normalised thrust; ValueError if not finite."""
-        values = np.array([roll, pitch, yaw, thrust], dtype=float)
-        if not np.all(np.isfinite(values)):
-            raise ValueError(f"non-finite attitude target for {self.name}: {values.tolist()}")
-        self.send_attitude_quaternion(frames.attitude_target_quaternion(values[:3]), float(values[3]))
-
     def send_attitude_quaternion(self, q_ned_frd: ArrayLike, thrust: float) -> None:
         """SET_ATTITUDE_TARGET with a LOCAL_NED->BODY_FRD quaternion (w,x,y,z), thrust clipped to [0,1]."""
         # Fleet.send_attitude_targets passes lists of floats: no numpy round trip for them

@@ -21,11 +21,9 @@ STREAM_QUIET_S = 2.0  # [add] vehicle s without a position from a heard vehicle 
 # again
 
 
-def telemetry_rates(
-    control_hz: float, status_hz: float = 2.0, local_position: bool = False
-) -> dict[str, float]:
+def telemetry_rates(control_hz: float, status_hz: float = 2.0) -> dict[str, float]:
     """Message rates (Hz) the ground station needs: state at the control rate, health at `status_hz`."""
-    rates = {
+    return {
         "ATTITUDE": control_hz,
         "GLOBAL_POSITION_INT": control_hz,
         "SYS_STATUS": status_hz,
@@ -33,9 +31,6 @@ def telemetry_rates(
         "EXTENDED_SYS_STATE": status_hz,
         "GPS_RAW_INT": status_hz,
     }
-    if local_position:
-        rates["LOCAL_POSITION_NED"] = control_hz
-    return rates
 
 
 class Streams:

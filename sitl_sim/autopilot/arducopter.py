@@ -14,7 +14,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot.modes import GCS_FAILSAFE_ACTIONS, GUIDED_ENABLED_MODES, LAND, RTL
-from sitl_sim.autopilot.outer_loop import DESCENT_TWO_SPEED, EVENT_DISARM
+from sitl_sim.autopilot.outer_loop import EVENT_DISARM
 from sitl_sim.autopilot.persona import Persona
 
 M = mavlink2
@@ -49,7 +49,6 @@ class ArduCopter(Persona):
     ready_delay_s: ClassVar[float] = 40.0
     default_rates_hz = DEFAULT_RATES_HZ
     reports_ekf_status: ClassVar[bool] = True
-    descent_profile: ClassVar[int] = DESCENT_TWO_SPEED
 
     def heartbeat(self, i: int) -> tuple[int, int, int, int]:
         """ArduCopter's HEARTBEAT: base_mode as GCS_MAVLINK_Copter::base_mode computes it, custom_mode the
@@ -61,19 +60,13 @@ class ArduCopter(Persona):
             bits |= M.MAV_MODE_FLAG_GUIDED_ENABLED
         if ap.armed[i]:
             bits |= M.MAV_MODE_FLAG_SAFETY_ARMED
-        if ap.state.crashed[i]:
-            status = M.MAV_STATE_EMERGENCY
-        elif ap.failsafe_gcs[i]:
-            status = M.MAV_STATE_CRITICAL
-        elif ap.t < ap.boot_end[i]:
-            status = M.MAV_STATE_BOOT
-        else:
-            status = M.MAV_STATE_ACTIVE if ap.armed[i] else M.MAV_STATE_STANDBY
+        status = self.system_status(i, bool(ap.failsafe_gcs[i]))
         return M.MAV_AUTOPILOT_ARDUPILOTMEGA, bits, int(ap.mode[i]), status
 
     def prearm_ok(self, i: int) -> bool:
-        """The pre-arm checks pass (Autopilot.prearm_ok)."""
-        return self.ap.prearm_ok(i)
+        """The pre-arm checks pass: a position estimate, not crashed, the fence's checks."""
+        ap = self.ap
+        return bool(ap.ready[i] and not ap.state.crashed[i] and ap.fence_prearm(i) is None)
 
     def before_loop(self, t: float, dt: float) -> None:
         """AP_Arming::update: a vehicle that cannot arm says why by itself, "PreArm: Need Position Estimate",

@@ -145,14 +145,7 @@ class Autopilot:
         self.texts: list[list[tuple[int, str]]] = [[] for _ in range(n)]
         self.fence = fences.Fences(n)  # geofences and their breach state (sitl_sim.autopilot.fence)
         self.fence_log: list[str] = []  # breaches and their actions, for the simulator's log (stderr)
-        # outputs of the outer loop
-        self._quat_sp = np.zeros((n, 4))
-        self._rate_ff = np.zeros((n, 3))
-        self._motors_on = np.zeros(n, dtype=bool)
-        self._tilt = np.zeros(n)
-        self._rate_mask = np.zeros(n, dtype=bool)
         self._rate_control = False  # some vehicle was under rate-only control at the last tick
-        self._events = np.zeros(n, dtype=np.int64)
         self._columns = np.array([params.column_index(name) for name in LOOP_PARAMS], dtype=np.int64)
         kinds = personas or fleet_personas((), n)
         descent_columns = np.zeros((n, 8), dtype=np.int64)
@@ -180,8 +173,8 @@ class Autopilot:
             np.array([kind.descent_range_max for kind in kinds], dtype=float),
         )
         self._outputs = Outputs(
-            self._quat_sp, self._rate_ff, self.thrust_demand, self._motors_on, self._tilt, self._rate_mask,
-            self._events,
+            np.zeros((n, 4)), np.zeros((n, 3)), self.thrust_demand, np.zeros(n, dtype=bool), np.zeros(n),
+            np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64),
         )  # fmt: skip
         for i in np.flatnonzero(~self.armed):
             self.enter_mode(int(i), STABILIZE)
@@ -212,10 +205,6 @@ class Autopilot:
     def position_ok(self, i: int) -> bool:
         """The EKF has a position (origin, home and GPS fix are set)."""
         return bool(self.ready[i])
-
-    def prearm_ok(self, i: int) -> bool:
-        """The pre-arm checks pass (position estimate, not crashed, the fence's checks)."""
-        return bool(self.ready[i] and not self.state.crashed[i] and self.fence_prearm(i) is None)
 
     def fence_prearm(self, i: int) -> str | None:
         """Why the fence forbids arming vehicle i (AC_Fence::pre_arm_check, which AP_Arming::fence_checks
@@ -274,7 +263,7 @@ class Autopilot:
         """EXTENDED_SYS_STATE landed_state (ArduCopter's GCS_MAVLINK_Copter::landed_state)."""
         if self.land_complete[i]:
             return mavlink2.MAV_LANDED_STATE_ON_GROUND
-        if self._landing(i):
+        if self.mode[i] == LAND or (self.mode[i] == RTL and self.rtl_stage[i] == RTL_DESCEND):  # descending
             return mavlink2.MAV_LANDED_STATE_LANDING
         if self.takeoff_active[i]:
             return mavlink2.MAV_LANDED_STATE_TAKEOFF
@@ -473,18 +462,14 @@ class Autopilot:
             t, dt, self.dyn.params.g, self.params.values, self._columns,
             self._vehicles, self._modes, self._navigation, self._angle, self._descent, self._outputs,
         )  # fmt: skip
-        self.dyn.set_targets(
-            self._quat_sp,
-            self._rate_ff,
-            self.thrust_demand * self.dyn.params.thrust_max,
-            self._motors_on,
-            self._tilt,
-        )
-        if self._rate_mask.any() or self._rate_control:  # rate-only control started, continues or ends
-            self.dyn.set_rate_targets(self._rate_mask, self.angle_rates)
-            self._rate_control = bool(self._rate_mask.any())
+        out = self._outputs
+        thrust = self.thrust_demand * self.dyn.params.thrust_max
+        self.dyn.set_targets(out.quat_sp, out.rate_ff, thrust, out.motors_on, out.tilt_max)
+        if out.rate_mask.any() or self._rate_control:  # rate-only control started, continues or ends
+            self.dyn.set_rate_targets(out.rate_mask, self.angle_rates)
+            self._rate_control = bool(out.rate_mask.any())
         for persona in self.personas:
-            persona.after_loop(t, self._events)
+            persona.after_loop(t, out.events)
         if t - self.fence.last_check >= fences.CHECK_PERIOD_S - 1e-9:
             self._fence_check(t)
 
@@ -539,10 +524,6 @@ class Autopilot:
         )
 
     # --- internals ------------------------------------------------------------------------------------------
-
-    def _landing(self, i: int) -> bool:
-        """Vehicle i is in a landing descent (LAND, or RTL's final descent)."""
-        return bool(self.mode[i] == LAND or (self.mode[i] == RTL and self.rtl_stage[i] == RTL_DESCEND))
 
     def disarm_motors(self, i: int) -> None:
         """Vehicle i disarms now (motors stop), saying so."""

@@ -199,10 +199,6 @@ class Fences:
         self._old_total = totals.copy()
         return [int(i) for i in np.flatnonzero(changed & (totals == 0)) if self.items[i]]
 
-    def count(self, i: int) -> int:
-        """Items stored on vehicle i (what MISSION_COUNT reports)."""
-        return len(self.items[i])
-
     def _load(self) -> None:
         """The geometry of every vehicle's zones: circles as arrays (vectorised), polygons as a list."""
         owner, centre, radius, exclusion = [], [], [], []

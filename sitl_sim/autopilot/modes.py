@@ -3,16 +3,12 @@ groups ArduCopter treats alike, and the magic numbers of the commands that chang
 
 from __future__ import annotations
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
 STABILIZE, ALT_HOLD, GUIDED, LOITER, RTL, LAND, BRAKE, GUIDED_NOGPS = 0, 2, 4, 5, 6, 9, 17, 20
-MODE_NAMES = {
-    STABILIZE: "STABILIZE",
-    ALT_HOLD: "ALT_HOLD",
-    GUIDED: "GUIDED",
-    LOITER: "LOITER",
-    RTL: "RTL",
-    LAND: "LAND",
-    BRAKE: "BRAKE",
-    GUIDED_NOGPS: "GUIDED_NOGPS",
+MODE_NAMES = {  # the simulated modes' names, as pymavlink's COPTER_MODE enum spells them
+    mode: mavlink2.enums["COPTER_MODE"][mode].name.removeprefix("COPTER_MODE_")
+    for mode in (STABILIZE, ALT_HOLD, GUIDED, LOITER, RTL, LAND, BRAKE, GUIDED_NOGPS)
 }
 # ArduCopter requires_GPS(): refused when armed without a position estimate
 POSITION_MODES = (GUIDED, LOITER, RTL, BRAKE)

@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import struct
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,7 +132,6 @@ class ParamTable:
         self,
         n: int,
         specs: tuple[ParamSpec, ...],
-        overrides: Mapping[str, np.ndarray | float],
         visible: np.ndarray | None = None,
     ) -> None:
         self.specs = specs
@@ -147,11 +145,6 @@ class ParamTable:
                 self._internal.setdefault(new_name, self.index[old_name])
         self.values = np.array([[spec.default for spec in specs]] * n, dtype=float)
         self.revision = 0
-        for name, value in overrides.items():
-            self.values[:, self._internal[name]] = value
-
-    def __len__(self) -> int:
-        return len(self.specs)
 
     def listing(self, i: int) -> tuple[int, ...]:
         """Columns vehicle i shows, in its PARAM_REQUEST_LIST order (param_index = position here)."""

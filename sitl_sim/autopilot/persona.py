@@ -20,6 +20,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot.outer_loop import DESCENT_TWO_SPEED
 from sitl_sim.autopilot.params import ParamSpec, ParamTable
@@ -87,6 +88,18 @@ class Persona:
     def heartbeat(self, i: int) -> tuple[int, int, int, int]:
         """(autopilot, base_mode, custom_mode, system_status) of vehicle i's HEARTBEAT."""
         raise NotImplementedError
+
+    def system_status(self, i: int, failsafe: bool) -> int:
+        """Vehicle i's HEARTBEAT system_status, the same rule for both autopilots: EMERGENCY crashed, CRITICAL
+        in a `failsafe`, BOOT while booting, then ACTIVE armed or STANDBY."""
+        ap = self.ap
+        if ap.state.crashed[i]:
+            return int(mavlink2.MAV_STATE_EMERGENCY)
+        if failsafe:
+            return int(mavlink2.MAV_STATE_CRITICAL)
+        if ap.t < ap.boot_end[i]:
+            return int(mavlink2.MAV_STATE_BOOT)
+        return int(mavlink2.MAV_STATE_ACTIVE if ap.armed[i] else mavlink2.MAV_STATE_STANDBY)
 
     def prearm_ok(self, i: int) -> bool:
         """SYS_STATUS's pre-arm check bit: vehicle i would arm now."""

@@ -63,6 +63,8 @@ INTERNAL_MODE = {
 FORCE_MAGIC = 21196  # Commander.cpp VEHICLE_CMD_COMPONENT_ARM_DISARM: param2 that forces (disarm in flight)
 MISSIONPLANNER_COMPID = 190  # Commander.cpp: printRejectMode only for MAV_COMP_ID_MISSIONPLANNER commands
 FALLBACK_TO_RTL = (0, 1, 2)  # failsafe.cpp fromOffboardLossActParam: Position/Altitude/Stabilized need sticks
+OFFBOARD_LOSS_MODES = {3: MODE_RTL, 4: MODE_LAND, 5: MODE_LOITER}  # COM_OBL_RC_ACT; 6 Terminate, 7 Disarm
+GCS_LOSS_MODES = {1: MODE_LOITER, 2: MODE_RTL, 3: MODE_LAND}  # NAV_DLL_ACT; 5 Terminate, 6 Disarm
 # default ready delay of a PX4 vehicle (`sitl-sim --ready-delay` not given): simulated s from boot to the
 # position estimate and pre-arm OK. Real PX4 SITL (SIH
 # quadx, flown on this project's machine) said "Ready for takeoff!" 4.4-4.6 s after boot; 5 s is not earlier.
@@ -193,10 +195,7 @@ class Px4(Persona):
     mirrors = MIRRORS
     hidden_fixed = HIDDEN_FIXED
 
-    @classmethod
-    def param_specs(cls, hover_fraction: float) -> tuple[ParamSpec, ...]:
-        """PX4's own parameters (param_specs)."""
-        return param_specs(hover_fraction)
+    param_specs = staticmethod(param_specs)  # PX4's own parameters
 
     def __init__(self, ap: Any, rows: np.ndarray) -> None:  # ap: the shared copter.Autopilot
         super().__init__(ap, rows)
@@ -236,15 +235,7 @@ class Px4(Persona):
         base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
         if self.ap.armed[i]:
             base |= M.MAV_MODE_FLAG_SAFETY_ARMED
-        if self.ap.state.crashed[i]:
-            status = M.MAV_STATE_EMERGENCY
-        elif self.failsafe[i]:
-            status = M.MAV_STATE_CRITICAL
-        elif self.ap.t < self.ap.boot_end[i]:
-            status = M.MAV_STATE_BOOT
-        else:
-            status = M.MAV_STATE_ACTIVE if self.ap.armed[i] else M.MAV_STATE_STANDBY
-        return M.MAV_AUTOPILOT_PX4, base, int(self.nav[i]), status
+        return M.MAV_AUTOPILOT_PX4, base, int(self.nav[i]), self.system_status(i, bool(self.failsafe[i]))
 
     def prearm_ok(self, i: int) -> bool:
         """Commander::run's pre_flight_checks_pass: vehicle i could arm in its current mode."""
@@ -353,9 +344,7 @@ class Px4(Persona):
         ap.armed[i] = False
         ap.takeoff_active[i] = False
         ap.say(i, M.MAV_SEVERITY_INFO, f"Disarmed by {reason}")
-        self.failsafe[i] = False
-        self.failsafe_action_at[i] = math.inf
-        self._enter(i, int(self.nav_after_disarm[i]))
+        self._clear_failsafe(i)
 
     def takeoff(self, i: int, altitude_amsl: float, home_amsl: float) -> int:
         """VEHICLE_CMD_NAV_TAKEOFF: switch to AUTO.TAKEOFF (navigator takeoff: param7 altitude AMSL, NaN ->
@@ -519,14 +508,7 @@ class Px4(Persona):
         act = int(self.ap.params.value(i, "COM_OBL_RC_ACT"))
         self.failsafe[i] = True
         self.ap.say(i, M.MAV_SEVERITY_CRITICAL, "Failsafe activated")
-        if act in FALLBACK_TO_RTL or act == 3:
-            self._enter(i, MODE_RTL)
-        elif act == 4:
-            self._enter(i, MODE_LAND)
-        elif act == 5:
-            self._enter(i, MODE_LOITER)
-        else:  # 6 Terminate, 7 Disarm: motors off
-            self.disarm(i, "failsafe")
+        self._enter_or_disarm(i, MODE_RTL if act in FALLBACK_TO_RTL else OFFBOARD_LOSS_MODES.get(act))
 
     def _gcs_check(self, i: int, t: float) -> None:
         """Commander::dataLinkCheck (COM_DL_LOSS_T after a GCS heartbeat was seen) and failsafe.cpp
@@ -555,16 +537,17 @@ class Px4(Persona):
 
     def _act(self, i: int, action: int) -> None:
         """failsafe.cpp fromNavDllOrRclActParam: 1 Hold, 2 RTL, 3 Land, 5 Terminate, 6 Disarm."""
-        if action == 1:
-            self._enter(i, MODE_LOITER)
-        elif action == 2:
-            self._enter(i, MODE_RTL)
-        elif action == 3:
-            self._enter(i, MODE_LAND)
-        else:
+        self._enter_or_disarm(i, GCS_LOSS_MODES.get(action))
+
+    def _enter_or_disarm(self, i: int, mode: int | None) -> None:
+        """A failsafe's action: enter PX4 mode `mode`, or (None: Terminate, Disarm) stop the motors."""
+        if mode is None:
             self.disarm(i, "failsafe")
+        else:
+            self._enter(i, mode)
 
     def _clear_failsafe(self, i: int) -> None:
+        """No failsafe any more: vehicle i returns to the last mode the user chose that it may arm in."""
         self.failsafe[i] = False
         self.failsafe_action_at[i] = math.inf
         self._enter(i, int(self.nav_after_disarm[i]))

@@ -14,18 +14,15 @@ from sitl_sim.autopilot.params import ParamSpec, ParamTable
 from sitl_sim.autopilot.persona import Persona
 from sitl_sim.autopilot.px4 import Px4
 
-
-def persona_classes() -> dict[str, type[Persona]]:
-    """Every persona by its `--autopilot` name."""
-    return {persona.name: persona for persona in (ArduCopter, Px4)}
+# every persona by its `--autopilot` name
+PERSONAS: dict[str, type[Persona]] = {persona.name: persona for persona in (ArduCopter, Px4)}
 
 
 def persona_named(name: str) -> type[Persona]:
     """The persona called `name`; ValueError (a one-line reason) for a name no persona has."""
-    personas = persona_classes()
-    if name not in personas:
-        raise ValueError(f"--autopilot {name!r} is not one of {', '.join(personas)}")
-    return personas[name]
+    if name not in PERSONAS:
+        raise ValueError(f"--autopilot {name!r} is not one of {', '.join(PERSONAS)}")
+    return PERSONAS[name]
 
 
 def parse_autopilots(text: str, vehicles: int) -> tuple[str, ...]:
@@ -53,7 +50,7 @@ def fleet_params(
     columns, in ArduCopter's names and units) plus every persona's own (whether or not the fleet has one);
     each vehicle lists what its persona shows, and its hidden shared columns follow its persona's values
     (Persona.configure)."""
-    kinds = tuple(persona_classes().values())
+    kinds = tuple(PERSONAS.values())
     own = {kind: kind.param_specs(hover_fraction) for kind in kinds}
     specs = tuple(sorted(shared + tuple(s for kind in kinds for s in own[kind]), key=lambda spec: spec.name))
     is_shared = [spec in shared for spec in specs]
@@ -62,7 +59,7 @@ def fleet_params(
         for kind in kinds
     }
     visible = np.array([shown[kind] for kind in personas])
-    table = ParamTable(len(personas), specs, {}, visible)
+    table = ParamTable(len(personas), specs, visible)
     for kind in kinds:
         kind.configure(table, np.flatnonzero([persona is kind for persona in personas]))
     return table

@@ -75,9 +75,7 @@ class CommandHandlers:
 
     def _on_set_mode(self, msg: mavlink2.MAVLink_set_mode_message, addr: tuple[str, int]) -> None:
         result = self._set_mode(msg.base_mode, msg.custom_mode)
-        self.outbox.ack(
-            mavlink2.MAVLINK_MSG_ID_SET_MODE, result, msg
-        )  # ArduPilot acks SET_MODE with command id 11
+        self.outbox.ack(mavlink2.MAVLINK_MSG_ID_SET_MODE, result, msg)  # ArduPilot acks with command id 11
 
     def _set_mode(self, base_mode: float, custom_mode: float) -> int:
         if not finite(base_mode, custom_mode):
@@ -94,14 +92,17 @@ class CommandHandlers:
 
     def _on_command_long(self, msg: mavlink2.MAVLink_command_long_message, addr: tuple[str, int]) -> None:
         params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
-        self.outbox.ack(msg.command, self._command(msg.command, params, None), msg)
+        self.outbox.ack(msg.command, self._command(msg.command, params, None, msg.get_srcComponent()), msg)
 
     def _on_command_int(self, msg: mavlink2.MAVLink_command_int_message, addr: tuple[str, int]) -> None:
         params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y), msg.z)
-        self.outbox.ack(msg.command, self._command(msg.command, params, msg.frame), msg)
+        self.outbox.ack(
+            msg.command, self._command(msg.command, params, msg.frame, msg.get_srcComponent()), msg
+        )
 
-    def _command(self, command: int, p: tuple[float, ...], frame: int | None) -> int:
-        """Run a COMMAND_LONG/COMMAND_INT (frame None for COMMAND_LONG); returns the MAV_RESULT."""
+    def _command(self, command: int, p: tuple[float, ...], frame: int | None, source: int) -> int:
+        """Run a COMMAND_LONG/COMMAND_INT (frame None for COMMAND_LONG) from component `source` (PX4's rules
+        read it); returns the MAV_RESULT."""
         i = self.index
         autopilot = self.sim.autopilot
         if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
@@ -136,11 +137,9 @@ class CommandHandlers:
             self.outbox.send(self.outbox.tx.message_interval_encode(int(p[0]), interval))
             return mavlink2.MAV_RESULT_ACCEPTED
         if command == mavlink2.MAV_CMD_REQUEST_MESSAGE:
-            return (
-                self._request_message(int(p[0]))
-                if finite(p[0])
-                else self._invalid(mavlink2.MAV_RESULT_DENIED)
-            )
+            if not finite(p[0]):
+                return self._invalid(mavlink2.MAV_RESULT_DENIED)
+            return self._request_message(int(p[0]))
         if command == mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             return self._request_message(mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         if command == mavlink2.MAV_CMD_GET_HOME_POSITION:
@@ -187,9 +186,8 @@ class CommandHandlers:
                 )
             )
             return mavlink2.MAV_RESULT_ACCEPTED
-        data = None
-        if msg_id in STREAM_IDS:
-            data = self.sim.telemetry_view().encode(self.outbox.framer, msg_id, self.index)
+        view = self.sim.telemetry_view()
+        data = view.encode(self.outbox.framer, msg_id, self.index) if msg_id in STREAM_IDS else None
         if data is None:
             return self._refused_if_not_accepted(self.unavailable_result)
         self.outbox.append(data)

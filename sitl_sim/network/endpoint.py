@@ -27,14 +27,14 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.network import signing
 from sitl_sim.network.counters import LinkCounters
-from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, Outage
+from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, LinkFaults, Outage
 from sitl_sim.network.mission_protocol import FenceProtocol
 from sitl_sim.network.outbox import Outbox
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.streams import Framer
-from sitl_sim.network.surfaces import surface_of
+from sitl_sim.network.surfaces import SURFACES
 from swarm_common.mavlink_datagrams import decode_leading_packets
-from swarm_common.signing import is_signature_rejection
+from swarm_common.signing import is_signature_rejection, new_parser
 
 logger = logging.getLogger(__name__)
 PEER_TIMEOUT_S = 5.0  # wall seconds a silent peer keeps receiving traffic
@@ -45,14 +45,7 @@ LOCKSTEP_ANSWERS = (
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED,
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT,
 )
-LINK_PARAMS = (  # the order of link_rates and of FaultChannel's rates
-    "SIM_LINK_LOSS",
-    "SIM_LINK_DUP",
-    "SIM_LINK_CORRUPT",
-    "SIM_LINK_REORDER",
-    "SIM_LINK_DELAY",
-    "SIM_LINK_JITTER",
-)
+LINK_PARAMS = tuple(LinkFaults().params())  # SIM_LINK_*, in the order of link_rates and FaultChannel's rates
 NO_LINK_FAULTS = (0.0,) * len(LINK_PARAMS)
 Handler = Callable[[mavlink2.MAVLink_message, tuple[str, int]], None]
 AttitudeTargetHandler = Callable[[int, tuple[float, ...], float, float, float, float], None]
@@ -91,8 +84,8 @@ class VehicleEndpoint:
         except OSError:
             self.sock.close()
             raise
-        self.rx = signing.new_parser(signing_key)
-        self.clock_rx = signing.new_parser(signing_key)  # reads lockstep answers before the faulty link
+        self.rx = new_parser(signing_key)
+        self.clock_rx = new_parser(signing_key)  # reads lockstep answers before the faulty link
         self.signer = None if signing_key is None else signing.FrameSigner(signing_key)
         self.channel = FaultChannel(seed, index, outages)
         self._link_columns = [sim.params.column_index(name) for name in LINK_PARAMS]
@@ -103,7 +96,7 @@ class VehicleEndpoint:
         self.inbox: deque[tuple[bytes, tuple[str, int]]] = deque()
         self.counters = LinkCounters()
         self.missions = FenceProtocol(index, self.counters, self.outbox, sim)  # MISSION_* of the fence
-        surface = surface_of(sim.autopilot.persona(index))  # the handlers of its persona's MAVLink surface
+        surface = SURFACES[type(sim.autopilot.persona(index))]  # its persona's MAVLink surface
         setpoints = surface.setpoints(index, self.counters, sim)
         self.handlers: dict[int, Handler] = {
             **surface.commands(index, sysid, self.counters, self.outbox, sim).handlers(),
@@ -113,8 +106,8 @@ class VehicleEndpoint:
         self._attitude_target: AttitudeTargetHandler | None = (
             setpoints.attitude_target if surface.attitude_short_cut and signing_key is None else None
         )
-        for msg_id in self.missions.handlers:
-            self.handlers[msg_id] = lambda msg, addr: self.missions.handle(msg)
+        for msg_id in self.missions.handlers:  # the fence's MISSION_* handlers take no sender address
+            self.handlers[msg_id] = lambda msg, addr: self.missions.handlers[msg.get_msgId()](msg)
 
     def fileno(self) -> int:
         """The socket's file descriptor (for selectors)."""
@@ -194,7 +187,7 @@ class VehicleEndpoint:
 
     def _deliver_due(self, wall_now: float) -> int:
         """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""
-        if not self.channel.pending(UP):
+        if not self.channel.waiting(UP):
             return 0
         due = self.channel.due(UP, self.sim.time_us // 1000)
         for data, addr in due:

@@ -19,7 +19,7 @@ import hashlib
 import heapq
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 REORDER_HOLD_MS = 60  # extra simulated ms a reordered packet is held back (3 frames at 50 Hz)
 UP, DOWN = 0, 1  # directions: ground station -> vehicle, vehicle -> ground station
@@ -55,14 +55,14 @@ class LinkFaults:
     start_s: float = 0.0  # loss/delay/jitter/dup/corrupt/reorder act from this simulated time on
 
     def params(self) -> dict[str, float]:
-        """The SIM_LINK_* parameter defaults these settings give."""
+        """The SIM_LINK_* parameter defaults these settings give, in FaultChannel.push's order of rates."""
         return {
             "SIM_LINK_LOSS": self.loss,
-            "SIM_LINK_DELAY": self.delay_ms,
-            "SIM_LINK_JITTER": self.jitter_ms,
             "SIM_LINK_DUP": self.dup,
             "SIM_LINK_CORRUPT": self.corrupt,
             "SIM_LINK_REORDER": self.reorder,
+            "SIM_LINK_DELAY": self.delay_ms,
+            "SIM_LINK_JITTER": self.jitter_ms,
         }
 
 
@@ -123,23 +123,15 @@ class FaultChannel:
 
     def summary(self) -> str:
         """One line "link_lost=... link_corrupted=... link_duplicated=... link_delayed=..."."""
-        d = self.drops
-        return (
-            f"link_lost={d.lost} link_corrupted={d.corrupted} link_duplicated={d.duplicated} "
-            f"link_delayed={d.delayed}"
-        )
+        return " ".join(f"link_{f.name}={getattr(self.drops, f.name)}" for f in fields(self.drops))
 
     def active(self, rates: tuple[float, ...]) -> bool:
         """Any fault configured (rates: loss, dup, corrupt, reorder, delay_ms, jitter_ms) or any outage."""
         return bool(self.outages) or any(r > 0 for r in rates)
 
-    def pending(self, direction: int) -> bool:
-        """Packets are waiting in `direction`."""
-        return bool(self._queues[direction])
-
     def waiting(self, direction: int) -> list[tuple[int, int, bytes, object]]:
-        """The queue of `direction` itself (the same list for the channel's life; read only): one C-level
-        any() over many channels' queues finds whether any has packets waiting."""
+        """The queue of `direction` itself (the same list for the channel's life; read only; empty when no
+        packet waits): one C-level any() over many channels' queues finds whether any has packets waiting."""
         return self._queues[direction]
 
     def push(self, direction: int, packet: bytes, tag: object, now_ms: int, rates: tuple[float, ...]) -> None:

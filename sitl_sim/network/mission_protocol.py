@@ -90,11 +90,6 @@ class FenceProtocol:
             mavlink2.MAVLINK_MSG_ID_MISSION_ACK: lambda msg: None,  # not used (GCS_Common.cpp)
         }
 
-    @property
-    def now(self) -> float:
-        """Simulated seconds since boot."""
-        return self.sim.t
-
     # --- replies --------------------------------------------------------------------------------------------
 
     def _ack(self, msg: mavlink2.MAVLink_message, result: int, mission_type: int = FENCE) -> None:
@@ -111,15 +106,9 @@ class FenceProtocol:
 
     def _send_request(self) -> None:
         self.outbox.send(self.outbox.tx.mission_request_encode(*self.dest, self.request_i, FENCE))
-        self.last_request = self.now
+        self.last_request = self.sim.t
 
     # --- handlers -------------------------------------------------------------------------------------------
-
-    def handle(self, msg: mavlink2.MAVLink_message) -> None:
-        """One MISSION_* message addressed to this vehicle."""
-        handler = self.handlers.get(msg.get_msgId())
-        if handler is not None:
-            handler(msg)
 
     def _fence(self, msg: mavlink2.MAVLink_message) -> bool:
         """Whether msg is about the fence; other mission types are answered UNSUPPORTED (no store)."""
@@ -178,7 +167,7 @@ class FenceProtocol:
         self.receiving = True
         self.dest = (msg.get_srcSystem(), msg.get_srcComponent())
         self.request_i, self.request_last = first, last
-        self.last_receive = self.now
+        self.last_receive = self.sim.t
         self._send_request()
 
     def _on_item(self, msg: mavlink2.MAVLink_message) -> None:
@@ -216,7 +205,7 @@ class FenceProtocol:
             self.receiving = False
             return
         self.new_items[msg.seq] = item
-        self.last_receive = self.now
+        self.last_receive = self.sim.t
         self.request_i += 1
         if self.request_i > self.request_last:
             self._complete(msg)
@@ -267,7 +256,7 @@ class FenceProtocol:
         if self.receiving:
             self._ack(msg, mavlink2.MAV_MISSION_DENIED)
             return
-        count = self.sim.autopilot.fence.count(self.index)
+        count = len(self.sim.autopilot.fence.items[self.index])
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         self.outbox.send(self.outbox.tx.mission_count_encode(sysid, compid, count, FENCE))
 
@@ -301,9 +290,7 @@ class FenceProtocol:
         ))  # fmt: skip
 
     def _on_clear_all(self, msg: mavlink2.MAVLink_mission_clear_all_message) -> None:
-        if not self._fence(msg):
-            return
-        if not self._cancel_upload(msg):
+        if not self._fence(msg) or not self._cancel_upload(msg):
             return
         self.sim.store_fence(self.index, [])
         self._ack(msg, mavlink2.MAV_MISSION_ACCEPTED)
@@ -315,7 +302,7 @@ class FenceProtocol:
         re-ask for the awaited item after 1 s."""
         if not self.receiving:
             return
-        now = self.now
+        now = self.sim.t
         if now - self.last_receive > UPLOAD_TIMEOUT_S:
             self.receiving = False
             self._say(mavlink2.MAV_SEVERITY_WARNING, "Fence upload timeout")

@@ -46,7 +46,6 @@ class Px4CommandHandlers(CommandHandlers):
     capabilities = PX4_CAPABILITIES
     flight_sw_version = PX4_VERSION
     unavailable_result = M.MAV_RESULT_DENIED  # handle_request_message_command: a stream PX4 lacks -> DENIED
-    _source_compid = 0  # component id of the command being handled (commander's printRejectMode rule)
 
     def _on_heartbeat(self, msg: mavlink2.MAVLink_heartbeat_message, addr: tuple[str, int]) -> None:
         px4_rules(self.sim, self.index).gcs_heartbeat(self.index, msg.type)
@@ -59,18 +58,10 @@ class Px4CommandHandlers(CommandHandlers):
         result = px4.set_mode(self.index, msg.base_mode, main, sub, msg.get_srcComponent())
         self.outbox.ack(M.MAV_CMD_DO_SET_MODE, self._refused_if_not_accepted(result), msg)
 
-    def _on_command_long(self, msg: mavlink2.MAVLink_command_long_message, addr: tuple[str, int]) -> None:
-        self._source_compid = msg.get_srcComponent()
-        super()._on_command_long(msg, addr)
-
-    def _on_command_int(self, msg: mavlink2.MAVLink_command_int_message, addr: tuple[str, int]) -> None:
-        self._source_compid = msg.get_srcComponent()
-        super()._on_command_int(msg, addr)
-
-    def _command(self, command: int, p: tuple[float, ...], frame: int | None) -> int:
-        """Commander::handle_command and mavlink_receiver's own commands; others as the shared handler."""
+    def _command(self, command: int, p: tuple[float, ...], frame: int | None, source: int) -> int:
+        """Commander::handle_command and mavlink_receiver's own commands (`source`: the sender's component,
+        for commander's printRejectMode rule); others as the shared handler."""
         i, px4 = self.index, px4_rules(self.sim, self.index)
-        source = self._source_compid
         if command == M.MAV_CMD_COMPONENT_ARM_DISARM:
             return self._refused_if_not_accepted(px4.arm(i, p[0], p[1]))
         if command == M.MAV_CMD_DO_SET_MODE:
@@ -99,7 +90,7 @@ class Px4CommandHandlers(CommandHandlers):
             return M.MAV_RESULT_ACCEPTED
         if command == M.MAV_CMD_DO_FENCE_ENABLE:
             return M.MAV_RESULT_UNSUPPORTED  # geofences are not simulated for the PX4 persona
-        return super()._command(command, p, frame)
+        return super()._command(command, p, frame, source)
 
     def _on_request_data_stream(
         self, msg: mavlink2.MAVLink_request_data_stream_message, addr: tuple[str, int]

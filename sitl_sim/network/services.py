@@ -18,13 +18,12 @@ from sitl_sim.network.streams import Geodesy, StreamSchedule, TelemetryView
 class SimulatorServices(Protocol):
     """The fleet-wide state and services an endpoint and its handlers use. Times are simulated."""
 
-    @property
-    def lockstep(self) -> LockstepClients | None:
-        """The lockstep clients, None when running in (sped-up) real time."""
-
-    @property
-    def lockstep_started(self) -> bool:
-        """Whether the lockstep clock has left its boot wait for the clients."""
+    lockstep: LockstepClients | None  # the lockstep clients, None when running in (sped-up) real time
+    lockstep_started: bool  # whether the lockstep clock has left its boot wait for the clients
+    params: ParamTable  # every vehicle's parameters
+    autopilot: Autopilot  # the autopilot of the fleet
+    streams: StreamSchedule  # the telemetry streams' intervals
+    geodesy: Geodesy  # the local ENU frame's geodetic origin
 
     @property
     def t(self) -> float:
@@ -33,22 +32,6 @@ class SimulatorServices(Protocol):
     @property
     def time_us(self) -> int:
         """Simulated microseconds since boot (exact integer)."""
-
-    @property
-    def params(self) -> ParamTable:
-        """Every vehicle's parameters."""
-
-    @property
-    def autopilot(self) -> Autopilot:
-        """The autopilot of the fleet."""
-
-    @property
-    def streams(self) -> StreamSchedule:
-        """The telemetry streams' intervals."""
-
-    @property
-    def geodesy(self) -> Geodesy:
-        """The local ENU frame's geodetic origin."""
 
     def telemetry_view(self) -> TelemetryView:
         """The fleet's telemetry at the current instant."""

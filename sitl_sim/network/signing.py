@@ -17,20 +17,10 @@ import struct
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from swarm_common.signing import SIGNATURE, VerifyingParser
+from swarm_common.signing import SIGNATURE
 from swarm_common.signing_keys import timestamp_now
 
 _CRC = struct.Struct("<H")
-
-
-def new_parser(key: bytes | None) -> mavlink2.MAVLink:
-    """A robust parser; with a key, messages failing the signature rules (swarm_common.signing) come out as
-    BAD_DATA whose reason is swarm_common.signing.SIGNATURE_REJECTED."""
-    if key is not None:
-        return VerifyingParser(key)
-    parser = mavlink2.MAVLink(None)
-    parser.robust_parsing = True
-    return parser
 
 
 class FrameSigner:

@@ -89,12 +89,6 @@ def ned_telemetry(
     return out
 
 
-def enu_to_ned(v: np.ndarray) -> np.ndarray:
-    """(..., 3) ENU vectors -> NED (spec 1.1: p_NED = (p_y, p_x, -p_z))."""
-    v = np.asarray(v, dtype=float)
-    return np.stack((v[..., 1], v[..., 0], -v[..., 2]), axis=-1)
-
-
 WGS84_A = 6378137.0  # m, semi-major axis
 WGS84_F = 1.0 / 298.257223563
 WGS84_B = WGS84_A * (1.0 - WGS84_F)
@@ -260,12 +254,6 @@ FLEET_DTYPES = {
 }
 
 
-def fleet_payloads(payload: np.ndarray) -> list[bytes]:
-    """(N,) structured array of wire_dtype -> N truncated payloads (truncate), one per row."""
-    blob, size = payload.tobytes(), payload.dtype.itemsize
-    return [truncate(blob[k : k + size]) for k in range(0, len(blob), size)]
-
-
 class Framer:
     """MAVLink 2 framing of one sender (sysid, compid) with its own sequence number.
 
@@ -341,7 +329,8 @@ class TelemetryView:
         payload["time_boot_ms"] = self.time_boot_ms
         for name, column in fields.items():
             payload[name] = column
-        return fleet_payloads(payload)
+        blob, size = payload.tobytes(), payload.dtype.itemsize
+        return [truncate(blob[k : k + size]) for k in range(0, len(blob), size)]
 
     @cached_property
     def attitude_payloads(self) -> list[bytes]:
@@ -461,9 +450,9 @@ def _home_position(v: TelemetryView, f: Framer, i: int) -> bytes | None:
         return None
     home = v.ap.home[i : i + 1]
     lat, lon, alt = v.geodesy.to_geodetic(home)[0]
-    x, y, z = enu_to_ned(home[0] - v.ap.origin[i]).tolist()
+    east, north, up = (home[0] - v.ap.origin[i]).tolist()  # to NED (spec 1.1): (north, east, -up)
     return f.pack(f.mav.home_position_encode(
-        round(lat * 1e7), round(lon * 1e7), round(alt * 1000.0), x, y, z, [1.0, 0.0, 0.0, 0.0],
+        round(lat * 1e7), round(lon * 1e7), round(alt * 1000.0), north, east, -up, [1.0, 0.0, 0.0, 0.0],
         0.0, 0.0, 0.0, v.time_us,
     ))  # fmt: skip
 

@@ -22,12 +22,7 @@ class Surface(NamedTuple):
     attitude_short_cut: bool
 
 
-SURFACES: dict[type[Persona], Surface] = {
+SURFACES: dict[type[Persona], Surface] = {  # by the persona's class
     ArduCopter: Surface(CommandHandlers, SetpointHandlers, True),
     Px4: Surface(Px4CommandHandlers, Px4SetpointHandlers, False),  # its attitude handler checks more
 }
-
-
-def surface_of(persona: Persona) -> Surface:
-    """The MAVLink surface of a vehicle whose persona is `persona`."""
-    return SURFACES[type(persona)]

@@ -6,8 +6,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 
 @dataclass(frozen=True)
 class QuadParams:
@@ -61,8 +59,3 @@ class QuadParams:
     def yaw_coef(self) -> float:
         """Rotor reaction torque per newton of thrust, k_d / k_t (m)."""
         return self.k_d / self.k_t
-
-    @property
-    def inertia(self) -> np.ndarray:
-        """(3,) principal inertias Ixx, Iyy, Izz, kg m^2."""
-        return np.array([self.ixx, self.iyy, self.izz])

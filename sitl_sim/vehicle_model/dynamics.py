@@ -101,7 +101,8 @@ class FleetState:
         self.motor = _float_array(motor, (n, 4), "motor")
         self.landed = _bool_array(landed, n, "landed")
         self.crashed = _bool_array(crashed, n, "crashed")
-        self.world_accel = np.zeros((n, 3))  # last computed acceleration, see accel()
+        # (N,3) world acceleration of the last step, m/s^2 (zero while landed; IMU-style outputs)
+        self.world_accel = np.zeros((n, 3))
 
     @classmethod
     def at_rest(
@@ -126,26 +127,16 @@ class FleetState:
         motor = np.where(landed[:, None], 0.0, params.mass * params.g / 4.0) * np.ones((n, 4))
         return cls(pos, vel, level_quat(yaw), np.zeros((n, 3)), motor, landed, np.zeros(n, dtype=bool))
 
-    @property
-    def n(self) -> int:
-        """Number of vehicles."""
-        return len(self.pos)
-
     def euler(self) -> np.ndarray:
         """(N,3) roll, pitch, yaw (ZYX, rad, spec 1.1)."""
         return euler_from_quat(self.quat)
-
-    def accel(self) -> np.ndarray:
-        """(N,3) world acceleration of the last step, m/s^2 (zero while landed; IMU-style outputs)."""
-        return self.world_accel
 
 
 class FleetDynamics:
     """N quadrotors with their attitude controllers, advanced together at rate_hz.
 
     Targets (set_targets / set_rate_targets) are held until the next call, as an autopilot outer loop at
-    100-400 Hz would hold them. `state` may be replaced by another FleetState of the same N; the targets are
-    then reset to hold that state (hover if airborne, idle if landed).
+    100-400 Hz would hold them; at first they hold the initial `state` (hover if airborne, idle if landed).
     """
 
     def __init__(
@@ -180,20 +171,13 @@ class FleetDynamics:
         self._work = np.zeros((5, 4))  # advance's scratch
         if state is None:
             state = FleetState.at_rest(np.zeros((self.n, 3)), np.zeros(self.n), params=params)
-        self.state = state
-
-    @property
-    def state(self) -> FleetState:
-        """The fleet's FleetState (arrays mutated in place by step)."""
-        return self._state
-
-    @state.setter
-    def state(self, state: FleetState) -> None:
-        if state.n != self.n:
-            raise ValueError(f"state holds {state.n} vehicles, the dynamics {self.n}")
-        self._state = state
-        for i in range(self.n):
-            self._hold_current(i)
+        if len(state.pos) != self.n:
+            raise ValueError(f"state holds {len(state.pos)} vehicles, the dynamics {self.n}")
+        self.state = state  # the fleet's FleetState (arrays mutated in place by step)
+        airborne = ~state.landed & ~state.crashed  # the targets hold it: hover if airborne, idle if landed
+        self._targets_quat[:] = state.quat
+        self._thrust_sp[:] = np.where(airborne, params.mass * params.g, 0.0)
+        self._motors_on[:] = airborne
 
     def set_targets(
         self,
@@ -224,7 +208,7 @@ class FleetDynamics:
         tilt = np.full(n, tilt) if tilt.shape == () else np.ascontiguousarray(tilt)
         hover = self.params.mass * self.params.g
         store_targets(
-            quat, rate_ff, thrust, motors_on, tilt, self._state.quat, hover, self.params.thrust_max,
+            quat, rate_ff, thrust, motors_on, tilt, self.state.quat, hover, self.params.thrust_max,
             DEFAULT_TILT_MAX, self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on,
             self.last_sanitised,
         )  # fmt: skip
@@ -252,38 +236,13 @@ class FleetDynamics:
             wind = np.where(np.isfinite(wind), wind, 0.0)
         if not (isinstance(nsteps, int | np.integer) and nsteps >= 0):
             raise ValueError(f"nsteps must be an integer >= 0, not {nsteps!r}")
-        s = self._state
+        s = self.state
         advance(
             int(nsteps), self._phys, self._ctl,
             s.pos, s.vel, s.quat, s.omega, s.motor, s.landed, s.crashed, s.world_accel,
             self._targets_quat, self._rate_ff, self._thrust_sp, self._motors_on, self._rate_mode,
             self._rate_cmd, self._integrator, self._d_state, self._prev_error, wind, self._work,
         )  # fmt: skip
-
-    def reset_vehicle(self, i: int, pos: np.ndarray, yaw: float, vel: np.ndarray | None = None) -> None:
-        """Put vehicle i back at rest like FleetState.at_rest (crash cleared, controller reset)."""
-        if not (isinstance(i, int | np.integer) and 0 <= i < self.n):
-            raise ValueError(f"vehicle index must be in 0..{self.n - 1}, not {i!r}")
-        vel = None if vel is None else np.reshape(vel, (1, 3))
-        fresh = FleetState.at_rest(np.reshape(pos, (1, 3)), np.array([yaw]), vel, self.params)
-        s = self._state
-        for name in ("pos", "vel", "quat", "omega", "motor", "landed", "crashed", "world_accel"):
-            getattr(s, name)[i] = getattr(fresh, name)[0]
-        self._hold_current(i)
-
-    def _hold_current(self, i: int) -> None:
-        """Targets and controller memory of vehicle i that hold its current state (hover or idle)."""
-        s = self._state
-        airborne = not s.landed[i] and not s.crashed[i]
-        self._targets_quat[i] = s.quat[i]
-        self._rate_ff[i] = 0.0
-        self._thrust_sp[i] = self.params.mass * self.params.g if airborne else 0.0
-        self._motors_on[i] = airborne
-        self._rate_mode[i] = False
-        self._rate_cmd[i] = 0.0
-        self._integrator[i] = 0.0
-        self._d_state[i] = 0.0
-        self._prev_error[i] = 0.0
 
 
 @kernel

@@ -48,12 +48,8 @@ class Wind:
         self.direction_deg = float(direction_deg) % 360.0
         self.turbulence = float(turbulence)
         bearing = math.radians(self.direction_deg)
-        self._steady = np.array([-self.speed * math.sin(bearing), -self.speed * math.cos(bearing), 0.0])
-
-    @property
-    def steady(self) -> np.ndarray:
-        """(3,) steady air velocity ENU m/s (blowing away from direction_deg)."""
-        return self._steady.copy()
+        # (3,) steady air velocity ENU m/s (blowing away from direction_deg)
+        self.steady = np.array([-self.speed * math.sin(bearing), -self.speed * math.cos(bearing), 0.0])
 
     def sample(self, dt: float) -> np.ndarray:
         """Advance the turbulence by dt (s, >= 0) and return the (N,3) ENU wind velocity, m/s."""
@@ -62,4 +58,4 @@ class Wind:
         decay = math.exp(-dt / self.time_constant)
         innovation = self._rng.standard_normal((self.n, 3))
         self._unit_gust = decay * self._unit_gust + math.sqrt(1.0 - decay * decay) * innovation
-        return self._steady + self.turbulence * self._unit_gust
+        return self.steady + self.turbulence * self._unit_gust

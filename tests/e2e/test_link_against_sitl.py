@@ -72,7 +72,6 @@ def test_fly_and_land_two_vehicles_in_lockstep(simulator: tuple[int, Path], tmp_
     samples = []
     with Fleet(configs, ORIGIN, tlog_path=tmp_path / "flight.tlog") as fleet:
         fleet.connect(timeout_s=10.0)
-        fleet.request_streams_all(50.0)
         fleet.wait_ready(timeout_s=20.0)
         fleet.param_set_all("GUID_OPTIONS", 8)
         hover = fleet.param_get_all("MOT_THST_HOVER")
@@ -123,7 +122,7 @@ def test_streams_are_asked_for_at_connect_and_again_when_they_stop(simulator: tu
 
     configs = [VehicleConfig(f"v{i}", f"udpout:127.0.0.1:{base + i}", i + 1) for i in range(N)]
     with Fleet(configs, ORIGIN, stream_rate_hz=25.0) as fleet:
-        fleet.connect(timeout_s=10.0)  # asks for the telemetry: no request_streams_all here
+        fleet.connect(timeout_s=10.0)  # asks for the telemetry itself
         fleet.wait_ready(timeout_s=20.0)
         link = fleet.vehicle("v0")
         assert link.channel.stats.stream_requests == 0

@@ -10,6 +10,7 @@ vehicle's dialect (its formation mode, the parameters a flight sets, how it take
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from operator import attrgetter
 from typing import Protocol
 
 import numpy as np
@@ -149,28 +150,14 @@ def dialect_named(key: str) -> AutopilotDialect:
 
 ModeChoice = str | int | Callable[[AutopilotDialect], str]
 """A flight mode for a vehicle: its name or custom_mode in the vehicle's dialect, or a function of the dialect
-that names it (FORMATION_MODE, ...), for fleets of several autopilots."""
+that names it (formation_mode, ...), for fleets of several autopilots."""
 
 
-def formation_mode(dialect: AutopilotDialect) -> str:
-    """The mode in which the vehicle flies the formation's attitude targets (GUIDED, OFFBOARD)."""
-    return dialect.formation_mode
-
-
-def launch_mode(dialect: AutopilotDialect) -> str:
-    """The mode to arm and take off in (GUIDED, LOITER)."""
-    return dialect.launch_mode
-
-
-def takeoff_mode(dialect: AutopilotDialect) -> str:
-    """The mode NAV_TAKEOFF switches the vehicle to by itself (ArduCopter: none, it stays GUIDED; PX4:
-    TAKEOFF, then back to LOITER at the top)."""
-    return dialect.takeoff_mode
-
-
-def hold_mode(dialect: AutopilotDialect) -> str:
-    """The mode that stops and holds with no ground station (BRAKE, LOITER)."""
-    return dialect.hold_mode
+# ModeChoice functions: each vehicle's mode of that role in its own dialect (AutopilotDialect's attributes)
+formation_mode: Callable[[AutopilotDialect], str] = attrgetter("formation_mode")  # GUIDED, OFFBOARD
+launch_mode: Callable[[AutopilotDialect], str] = attrgetter("launch_mode")  # GUIDED, LOITER
+takeoff_mode: Callable[[AutopilotDialect], str] = attrgetter("takeoff_mode")  # GUIDED (stays), TAKEOFF
+hold_mode: Callable[[AutopilotDialect], str] = attrgetter("hold_mode")  # BRAKE, LOITER
 
 
 def mode_name_in(dialect: AutopilotDialect, mode: ModeChoice) -> str | int:

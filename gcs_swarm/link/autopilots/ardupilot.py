@@ -19,8 +19,9 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.autopilots.failsafe import FailsafeSettings
-from gcs_swarm.link.autopilots.thrust import clip, normalised_thrust
+from gcs_swarm.link.autopilots.thrust import normalised_thrust
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip_to_scalars
 
 ARDUCOPTER_MODES: Mapping[str, int] = MappingProxyType(
     {name: number for number, name in mavutil.mode_mapping_acm.items()}
@@ -152,8 +153,8 @@ class ArduPilotDialect:
         ]
 
     def is_angle_boost_on(self, value: float) -> bool:
-        """ATC_ANGLE_BOOST as read (is_boost_on)."""
-        return is_boost_on(value)
+        """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
+        return not (math.isfinite(value) and value == 0.0)
 
     def thrust(
         self,
@@ -247,14 +248,9 @@ def _thrust(
     for i in range(thrust_acc.shape[0]):
         acc = thrust_acc[i]
         if boost[i]:
-            cos_tilt = clip(math.cos(roll[i]) * math.cos(pitch[i]), 0.1, 1.0)
+            cos_tilt = clip_to_scalars(math.cos(roll[i]) * math.cos(pitch[i]), 0.1, 1.0)
             if not math.isfinite(cos_tilt):
                 cos_tilt = 1.0
             acc = acc * cos_tilt
         out[i] = normalised_thrust(acc, hover[i], g)
     return out
-
-
-def is_boost_on(value: float) -> bool:
-    """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
-    return not (math.isfinite(value) and value == 0.0)

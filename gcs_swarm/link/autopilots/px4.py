@@ -25,7 +25,6 @@ from swarm_common.jit import kernel
 
 # src/modules/commander/px4_custom_mode.h: custom_mode = main_mode << 16 | sub_mode << 24
 MAIN_MODE_SHIFT, SUB_MODE_SHIFT = 16, 24
-MAIN_AUTO, MAIN_OFFBOARD = 4, 6
 
 PX4_MODES: Mapping[str, int] = MappingProxyType(
     {
@@ -99,9 +98,8 @@ class PX4Dialect:
         {"offboard_loss_s": (0.1, COM_OF_LOSS_T_RANGE[1], "COM_OF_LOSS_T")}
     )
     hover_param = "MPC_THR_HOVER"  # normalised thrust that hovers (mc_pos_control_params.c)
-    angle_boost_param: str | None = (
-        None  # offboard thrust is body-z collective, no tilt compensation (mavlink_receiver)
-    )
+    # offboard thrust is body-z collective, no tilt compensation (mavlink_receiver)
+    angle_boost_param: str | None = None
     # how a vehicle that lost its ground station flies (gcs_swarm.guidance.lost_vehicles): the offboard-loss
     # timeout s, the horizontal cruise speed m/s of Return, the Return altitude m (rtl_params.c)
     failsafe_params: tuple[tuple[str, float], ...] = (

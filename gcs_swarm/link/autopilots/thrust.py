@@ -1,5 +1,5 @@
 """What SET_ATTITUDE_TARGET.thrust means to a multicopter autopilot flying a collective thrust, compiled, and
-numpy's rules for one float64 that the send step keeps (NaN, infinities, signed zeros).
+numpy.nan_to_num for one float64, which the send step keeps (NaN, infinities).
 
 Both dialects fly `normalised_thrust`: ArduCopter with GUID_OPTIONS bit 3 (thrust is collective thrust, not
 a climb rate) and PX4 in OFFBOARD (mavlink_receiver fill_thrust: thrust_body[2] = -thrust, flown as given by
@@ -13,25 +13,9 @@ import math
 import numpy as np
 
 from swarm_common.jit import kernel
+from swarm_common.numpy_rules import clip_to_scalars
 
 _FLOAT_MAX = float(np.finfo(np.float64).max)  # numpy.nan_to_num's value for +inf
-
-
-@kernel
-def clip(x: float, low: float, high: float) -> float:
-    """numpy.clip of one float64 between scalar bounds (x NaN: x; a NaN bound: NaN; x equal to a bound, as
-    -0.0 to 0.0: x)."""
-    if x != x:
-        return x
-    if low != low:
-        return low
-    if high != high:
-        return high
-    if x < low:
-        return low
-    if x > high:
-        return high
-    return x
 
 
 @kernel
@@ -51,4 +35,4 @@ def normalised_thrust(acc: float, hover: float, g: float) -> float:
     """Collective thrust acceleration `acc` m/s^2 -> normalised thrust hover * acc / g in [0, 1], `hover`
     being the normalised thrust that holds 1 g (MOT_THST_HOVER, MPC_THR_HOVER) and `g` gravity m/s^2 (spec
     5). A NaN acceleration gives no thrust, +inf full thrust, -inf none."""
-    return clip(hover * nan_to_num(acc) / g, 0.0, 1.0)
+    return clip_to_scalars(hover * nan_to_num(acc) / g, 0.0, 1.0)

@@ -271,18 +271,3 @@ def test_bad_inputs_give_clear_errors():
         ctl.tick(0.0, pos, zero, zero, np.zeros((1, 3)), -np.ones(1), on)
     with pytest.raises(ValueError, match="leader"):
         ctl.reset(np.full((n, 3), np.nan), zero, np.zeros(n))
-
-
-def test_collision_flag_and_clearance_at_the_measured_position():
-    n = 2
-    offsets = np.array([[0, 0, 0], [-10.0, 0, 0]])
-    ctl = make(n, offsets=offsets)
-    pos = offsets + [0.0, 0.0, 20.0]
-    zero = np.zeros((n, 3))
-    ctl.reset(pos, zero, np.zeros(n))
-    cmd = ctl.tick(
-        0.0, pos, zero, zero, np.array([[-10.0, 0.5, 20.0]]), np.array([1.0]), np.ones(n, dtype=bool)
-    )
-    np.testing.assert_array_equal(cmd.collision, [False, True])
-    np.testing.assert_allclose(cmd.clearance, [np.hypot(10.0, 0.5) - 1.0, -0.5])
-    assert np.isfinite(cmd.roll_d).all()

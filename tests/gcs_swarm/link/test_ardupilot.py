@@ -48,7 +48,8 @@ def test_the_boost_is_taken_out_for_boosting_vehicles_only() -> None:
 
 
 def test_a_missing_boost_value_counts_as_on() -> None:
-    assert ardupilot.is_boost_on(1.0) and ardupilot.is_boost_on(math.nan) and not ardupilot.is_boost_on(0.0)
+    boost_on = ardupilot.ARDUPILOT.is_angle_boost_on
+    assert boost_on(1.0) and boost_on(math.nan) and not boost_on(0.0)
 
 
 def test_ekf_reasons_name_what_is_missing() -> None:

@@ -84,7 +84,6 @@ def test_shared_udpin_routes_two_lockstep_vehicles_by_sysid(simulator) -> None:
     configs = [VehicleConfig("west", connection, 1), VehicleConfig("east", connection, 2)]
     with Fleet(configs, ORIGIN) as fleet:
         fleet.connect(timeout_s=10.0)
-        fleet.request_streams_all(50.0)
         for _ in range(20):  # the simulated clock only advances if each vehicle gets its own answers
             assert fleet.wait_tick(timeout_s=3.0)
             fleet.answer_frame()
@@ -107,7 +106,6 @@ def test_packets_of_another_sysid_on_a_connection_are_ignored(simulator) -> None
     with Fleet([VehicleConfig("lead", f"udpin:127.0.0.1:{port}")], ORIGIN) as fleet:
         fleet.connect(timeout_s=10.0)
         assert fleet.vehicle("lead").sysid == 2
-        fleet.request_streams_all(50.0)
         vehicles.tap(0, gcs_address=gcs)  # sysid 1, at x = 0, on the same port
         fleet.wait_until(lambda: any("sysid 1" in e.text for e in fleet.events), 3.0, "the event")
         fleet.wait_until(lambda: fleet.vehicle("lead").channel.stats.ignored > 2, 3.0, "ignored packets")

@@ -38,7 +38,6 @@ def test_blocking_waits_keep_the_lockstep_simulator_running(simulator, fleet_of)
     wire = vehicles.tap(0)
     fleet = fleet_of(wire, names=["lead"])
     fleet.connect(timeout_s=10.0)
-    fleet.request_streams_all(50.0)
     fleet.wait_ready(timeout_s=3.0)
     fleet.param_set_all("GUID_OPTIONS", 8)
     fleet.set_mode_all("GUIDED")  # needs a HEARTBEAT: up to 1 s of vehicle time
@@ -63,7 +62,6 @@ def test_ticks_are_clocked_by_telemetry_and_targets_echo_the_frame(simulator, fl
     w0, w1 = vehicles.tap(0), vehicles.tap(1)
     fleet = fleet_of(w0, w1, names=["lead", "f1"])
     fleet.connect(timeout_s=10.0)
-    fleet.request_streams_all(50.0)
     tick_times = []
     for _ in range(30):
         assert fleet.wait_tick(timeout_s=2.0)
@@ -87,9 +85,8 @@ def test_ticks_are_clocked_by_telemetry_and_targets_echo_the_frame(simulator, fl
 
 def test_facing_east_is_ned_yaw_90_on_the_wire(lead) -> None:
     fleet, link, wire = lead()
-    fleet.request_streams_all(50.0)
     assert fleet.wait_tick(timeout_s=2.0)
-    link.setpoints.send_attitude_target(0.0, 0.0, 0.0, 0.5)
+    fleet.send_attitude_targets([0.0], [0.0], [0.0], [0.5])
     fleet.wait_until(lambda: len(wire.sent("SET_ATTITUDE_TARGET")) > 0, 2.0, "the target")
     q = wire.sent("SET_ATTITUDE_TARGET")[0].q
     yaw_ned = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
@@ -101,7 +98,7 @@ def test_non_finite_targets_never_leave_the_ground_station(lead) -> None:
     with pytest.raises(ValueError, match="non-finite attitude target for lead; nothing sent"):
         fleet.send_attitude_targets([0.0], [math.nan], [0.0], [0.5])
     with pytest.raises(ValueError, match="non-finite attitude target for lead"):
-        link.setpoints.send_attitude_target(0.0, 0.0, 0.0, math.inf)
+        fleet.send_attitude_targets([0.0], [0.0], [0.0], [math.inf])
     with pytest.raises(ValueError, match="position target for lead"):
         link.setpoints.send_position_target([0.0, math.nan, 1.0])
     with pytest.raises(ValueError, match=r"shape \(1,\)"):

@@ -12,6 +12,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.streams import telemetry_rates
 from tests.gcs_swarm.link.simulated_vehicles import ORIGIN, SPACING_M
 
 NO_FENCE_REASON = "PreArm: Fences enabled, but none selected"  # docs/sitl.md, geofence pre-arm checks
@@ -42,7 +43,6 @@ def test_position_velocity_attitude_in_mission_enu(simulator, fleet_of, attitude
     taps = [vehicles.tap(0), vehicles.tap(1)]
     fleet = fleet_of(*taps)
     fleet.connect(timeout_s=10.0)
-    fleet.request_streams_all(50.0)
     fleet.run(v.streams.op_set_message_interval(attitude_stream, 50.0) for v in fleet.links)
     if attitude_stream == "ATTITUDE_QUATERNION":
         fleet.run(v.streams.op_set_message_interval("ATTITUDE", 0) for v in fleet.links)
@@ -54,7 +54,7 @@ def test_position_velocity_attitude_in_mission_enu(simulator, fleet_of, attitude
     # flies a velocity: both move in all three axes and rotate
     for _ in range(50):
         assert fleet.wait_tick(timeout_s=2.0)
-        fleet.vehicle(0).setpoints.send_attitude_target(0.1, -0.2, -2.2, 0.6)
+        fleet.send_attitude_targets([0.1, 0.0], [-0.2, 0.0], [-2.2, 0.0], [0.6, 0.0], mask=[True, False])
         fleet.vehicle(1).setpoints.send_velocity_target([1.0, 2.0, -0.5])
         fleet.answer_frame()
     assert fleet.wait_tick(timeout_s=2.0)
@@ -88,7 +88,7 @@ def test_ready_needs_a_position_estimate_and_prearm_health(simulator, fleet_of) 
     fleet.connect(timeout_s=10.0)
     with pytest.raises(LinkError, match="^timed out after 0.1 s waiting for"):
         fleet.wait_until(lambda: bool(fleet.ready.all()), 0.1, "readiness")
-    fleet.request_streams_all(50.0, status_hz=10.0)
+    fleet.run(link.streams.op_request_streams(telemetry_rates(50.0, 10.0)) for link in fleet.links)
     with pytest.raises(
         LinkError, match=r"^not ready to fly after 0.3 s: lead: no GLOBAL_POSITION_INT received"
     ):
@@ -137,7 +137,6 @@ def test_loss_by_vehicle_time_while_the_others_fly_on(simulator, fleet_of) -> No
     a, b = vehicles.tap(0), vehicles.tap(1)
     fleet = fleet_of(a, b, names=["a", "b"], loss_timeout_s=0.5, loss_wall_timeout_s=30.0)
     fleet.connect(timeout_s=10.0)
-    fleet.request_streams_all(50.0)
     b.silent = True  # the simulator waits for b's answers 1 s, then goes on without them
     fleet.wait_until(lambda: not fleet.alive[1], 10.0, "b's loss")
     assert vehicles.dropped(b) != [] and vehicles.dropped(a) == []
@@ -183,7 +182,6 @@ def test_position_and_velocity_targets_on_the_wire(simulator, fleet_of) -> None:
     wire = simulator(2).tap(1)  # vehicle 1 stands at (5, 0, 0) m ENU
     fleet = fleet_of(wire, names=["lead"])
     fleet.connect(timeout_s=10.0)
-    fleet.request_streams_all(50.0)
     assert fleet.wait_tick(timeout_s=2.0)
     frame_ms = fleet.time_ms[0]
     link = fleet.vehicle("lead")

@@ -82,7 +82,6 @@ def test_attitude_conversion_is_the_frame_change(euler: tuple[float, float, floa
     np.testing.assert_allclose(quaternion_rotation(q_ned), r_ned, atol=1e-12)
     q_enu = frames.quaternion_ned_to_enu(q_ned)
     np.testing.assert_allclose(quaternion_rotation(q_enu), r_enu, atol=1e-12)
-    np.testing.assert_allclose(quaternion_rotation(frames.quaternion_enu_to_ned(q_enu)), r_ned, atol=1e-12)
 
 
 def test_vectorised_shapes() -> None:

@@ -38,7 +38,6 @@ def test_fleet_tlog_records_sent_and_received_packets(simulator, fleet_of, tmp_p
     started = time.time()
     fleet = fleet_of(simulator(1).tap(0), names=["lead"], tlog_path=path)
     fleet.connect(timeout_s=10.0)
-    fleet.request_streams_all(50.0)
     for _ in range(10):
         assert fleet.wait_tick(timeout_s=2.0)
         fleet.send_attitude_targets([0.0], [0.0], [0.0], [0.5])

@@ -199,7 +199,7 @@ def test_pre_arm_refuses_a_vehicle_inside_an_exclusion_zone():
         _fly_east(sim, 0.0, 0.1)
         a = sim.autopilot
         assert a.arm(0, force=False) == M.MAV_RESULT_FAILED
-        assert not a.prearm_ok(0)
+        assert not a.persona(0).prearm_ok(0)
         _fly_east(sim, 0.0, 0.01)
         assert "PreArm: Vehicle breaching Polygon fence" in texts
         assert a.arm(0, force=True) == M.MAV_RESULT_ACCEPTED  # the force-arm magic skips the checks

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 from sitl_sim.autopilot.params import ParamTable, param_specs
@@ -60,7 +59,7 @@ def test_param_set_refusals_say_why_and_echo_the_value(sitl, pilot_for, name, va
 
 
 def test_table_checks_and_world_params_apply_to_every_vehicle():
-    table = ParamTable(3, param_specs(0.4), {"MAV_SYSID": np.array([1, 2, 3])})
+    table = ParamTable(3, param_specs(0.4))
     assert table.check("ANGLE_MAX", 4500) is None
     assert "out of range" in table.check("ANGLE_MAX", 100)
     assert "integer" in table.check("RTL_ALT", 1500.5)
@@ -69,7 +68,6 @@ def test_table_checks_and_world_params_apply_to_every_vehicle():
     assert list(table.column("ANGLE_MAX")) == [3000, 4500, 3000]
     assert table.set(2, "SIM_WIND_SPD", 7) == [0, 1, 2]
     assert list(table.column("SIM_WIND_SPD")) == [7, 7, 7]
-    assert list(table.column("MAV_SYSID")) == [1, 2, 3]
     assert all(len(spec.name) <= 16 for spec in table.specs)
     assert [spec.name for spec in table.specs] == sorted(spec.name for spec in table.specs)
 

@@ -23,11 +23,11 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.autopilot import modes
 from sitl_sim.clock import plan_timing
-from sitl_sim.network import signing
 from sitl_sim.network.endpoint import LINK_PARAMS, lone_attitude_target, parse_datagram
 from sitl_sim.network.link_faults import Outage
 from sitl_sim.simulator import Simulator
 from swarm_common.mavlink_codec import Packer
+from swarm_common.signing import new_parser
 from tests.sitl_sim.sim_process import in_process_config
 
 FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -139,7 +139,7 @@ def bits(values: list[Any] | tuple[Any, ...]) -> list[Any]:
 @FUZZ
 @given(data=datagrams())
 def test_lone_attitude_target_takes_exactly_what_parse_datagram_decodes_alone(data: bytes) -> None:
-    parser = signing.new_parser(None)
+    parser = new_parser(None)
     fields = lone_attitude_target(data)
     messages = parse_datagram(parser, data)
     alone = (

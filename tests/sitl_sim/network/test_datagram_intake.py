@@ -15,8 +15,8 @@ from pymavlink.dialects.v10 import ardupilotmega as mavlink1
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sitl_sim.network import endpoint as endpoint_module
-from sitl_sim.network import signing
 from sitl_sim.network.endpoint import parse_datagram
+from swarm_common.signing import new_parser
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))
@@ -94,7 +94,7 @@ def described(msg: mavlink2.MAVLink_message) -> tuple[Any, ...]:
 
 
 def receivers(key: bytes | None) -> tuple[mavlink2.MAVLink, mavlink2.MAVLink]:
-    pair = (signing.new_parser(key), signing.new_parser(key))
+    pair = (new_parser(key), new_parser(key))
     for parser in pair:
         parser.signing.timestamp = START_STAMP
     return pair
@@ -146,7 +146,7 @@ def test_same_messages_as_parse_buffer_random_bytes(datagrams: list[bytes]) -> N
 def reference_counts(datagrams: list[bytes]) -> tuple[int, int]:
     """(messages, bad frames) as the endpoint counted them with parse_buffer: a parser failure or a truncated
     tail is one bad frame each, every BAD_DATA one more."""
-    parser = signing.new_parser(None)
+    parser = new_parser(None)
     messages = bad = 0
     for data in datagrams:
         parsed = parser.parse_buffer(data) or []

@@ -110,7 +110,7 @@ def test_upload_download_round_trip_as_arducopter():
         (ack,) = bench.take("MISSION_ACK")
         assert (ack.type, ack.mission_type, ack.target_system) == (M.MAV_MISSION_ACCEPTED, FENCE, GCS_SYSID)
         assert bench.download() == items
-        assert bench.sim.autopilot.fence.count(0) == 7
+        assert len(bench.sim.autopilot.fence.items[0]) == 7
         # the deprecated MISSION_REQUEST is answered with MISSION_ITEM (degrees) and a warning, once
         bench.send(bench.gcs.mission_request_encode(1, 1, 0, FENCE))
         (item,) = bench.take("MISSION_ITEM")
@@ -136,7 +136,7 @@ def test_out_of_order_and_duplicate_items_are_refused_and_the_upload_goes_on():
         bench.send(bench.item(1, *CIRCLE))  # the last one again, after the transfer: nothing to receive
         assert bench.acks() == [M.MAV_MISSION_ERROR]
         assert bench.endpoint.counters.refused == 3
-        assert bench.sim.autopilot.fence.count(0) == 2
+        assert len(bench.sim.autopilot.fence.items[0]) == 2
     finally:
         bench.close()
 
@@ -160,7 +160,7 @@ def test_refused_items_end_the_upload_with_arducopters_codes():
             assert bench.acks() == [M.MAV_MISSION_ERROR]  # the upload is over
         bench.send(bench.gcs.mission_count_encode(1, 1, 71, FENCE))
         assert bench.acks() == [M.MAV_MISSION_NO_SPACE] and "Only 70 items are supported" in bench.texts
-        assert bench.sim.autopilot.fence.count(0) == 0
+        assert len(bench.sim.autopilot.fence.items[0]) == 0
     finally:
         bench.close()
 
@@ -172,7 +172,7 @@ def test_an_invalid_fence_is_refused_whole_with_the_reason():
         assert bench.texts[-2:] == ["Invalid vertex count (2)", "Fence validation failed"]
         assert bench.upload([(f.CIRCLE_EXCLUSION, float("nan"), LAT, LON)]) == [M.MAV_MISSION_ERROR]
         assert bench.texts[-2] == "Non-positive circle radius" and bench.endpoint.counters.invalid == 1
-        assert bench.sim.autopilot.fence.count(0) == 0
+        assert len(bench.sim.autopilot.fence.items[0]) == 0
     finally:
         bench.close()
 

@@ -138,7 +138,9 @@ def test_lockstep_client_keeps_the_clock_through_a_dead_link(sitl) -> None:
 
 def test_link_settings_are_per_vehicle_params_with_ranges() -> None:
     """SIM_LINK_* are ordinary parameters (PARAM_SET at run time, per vehicle, checked ranges)."""
-    table = ParamTable(2, param_specs(0.4), LinkFaults(loss=0.1, jitter_ms=100.0).params())
+    table = ParamTable(2, param_specs(0.4))
+    for name, value in LinkFaults(loss=0.1, jitter_ms=100.0).params().items():
+        table.values[:, table.column_index(name)] = value
     assert table.value(1, "SIM_LINK_LOSS") == pytest.approx(0.1) and table.value(0, "SIM_LINK_JITTER") == 100
     assert table.check("SIM_LINK_LOSS", 1.5) is not None and table.check("SIM_LINK_DELAY", 250.0) is None
     table.set(0, "SIM_LINK_LOSS", 1.0)

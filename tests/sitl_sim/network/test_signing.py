@@ -18,6 +18,7 @@ from sitl_sim.autopilot.outer_loop import CTRL_ANGLE
 from sitl_sim.cli import build_config, build_parser
 from sitl_sim.network import signing
 from sitl_sim.simulator import Simulator
+from swarm_common.signing import VerifyingParser
 from tests.sitl_sim.sim_process import in_process_config
 
 KEY = bytes(range(32))
@@ -139,7 +140,7 @@ def test_vehicle_signs_what_it_sends(sim):
         endpoint.outbox.send(endpoint.outbox.tx.statustext_encode(6, b"hello"))
         endpoint.flush(time.monotonic())
         data = capture.recv(65535)
-    verifier = signing.VerifyingParser(KEY)
+    verifier = VerifyingParser(KEY)
     messages = verifier.parse_buffer(data)
     assert [m.get_type() for m in messages] == ["HEARTBEAT", "GLOBAL_POSITION_INT", "STATUSTEXT"]
     assert all(m._signed for m in messages)

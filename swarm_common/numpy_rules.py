@@ -1,5 +1,6 @@
-"""Scalar helpers of the compiled guidance that keep numpy's rules, so that the laws give the results their
-vectorised spellings gave (flights are reproducible across versions of this code):
+"""Scalar helpers of the compiled laws (the guidance, the link's command guard and thrust mapping) that keep
+numpy's rules, so that the laws give the results their vectorised spellings gave (flights are reproducible
+across versions of this code):
 
 - `maximum`, `minimum`: NaN if either argument is, else the larger / smaller; the second argument when
   they compare equal (+0 and -0), as np.maximum / np.minimum;
