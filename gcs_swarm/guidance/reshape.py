@@ -15,7 +15,8 @@ purpose instead, and its followers' slots move with it:
   leader's own route, which the leader will swerve round in a way the route does not tell), the one with the
   most clearance, but only if all its slots stay outside the obstacles and it clears them by CLEARER_M more
   than the shape flown; else the shape flown is kept. Narrower than the shape flown: at once; wider: once it
-  has kept fitting for `restore_after_s`, so the formation does not flap at the edge of a gap.
+  has kept fitting, with WIDEN_MARGIN_M more clearance, for `restore_after_s`, so the formation does not flap
+  at the edge of a gap.
 - **Change**: the followers are assigned to the new slots by the shortest longest move
   (gcs_swarm.guidance.slot_assignment), and the slots move from the old to the new offsets straight, or first
   along the leader's heading and then across it, or the other way round (MOVE_ORDERS): whichever keeps the
@@ -25,7 +26,8 @@ purpose instead, and its followers' slots move with it:
   faster than speed_m_s relative to the leader.
   The offsets' rate of change goes to the followers as a velocity feed-forward.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
-  reach the first place it does not fit before the change is done (`pace_cap`).
+  reach the first place it does not fit before the change is done (`pace_cap`), but not below
+  1.875 speed_m_s - PACE_MARGIN_M_S, so that no follower whose slot falls back reverses at speed.
 
 Offsets are (N, 3) leader-frame metres (x forward, y left, z up), the leader's row zero. `scale` is the
 spacing of the flown shape over the mission's (1 unreshaped); the inter-UAV repulsion range shrinks with it
@@ -44,7 +46,10 @@ from gcs_swarm.guidance.params import ReshapeParams
 from gcs_swarm.guidance.slot_assignment import assign_moves
 
 SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
-PACE_FLOOR_M_S = 1.0  # m/s, the leader never slows below this for a change of shape
+# m/s the leader keeps above the peak speed (1.875 speed_m_s) at which a slot falls back in the formation, less
+# this: a follower whose slot falls back then drifts backwards at under the 2 m/s of a cusp (docs/metrics.md)
+PACE_MARGIN_M_S = 1.5
+WIDEN_MARGIN_M = 1.0  # m more than clearance_m a wider shape must keep to be taken (no flapping at the edge)
 CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
 
 
@@ -304,7 +309,7 @@ class FormationShaper:
         for k, shape in enumerate(self.shapes):
             followers = np.flatnonzero(np.any(shape.offsets != 0.0, axis=1))
             gaps[k] = float(shape_clearance(shape.offsets, followers, points, headings, centres, radii).min())
-            if gaps[k] >= self.params.clearance_m:
+            if gaps[k] >= self.params.clearance_m + (WIDEN_MARGIN_M if k < self.current else 0.0):
                 best = k
                 break
             if gaps[k] > best_gap + 1e-9:
@@ -331,7 +336,7 @@ class FormationShaper:
     ) -> None:  # fmt: skip
         """The leader's speed cap while the slots move (`pace_cap`): the shape flown now must not reach the
         first place along the route where it does not fit before the change is done, so the leader covers at
-        most that distance in the change's remaining time (at least PACE_FLOOR_M_S); inf otherwise."""
+        most that distance in the change's remaining time (module docstring, Pace); inf otherwise."""
         left = self.move.t0 + self.move.duration - t
         self.pace_cap = math.inf
         if left <= 0.0 or self.current == 0:
@@ -341,4 +346,5 @@ class FormationShaper:
         gap = shape_clearance(offsets, followers, points, headings, centres, radii)
         tight = np.flatnonzero(gap < self.params.clearance_m)
         if len(tight):
-            self.pace_cap = max(PACE_FLOOR_M_S, float(along[tight[0]]) / left)
+            floor = max(1.875 * self.params.speed_m_s - PACE_MARGIN_M_S, 0.0)
+            self.pace_cap = max(floor, float(along[tight[0]]) / left)
