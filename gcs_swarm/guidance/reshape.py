@@ -46,8 +46,8 @@ from gcs_swarm.guidance.params import ReshapeParams
 from gcs_swarm.guidance.slot_assignment import assign_moves
 
 SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
-# m/s the leader keeps above the peak speed (1.875 speed_m_s) at which a slot falls back in the formation, less
-# this: a follower whose slot falls back then drifts backwards at under the 2 m/s of a cusp (docs/metrics.md)
+# m/s: the leader keeps above the peak speed (1.875 speed_m_s) at which a slot falls back in the formation,
+# less this, so a follower whose slot falls back drifts backwards at under the 2 m/s of a cusp (metrics.md)
 PACE_MARGIN_M_S = 1.5
 WIDEN_MARGIN_M = 1.0  # m more than clearance_m a wider shape must keep to be taken (no flapping at the edge)
 CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
