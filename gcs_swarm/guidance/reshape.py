@@ -43,7 +43,7 @@ import numpy as np
 
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import ReshapeParams
-from gcs_swarm.guidance.slot_assignment import assign_moves
+from gcs_swarm.guidance.slot_assignment import assign_moves, closest_approach
 
 SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
 # m/s: the leader keeps above the peak speed (1.875 speed_m_s) at which a slot falls back in the formation,
@@ -152,7 +152,6 @@ MOVE_ORDERS: dict[str, tuple[tuple[int, ...], ...]] = {
     "along, then across": ((0, 2), (1,)),
     "across, then along": ((1, 2), (0,)),
 }
-GAP_SAMPLES = 11  # positions checked along each phase of a move
 
 
 @dataclass(frozen=True)
@@ -189,20 +188,16 @@ class SlotMove:
 
 
 def closest_pair_along(start: np.ndarray, end: np.ndarray, axes_order: tuple[tuple[int, ...], ...]) -> float:
-    """Smallest distance m between two rows of start/end (M, 3) moving phase by phase as `axes_order` says
-    (each phase's axes together, proportionally), checked at GAP_SAMPLES positions per phase."""
-    if len(start) < 2:
-        return math.inf
+    """Smallest distance m between two rows of start/end (M, 3) moving phase by phase as `axes_order` says:
+    in each phase that phase's axes move together, proportionally, a straight synchronised move whose
+    closest approach slot_assignment.closest_approach gives exactly."""
     here, best = start.copy(), math.inf
     for axes in axes_order:
         cols = list(axes)
-        for lam in np.linspace(0.0, 1.0, GAP_SAMPLES):
-            pts = here.copy()
-            pts[:, cols] = here[:, cols] + lam * (end[:, cols] - here[:, cols])
-            d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
-            np.fill_diagonal(d, np.inf)
-            best = min(best, float(d.min()))
-        here[:, cols] = end[:, cols]
+        there = here.copy()
+        there[:, cols] = end[:, cols]
+        best = min(best, closest_approach(here, there))
+        here = there
     return best
 
 
@@ -305,6 +300,9 @@ class FormationShaper:
         self.next_decision = t + self.params.decide_every_s
         length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap)
         points, headings, along = route_samples(p_leader, psi_leader, waypoints, length)
+        reach = max(float(np.max(np.linalg.norm(s.offsets, axis=1))) for s in self.shapes)
+        near = np.linalg.norm(centres - p_leader, axis=1) - radii <= length + reach + self.params.clearance_m
+        centres, radii = centres[near], radii[near]  # only obstacles a slot can come near in the look-ahead
         best, best_gap, gaps = 0, -math.inf, {}
         for k, shape in enumerate(self.shapes):
             followers = np.flatnonzero(np.any(shape.offsets != 0.0, axis=1))

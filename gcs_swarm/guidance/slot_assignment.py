@@ -23,6 +23,7 @@ Positions are (M, 3) ENU or leader-frame metres, one row per follower to place.
 
 from __future__ import annotations
 
+import math
 from enum import StrEnum
 
 import numpy as np
@@ -58,31 +59,36 @@ def bottleneck_distance(distance: np.ndarray) -> float:
     return float(values[lo])
 
 
-def _segments_cross(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> bool:
-    """Whether the horizontal projections of segments a0-a1 and b0-b1 (3,) properly intersect."""
+def crossing_pairs(starts: np.ndarray, goals: np.ndarray) -> bool:
+    """Whether the horizontal projections of any two segments starts[i]-goals[i] (M, 3) properly intersect
+    (each strictly separates the other's ends)."""
+    if len(starts) < 2:
+        return False
+    a0, a1 = starts[:, None, :2], goals[:, None, :2]  # segment i along rows
+    b0, b1 = starts[None, :, :2], goals[None, :, :2]  # segment j along columns
 
-    def side(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> float:
-        return float((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]))
+    def side(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (
+            r[..., 0] - p[..., 0]
+        )
 
-    d1, d2 = side(b0, b1, a0), side(b0, b1, a1)
-    d3, d4 = side(a0, a1, b0), side(a0, a1, b1)
-    return d1 * d2 < 0.0 and d3 * d4 < 0.0
+    cross = (side(b0, b1, a0) * side(b0, b1, a1) < 0.0) & (side(a0, a1, b0) * side(a0, a1, b1) < 0.0)
+    return bool(cross.any())
 
 
 def closest_approach(starts: np.ndarray, goals: np.ndarray) -> float:
     """Smallest distance (m) between any two of the (M, 3) vehicles moving together on straight lines from
     `starts` to `goals` (positions s + lam (g - s), lam in [0, 1]); inf for fewer than two."""
-    best = np.inf
-    for i in range(len(starts)):
-        r0 = starts[i] - starts[i + 1 :]  # (., 3) relative position at lam = 0
-        dr = (goals[i] - starts[i]) - (goals[i + 1 :] - starts[i + 1 :])  # its change over the move
-        dd = np.einsum("ij,ij->i", dr, dr)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            lam = np.where(dd > 0.0, np.clip(-np.einsum("ij,ij->i", r0, dr) / dd, 0.0, 1.0), 0.0)
-        gap = np.linalg.norm(r0 + lam[:, None] * dr, axis=1)
-        if gap.size:
-            best = min(best, float(gap.min()))
-    return best
+    if len(starts) < 2:
+        return math.inf
+    r0 = starts[:, None, :] - starts[None, :, :]  # (M, M, 3) relative positions at lam = 0
+    dr = (goals - starts)[:, None, :] - (goals - starts)[None, :, :]  # their change over the move
+    dd = np.einsum("ijk,ijk->ij", dr, dr)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lam = np.where(dd > 0.0, np.clip(-np.einsum("ijk,ijk->ij", r0, dr) / dd, 0.0, 1.0), 0.0)
+    gap = np.linalg.norm(r0 + lam[..., None] * dr, axis=-1)
+    np.fill_diagonal(gap, np.inf)
+    return float(gap.min())
 
 
 def gap_floor(starts: np.ndarray, goals: np.ndarray, min_gap: float) -> float:
@@ -94,11 +100,8 @@ def gap_floor(starts: np.ndarray, goals: np.ndarray, min_gap: float) -> float:
 def moves_conflict(starts: np.ndarray, goals: np.ndarray, min_gap: float) -> bool:
     """Whether any two of the straight moves starts -> goals (M, 3) cross in the horizontal plane or bring
     two vehicles closer than `gap_floor` while they move together."""
-    m = len(starts)
-    for i in range(m):
-        for j in range(i + 1, m):
-            if _segments_cross(starts[i], goals[i], starts[j], goals[j]):
-                return True
+    if crossing_pairs(starts, goals):
+        return True
     return closest_approach(starts, goals) < gap_floor(starts, goals, min_gap)
 
 

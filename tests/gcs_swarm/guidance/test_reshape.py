@@ -129,7 +129,7 @@ def test_a_wider_shape_waits_restore_after_s_before_the_formation_widens():
     shaper.decide(0.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, centres, radii)
     narrowed = shaper.current
     assert narrowed > 0
-    far = np.array([[1000.0, 0.0, 10.0]])  # the obstacles gone: the V fits again
+    far = centres + [1000.0, 0.0, 0.0]  # the obstacles gone: the V fits again
     shaper.decide(1.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, far, radii)
     shaper.decide(
         1.0 + PARAMS.restore_after_s / 2, np.zeros(3), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, far, radii
