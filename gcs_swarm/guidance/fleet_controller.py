@@ -39,7 +39,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
-from gcs_swarm.guidance.reshape import FormationShaper
+from gcs_swarm.guidance.reshape import FormationShaper, shape_clearance
 from gcs_swarm.guidance.separation import (
     closing_deceleration,
     closing_range,
@@ -81,6 +81,9 @@ def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
         )
         ctl.reset(pos, np.zeros((3, 3)), np.zeros(3))
         ctl.tick(0.0, pos, np.ones((3, 3)), np.zeros((3, 3)), obstacle_c, obstacle_r, np.ones(3, dtype=bool))
+    shape_clearance(
+        offsets, np.flatnonzero(offsets[:, 0]), pos, np.zeros(3), obstacle_c, obstacle_r
+    )  # reshape
     table = np.array([0.0, 1.0])  # the failsafe speed scheduling's kernels, on a small table
     brake_distances(table, 7.5, 5.0, 0.002, 2)
     speed_caps_from_table(pos, np.ones((3, 3)), obstacle_c, obstacle_r, 1.0, table, table)

@@ -44,6 +44,7 @@ import numpy as np
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import ReshapeParams
 from gcs_swarm.guidance.slot_assignment import assign_moves, closest_approach
+from swarm_common.jit import kernel
 
 SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
 # m/s: the leader keeps above the peak speed (1.875 speed_m_s) at which a slot falls back in the formation,
@@ -120,23 +121,27 @@ def route_samples(
     return np.array(points), np.array(headings), np.array(along_route)
 
 
+@kernel
 def shape_clearance(
     offsets: np.ndarray, followers: np.ndarray, points: np.ndarray, headings: np.ndarray,
     centres: np.ndarray, radii: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
-    """Smallest distance (P,) m from a follower slot (rows `followers` of the (N, 3) offsets) to an obstacle
-    surface ((K, 3) centres, (K,) radii) with the leader at each of points (P, 3), heading (P,); inf
-    without obstacles or followers."""
-    if not len(radii) or not followers.size:
-        return np.full(len(points), math.inf)
-    off = offsets[followers]  # (F, 3)
-    c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]  # (P, 1)
-    slots = np.empty((len(points), len(off), 3))
-    slots[..., 0] = points[:, None, 0] + off[None, :, 0] * c - off[None, :, 1] * s
-    slots[..., 1] = points[:, None, 1] + off[None, :, 0] * s + off[None, :, 1] * c
-    slots[..., 2] = points[:, None, 2] + off[None, :, 2]
-    gap = np.linalg.norm(slots[:, :, None, :] - centres[None, None, :, :], axis=-1) - radii
-    return gap.min(axis=(1, 2))
+    """Smallest distance (P,) m from a follower slot (rows `followers` (F,) int of the (N, 3) offsets) to an
+    obstacle surface ((K, 3) centres, (K,) radii) with the leader at each of points (P, 3), heading (P,)
+    rad; inf without obstacles or followers."""
+    out = np.full(points.shape[0], np.inf)
+    for p in range(points.shape[0]):
+        c, s = math.cos(headings[p]), math.sin(headings[p])
+        for i in followers:
+            x = points[p, 0] + offsets[i, 0] * c - offsets[i, 1] * s
+            y = points[p, 1] + offsets[i, 0] * s + offsets[i, 1] * c
+            z = points[p, 2] + offsets[i, 2]
+            for k in range(radii.shape[0]):
+                dx, dy, dz = x - centres[k, 0], y - centres[k, 1], z - centres[k, 2]
+                gap = math.sqrt(dx * dx + dy * dy + dz * dz) - radii[k]
+                if gap < out[p]:
+                    out[p] = gap
+    return out
 
 
 def min_jerk(tau: float) -> tuple[float, float]:

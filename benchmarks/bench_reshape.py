@@ -1,0 +1,71 @@
+"""Cost of the deliberate reshaping (gcs_swarm.guidance.reshape) in FleetController.tick: a grid of N vehicles
+9 m apart flies east at 8 m/s past 10 obstacles spread over its course, 150 ticks, with `guidance.reshape` on
+and off, interleaved run by run. Prints per N and setting the median tick (ms) and the slowest tick (ms; the
+tick of a decision that changes the shape) of each run.
+
+Usage: python benchmarks/bench_reshape.py [--sizes 9,100] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from gcs_swarm.guidance.fleet_controller import FleetController  # noqa: E402
+from gcs_swarm.guidance.formation import formation_offsets  # noqa: E402
+from gcs_swarm.guidance.params import ReshapeParams  # noqa: E402
+
+TICKS = 150
+DT = 0.02  # s
+
+
+def run(n: int, reshape: ReshapeParams | None) -> tuple[float, float]:
+    """(median, max) ms of TICKS ticks of an N-vehicle grid."""
+    offsets = np.zeros((n, 3))
+    offsets[1:] = formation_offsets("grid", n - 1, 9.0)
+    rng = np.random.default_rng(0)
+    centres = np.column_stack([rng.uniform(20, 200, 10), rng.uniform(-40, 40, 10), np.full(10, 10.0)])
+    radii = np.full(10, 3.0)
+    ctl = FleetController(n, 0, offsets, np.array([[400.0, 0.0, 10.0]]), reshape=reshape, z_min=1.0)
+    pos = offsets + [0.0, 0.0, 10.0]
+    vel = np.zeros((n, 3))
+    vel[:, 0] = 8.0
+    att = np.zeros((n, 3))
+    ctl.reset(pos, vel, np.zeros(n))
+    active = np.ones(n, dtype=bool)
+    ticks = []
+    for k in range(TICKS):
+        start = time.perf_counter()
+        ctl.tick(k * DT, pos + vel * k * DT, vel, att, centres, radii, active)
+        ticks.append(time.perf_counter() - start)
+    return statistics.median(ticks) * 1e3, max(ticks) * 1e3
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sizes", default="9,100")
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    run(3, ReshapeParams())  # compile or load every kernel first
+    print("| N | reshape | median tick ms (per run) | slowest tick ms (per run) |")
+    print("|---|---|---|---|")
+    for n in (int(s) for s in args.sizes.split(",")):
+        results: dict[str, list[tuple[float, float]]] = {"off": [], "on": []}
+        for _ in range(args.repeats):
+            for label, reshape in (("off", None), ("on", ReshapeParams())):
+                results[label].append(run(n, reshape))
+        for label, rows in results.items():
+            medians = ", ".join(f"{m:.3f}" for m, _ in rows)
+            slowest = ", ".join(f"{s:.1f}" for _, s in rows)
+            print(f"| {n} | {label} | {medians} | {slowest} |")
+
+
+if __name__ == "__main__":
+    main()
