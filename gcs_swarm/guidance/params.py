@@ -236,9 +236,9 @@ class ReferenceParams:
     # [add] the leader waits for its followers (gcs_swarm.guidance.leader_wait): its speed cap falls once the
     # worst follower is more than leader_wait_m (m) from its slot, linearly over leader_wait_span_m (m) down
     # to leader_wait_floor x v_xy_leader; 0 = off (the paper's leader ignores its followers)
-    leader_wait_m: float = 3.0
+    leader_wait_m: float = 0.0
     leader_wait_span_m: float = 5.0
-    leader_wait_floor: float = 0.3
+    leader_wait_floor: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius", "accel_xy_max"):
@@ -402,7 +402,6 @@ PAPER_PLAIN: dict[str, dict[str, float]] = {
         "heading_filter_s": 0.0,
         "heading_from_route": False,
         "heading_sweep_max": 0.0,
-        "leader_wait_m": 0.0,
     },
     "limits": {"tilt_rate_max_deg": 0.0},
     "control.smc": {"drag_adaptation": 0.0},
