@@ -25,9 +25,11 @@ from pydantic import (
     AliasPath,
     BaseModel,
     ConfigDict,
+    Discriminator,
     Field,
     GetCoreSchemaHandler,
     PlainValidator,
+    Tag,
     ValidationError,
     WrapValidator,
     create_model,
@@ -176,6 +178,17 @@ Vec = Annotated[list[float], WrapValidator(_vector)]
 OptionalVec = Vec | None  # null: not given
 
 
+def _horizontal(value: object, validate: ValidatorFunctionWrapHandler) -> object:
+    """A list of exactly two finite numbers [x, y] (m ENU, horizontal)."""
+    if not isinstance(value, list) or len(value) != 2:
+        got = str(len(value)) if isinstance(value, list) else describe(value)
+        raise _refuse(f"expected 2 numbers [x, y] or a mapping {{lat: .., lon: ..}}, got {got}")
+    return validate(value)
+
+
+Vec2 = Annotated[list[float], WrapValidator(_horizontal)]
+
+
 def pair(bounds: Range = Range()) -> WrapValidator:
     """Two numbers [low, high], each within `bounds` and low <= high, read as a tuple (low, high)."""
 
@@ -263,7 +276,9 @@ class Section(BaseModel):
         if not isinstance(data, dict):
             raise _refuse(f"expected a mapping of keys to values, got {describe(data)}")
         allowed = [
-            name for name, f in cls.model_fields.items() if not isinstance(f.validation_alias, AliasPath)
+            f.validation_alias if isinstance(f.validation_alias, str) else name
+            for name, f in cls.model_fields.items()
+            if not isinstance(f.validation_alias, AliasPath)
         ]
         for key in data:
             if key in allowed:
@@ -286,6 +301,44 @@ class Entry(Section):
 ZERO = [0.0, 0.0, 0.0]
 
 
+def _form(value: object) -> str:
+    """Which form a position is written in: a mapping is geographic, anything else ENU metres. The tags are
+    left out of error locations (`_where`)."""
+    return "<geo>" if isinstance(value, dict) else "<enu>"
+
+
+Height = Annotated[float, Range(ge=-500, le=20000, unit="m")]
+
+
+class GeoPoint(Entry):
+    """A position in latitude/longitude (WGS-84 deg), converted to ENU about the origin at load time
+    (gcs_swarm.mission.geodesy): `alt` m above the origin or `amsl` m above mean sea level, at most one; a
+    ground start may give neither (on the ground, z = 0)."""
+
+    lat: Annotated[float, Range(ge=-90, le=90, unit="deg")]
+    lon: Annotated[float, Range(ge=-180, le=180, unit="deg")]
+    alt: Height | None = None
+    amsl: Height | None = None
+
+    @model_validator(mode="after")
+    def _one_height(self) -> GeoPoint:
+        if self.alt is not None and self.amsl is not None:
+            raise _refuse("give alt (m above the origin) or amsl (m above mean sea level), not both", ("amsl",))
+        return self
+
+
+class GeoVertex(Entry):
+    """A horizontal point in latitude/longitude (WGS-84 deg): a vertex of a fence or a footprint."""
+
+    lat: Annotated[float, Range(ge=-90, le=90, unit="deg")]
+    lon: Annotated[float, Range(ge=-180, le=180, unit="deg")]
+
+
+# a position: [x, y, z] m ENU, or {lat, lon, alt | amsl}; a vertex: [x, y] m ENU, or {lat, lon}
+Position = Annotated[Annotated[Vec, Tag("<enu>")] | Annotated[GeoPoint, Tag("<geo>")], Discriminator(_form)]
+Vertex = Annotated[Annotated[Vec2, Tag("<enu>")] | Annotated[GeoVertex, Tag("<geo>")], Discriminator(_form)]
+
+
 class MetaSection(Section):
     name: Annotated[str, text(NAME_PATTERN, NAME_HINT)] = ""  # "": from the file name
     description: Annotated[str, text()] = ""
@@ -298,7 +351,7 @@ class OriginSection(Section):
 
 
 class StartEntry(Entry):
-    position: Vec
+    position: Position
     velocity: Vec = ZERO
     yaw_deg: Annotated[float, Range(ge=-360, le=360, unit="deg")] = 0.0
 
@@ -310,7 +363,7 @@ class VehicleEntry(Entry):
     sysid: Annotated[int, Range(ge=1, le=254)] = 0  # 0: learned from the vehicle's HEARTBEAT
     slot: OptionalVec = None
     start: StartEntry
-    target: OptionalVec = None
+    target: Position | None = None
     # auto: from the vehicle's HEARTBEAT.autopilot; ardupilot | px4: speak that dialect whatever it says
     autopilot: Annotated[str, one_of("auto", "ardupilot", "px4")] = "auto"
 
@@ -326,7 +379,7 @@ class FormationSection(Section):
 
 
 class ObstacleEntry(Entry):
-    center: Vec
+    center: Position
     radius: Annotated[float, Range(gt=0, unit="m")]
     velocity: Vec = ZERO
 
@@ -363,8 +416,39 @@ class LinkSection(Section):
     outages: list[OutageEntry] | None = None
 
 
+class _Heights(Entry):
+    """A shape between two heights, m above the origin."""
+
+    name: Annotated[str, text()] = ""  # names it in messages ("" : its place in the list)
+    bottom: Height = 0.0
+    top: Height
+
+    @model_validator(mode="after")
+    def _top_above_bottom(self) -> _Heights:
+        if self.top <= self.bottom:
+            raise _refuse(f"must be above bottom ({self.bottom:g} m), got {self.top:g} m", ("top",))
+        return self
+
+
+class PrismEntry(_Heights):
+    """A vertical prism (a building): a footprint polygon between bottom and top."""
+
+    polygon: list[Vertex]
+
+
+class CylinderEntry(_Heights):
+    """A vertical cylinder (a tree, a mast): a centre and radius between bottom and top."""
+
+    center: Vertex
+    radius: Annotated[float, Range(gt=0, unit="m")]
+
+
 class WorldSection(Section):
     obstacles: list[ObstacleEntry] | None = None
+    prisms: list[PrismEntry] | None = None  # carried, not yet avoided (checks.not_yet_flown)
+    cylinders: list[CylinderEntry] | None = None  # carried, not yet avoided (checks.not_yet_flown)
+    # site files merged into the mission (paths relative to the mission file; gcs_swarm.mission.imports)
+    imports: list[Annotated[str, text()]] = Field([], validation_alias="import")
     wind: WindSection = WindSection()
     link: LinkSection = LinkSection()
 
@@ -375,15 +459,40 @@ class ControlSection(Section):
     pid: Annotated[PIDParams, Params()] = PIDParams()
 
 
+class ExclusionEntry(Entry):
+    """An exclusion zone of the fence: a polygon, or a circle (center and radius)."""
+
+    name: Annotated[str, text()] = ""  # names it in messages ("" : its place in the list)
+    polygon: list[Vertex] | None = None
+    center: Vertex | None = None
+    radius: Annotated[float, Range(gt=0, unit="m")] | None = None
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> ExclusionEntry:
+        circle = self.center is not None or self.radius is not None
+        if self.polygon is not None and circle:
+            raise _refuse("give 'polygon' or a circle ('center' and 'radius'), not both", ("polygon",))
+        if self.polygon is None and (self.center is None or self.radius is None):
+            missing = "radius" if self.center is not None else "center"
+            raise _refuse(
+                f"'{missing}' is missing: give 'polygon' (vertices) or 'center' and 'radius' (a circle)",
+                (missing,),
+            )
+        return self
+
+
 class GeofenceSection(Section):
     radius: Annotated[float, Range(gt=0, unit="m")] = 2000.0
     max_alt: float = 300.0  # above safety.min_altitude (checks.py)
+    polygon: list[Vertex] | None = None  # the inclusion polygon; not yet enforced (checks.not_yet_flown)
+    exclusions: list[ExclusionEntry] | None = None  # not yet enforced (checks.not_yet_flown)
 
 
 class SafetySection(Section):
     separation: Annotated[SeparationParams, Params()] = SeparationParams()
     min_altitude: Annotated[float, Range(ge=0, unit="m")] = 2.0
     geofence: GeofenceSection = GeofenceSection()
+    rally: list[Position] | None = None  # rally points; carried, not yet used (checks.not_yet_flown)
     collision_radius: Annotated[float, Range(gt=0, unit="m")] = 0.175
     gcs_failsafe: Annotated[str, one_of("brake", "land", "rtl", "off")] = "land"
     telemetry: Annotated[TelemetryParams, Params()] = TelemetryParams()
@@ -437,7 +546,7 @@ class PlannerSection(Section):
     speed: Annotated[float, Range(gt=0, unit="m/s")] = 0.0  # 0: limits.v_xy_leader
     goal_radius: Annotated[float, Range(gt=0, unit="m")] = 0.5
     step: Annotated[str, one_of("proportional", "constant")] = "proportional"
-    start: OptionalVec = None
+    start: Position | None = None
 
 
 class MissionFile(Section):
@@ -454,8 +563,8 @@ class MissionFile(Section):
     origin: OriginSection = OriginSection(lat=DEFAULT_ORIGIN[0], lon=DEFAULT_ORIGIN[1], alt=DEFAULT_ORIGIN[2])
     vehicles: list[VehicleEntry]
     formation: FormationSection = FormationSection()
-    goal: Vec = ZERO
-    waypoints: list[Vec] = []
+    goal: Position = ZERO
+    waypoints: list[Position] = []
     world: WorldSection = WorldSection()
     guidance: Annotated[FieldParams, Params(skip=("reference", "reshape"))] = FieldParams()
     reference: Annotated[ReferenceParams, Params()] = Field(
@@ -495,7 +604,9 @@ def _sentence(error: ErrorDetails) -> str:
 
 
 def _where(error: ErrorDetails) -> tuple[str | int, ...]:
-    return (*error["loc"], *error.get("ctx", {}).get("at", ()))
+    """The key path of the error, without the tags of a position's form (`_form`)."""
+    loc = (*error["loc"], *error.get("ctx", {}).get("at", ()))
+    return tuple(step for step in loc if not (isinstance(step, str) and step in ("<enu>", "<geo>")))
 
 
 def validate_file(root: Node) -> MissionFile:
