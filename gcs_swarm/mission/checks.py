@@ -12,12 +12,14 @@ import math
 import re
 
 import numpy as np
+import shapely
 from scipy.sparse.csgraph import breadth_first_order
+from shapely.geometry import Point, Polygon
 
 from gcs_swarm.link.autopilots import DIALECTS
 from gcs_swarm.mission.model import Mission
 from gcs_swarm.mission.schema import MissionFile, Range, SafetySection, describe
-from gcs_swarm.mission.yaml_tree import Node
+from gcs_swarm.mission.yaml_tree import MissionError, Node
 
 # pymavlink connection strings: network forms "kind:host:port", serial "/dev/ttyX[,baud]" or "COMn[,baud]"
 _NETWORK = re.compile(r"(udpin|udpout|udp|udpbcast|tcp|tcpin):([^:\s]+):([0-9]{1,5})")
@@ -161,6 +163,7 @@ def _outage_vehicles(file: MissionFile, root: Node) -> None:
 def check_mission(mission: Mission, root: Node) -> None:
     """One leader; unique names, sysids and endpoints; starts, targets, slots; relay reach; placement of the
     route and the planner start; formation altitude; the leader's speed cap."""
+    _site_polygons(mission, root)
     _one_leader(mission, root)
     _unique_identities(mission, root)
     _starts(mission, root)
@@ -231,7 +234,21 @@ def _place(
                 f"{distance:.2f} m from its centre, which needs more than radius {obstacle.radius:g} m "
                 f"+ vehicle radius {margin:g} m"
             )
+    for k, prism in enumerate(mission.prisms):
+        if prism.bottom - margin <= point[2] <= prism.top + margin:
+            gap = Polygon(prism.footprint).exterior.distance(Point(point[:2]))
+            if Polygon(prism.footprint).contains(Point(point[:2])) or gap <= margin:
+                where = root.at(("world", "prisms", k))
+                raise node.error(f"{what} lies inside prism {prism.name!r} ({where.path}, line {where.line})")
+    for k, cylinder in enumerate(mission.cylinders):
+        if cylinder.bottom - margin <= point[2] <= cylinder.top + margin:
+            if float(np.linalg.norm(point[:2] - cylinder.center)) <= cylinder.radius + margin:
+                where = root.at(("world", "cylinders", k))
+                raise node.error(
+                    f"{what} lies inside cylinder {cylinder.name!r} ({where.path}, line {where.line})"
+                )
     if fenced:
+        _in_fence(mission, root, point, node, what)
         horizontal = float(np.hypot(point[0], point[1]))
         if horizontal > safety.geofence_radius:
             raise node.error(
@@ -247,6 +264,82 @@ def _place(
         raise node.error(
             f"{what} is at {point[2]:g} m, below safety.min_altitude ({safety.min_altitude:g} m)"
         )
+
+
+def _site_polygons(mission: Mission, root: Node) -> None:
+    """The fence polygon, the exclusion polygons and the prisms' footprints are simple polygons (shapely:
+    at least 3 vertices, no self-intersection, non-zero area)."""
+    fence = mission.fence
+    shapes: list[tuple[np.ndarray, tuple[str | int, ...]]] = []
+    if fence.polygon is not None:
+        shapes.append((fence.polygon, ("safety", "geofence", "polygon")))
+    shapes += [
+        (zone.polygon, ("safety", "geofence", "exclusions", k, "polygon"))
+        for k, zone in enumerate(fence.exclusions)
+        if zone.polygon is not None
+    ]
+    shapes += [(prism.footprint, ("world", "prisms", k, "polygon")) for k, prism in enumerate(mission.prisms)]
+    for vertices, loc in shapes:
+        if len({tuple(v) for v in vertices}) < 3:
+            raise root.at(loc).error(f"a polygon needs at least 3 distinct vertices, got {len(vertices)}")
+        polygon = Polygon(vertices)
+        if not polygon.is_valid or polygon.area <= 0.0:
+            raise root.at(loc).error(f"not a simple polygon ({shapely.is_valid_reason(polygon)})")
+
+
+def _in_fence(mission: Mission, root: Node, point: np.ndarray, node: Node, what: str) -> None:
+    """`point` (3,) m ENU lies inside the fence polygon and outside every exclusion zone, by more than the
+    vehicle's collision radius."""
+    margin = mission.safety.collision_radius
+    where = Point(point[:2])
+    fence = mission.fence
+    if fence.polygon is not None:
+        polygon = Polygon(fence.polygon)
+        if not polygon.contains(where) or polygon.exterior.distance(where) <= margin:
+            raise node.error(
+                f"{what} is not inside the fence polygon (safety.geofence.polygon) by more than the vehicle "
+                f"radius {margin:g} m"
+            )
+    for k, zone in enumerate(fence.exclusions):
+        if zone.polygon is not None:
+            inside = Polygon(zone.polygon).buffer(margin).contains(where)
+        else:
+            inside = float(np.linalg.norm(point[:2] - zone.center)) <= zone.radius + margin
+        if inside:
+            given = root.at(("safety", "geofence", "exclusions", k))
+            raise node.error(
+                f"{what} lies in exclusion zone {zone.name!r} ({given.path}, line {given.line}) or within the "
+                f"vehicle radius {margin:g} m of it"
+            )
+
+
+# what a mission may carry that the flight cannot yet honour, and who is to make it so (issue 37)
+NOT_YET_FLOWN = (
+    (("world", "prisms"), "prisms are read and checked but not yet avoided by the guidance"),
+    (("world", "cylinders"), "cylinders are read and checked but not yet avoided by the guidance"),
+    (("safety", "geofence", "polygon"), "the fence polygon is checked but not yet enforced in flight"),
+    (("safety", "geofence", "exclusions"), "exclusion zones are checked but not yet enforced in flight"),
+    (("safety", "rally"), "rally points are read but not yet used by the failsafes"),
+)
+
+
+def not_yet_flown(mission: Mission, root: Node) -> MissionError | None:
+    """The refusal to fly a mission with a site part the flight cannot yet honour (NOT_YET_FLOWN), or None:
+    nothing is silently left out of a flight."""
+    given = {
+        ("world", "prisms"): bool(mission.prisms),
+        ("world", "cylinders"): bool(mission.cylinders),
+        ("safety", "geofence", "polygon"): mission.fence.polygon is not None,
+        ("safety", "geofence", "exclusions"): bool(mission.fence.exclusions),
+        ("safety", "rally"): bool(mission.rally),
+    }
+    for loc, sentence in NOT_YET_FLOWN:
+        if given[loc]:
+            return root.at(loc).error(
+                f"{sentence}; the loader refuses to fly such a mission until it is (`gcs-swarm check` "
+                "validates it)"
+            )
+    return None
 
 
 def _one_leader(mission: Mission, root: Node) -> None:

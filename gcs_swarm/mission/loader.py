@@ -8,27 +8,37 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from gcs_swarm.guidance.params import STOP_SHAPING
 from gcs_swarm.mission import checks
+from gcs_swarm.mission.geodesy import Origin, ground_enu, implied_origin, position_enu, vertex_enu
+from gcs_swarm.mission.imports import with_imports
 from gcs_swarm.mission.model import (
+    Cylinder,
+    Fence,
     FormationSpec,
     LinkSpec,
     Mission,
     Obstacle,
     OutageSpec,
     PlannerSpec,
+    Prism,
     RunSpec,
     SafetySpec,
     StartState,
     VehicleSpec,
     World,
+    Zone,
     frozen_vector,
 )
 from gcs_swarm.mission.schema import (
+    DEFAULT_ORIGIN,
+    GeoPoint,
     MissionFile,
     PlannerSection,
     RunSection,
@@ -37,11 +47,12 @@ from gcs_swarm.mission.schema import (
     describe,
     validate_file,
 )
-from gcs_swarm.mission.yaml_tree import MissionError, parse_yaml
+from gcs_swarm.mission.yaml_tree import MissionError, Node, parse_yaml
 
 
-def load_mission(path: str | Path) -> Mission:
-    """Read and validate a mission file; MissionError (one sentence, file:line: field) on any mistake."""
+def load_mission(path: str | Path, *, to_fly: bool = True) -> Mission:
+    """Read and validate a mission file; MissionError (one sentence, file:line: field) on any mistake.
+    `to_fly` False: also a mission whose site the flight cannot yet honour (checks.not_yet_flown)."""
     source = str(path)
     try:
         data = Path(path).read_bytes()
@@ -58,7 +69,7 @@ def load_mission(path: str | Path) -> Mission:
         raise MissionError(
             f"{source}:{line}: the file is not UTF-8 text (bad byte at offset {exc.start})"
         ) from None
-    return parse_mission(text, source)
+    return parse_mission(text, source, to_fly=to_fly)
 
 
 def load_world(path: str | Path) -> World:
@@ -66,27 +77,82 @@ def load_world(path: str | Path) -> World:
     return load_mission(path).world()
 
 
-def parse_mission(text: str, source: str = "<string>") -> Mission:
-    """Validate mission YAML given as text; `source` names it in error messages."""
+def parse_mission(text: str, source: str = "<string>", *, to_fly: bool = True) -> Mission:
+    """Validate mission YAML given as text; `source` names it in error messages (and is the folder
+    world.import paths are relative to). `to_fly`: as `load_mission`."""
     root = parse_yaml(text, source)
     if not isinstance(root.value, dict):
         raise root.error(
             f"the top level must be a mapping of sections (vehicles, goal, ...), not {describe(root.value)}"
         )
     file = validate_file(root)
+    if file.world.imports:
+        root = with_imports(root, file.world.imports, source)
+        file = validate_file(root)
     checks.check_file(file, root)
-    mission = _mission(file, source)
+    mission = _mission(file, source, root)
     checks.check_mission(mission, root)
+    if to_fly:
+        refusal = checks.not_yet_flown(mission, root)
+        if refusal is not None:
+            raise refusal
     return mission
 
 
-def _mission(file: MissionFile, source: str) -> Mission:
-    """The validated file as a `Mission`, with the defaults that come from other keys filled in."""
+def _origin(file: MissionFile, root: Node) -> Origin:
+    """The origin as written or implied (geodesy.implied_origin); a MissionError when geographic positions
+    are given but none of the places the origin may be taken from is geographic."""
+    origin, _ = implied_origin(file)
+    if "origin" in file.model_fields_set or origin != DEFAULT_ORIGIN:
+        return origin
+    geographic = _first_geographic(root)
+    if geographic is not None:
+        raise geographic.error(
+            "a position in latitude/longitude needs an origin: give 'origin', or write the fence polygon, the "
+            "first vehicle's start or the first waypoint in latitude/longitude"
+        )
+    return origin
+
+
+def _first_geographic(node: Node) -> Node | None:
+    """The first mapping with `lat` and `lon` below `node` (outside `origin`), or None."""
+    value = node.value
+    if isinstance(value, dict):
+        if "lat" in value and "lon" in value and node.path != "origin":
+            return node
+        children = [child for key, child in value.items() if not (node.path == "" and key == "origin")]
+    elif isinstance(value, list):
+        children = value
+    else:
+        return None
+    for child in children:
+        found = _first_geographic(child)
+        if found is not None:
+            return found
+    return None
+
+
+def _mission(file: MissionFile, source: str, root: Node) -> Mission:
+    """The validated file as a `Mission`, with the defaults that come from other keys filled in and every
+    position in ENU metres about the origin (geodesy.py)."""
+    origin = _origin(file, root)
+
+    def enu(value: list[float] | GeoPoint, loc: tuple[str | int, ...]) -> np.ndarray:
+        point = position_enu(value, origin)
+        if point is None:
+            raise root.at(loc).error("give the height: alt (m above the origin) or amsl (m above mean sea level)")
+        return frozen_vector(point)
+
+    def vertices(values: list) -> np.ndarray:
+        return frozen_vector([vertex_enu(v, origin) for v in values]).reshape(-1, 2)
+
     run = _run(file.run, source)
     names = [vehicle.name or f"uav{i + 1}" for i, vehicle in enumerate(file.vehicles)]
     link = file.world.link
-    waypoints = file.waypoints if "waypoints" in file.model_fields_set else [file.goal]
-    route = tuple(frozen_vector(point) for point in waypoints)
+    if "waypoints" in file.model_fields_set:
+        route = tuple(enu(point, ("waypoints", k)) for k, point in enumerate(file.waypoints))
+    else:
+        route = (enu(file.goal, ("goal",)),)
     adjacency = None
     if file.formation.adjacency is not None:
         adjacency = np.array(file.formation.adjacency, dtype=int)
@@ -95,14 +161,17 @@ def _mission(file: MissionFile, source: str) -> Mission:
         name=file.mission.name or _stem_name(source),
         description=file.mission.description,
         path=Path(source),
-        origin=(file.origin.lat, file.origin.lon, file.origin.alt),
-        vehicles=tuple(_vehicle(vehicle, names[i], i, run) for i, vehicle in enumerate(file.vehicles)),
+        origin=origin,
+        vehicles=tuple(
+            _vehicle(vehicle, names[i], i, run, origin, lambda value, i=i: enu(value, ("vehicles", i, "target")))
+            for i, vehicle in enumerate(file.vehicles)
+        ),
         formation=FormationSpec(**file.formation.model_dump(exclude={"adjacency"}), adjacency=adjacency),
         goal=route[-1],
         waypoints=route,
         obstacles=tuple(
-            Obstacle(frozen_vector(o.center), o.radius, frozen_vector(o.velocity))
-            for o in file.world.obstacles or ()
+            Obstacle(enu(o.center, ("world", "obstacles", k, "center")), o.radius, frozen_vector(o.velocity))
+            for k, o in enumerate(file.world.obstacles or ())
         ),
         wind=file.world.wind,
         link=LinkSpec(
@@ -125,7 +194,38 @@ def _mission(file: MissionFile, source: str) -> Mission:
         limits=file.limits,
         safety=_safety(file.safety),
         run=run,
-        planner=_planner(file.planner, file.limits.v_xy_leader),
+        planner=_planner(
+            file.planner,
+            file.limits.v_xy_leader,
+            None if file.planner.start is None else enu(file.planner.start, ("planner", "start")),
+        ),
+        fence=Fence(
+            polygon=None if file.safety.geofence.polygon is None else vertices(file.safety.geofence.polygon),
+            exclusions=tuple(
+                Zone(
+                    zone.name or f"safety.geofence.exclusions[{k}]",
+                    None if zone.polygon is None else vertices(zone.polygon),
+                    None if zone.center is None else frozen_vector(vertex_enu(zone.center, origin)),
+                    zone.radius or 0.0,
+                )
+                for k, zone in enumerate(file.safety.geofence.exclusions or ())
+            ),
+        ),
+        prisms=tuple(
+            Prism(p.name or f"world.prisms[{k}]", vertices(p.polygon), p.bottom, p.top)
+            for k, p in enumerate(file.world.prisms or ())
+        ),
+        cylinders=tuple(
+            Cylinder(
+                c.name or f"world.cylinders[{k}]",
+                frozen_vector(vertex_enu(c.center, origin)),
+                c.radius,
+                c.bottom,
+                c.top,
+            )
+            for k, c in enumerate(file.world.cylinders or ())
+        ),
+        rally=tuple(enu(point, ("safety", "rally", k)) for k, point in enumerate(file.safety.rally or ())),
     )
 
 
@@ -134,7 +234,11 @@ def _stem_name(source: str) -> str:
     return stem or "mission"
 
 
-def _vehicle(vehicle: VehicleEntry, name: str, index: int, run: RunSpec) -> VehicleSpec:
+def _vehicle(
+    vehicle: VehicleEntry, name: str, index: int, run: RunSpec, origin: Origin, enu: Callable[[Any], np.ndarray]
+) -> VehicleSpec:
+    """One vehicle; its start position in ENU (a geographic start without a height stands on the ground),
+    its target through `enu`."""
     start = vehicle.start
     return VehicleSpec(
         name=name,
@@ -142,8 +246,10 @@ def _vehicle(vehicle: VehicleEntry, name: str, index: int, run: RunSpec) -> Vehi
         role=vehicle.role,
         sysid=vehicle.sysid or None,
         slot=None if vehicle.slot is None else frozen_vector(vehicle.slot),
-        start=StartState(frozen_vector(start.position), frozen_vector(start.velocity), start.yaw_deg),
-        target=None if vehicle.target is None else frozen_vector(vehicle.target),
+        start=StartState(
+            frozen_vector(ground_enu(start.position, origin)), frozen_vector(start.velocity), start.yaw_deg
+        ),
+        target=None if vehicle.target is None else enu(vehicle.target),
         autopilot=vehicle.autopilot,
     )
 
@@ -190,9 +296,9 @@ def _safety(safety: SafetySection) -> SafetySpec:
     )
 
 
-def _planner(planner: PlannerSection, leader_speed: float) -> PlannerSpec:
+def _planner(planner: PlannerSection, leader_speed: float, start: np.ndarray | None) -> PlannerSpec:
     return PlannerSpec(
         **planner.model_dump(exclude={"speed", "start"}),
         speed=planner.speed or leader_speed,
-        start=None if planner.start is None else frozen_vector(planner.start),
+        start=start,
     )

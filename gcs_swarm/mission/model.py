@@ -70,6 +70,46 @@ class Obstacle(_ValueEquality):
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
+class Zone(_ValueEquality):
+    """An exclusion zone of the fence, horizontal m ENU: a polygon, or a circle (center, radius)."""
+
+    name: str  # as the mission names it, or its key path ("safety.geofence.exclusions[1]")
+    polygon: np.ndarray | None  # (K, 2) m, vertices in order, not closed; None: a circle
+    center: np.ndarray | None  # (2,) m, the circle's centre; None: a polygon
+    radius: float  # m, the circle's radius; 0.0 for a polygon
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Fence(_ValueEquality):
+    """The site fence beside the radius cylinder of `SafetySpec` (safety.geofence): the inclusion polygon the
+    vehicles stay inside and the zones they stay out of, horizontal m ENU, at every height."""
+
+    polygon: np.ndarray | None = None  # (K, 2) m, vertices in order, not closed; None: no polygon
+    exclusions: tuple[Zone, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Prism(_ValueEquality):
+    """A vertical prism (a building): a footprint polygon between two heights, m ENU."""
+
+    name: str  # as the mission names it, or its key path ("world.prisms[0]")
+    footprint: np.ndarray  # (K, 2) m, vertices in order, not closed
+    bottom: float  # m above the origin
+    top: float  # m above the origin, > bottom
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Cylinder(_ValueEquality):
+    """A vertical cylinder (a tree, a mast) between two heights, m ENU."""
+
+    name: str  # as the mission names it, or its key path ("world.cylinders[0]")
+    center: np.ndarray  # (2,) m
+    radius: float  # m
+    bottom: float  # m above the origin
+    top: float  # m above the origin, > bottom
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
 class StartState(_ValueEquality):
     """Where the simulator spawns a vehicle (ENU m, m/s); yaw_deg counter-clockwise from East (spec 1.1)."""
 
@@ -220,6 +260,11 @@ class Mission(_ValueEquality):
     safety: SafetySpec
     run: RunSpec
     planner: PlannerSpec
+    # [add] the site (issue 37): carried and checked, not yet flown (checks.not_yet_flown refuses to fly them)
+    fence: Fence = dataclasses.field(default_factory=Fence)
+    prisms: tuple[Prism, ...] = ()
+    cylinders: tuple[Cylinder, ...] = ()
+    rally: tuple[np.ndarray, ...] = ()  # (3,) m ENU each, rally points
 
     @property
     def leader_index(self) -> int:
