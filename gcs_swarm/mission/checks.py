@@ -308,8 +308,8 @@ def _in_fence(mission: Mission, root: Node, point: np.ndarray, node: Node, what:
         if inside:
             given = root.at(("safety", "geofence", "exclusions", k))
             raise node.error(
-                f"{what} lies in exclusion zone {zone.name!r} ({given.path}, line {given.line}) or within the "
-                f"vehicle radius {margin:g} m of it"
+                f"{what} lies in exclusion zone {zone.name!r} ({given.path}, line {given.line}) or within "
+                f"the vehicle radius {margin:g} m of it"
             )
 
 

@@ -31,7 +31,8 @@ def position_enu(value: list[float] | GeoPoint, origin: Origin) -> np.ndarray | 
 
 
 def ground_enu(value: list[float] | GeoPoint, origin: Origin) -> np.ndarray:
-    """(3,) m ENU of a start position: as `position_enu`, a GeoPoint without a height on the ground (z = 0)."""
+    """(3,) m ENU of a start position: as `position_enu`; a GeoPoint without a height stands on the ground
+    (z = 0)."""
     enu = position_enu(value, origin)
     if enu is not None:
         return enu
@@ -55,11 +56,12 @@ def implied_origin(file: MissionFile) -> tuple[Origin, tuple[str | int, ...] | N
     if "origin" in file.model_fields_set:
         return (file.origin.lat, file.origin.lon, file.origin.alt), None
     polygon = file.safety.geofence.polygon or []
-    route = file.waypoints if "waypoints" in file.model_fields_set else [file.goal]
+    routed = "waypoints" in file.model_fields_set
+    route = file.waypoints if routed else [file.goal]
     candidates: list[tuple[object, tuple[str | int, ...]]] = [
         (polygon[0] if polygon else None, ("safety", "geofence", "polygon", 0)),
         (file.vehicles[0].start.position if file.vehicles else None, ("vehicles", 0, "start", "position")),
-        (route[0] if route else None, ("waypoints", 0) if "waypoints" in file.model_fields_set else ("goal",)),
+        (route[0] if route else None, ("waypoints", 0) if routed else ("goal",)),
     ]
     for value, loc in candidates:
         if isinstance(value, GeoVertex | GeoPoint):

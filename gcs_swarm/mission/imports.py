@@ -85,12 +85,15 @@ def _tree(value: object, line: int, path: str, source: str) -> Node:
         children = {key: _tree(item, line, f"{path}.{key}", source) for key, item in value.items()}
         return Node(children, line, path, source)
     if isinstance(value, list):
-        return Node([_tree(item, line, f"{path}[{i}]", source) for i, item in enumerate(value)], line, path, source)
+        return Node(
+            [_tree(item, line, f"{path}[{i}]", source) for i, item in enumerate(value)], line, path, source
+        )
     return Node(value, line, path, source)
 
 
 def _put(node: Node, loc: tuple[str, ...], value: Node) -> Node:
-    """A copy of `node` with `value` at `loc` (mappings made where missing; a section written as null is one)."""
+    """A copy of `node` with `value` at `loc` (mappings made where missing; a section written null is
+    one)."""
     if not loc:
         return value
     entries = dict(node.value) if isinstance(node.value, dict) else {}
@@ -100,4 +103,3 @@ def _put(node: Node, loc: tuple[str, ...], value: Node) -> Node:
     child = entries.get(key) or Node(None, node.line, f"{node.path}.{key}" if node.path else key, node.source)
     entries[key] = _put(child, loc[1:], value)
     return Node(entries, node.line, node.path, node.source)
-

@@ -108,8 +108,8 @@ def _origin(file: MissionFile, root: Node) -> Origin:
     geographic = _first_geographic(root)
     if geographic is not None:
         raise geographic.error(
-            "a position in latitude/longitude needs an origin: give 'origin', or write the fence polygon, the "
-            "first vehicle's start or the first waypoint in latitude/longitude"
+            "a position in latitude/longitude needs an origin: give 'origin', or write the fence polygon, "
+            "the first vehicle's start or the first waypoint in latitude/longitude"
         )
     return origin
 
@@ -140,7 +140,9 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
     def enu(value: list[float] | GeoPoint, loc: tuple[str | int, ...]) -> np.ndarray:
         point = position_enu(value, origin)
         if point is None:
-            raise root.at(loc).error("give the height: alt (m above the origin) or amsl (m above mean sea level)")
+            raise root.at(loc).error(
+                "give the height: alt (m above the origin) or amsl (m above mean sea level)"
+            )
         return frozen_vector(point)
 
     def vertices(values: list) -> np.ndarray:
@@ -163,8 +165,7 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
         path=Path(source),
         origin=origin,
         vehicles=tuple(
-            _vehicle(vehicle, names[i], i, run, origin, lambda value, i=i: enu(value, ("vehicles", i, "target")))
-            for i, vehicle in enumerate(file.vehicles)
+            _vehicle(vehicle, names[i], i, run, origin, enu) for i, vehicle in enumerate(file.vehicles)
         ),
         formation=FormationSpec(**file.formation.model_dump(exclude={"adjacency"}), adjacency=adjacency),
         goal=route[-1],
@@ -235,10 +236,15 @@ def _stem_name(source: str) -> str:
 
 
 def _vehicle(
-    vehicle: VehicleEntry, name: str, index: int, run: RunSpec, origin: Origin, enu: Callable[[Any], np.ndarray]
+    vehicle: VehicleEntry,
+    name: str,
+    index: int,
+    run: RunSpec,
+    origin: Origin,
+    enu: Callable[[Any, tuple[str | int, ...]], np.ndarray],
 ) -> VehicleSpec:
     """One vehicle; its start position in ENU (a geographic start without a height stands on the ground),
-    its target through `enu`."""
+    its target through `enu` (value, key path)."""
     start = vehicle.start
     return VehicleSpec(
         name=name,
@@ -249,7 +255,7 @@ def _vehicle(
         start=StartState(
             frozen_vector(ground_enu(start.position, origin)), frozen_vector(start.velocity), start.yaw_deg
         ),
-        target=None if vehicle.target is None else enu(vehicle.target),
+        target=None if vehicle.target is None else enu(vehicle.target, ("vehicles", index, "target")),
         autopilot=vehicle.autopilot,
     )
 

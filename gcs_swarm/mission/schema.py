@@ -323,7 +323,8 @@ class GeoPoint(Entry):
     @model_validator(mode="after")
     def _one_height(self) -> GeoPoint:
         if self.alt is not None and self.amsl is not None:
-            raise _refuse("give alt (m above the origin) or amsl (m above mean sea level), not both", ("amsl",))
+            both = "give alt (m above the origin) or amsl (m above mean sea level), not both"
+            raise _refuse(both, ("amsl",))
         return self
 
 
@@ -448,7 +449,7 @@ class WorldSection(Section):
     prisms: list[PrismEntry] | None = None  # carried, not yet avoided (checks.not_yet_flown)
     cylinders: list[CylinderEntry] | None = None  # carried, not yet avoided (checks.not_yet_flown)
     # site files merged into the mission (paths relative to the mission file; gcs_swarm.mission.imports)
-    imports: list[Annotated[str, text()]] = Field([], validation_alias="import")
+    imports: list[Annotated[str, text()]] = Field(default=[], validation_alias="import")
     wind: WindSection = WindSection()
     link: LinkSection = LinkSection()
 

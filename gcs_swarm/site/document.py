@@ -40,7 +40,13 @@ def mission_fragment(site: Site) -> dict[str, Any]:
     cylinders = [c for c in site.circles if c.kind == "cylinder"]
     if cylinders:
         world["cylinders"] = [
-            {"name": c.name, "center": _vertex(c.center), "radius": c.radius, "bottom": c.bottom, "top": c.top}
+            {
+                "name": c.name,
+                "center": _vertex(c.center),
+                "radius": c.radius,
+                "bottom": c.bottom,
+                "top": c.top,
+            }
             for c in cylinders
         ]
     if world:

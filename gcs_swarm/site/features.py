@@ -89,8 +89,11 @@ def _heights(properties: Mapping[str, object], where: str) -> tuple[float, float
 def _area(rings: object, properties: Mapping[str, object], where: str) -> Area:
     rings = _list(rings, where)
     if len(rings) != 1:
-        raise SiteError(f"{where}: a polygon with {len(rings) - 1} hole(s) is not supported" if rings else
-                        f"{where}: the polygon has no ring")
+        raise SiteError(
+            f"{where}: a polygon with {len(rings) - 1} hole(s) is not supported"
+            if rings
+            else f"{where}: the polygon has no ring"
+        )
     vertices = [_position(p, f"{where} vertex {i}")[:2] for i, p in enumerate(_list(rings[0], where))]
     polygon = simple_polygon(vertices, where)  # type: ignore[arg-type]
     fence = properties.get("fence")
@@ -118,7 +121,9 @@ def _circle(position: object, properties: Mapping[str, object], where: str) -> C
     return Circle(where, "cylinder", (lat, lon), radius, bottom, top)
 
 
-def _waypoint(position: object, properties: Mapping[str, object], where: str, z_means: str | None) -> SitePoint:
+def _waypoint(
+    position: object, properties: Mapping[str, object], where: str, z_means: str | None
+) -> SitePoint:
     lat, lon, z = _position(position, where)
     if "alt" in properties:
         return SitePoint(where, lat, lon, alt=number(properties["alt"], f"{where}: alt", text_ok=True))

@@ -16,7 +16,7 @@ from gcs_swarm.site.model import Area, Circle, Site, SiteError, SitePoint
 def read_kml(text: str, source: str) -> Site:
     """The site of a KML file's text; SiteError "source: placemark k ('name'): what is wrong"."""
     try:
-        document = kml.KML.from_string(text.encode("utf-8"), strict=False)
+        document = kml.KML.from_string(text.encode("utf-8"), strict=False)  # type: ignore[arg-type]
     except Exception as exc:  # lxml/fastkml raise assorted errors on XML they cannot read
         detail = " ".join(str(exc).split())[:200] or type(exc).__name__
         raise SiteError(f"{source}: not a KML document ({detail})") from None

@@ -6,7 +6,8 @@ QGCMapCircle / QGCFenceCircle, RallyPointController, MissionController, SimpleMi
     {"fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
      "geoFence": {"version": 2,
                   "polygons": [{"inclusion": true, "polygon": [[lat, lon], ...], "version": 1}],
-                  "circles": [{"inclusion": false, "circle": {"center": [lat, lon], "radius": m}, "version": 1}]},
+                  "circles": [{"inclusion": false, "circle": {"center": [lat, lon], "radius": m},
+                               "version": 1}]},
      "rallyPoints": {"version": 2, "points": [[lat, lon, alt m above home], ...]},
      "mission": {"version": 2, "plannedHomePosition": [lat, lon, alt m AMSL],
                  "items": [{"type": "SimpleItem", "command": 16, "frame": 3,
@@ -128,9 +129,7 @@ def _lat_lon_pair(value: object, where: str) -> tuple[float, float]:
     return lat_lon(values[0], values[1], where)
 
 
-def _route(
-    value: object, home: SitePoint | None, where: str
-) -> tuple[tuple[SitePoint, ...], float | None]:
+def _route(value: object, home: SitePoint | None, where: str) -> tuple[tuple[SitePoint, ...], float | None]:
     """The waypoints and the take-off altitude (m above home) of the mission items."""
     if value is None:
         return (), None
@@ -196,7 +195,8 @@ def _item_position(item: Mapping[str, object], home: SitePoint | None, where: st
 
 
 def _last_alt(route: list[SitePoint], takeoff_alt: float | None, where: str) -> float:
-    """The altitude (above home) the route ends at before landing: the last waypoint's, else the take-off's."""
+    """The altitude (above home) the route ends at before landing: the last waypoint's, else the
+    take-off's."""
     if route:
         return float(route[-1].alt)  # type: ignore[arg-type]
     if takeoff_alt is not None:
