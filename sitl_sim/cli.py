@@ -6,6 +6,9 @@
              --truth-rate-hz, --ready-delay)
              [--link-loss P] [--link-delay-ms MS] [--link-jitter-ms MS] [--link-dup P] [--link-corrupt P]
              [--link-reorder P] [--link-from S] [--link-outage [I@]START:DURATION ...]
+             [--link-radio NAME|none] [--link-capacity-bps B] [--link-bits-per-byte N]
+             [--link-overhead-bytes N] [--link-overhead-us US] [--[no-]link-half-duplex] [--[no-]link-shared]
+             [--link-buffer-bytes N] [--[no-]link-radio-status]
              [--signing-key FILE] [--autopilot ardupilot|px4[,...]]
 
 Prints one line per vehicle (index, sysid, UDP address), then READY, and runs until SIGINT/SIGTERM.
@@ -35,6 +38,7 @@ from sitl_sim.network.link_faults import LinkFaults, Outage, parse_outage
 from sitl_sim.orphan import ParentWatch, detach_output
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
+from swarm_common.radio_presets import RADIO_OVERRIDES, RADIO_PRESETS, RadioError, RadioSpec, radio_spec
 from swarm_common.signing_keys import SigningKeyError, read_key
 
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's default location (CMAC)
@@ -43,6 +47,18 @@ LINE_SPACING_M = 5.0  # default start line along East
 
 # LinkFaults' fields that --link-<field> (dashes for underscores) and the mission's world.link set by name
 LINK_RATE_FIELDS = ("loss", "delay_ms", "jitter_ms", "dup", "corrupt", "reorder")
+# the radio's figures settable as --link-<key> (dashes for underscores): type and help
+RADIO_FLAGS: dict[str, tuple[type, str]] = {
+    "capacity_bps": (float, "air capacity, bit/s (needed without a preset)"),
+    "bits_per_byte": (float, "bit times on the air per byte (SiK: 10.2 at 64 kbit/s)"),
+    "overhead_bytes": (int, "bytes the radio adds to each packet"),
+    "overhead_us": (float, "air time of each packet besides its bytes, us"),
+    "half_duplex": (bool, "up and down share the air time"),
+    "shared": (bool, "every vehicle and the ground share one medium"),
+    "buffer_bytes": (int, "each transmitting radio's buffer, bytes (0: one second of capacity)"),
+    "radio_status": (bool, "the ground radio sends RADIO_STATUS once a second"),
+}
+assert tuple(RADIO_FLAGS) == RADIO_OVERRIDES
 ORPHAN_LOG = "simulator-orphan.log"  # beside the truth log: what the simulator says after its parent died
 
 
@@ -181,14 +197,54 @@ def build_parser() -> OneLineParser:
         help="no packet on vehicle I's link (default: all) for DURATION sim s (may be inf); repeatable; "
         "replaces the mission's outages",
     )
+    radio = parser.add_argument_group(
+        "radio (capacity, buffers, duplex, shared medium under every link; each option overrides the "
+        "mission's world.link value; docs/radio.md)"
+    )
+    radio.add_argument(
+        "--link-radio",
+        metavar="NAME",
+        help=f"radio preset ({', '.join(RADIO_PRESETS)}) or none; replaces the mission's radio and its "
+        "overrides (default: the mission's, else none: unlimited capacity)",
+    )
+    for key, (kind, helptext) in RADIO_FLAGS.items():
+        flag = f"--link-{key.replace('_', '-')}"
+        if kind is bool:
+            radio.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=helptext)
+        else:
+            radio.add_argument(flag, type=kind, metavar=key.upper(), help=helptext)
     return parser
 
 
+def link_radio(
+    parser: OneLineParser, args: argparse.Namespace, name: str | None, overrides: dict[str, object]
+) -> RadioSpec | None:
+    """The radio of the mission's world.link (preset `name` and its `overrides`) under the --link-* radio
+    options: --link-radio replaces the preset and its overrides, each other option one figure; checked by
+    swarm_common.radio_presets.radio_spec (one-line errors)."""
+    if args.link_radio is not None:
+        name = None if args.link_radio == "none" else args.link_radio
+        overrides = {}
+    given = {key: getattr(args, f"link_{key}") for key in RADIO_FLAGS}
+    overrides = {**overrides, **{key: value for key, value in given.items() if value is not None}}
+    try:
+        return radio_spec(name, overrides)
+    except RadioError as exc:
+        flag = "--link-radio" if exc.key == "radio" else f"--link-{exc.key.replace('_', '-')}"
+        parser.error(f"{flag}: {exc}")
+
+
 def link_faults(
-    parser: OneLineParser, args: argparse.Namespace, vehicles: int, base: LinkFaults
+    parser: OneLineParser,
+    args: argparse.Namespace,
+    vehicles: int,
+    base: LinkFaults,
+    radio_name: str | None = None,
+    radio_overrides: dict[str, object] | None = None,
 ) -> LinkFaults:
     """The --link-* options, checked (one-line errors), over `base` (the mission's world.link): an option
-    given replaces its value; any --link-outage replaces all of base's outages."""
+    given replaces its value; any --link-outage replaces all of base's outages; the radio is the mission's
+    preset `radio_name` with its `radio_overrides` under the radio options (link_radio)."""
     for option in ("loss", "dup", "corrupt", "reorder"):
         value = getattr(args, f"link_{option}")
         if value is not None and not 0.0 <= value <= 1.0:
@@ -209,6 +265,7 @@ def link_faults(
             except ValueError as exc:
                 parser.error(str(exc))
         given["outages"] = tuple(parsed)
+    given["radio"] = link_radio(parser, args, radio_name, radio_overrides or {})
     return dataclasses.replace(base, **{field: value for field, value in given.items() if value is not None})
 
 
@@ -246,6 +303,8 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
     obstacles = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
     wind = (0.0, 0.0, 0.0)
     link = LinkFaults()
+    radio_name: str | None = None
+    radio_overrides: dict[str, object] = {}
     if args.mission is not None:
         try:
             from gcs_swarm.mission import MissionError, load_world
@@ -277,6 +336,8 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         outages = tuple(Outage(o.vehicle, o.start_s, o.duration_s) for o in world.link.outages)
         rates = {field: getattr(world.link, field) for field in LINK_RATE_FIELDS}
         link = LinkFaults(**rates, outages=outages, start_s=world.link.from_s)
+        radio_name = world.link.radio
+        radio_overrides = {key: getattr(world.link, key) for key in RADIO_OVERRIDES}
         autopilots = tuple(world.autopilots)
     else:
         _check(parser, args.vehicles is not None, "--vehicles N is required without --mission")
@@ -352,7 +413,7 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         truth_log=args.truth_log,
         seed=args.seed,
         ready_delay=args.ready_delay,
-        link=link_faults(parser, args, n, link),
+        link=link_faults(parser, args, n, link, radio_name, radio_overrides),
         signing_key=signing_key(parser, args.signing_key),
         param_names=args.param_names,
         orphan_speedup=args.orphan_speedup,

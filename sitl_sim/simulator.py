@@ -29,6 +29,7 @@ from sitl_sim.autopilot.registry import fleet_params, fleet_personas
 from sitl_sim.clock import LockstepClients, RealTimePacer, Timing
 from sitl_sim.network.endpoint import VehicleEndpoint
 from sitl_sim.network.link_faults import UP, LinkFaults
+from sitl_sim.network.radio import fleet_radios
 from sitl_sim.network.streams import (
     STREAM_IDS,
     Geodesy,
@@ -162,6 +163,9 @@ class Simulator:
         self.selector = selectors.DefaultSelector()
         self.endpoints: list[VehicleEndpoint] = []
         self.truth: TruthLog | None = None
+        radios = fleet_radios(config.link.radio, n)
+        # each medium once (a shared one serves every vehicle), for _serve's settle of staged uplink arrivals
+        self._media = list({id(r.medium): r.medium for r in radios if r is not None}.values())
         try:
             for i in range(n):
                 endpoint = VehicleEndpoint(
@@ -174,6 +178,7 @@ class Simulator:
                     config.seed,
                     config.link.outages,
                     config.link.start_s,
+                    radios[i],
                 )
                 self.endpoints.append(endpoint)
                 self.selector.register(endpoint, selectors.EVENT_READ)
@@ -423,6 +428,8 @@ class Simulator:
         """Wait up to timeout s for input, handle it, send replies (frame_ms: paused at that frame end)."""
         wall = time.monotonic()
         handled = 0
+        for medium in self._media:  # uplink datagrams of earlier ms take the air (sitl_sim.network.radio)
+            medium.settle(self.time_us // 1000)
         if any(self._inboxes) or any(self._uplinks):  # first what arrived after the clients' previous answers
             for endpoint in self.endpoints:
                 if endpoint.inbox or endpoint.channel.waiting(UP):

@@ -20,6 +20,7 @@ from gcs_swarm.link.autopilots import DIALECTS
 from gcs_swarm.mission.model import Mission
 from gcs_swarm.mission.schema import MissionFile, Range, SafetySection, describe
 from gcs_swarm.mission.yaml_tree import MissionError, Node
+from swarm_common.radio_presets import RADIO_OVERRIDES, RadioError, radio_spec
 
 # pymavlink connection strings: network forms "kind:host:port", serial "/dev/ttyX[,baud]" or "COMn[,baud]"
 _NETWORK = re.compile(r"(udpin|udpout|udp|udpbcast|tcp|tcpin):([^:\s]+):([0-9]{1,5})")
@@ -74,6 +75,7 @@ def check_file(file: MissionFile, root: Node) -> None:
     _route(file, root)
     _adjacency(file, root)
     _outage_vehicles(file, root)
+    _radio(file, root)
 
 
 def _safety(safety: SafetySection, root: Node) -> None:
@@ -142,6 +144,16 @@ def _adjacency(file: MissionFile, root: Node) -> None:
                 raise entry.error(f"expected 0 or 1, got {value}")
             if i == j and value:
                 raise entry.error("the diagonal must be 0 (a vehicle does not link to itself)")
+
+
+def _radio(file: MissionFile, root: Node) -> None:
+    """world.link's radio settings make a radio (swarm_common.radio_presets.radio_spec: overrides need a
+    preset or capacity_bps)."""
+    link = file.world.link
+    try:
+        radio_spec(link.radio, {key: getattr(link, key) for key in RADIO_OVERRIDES})
+    except RadioError as exc:
+        raise root.at(("world", "link", exc.key)).error(str(exc)) from None
 
 
 def _outage_vehicles(file: MissionFile, root: Node) -> None:

@@ -139,6 +139,17 @@ class LinkSpec:
     reorder: float = 0.0  # probability a packet is held back 60 ms more
     from_s: float = 0.0  # s, the rates above act from this simulated time on
     outages: tuple[OutageSpec, ...] = ()
+    # the radio under every link (docs/radio.md): a swarm_common.radio_presets name (None: unlimited
+    # capacity), then any of its figures overridden (None: the preset's), combined by radio_spec
+    radio: str | None = None
+    capacity_bps: float | None = None  # bit/s
+    bits_per_byte: float | None = None  # bit times on the air per byte
+    overhead_bytes: int | None = None  # bytes the radio adds to each packet
+    overhead_us: float | None = None  # us of air time per packet besides its bytes
+    half_duplex: bool | None = None
+    shared: bool | None = None  # the whole swarm on one medium
+    buffer_bytes: int | None = None  # each transmitting radio's buffer, bytes (0: one second of capacity)
+    radio_status: bool | None = None  # the ground radio sends RADIO_STATUS once a second
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

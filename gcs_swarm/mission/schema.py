@@ -51,6 +51,7 @@ from gcs_swarm.guidance.params import (
     TelemetryParams,
 )
 from gcs_swarm.mission.yaml_tree import Node, loc_path
+from swarm_common.radio_presets import RADIO_PRESETS, RADIO_RANGES
 
 DEFAULT_ORIGIN = (-35.363261, 149.165230, 584.0)  # ArduPilot SITL's CMAC field, Canberra
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
@@ -406,6 +407,12 @@ Probability = Annotated[float, Range(ge=0, le=1)]
 Delay = Annotated[float, Range(ge=0, le=MAX_LINK_DELAY_MS, unit="ms")]
 
 
+def _radio_range(key: str) -> Range:
+    """The accepted range of a radio figure (swarm_common.radio_presets.RADIO_RANGES) as a Range."""
+    low, high, unit = RADIO_RANGES[key]
+    return Range(ge=low, le=high, unit=unit)
+
+
 class LinkSection(Section):
     loss: Probability = 0.0
     dup: Probability = 0.0
@@ -415,6 +422,17 @@ class LinkSection(Section):
     jitter_ms: Delay = 0.0
     from_s: Annotated[float, Range(ge=0, unit="s")] = 0.0
     outages: list[OutageEntry] | None = None
+    # the radio under every link (docs/radio.md): a preset and any of its figures overridden (null: the
+    # preset's); checks.py applies radio_spec's rule that overrides need a preset or capacity_bps
+    radio: Annotated[str, one_of(*RADIO_PRESETS)] | None = None
+    capacity_bps: Annotated[float, _radio_range("capacity_bps")] | None = None
+    bits_per_byte: Annotated[float, _radio_range("bits_per_byte")] | None = None
+    overhead_bytes: Annotated[int, _radio_range("overhead_bytes")] | None = None
+    overhead_us: Annotated[float, _radio_range("overhead_us")] | None = None
+    half_duplex: bool | None = None
+    shared: bool | None = None
+    buffer_bytes: Annotated[int, _radio_range("buffer_bytes")] | None = None
+    radio_status: bool | None = None
 
 
 class _Heights(Entry):

@@ -30,6 +30,7 @@ from sitl_sim.network.counters import LinkCounters
 from sitl_sim.network.link_faults import DOWN, UP, FaultChannel, LinkFaults, Outage
 from sitl_sim.network.mission_protocol import FenceProtocol
 from sitl_sim.network.outbox import Outbox
+from sitl_sim.network.radio import NS_PER_MS, RadioLink
 from sitl_sim.network.services import SimulatorServices
 from sitl_sim.network.streams import Framer
 from sitl_sim.network.surfaces import SURFACES
@@ -45,6 +46,7 @@ LOCKSTEP_ANSWERS = (
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED,
     mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT,
 )
+RADIO_STATUS_SOURCE = (ord("3"), ord("D"))  # SiK mavlink.c RADIO_SOURCE_SYSTEM, RADIO_SOURCE_COMPONENT
 LINK_PARAMS = tuple(LinkFaults().params())  # SIM_LINK_*, in the order of link_rates and FaultChannel's rates
 NO_LINK_FAULTS = (0.0,) * len(LINK_PARAMS)
 Handler = Callable[[mavlink2.MAVLink_message, tuple[str, int]], None]
@@ -58,7 +60,8 @@ class VehicleEndpoint:
     """UDP endpoint of vehicle `index` (sysid) on bind:port, served by the simulator `sim`.
 
     signing_key: MAVLink 2 signing key or None; seed, outages: the faulty link's
-    (sitl_sim.network.link_faults); link_from_s: simulated s before which the SIM_LINK_* faults do not apply.
+    (sitl_sim.network.link_faults); link_from_s: simulated s before which the SIM_LINK_* faults do not apply;
+    radio: the radio under the link (sitl_sim.network.radio), None for unlimited capacity.
     """
 
     def __init__(
@@ -72,6 +75,7 @@ class VehicleEndpoint:
         seed: int,
         outages: tuple[Outage, ...],
         link_from_s: float,
+        radio: RadioLink | None = None,
     ) -> None:
         self.index = index
         self.sysid = sysid
@@ -87,7 +91,9 @@ class VehicleEndpoint:
         self.rx = new_parser(signing_key)
         self.clock_rx = new_parser(signing_key)  # reads lockstep answers before the faulty link
         self.signer = None if signing_key is None else signing.FrameSigner(signing_key)
-        self.channel = FaultChannel(seed, index, outages)
+        self.channel = FaultChannel(seed, index, outages, radio)
+        self._radio_status = Framer(*RADIO_STATUS_SOURCE)  # the ground radio's own MAVLink sender
+        self._radio_status_ms = 0  # simulated ms at or after which the ground radio next reports
         self._link_columns = [sim.params.column_index(name) for name in LINK_PARAMS]
         self._link_revision = -1  # sim.params.revision when _link_configured was read
         self._link_configured = False  # some SIM_LINK_* parameter of this vehicle is > 0
@@ -174,16 +180,19 @@ class VehicleEndpoint:
 
     def _faulty_link_rates(self) -> tuple[float, ...] | None:
         """link_rates() when the faulty link acts on this vehicle's packets now (FaultChannel.active), None
-        when they go straight through: always None without an outage and with no SIM_LINK_* rate > 0, which is
-        found cheaply (the parameters are read again only after one was set, ParamTable.revision)."""
+        when they go straight through: always None without a radio, without an outage and with no SIM_LINK_*
+        rate > 0, which is found cheaply (the parameters are read again only after one was set,
+        ParamTable.revision). A radio acts from the start, but not while a lockstep simulator waits at boot
+        for its clients (its simulated time could not elapse)."""
         params = self.sim.params
         if self._link_revision != params.revision:
             self._link_revision = params.revision
             self._link_configured = any(r > 0 for r in self._configured_link_rates())
-        if not self._link_configured and not self.channel.outages:
+        radio_on = self.channel.radio is not None and (self.sim.lockstep is None or self.sim.lockstep_started)
+        if not self._link_configured and not self.channel.outages and not radio_on:
             return None
         rates = self.link_rates()
-        return rates if self.channel.active(rates) else None
+        return rates if radio_on or self.channel.active(rates) else None
 
     def _deliver_due(self, wall_now: float) -> int:
         """Hand the uplink packets the faulty link delivers by now to the autopilot; returns how many."""
@@ -304,6 +313,10 @@ class VehicleEndpoint:
             if clock_ms is not None and self.peers:
                 tick = self.outbox.framer.pack(self.outbox.tx.system_time_encode(0, clock_ms))
                 packets.append(tick if self.signer is None else self.signer.sign(tick))
+            radio = self.channel.radio
+            status_due = now_ms >= self._radio_status_ms and self.peers
+            if radio is not None and radio.spec.radio_status and status_due:
+                packets.append(self._ground_radio_status(radio, now_ms))
         if not packets:
             return
         datagrams = _batched(packets)
@@ -316,6 +329,16 @@ class VehicleEndpoint:
                     self.sock.sendto(datagram, addr)
                 except OSError:  # peer gone or buffer full: UDP is lossy, the next stream sample follows
                     break
+
+    def _ground_radio_status(self, radio: RadioLink, now_ms: int) -> bytes:
+        """The ground radio's RADIO_STATUS at now_ms, as SiK's mavlink.c MAVLink_report writes it to the
+        ground station's serial port (not over the air, unsigned, sysid '3' compid 'D'): txbuf the free share
+        of its transmit buffer (TxBuffer.free_percent); rssi, remrssi, noise, remnoise 255 (unknown: no
+        propagation model), rxerrors and fixed 0. Once a simulated second."""
+        self._radio_status_ms = (now_ms // 1000 + 1) * 1000
+        txbuf = radio.buffers[UP].free_percent(now_ms * NS_PER_MS)
+        framer = self._radio_status
+        return framer.pack(framer.mav.radio_status_encode(255, 255, txbuf, 255, 255, 0, 0))
 
 
 def _batched(packets: list[bytes]) -> list[bytes]:

@@ -11,6 +11,9 @@ of the others.
 The lockstep clock is simulation machinery, not radio: the simulator registers lockstep answers when a
 datagram reaches its socket (before the channel), and at every frame end of a faulty vehicle appends a
 fault-exempt clock tick, SYSTEM_TIME(time_unix_usec=0, time_boot_ms=frame), after the channel's output.
+
+With a radio (`LinkFaults.radio`, sitl_sim.network.radio), a packet first crosses the radio (buffered, timed
+on the air, or dropped for a full buffer); an outage silences it before, the faults act on what left the air.
 """
 
 from __future__ import annotations
@@ -21,8 +24,12 @@ import math
 import struct
 from dataclasses import dataclass, fields
 
+from sitl_sim.network.radio import DOWN as DOWN  # directions: ground station -> vehicle, vehicle -> ground
+from sitl_sim.network.radio import NS_PER_MS, RadioLink
+from sitl_sim.network.radio import UP as UP
+from swarm_common.radio_presets import RadioSpec
+
 REORDER_HOLD_MS = 60  # extra simulated ms a reordered packet is held back (3 frames at 50 Hz)
-UP, DOWN = 0, 1  # directions: ground station -> vehicle, vehicle -> ground station
 
 
 @dataclass(frozen=True)
@@ -53,6 +60,7 @@ class LinkFaults:
     reorder: float = 0.0
     outages: tuple[Outage, ...] = ()
     start_s: float = 0.0  # loss/delay/jitter/dup/corrupt/reorder act from this simulated time on
+    radio: RadioSpec | None = None  # the radio under every link (None: unlimited capacity)
 
     def params(self) -> dict[str, float]:
         """The SIM_LINK_* parameter defaults these settings give, in FaultChannel.push's order of rates."""
@@ -111,8 +119,11 @@ class LinkDrops:
 class FaultChannel:
     """One vehicle's two-way faulty link: packets in, (due simulated ms, packet) out, in due order."""
 
-    def __init__(self, seed: int, vehicle: int, outages: tuple[Outage, ...]) -> None:
+    def __init__(
+        self, seed: int, vehicle: int, outages: tuple[Outage, ...], radio: RadioLink | None = None
+    ) -> None:
         self.seed = seed
+        self.radio = radio
         self.vehicle = vehicle
         self.outages = tuple(o for o in outages if o.vehicle in (None, vehicle))
         self.drops = LinkDrops()
@@ -122,12 +133,15 @@ class FaultChannel:
         self._seen_ms = [-1, -1]
 
     def summary(self) -> str:
-        """One line "link_lost=... link_corrupted=... link_duplicated=... link_delayed=..."."""
-        return " ".join(f"link_{f.name}={getattr(self.drops, f.name)}" for f in fields(self.drops))
+        """One line "link_lost=... link_corrupted=... link_duplicated=... link_delayed=..." (then the radio's
+        counts, RadioLink.summary, when there is a radio)."""
+        line = " ".join(f"link_{f.name}={getattr(self.drops, f.name)}" for f in fields(self.drops))
+        return line if self.radio is None else f"{line} {self.radio.summary()}"
 
     def active(self, rates: tuple[float, ...]) -> bool:
-        """Any fault configured (rates: loss, dup, corrupt, reorder, delay_ms, jitter_ms) or any outage."""
-        return bool(self.outages) or any(r > 0 for r in rates)
+        """A radio, any fault configured (rates: loss, dup, corrupt, reorder, delay_ms, jitter_ms) or any
+        outage."""
+        return self.radio is not None or bool(self.outages) or any(r > 0 for r in rates)
 
     def waiting(self, direction: int) -> list[tuple[int, int, bytes, object]]:
         """The queue of `direction` itself (the same list for the channel's life; read only; empty when no
@@ -135,11 +149,31 @@ class FaultChannel:
         return self._queues[direction]
 
     def push(self, direction: int, packet: bytes, tag: object, now_ms: int, rates: tuple[float, ...]) -> None:
-        """One packet enters the channel at simulated ms now_ms; tag travels with it (e.g. the peer)."""
+        """One packet enters the channel at simulated ms now_ms; tag travels with it (e.g. the peer). With a
+        radio, an uplink packet is staged on its medium until time moves on (sitl_sim.network.radio)."""
+        radio = self.radio
+        if radio is None:
+            self._transmit(direction, packet, tag, now_ms, rates)
+        elif direction == UP:
+            radio.medium.stage(now_ms, self.vehicle, lambda: self._transmit(UP, packet, tag, now_ms, rates))
+        else:
+            radio.medium.settle(now_ms)
+            self._transmit(direction, packet, tag, now_ms, rates)
+
+    def _transmit(
+        self, direction: int, packet: bytes, tag: object, now_ms: int, rates: tuple[float, ...]
+    ) -> None:
+        """The packet's fate, from its entry at now_ms: outage, radio, then the faults."""
         loss, dup, corrupt, reorder, delay_ms, jitter_ms = rates
         if any(o.covers(self.vehicle, now_ms / 1000.0) for o in self.outages):
             self.drops.lost += 1
             return
+        sent_ms = now_ms  # the ms from which the faults' delays count: the last bit off the air with a radio
+        if self.radio is not None:
+            end_ns = self.radio.send(direction, len(packet), now_ms)
+            if end_ns is None:
+                return
+            sent_ms = -(-end_ns // NS_PER_MS)
         u = self._uniforms(direction, packet, now_ms)
         if u[0] < loss:
             self.drops.lost += 1
@@ -156,7 +190,7 @@ class FaultChannel:
             if extra > 0:
                 self.drops.delayed += 1
             self._order += 1
-            heapq.heappush(self._queues[direction], (now_ms + round(extra), self._order, packet, tag))
+            heapq.heappush(self._queues[direction], (sent_ms + round(extra), self._order, packet, tag))
 
     def due(self, direction: int, now_ms: int) -> list[tuple[bytes, object]]:
         """Packets (with their tags) due at or before now_ms, in delivery order."""
