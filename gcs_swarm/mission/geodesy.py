@@ -52,7 +52,8 @@ def implied_origin(file: MissionFile) -> tuple[Origin, tuple[str | int, ...] | N
     """The origin (lat, lon, alt) and the key path it was taken from (None: written as `origin`, or the
     default). Order: `origin` as written; the first vertex of safety.geofence.polygon; the first vehicle's
     start position; the first waypoint (or the goal); CMAC (DEFAULT_ORIGIN) when none of these is
-    geographic. A point taken as origin gives its `amsl` as the origin's altitude, else 0 m."""
+    geographic. The origin's altitude is the start's `amsl` when the start is taken (the vehicle's home on the
+    ground), else 0 m AMSL (a waypoint flies above the origin, a fence vertex has no height)."""
     if "origin" in file.model_fields_set:
         return (file.origin.lat, file.origin.lon, file.origin.alt), None
     polygon = file.safety.geofence.polygon or []
@@ -65,6 +66,7 @@ def implied_origin(file: MissionFile) -> tuple[Origin, tuple[str | int, ...] | N
     ]
     for value, loc in candidates:
         if isinstance(value, GeoVertex | GeoPoint):
-            amsl = value.amsl if isinstance(value, GeoPoint) and value.amsl is not None else 0.0
+            home = isinstance(value, GeoPoint) and loc[0] == "vehicles" and value.amsl is not None
+            amsl = float(value.amsl) if home else 0.0  # type: ignore[union-attr, arg-type]
             return (value.lat, value.lon, amsl), loc
     return DEFAULT_ORIGIN, None
