@@ -428,8 +428,9 @@ class Simulator:
         """Wait up to timeout s for input, handle it, send replies (frame_ms: paused at that frame end)."""
         wall = time.monotonic()
         handled = 0
+        now_ms = self.time_us // 1000
         for medium in self._media:  # uplink datagrams of earlier ms take the air (sitl_sim.network.radio)
-            medium.settle(self.time_us // 1000)
+            medium.settle(now_ms)
         if any(self._inboxes) or any(self._uplinks):  # first what arrived after the clients' previous answers
             for endpoint in self.endpoints:
                 if endpoint.inbox or endpoint.channel.waiting(UP):

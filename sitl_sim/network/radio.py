@@ -113,10 +113,11 @@ class Medium:
 
     def settle(self, now_ms: int) -> None:
         """Time the staged uplink arrivals of every ms before now_ms, by ms, vehicle and arrival."""
-        if not any(s[0] < now_ms for s in self._staged):
+        staged = self._staged
+        if not staged or staged[0][0] >= now_ms:  # staged in arrival order: the oldest first
             return
-        ready = sorted((s for s in self._staged if s[0] < now_ms), key=lambda s: s[:3])
-        self._staged = [s for s in self._staged if s[0] >= now_ms]
+        ready = sorted((s for s in staged if s[0] < now_ms), key=lambda s: s[:3])
+        self._staged = [s for s in staged if s[0] >= now_ms]
         for *_, transmit in ready:
             transmit()
 
