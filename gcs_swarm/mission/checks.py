@@ -3,6 +3,8 @@ the adjacency matrix), fleet consistency, placement against obstacles and geofen
 
 `check_file` runs on the validated file (what building the `Mission` relies on), `check_mission` on the built
 `Mission`. Each raises a MissionError at the YAML line of the value that is wrong (`root.at(key path)`).
+Shapely is imported only when a mission has a site (fence polygon, exclusion zones, prisms), so that the
+missions without one start as fast as before (every start of the ground station and the simulator loads one).
 """
 
 from __future__ import annotations
@@ -12,9 +14,7 @@ import math
 import re
 
 import numpy as np
-import shapely
 from scipy.sparse.csgraph import breadth_first_order
-from shapely.geometry import Point, Polygon
 
 from gcs_swarm.link.autopilots import DIALECTS
 from gcs_swarm.mission.model import Mission
@@ -247,6 +247,8 @@ def _place(
                 f"+ vehicle radius {margin:g} m"
             )
     for k, prism in enumerate(mission.prisms):
+        from shapely.geometry import Point, Polygon
+
         if prism.bottom - margin <= point[2] <= prism.top + margin:
             gap = Polygon(prism.footprint).exterior.distance(Point(point[:2]))
             if Polygon(prism.footprint).contains(Point(point[:2])) or gap <= margin:
@@ -291,6 +293,11 @@ def _site_polygons(mission: Mission, root: Node) -> None:
         if zone.polygon is not None
     ]
     shapes += [(prism.footprint, ("world", "prisms", k, "polygon")) for k, prism in enumerate(mission.prisms)]
+    if not shapes:
+        return
+    import shapely
+    from shapely.geometry import Polygon
+
     for vertices, loc in shapes:
         if len({tuple(v) for v in vertices}) < 3:
             raise root.at(loc).error(f"a polygon needs at least 3 distinct vertices, got {len(vertices)}")
@@ -302,9 +309,13 @@ def _site_polygons(mission: Mission, root: Node) -> None:
 def _in_fence(mission: Mission, root: Node, point: np.ndarray, node: Node, what: str) -> None:
     """`point` (3,) m ENU lies inside the fence polygon and outside every exclusion zone, by more than the
     vehicle's collision radius."""
+    fence = mission.fence
+    if fence.polygon is None and not fence.exclusions:
+        return
+    from shapely.geometry import Point, Polygon
+
     margin = mission.safety.collision_radius
     where = Point(point[:2])
-    fence = mission.fence
     if fence.polygon is not None:
         polygon = Polygon(fence.polygon)
         if not polygon.contains(where) or polygon.exterior.distance(where) <= margin:

@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Any
 
 from gcs_swarm.mission.yaml_tree import Node
-from gcs_swarm.site import SiteError, merge_sites, mission_fragment, read_site
 
 # keys whose imported entries add to the mission's list
 _LISTS = (
@@ -31,7 +30,10 @@ _ONCE = (("safety", "geofence", "polygon"), ("waypoints",))
 
 def with_imports(root: Node, imports: list[str], source: str) -> Node:
     """`root` with the sites of the `imports` (world.import) merged in; MissionError naming the import entry
-    and the file's feature on any mistake."""
+    and the file's feature on any mistake. gcs_swarm.site (fastkml, shapely) is imported only here, for the
+    missions that import files."""
+    from gcs_swarm.site import SiteError, merge_sites, mission_fragment, read_site
+
     folder = Path(source).parent if not source.startswith("<") else Path(".")
     sites = []
     for k, written in enumerate(imports):
