@@ -58,10 +58,10 @@ def _compare_run(label: str, run_dir: Path, mission: Any) -> figures.CompareRun 
     return figures.CompareRun(
         label=label,
         traj=traj,
-        commands=load_commands(run_dir / RECORD_FILE),
+        commands=load_commands(run_dir / RECORD_FILE, len(mission.vehicles)),
         offsets=np.array(flight["offsets"], dtype=float),
         leader=mission.leader_index,
-        t0=float(t0 if t0 is not None else traj.t[0]),
+        t0=float(t0 if t0 is not None else (traj.t[0] if len(traj.t) else 0.0)),
     )
 
 

@@ -14,6 +14,7 @@ Comparison and Monte Carlo figures: `plot_compare`, `plot_histograms`.
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -53,7 +54,7 @@ def _draw_top_view(ax: Any, plt: ModuleType, traj: Trajectories, names: list[str
     s = _every(len(traj.t))
     for i, name in enumerate(names):
         ax.plot(traj.pos[s, i, 0], traj.pos[s, i, 1], lw=1.1, label=name)
-    for k, r in enumerate(traj.obstacle_radii):
+    for k, r in enumerate(traj.obstacle_radii if len(traj.obstacle_centres) else ()):
         c = traj.obstacle_centres[0, k]
         ax.add_patch(plt.Circle((c[0], c[1]), r, color="0.4", alpha=0.6))
         if len(traj.obstacle_centres) > 1 and np.any(traj.obstacle_centres[-1, k] != c):
@@ -107,6 +108,9 @@ def _draw_slot_errors(
         return
     sel = (traj.t >= t0) & (traj.t <= commands.t[-1])
     t = traj.t[sel]
+    if len(t) < 2:
+        ax.text(0.5, 0.5, "no positions in formation flight", ha="center", transform=ax.transAxes)
+        return
     psi = signals.held_at(commands.t, commands.psi_l, t)
     leader = int(flight.get("leader", mission.leader_index))
     offsets = np.array(flight["offsets"], dtype=float)
@@ -145,6 +149,8 @@ def reshape_events(flight: dict[str, Any]) -> list[tuple[float, str]]:
 def _draw_formation_shapes(ax: Any, traj: Trajectories, leader: int, t0: float, t1: float) -> None:
     """The formation's shape at FORMATION_SNAPSHOTS moments of formation flight on the top view: a line from
     the leader to each follower, where they truly were."""
+    if len(traj.t) == 0:
+        return
     for when in np.linspace(t0, t1, FORMATION_SNAPSHOTS):
         k = int(np.clip(np.searchsorted(traj.t, when), 0, len(traj.t) - 1))
         p = traj.pos[k]
@@ -196,7 +202,7 @@ def _trajectories_figure(plt: ModuleType, traj: Trajectories, names: list[str], 
     s = _every(len(traj.t))
     for i, name in enumerate(names):
         ax3.plot(traj.pos[s, i, 0], traj.pos[s, i, 1], traj.pos[s, i, 2], lw=1.0, label=name)
-    for k, r in enumerate(traj.obstacle_radii):
+    for k, r in enumerate(traj.obstacle_radii if len(traj.obstacle_centres) else ()):
         _sphere(ax3, traj.obstacle_centres[0, k], float(r))
     ax3.scatter([goal[0]], [goal[1]], [goal[2]], marker="*", color="k", s=80)
     ax3.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Trajectories in O-XYZ")
@@ -273,18 +279,35 @@ def write_run_figures(
     run_dir: Path, mission: Any, flight: dict[str, Any], traj: Trajectories, commands: CommandLog | None
 ) -> list[Path]:
     """Every run figure that the logs allow (the record gives relative angles and rates); [] without
-    matplotlib. flight is flight.json (offsets, t_formation_start)."""
+    matplotlib. flight is flight.json (offsets, t_formation_start). Drawn whatever the logs hold: a vehicle
+    without samples (silent, lost, never commanded) leaves its lines out or broken, an empty log empty axes.
+    """
     plt = pyplot() if ENABLED else None
-    if plt is None or len(traj.t) < 2:
+    if plt is None:
         return []
+    with warnings.catch_warnings():  # all-NaN or empty series: expected, drawn as nothing
+        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.simplefilter("ignore", UserWarning)
+        return _write_run_figures(plt, run_dir, mission, flight, traj, commands)
+
+
+def _write_run_figures(
+    plt: ModuleType,
+    run_dir: Path,
+    mission: Any,
+    flight: dict[str, Any],
+    traj: Trajectories,
+    commands: CommandLog | None,
+) -> list[Path]:
     names = [v.name for v in mission.vehicles]
     goal = np.asarray(mission.goal, dtype=float)
     offsets = np.array(flight["offsets"], dtype=float)
-    t0 = float(flight.get("t_formation_start") or traj.t[0])
+    t_first = float(traj.t[0]) if len(traj.t) else 0.0
+    t0 = float(flight.get("t_formation_start") or t_first)
     written = []
     fig, axes = plt.subplots(2, 2, figsize=(14, 10.5))
     _draw_top_view(axes[0, 0], plt, traj, names, goal)
-    t1 = float(flight.get("t_formation_end") or traj.t[-1])
+    t1 = float(flight.get("t_formation_end") or (traj.t[-1] if len(traj.t) else t0))
     _draw_formation_shapes(axes[0, 0], traj, int(flight.get("leader", mission.leader_index)), t0, t1)
     _draw_distances(axes[0, 1], traj, names, mission, t0)
     _draw_slot_errors(axes[1, 0], traj, commands, flight, mission, names, t0)

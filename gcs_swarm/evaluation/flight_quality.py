@@ -21,6 +21,7 @@ CUSP_TURN_DEG = 90.0  # a cusp: the horizontal course turns by more than this ..
 CUSP_WINDOW_S = 1.0  # ... within this long ...
 CUSP_MIN_SPEED = 2.0  # m/s ... while the speed is above this at both ends
 JERK_WINDOW_S = 0.25  # s, Savitzky-Golay window of the jerk estimate (cubic fit of the true velocity)
+JERK_MIN_SAMPLES = 7  # samples: a shorter stretch of velocity gives no jerk estimate
 
 
 def cusp_times(t: np.ndarray, vel_xy: np.ndarray) -> list[float]:
@@ -72,23 +73,43 @@ def true_jerk(t: np.ndarray, vel: np.ndarray) -> np.ndarray:
     """|jerk| (T, N) m/s^3 of the true motion: the second derivative of the true velocity (T, N, 3) by a
     Savitzky-Golay cubic fit over JERK_WINDOW_S (scipy.signal.savgol_filter), which differentiates a smooth
     signal exactly up to its cubic terms and does not amplify the sample-to-sample rounding of the log.
-    Uniform sampling is assumed (the truth log is)."""
+    Uniform sampling is assumed (the truth log is). A vehicle with gaps (no truth row: NaN velocity) is fitted
+    over each unbroken stretch; NaN in the gaps and in stretches shorter than JERK_MIN_SAMPLES."""
     t = np.asarray(t, dtype=float)
     vel = np.asarray(vel, dtype=float)
-    if len(t) < 7:
-        return np.zeros(vel.shape[:2])
+    out = np.full(vel.shape[:2], np.nan)
+    if len(t) < JERK_MIN_SAMPLES:
+        return out
     dt = float(np.median(np.diff(t)))
+    finite = np.isfinite(vel).all(axis=-1)  # (T, N)
+    whole = finite.all(axis=0)  # (N,) vehicles with every sample
+    if whole.any():
+        out[:, whole] = _savgol_jerk(vel[:, whole], dt)
+    for i in np.flatnonzero(~whole):
+        edges = np.diff(np.concatenate([[0], finite[:, i].astype(np.int8), [0]]))
+        for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+            if b - a >= JERK_MIN_SAMPLES:
+                out[a:b, i] = _savgol_jerk(vel[a:b, i], dt)
+    return out
+
+
+def _savgol_jerk(vel: np.ndarray, dt: float) -> np.ndarray:
+    """|d^2 v / dt^2| (T, ...) of velocities (T, ..., 3) sampled every dt s, T >= JERK_MIN_SAMPLES, all
+    finite (`true_jerk`)."""
     window = max(5, int(round(JERK_WINDOW_S / dt)) | 1)
-    window = min(window, len(t) - (1 - len(t) % 2))
+    window = min(window, len(vel) - (1 - len(vel) % 2))
     jerk = savgol_filter(vel, window, 3, deriv=2, delta=dt, axis=0, mode="interp")
     return np.linalg.norm(jerk, axis=-1)
 
 
 def path_ratio(pos: np.ndarray, route: np.ndarray) -> float:
     """Length of the path pos (T, 3) over the length of the straight route through its points (W, 3)
-    (start, waypoints, goal); nan for a route of zero length."""
+    (start, waypoints, goal); samples without a position (NaN: silent) are left out; nan for a route of zero
+    length or fewer than two positions."""
     straight = metrics.path_length(np.asarray(route, dtype=float))
-    return metrics.path_length(np.asarray(pos, dtype=float)) / straight if straight > 0 else math.nan
+    pos = np.asarray(pos, dtype=float)
+    pos = pos[np.isfinite(pos).all(axis=1)]
+    return metrics.path_length(pos) / straight if straight > 0 and len(pos) > 1 else math.nan
 
 
 def time_below(
@@ -197,10 +218,12 @@ def whole_flight_figures(
     out["cusps"] = [len(c) for c in cusps]
     out["cusps_total"] = int(sum(out["cusps"]))
     jerk = true_jerk(ts, vs)
-    if jerk.size:
-        per = [float(np.percentile(jerk[:, i], 99)) for i in range(jerk.shape[1])]
+    if np.isfinite(jerk).any():
+        per = [
+            float(np.percentile(j[np.isfinite(j)], 99)) if np.isfinite(j).any() else math.nan for j in jerk.T
+        ]
         out["jerk_p99_m_s3"] = [rounded(x, 3) for x in per]
-        out["jerk_p99_max_m_s3"] = rounded(max(per), 3)
+        out["jerk_p99_max_m_s3"] = rounded(float(np.nanmax(per)), 3)
     out["leader_path_ratio"] = rounded(path_ratio(ps[:, leader], leader_route))
     out["min_separation_whole_flight_m"] = rounded(below[1])
     out["time_below_d_emg_s"] = rounded(below[0])

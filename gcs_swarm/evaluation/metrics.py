@@ -115,7 +115,8 @@ def min_obstacle_clearance(
 ) -> tuple[float, bool]:
     """c_min = min over t, i, k of |p_i - c_k(t)| - r_k and the collision flag c_min <= l_arm (spec 10).
 
-    p (T, N, D); centres (K, D) static or (T, K, D) moving; radii (K,). Without obstacles: (inf, False).
+    p (T, N, D); centres (K, D) static or (T, K, D) moving; radii (K,). Without obstacles or without a finite
+    position: (inf, False).
     """
     p = np.asarray(p, dtype=float)
     radii = np.asarray(radii, dtype=float)
@@ -124,7 +125,10 @@ def min_obstacle_clearance(
     c = np.asarray(centres, dtype=float)
     c = np.broadcast_to(c, (p.shape[0],) + c.shape) if c.ndim == 2 else c
     d = np.linalg.norm(p[:, :, None, :] - c[:, None, :, :], axis=-1) - radii
-    c_min = float(np.nanmin(d))
+    d = d[np.isfinite(d)]  # a vehicle with no position (no sample, silent) has no clearance
+    if d.size == 0:
+        return math.inf, False
+    c_min = float(d.min())
     return c_min, c_min <= l_arm
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import Any, cast
 
@@ -26,10 +27,17 @@ def _reach_time(t: np.ndarray, distance: np.ndarray, tol: float, hold: float, ar
     the tolerance that lasts to the end of the phase also counts (the landing cut it short, and the ground
     station's own hold, against the moving slots, can begin a little before the truth's)."""
     held = metrics.reach_time(t, distance, tol, hold)
-    if held is not None or not arrived or len(t) == 0 or distance[-1] > tol:
+    if held is not None or not arrived or len(t) == 0 or not distance[-1] <= tol:
         return held
-    outside = np.flatnonzero(distance > tol)
+    outside = np.flatnonzero(~(distance <= tol))  # NaN (no position) is not inside
     return float(t[outside[-1] + 1]) if len(outside) else float(t[0])
+
+
+def _finite(x: np.ndarray, reduce: Any) -> float | None:
+    """reduce (np.min, np.max) over the finite values of x, None when there are none (no sample, or the
+    vehicle silent throughout)."""
+    finite = x[np.isfinite(x)]
+    return float(reduce(finite)) if finite.size else None
 
 
 def _deg(x: float) -> float | None:
@@ -50,19 +58,29 @@ def _commands_between(commands: CommandLog, t0: float, t1: float) -> tuple[np.nd
 def report_from(
     traj: Trajectories, commands: CommandLog | None, mission: Any, flight: dict[str, Any]
 ) -> dict[str, Any]:
-    """The figures of report.json from loaded trajectories and commands."""
+    """The figures of report.json from loaded trajectories and commands. Any of them may have no sample, or
+    NaN where a vehicle was silent, lost or not commanded: such a figure is None ("-" in report.md), never an
+    error; numpy's warnings about all-NaN or empty slices are expected there and silenced."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return _report_from(traj, commands, mission, flight)
+
+
+def _report_from(
+    traj: Trajectories, commands: CommandLog | None, mission: Any, flight: dict[str, Any]
+) -> dict[str, Any]:
     leader = int(flight.get("leader", mission.leader_index))  # the lead may have passed on (vehicle lost)
     names = [v.name for v in mission.vehicles]
     offsets = np.array(flight["offsets"], dtype=float)
     t0 = flight.get("t_formation_start")
-    t_end = flight.get("t_formation_end") or float(traj.t[-1])
-    window = (traj.t >= (t0 if t0 is not None else traj.t[0])) & (traj.t <= t_end)
+    t_end = flight.get("t_formation_end") or (float(traj.t[-1]) if len(traj.t) else math.inf)
+    window = (traj.t >= (t0 if t0 is not None else -math.inf)) & (traj.t <= t_end)
     if not window.any():
         window = np.ones_like(traj.t, dtype=bool)
     tw, pw, vw = traj.t[window], traj.pos[window], traj.vel[window]
 
     psi = None if commands is None else signals.held_at(commands.t, commands.psi_l, tw)
-    psi_final = float(psi[-1]) if psi is not None else 0.0
+    psi_final = float(psi[-1]) if psi is not None and len(psi) and np.isfinite(psi[-1]) else 0.0
     goals = slot_positions(np.asarray(mission.goal, dtype=float)[None, :], np.array([psi_final]), offsets)[0]
     if flight.get("final_targets") is not None:
         goals = np.array(flight["final_targets"], dtype=float)
@@ -110,12 +128,10 @@ def report_from(
                 "autopilot": flight.get("autopilots", {}).get(name),
                 "reached": reach[i] is not None,
                 "time_to_goal_s": rounded(None if reach[i] is None or t0 is None else reach[i] - t0),
-                "final_error_m": rounded(float(np.linalg.norm(pw[-1, i] - goals[i]))),
-                "min_separation_m": rounded(
-                    float(nearest[:, i].min()) if len(names) > 1 and len(nearest) else None
-                ),
+                "final_error_m": rounded(float(np.linalg.norm(pw[-1, i] - goals[i])) if len(pw) else None),
+                "min_separation_m": rounded(_finite(nearest[:, i], np.min) if len(names) > 1 else None),
                 "min_obstacle_clearance_m": rounded(clear_i),
-                "max_speed_m_s": rounded(float(np.linalg.norm(traj.vel[:, i], axis=1).max())),
+                "max_speed_m_s": rounded(_finite(np.linalg.norm(traj.vel[:, i], axis=1), np.max)),
                 "relative_angle_deg": _deg(float(np.nanmedian(final_angle)))
                 if np.isfinite(final_angle).any()
                 else None,
@@ -124,8 +140,10 @@ def report_from(
             }
         )
     times = [r for r in reach if r is not None]
-    t_arrival = max(times) if reached and times else float(tw[-1])
-    route = np.vstack([pw[0, leader][None, :], np.asarray(mission.waypoints, dtype=float).reshape(-1, 3)])
+    t_first, t_last = (float(tw[0]), float(tw[-1])) if len(tw) else (math.nan, math.nan)  # nan: no sample
+    t_arrival = max(times) if reached and times else t_last
+    start = pw[0, leader] if len(pw) else np.full(3, math.nan)
+    route = np.vstack([start[None, :], np.asarray(mission.waypoints, dtype=float).reshape(-1, 3)])
     d_emg = emergency_distance(mission)
     below_s, closest = flight_quality.time_below(traj.t, traj.pos, d_emg, traj.closest_pair)
     whole = flight_quality.whole_flight_figures(
@@ -135,10 +153,10 @@ def report_from(
         slot_error,
         route,
         leader,
-        (float(tw[0]), t_arrival),
+        (t_first, t_arrival),
         mission.formation.altitude + offsets[:, 2],
         (below_s, closest),
-        None if commands is None else _commands_between(commands, float(tw[0]), t_arrival),
+        None if commands is None else _commands_between(commands, t_first, t_arrival),
         names,
     )
     safety_events = []
@@ -177,7 +195,8 @@ def report_from(
         "cruise": cruise,
         "whole_flight": whole,
         "safety_events": safety_events,
-        "sim_duration_s": rounded(float(traj.t[-1] - traj.t[0])),  # on the run's own clock (docs/metrics.md)
+        # on the run's own clock (docs/metrics.md)
+        "sim_duration_s": rounded(float(traj.t[-1] - traj.t[0]) if len(traj.t) else None),
         "wall_duration_s": rounded(flight.get("wall_duration_s")),
         "commands_limited": flight.get("commands_limited"),  # None: a flight.json from before it was kept
         "vehicles": per_vehicle,
@@ -309,7 +328,8 @@ def write_report(run_dir: Path, mission: Any) -> dict[str, Any]:
     """(Re)build report.json and report.md of a run folder, and its figures (report.png and the paper-style
     fig_*.png, gcs_swarm.evaluation.figures) when matplotlib is installed; returns the report."""
     flight = json.loads((run_dir / FLIGHT_FILE).read_text())
-    traj, commands = load_trajectories(run_dir, mission), load_commands(run_dir / RECORD_FILE)
+    traj = load_trajectories(run_dir, mission)
+    commands = load_commands(run_dir / RECORD_FILE, len(mission.vehicles))
     report = report_from(traj, commands, mission, flight)
     written = figures.write_run_figures(run_dir, mission, flight, traj, commands)
     report["figures"] = [p.name for p in written]

@@ -59,19 +59,33 @@ def read_columns(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
     return {c: data[:, k] for k, c in enumerate(columns)}
 
 
-def _by_vehicle(table: dict[str, np.ndarray], key: str, columns: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Pivot long rows (one per vehicle per sample) into t (T,) and values (T, N, len(columns))."""
-    n = max(1, len(np.unique(table[key])))
-    usable = len(table[key]) // n * n  # a log cut mid-sample (killed process) drops its partial last sample
-    t = table["t"][:usable].reshape(-1, n)[:, 0]
-    values = np.stack([table[c][:usable] for c in columns], axis=-1).reshape(len(t), n, len(columns))
-    return t, values
+def _by_vehicle(
+    table: dict[str, np.ndarray], key: str, columns: list[str], n: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pivot long rows (one per vehicle per sample, in vehicle order; `key` holds the vehicle's 0-based
+    index) into t (T,) and values (T, N, len(columns)). N = n, or one more than the largest index; rows of an
+    index outside 0..N-1 are left out. A sample starts where t changes or the index does not grow. NaN where
+    a vehicle has no row in a sample (silent, or never logged); a last sample with fewer rows than the
+    fullest one (a log cut mid-sample by a killed process) is dropped."""
+    index = table[key].astype(int)
+    n = n if n is not None else (int(index.max()) + 1 if len(index) else 1)
+    t_rows = table["t"]
+    starts = np.ones(len(t_rows), dtype=bool)
+    starts[1:] = (t_rows[1:] != t_rows[:-1]) | (index[1:] <= index[:-1])
+    sample = np.cumsum(starts) - 1
+    rows = np.bincount(sample) if len(sample) else np.zeros(0, dtype=int)
+    count = len(rows) - 1 if len(rows) > 1 and rows[-1] < rows.max() else len(rows)
+    keep = (sample < count) & (index >= 0) & (index < n)
+    values = np.full((count, n, len(columns)), np.nan)
+    values[sample[keep], index[keep]] = np.stack([table[c][keep] for c in columns], axis=-1)
+    return t_rows[starts][:count], values
 
 
-def load_truth(path: Path) -> Trajectories:
-    """Read the simulator's truth log (and its .obstacles.csv sidecar)."""
+def load_truth(path: Path, n: int | None = None) -> Trajectories:
+    """Read the simulator's truth log (and its .obstacles.csv sidecar); n vehicles (None: as many as the log
+    names)."""
     columns = ["x", "y", "z", "vx", "vy", "vz", "crashed"]
-    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns)
+    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns, n)
     obstacle_path = path.with_suffix(".obstacles.csv")
     centres = np.zeros((len(t), 0, 3))
     radii = np.zeros(0)
@@ -85,10 +99,11 @@ def load_truth(path: Path) -> Trajectories:
     return Trajectories(t, v[..., :3], v[..., 3:6], v[..., 6] > 0.5, centres, radii, "truth")
 
 
-def load_record(path: Path, obstacles: list[Any]) -> Trajectories:
-    """The ground station's telemetry record as trajectories (used when no truth log exists)."""
+def load_record(path: Path, obstacles: list[Any], n: int | None = None) -> Trajectories:
+    """The ground station's telemetry record as trajectories (used when no truth log exists); n vehicles
+    (None: as many as the record names)."""
     columns = ["x", "y", "z", "vx", "vy", "vz"]
-    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns)
+    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns, n)
     centres = np.array([[o.center_at(tt) for o in obstacles] for tt in t]).reshape(len(t), len(obstacles), 3)
     radii = np.array([o.radius for o in obstacles], dtype=float)
     crashed = np.zeros(v.shape[:2], dtype=bool)
@@ -105,21 +120,25 @@ class CommandLog:
     psi_l: np.ndarray
 
 
-def load_commands(record_path: Path) -> CommandLog | None:
-    """The run record's commands; None without a record or without a tick in it."""
+def load_commands(record_path: Path, n: int | None = None) -> CommandLog | None:
+    """The run record's commands of n vehicles (None: as many as the record names); None without a record or
+    without a tick in it."""
     if not record_path.exists() or record_path.stat().st_size == 0:
         return None
     columns = ["roll_d", "pitch_d", "yaw_d", "psi_l"]
     table = read_columns(record_path, ["t", "vehicle", *columns])
     if len(table["t"]) == 0:
         return None
-    t, v = _by_vehicle(table, "vehicle", columns)
-    return CommandLog(t, v[..., :3], v[:, 0, 3])
+    t, v = _by_vehicle(table, "vehicle", columns, n)
+    with np.errstate(all="ignore"):
+        psi_l = np.fmax.reduce(v[..., 3], axis=1)  # the same on every row of a tick: any row that has it
+    return CommandLog(t, v[..., :3], psi_l)
 
 
 def load_trajectories(run_dir: Path, mission: Any) -> Trajectories:
     """Ground truth when the run has a truth log, else the ground station's telemetry record."""
     truth_path = run_dir / TRUTH_FILE
+    n = len(mission.vehicles)
     if truth_path.exists() and truth_path.stat().st_size > 0:
-        return load_truth(truth_path)
-    return load_record(run_dir / RECORD_FILE, list(mission.obstacles))
+        return load_truth(truth_path, n)
+    return load_record(run_dir / RECORD_FILE, list(mission.obstacles), n)

@@ -17,6 +17,14 @@ from gcs_swarm.guidance.formation import leader_frame_offsets
 RATE_SETTLE_ABS = 0.02  # rad/s, y_abs of the settling time of rate signals (spec 10)
 CHATTER_WINDOW_S = 20.0  # s, chattering is measured over the first and the last 20 s (spec 10)
 FIRST_SETTLED_HOLD_S = 20.0  # s, the end of the initial transient: the trend stays in its band this long
+RATE_FIGURES = (  # the figures of one rate signal (`_rate_figures`), all None when it has too few samples
+    "settling_s",
+    "trend_settling_s",
+    "trend_first_settled_s",
+    "peak",
+    "chatter_first_20s",
+    "chatter_last_20s",
+)
 
 
 def held_at(log_t: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -61,14 +69,19 @@ def desired_relative_angles(offsets: np.ndarray, leader: int) -> np.ndarray:
 
 def attitude_rates(t: np.ndarray, attitude: np.ndarray) -> np.ndarray:
     """Rates (T, N, 3) rad/s of commanded roll, pitch, yaw (T, N, 3) rad (Fig 26: the "virtual control
-    signals"): central differences of the unwrapped angles over t (T,)."""
+    signals"): central differences of the unwrapped angles over t (T,). Each angle is unwrapped over its own
+    finite samples; NaN (not commanded) stays NaN and so do the rates beside it."""
     t = np.asarray(t, dtype=float)
     att = np.asarray(attitude, dtype=float)
     if len(t) < 2:
         return np.zeros_like(att)
     unwrapped = att.copy()
-    finite = np.isfinite(att).all(axis=(1, 2))
-    unwrapped[finite] = np.unwrap(att[finite], axis=0)
+    finite = np.isfinite(att)
+    every = finite.all(axis=0)  # (N, 3) angles commanded at every tick: unwrapped together
+    unwrapped[:, every] = np.unwrap(att[:, every], axis=0)
+    for i, k in zip(*np.nonzero(~every), strict=True):
+        ok = finite[:, i, k]
+        unwrapped[ok, i, k] = np.unwrap(att[ok, i, k])
     return np.gradient(unwrapped, t, axis=0)
 
 
@@ -80,9 +93,7 @@ def _rate_figures(t: np.ndarray, y: np.ndarray) -> dict[str, float | None]:
     keep = np.isfinite(y)
     t, y = t[keep], y[keep]
     if len(t) < 3:
-        return dict.fromkeys(
-            ("settling_s", "trend_settling_s", "peak", "chatter_first_20s", "chatter_last_20s")
-        )
+        return dict.fromkeys(RATE_FIGURES)
     first = (t[0], min(t[-1], t[0] + CHATTER_WINDOW_S))
     last = (max(t[0], t[-1] - CHATTER_WINDOW_S), t[-1])
     # The trend's last half second averages fewer samples (the window narrows): leave it out.

@@ -127,3 +127,27 @@ def test_whole_flight_figures_of_a_known_flight():
     assert out["pitch_command_chatter_max_rad"] == pytest.approx(0.0, abs=1e-9)
     assert out["max_tilt_command_rate_rad_s"] == pytest.approx(0.01)
     assert out["leader_path_ratio"] == pytest.approx(99.8 / 100.0, rel=1e-3)  # flies 99.8 m of 100 in 9.98 s
+
+
+def test_jerk_of_a_vehicle_with_a_gap_is_fitted_on_each_stretch():
+    """v_x = t^3 m/s: the jerk d^2v/dt^2 = 6 t, which the cubic Savitzky-Golay fit gives exactly. Vehicle 1
+    has no velocity (a truth gap: NaN) for 1 s in the middle and for a stretch of 3 samples (too short: NaN),
+    vehicle 0 none missing; both get 6 t wherever they have a long enough stretch."""
+    t = np.arange(0.0, 4.0, 0.02)
+    vel = np.zeros((len(t), 2, 3))
+    vel[:, :, 0] = (t**3)[:, None]
+    gap = (t >= 1.5) & (t < 2.5)
+    vel[gap, 1] = np.nan
+    short = slice(len(t) - 10, len(t) - 7)
+    vel[len(t) - 11, 1] = np.nan
+    vel[len(t) - 7, 1] = np.nan
+    jerk = fq.true_jerk(t, vel)
+    np.testing.assert_allclose(jerk[:, 0], 6.0 * t, rtol=1e-6, atol=1e-6)
+    fitted = np.isfinite(jerk[:, 1])
+    np.testing.assert_allclose(jerk[fitted, 1], 6.0 * t[fitted], rtol=1e-6, atol=1e-6)
+    assert not fitted[gap].any() and not fitted[short].any()
+    assert fitted[: np.flatnonzero(gap)[0]].all()
+
+
+def test_jerk_of_too_short_a_log_is_unknown_not_zero():
+    assert np.isnan(fq.true_jerk(np.arange(5) * 0.02, np.ones((5, 2, 3)))).all()

@@ -92,3 +92,33 @@ def test_cruise_figures_of_a_formation_flying_at_constant_speed() -> None:
     assert cruise["spacing_within_1m_fraction"] == 1.0
     never_settled = np.full((len(t), 3), signals.CRUISE_FORMATION_M + 1.0)
     assert signals.cruise_figures(t, p, vel, 0, np.zeros(3), offsets, never_settled, 50.0) is None
+
+
+def test_a_vehicle_never_commanded_has_no_rate_figures_and_leaves_the_worst_to_the_others() -> None:
+    """Issue 38: a follower taken over before the formation phase has NaN commands throughout; its figures
+    are all None (every key present, no KeyError) and the fleet's worst is the other vehicle's. Vehicle 0's
+    pitch ramps at 0.1 rad/s for 2 s then holds (as in the test above): its peak rate is 0.1 rad/s."""
+    t = np.arange(0.0, 30.0, 0.02)
+    att = np.zeros((len(t), 2, 3))
+    att[:, 0, 1] = np.minimum(t / 2.0, 1.0) * 0.2
+    att[:, 1] = np.nan
+    figures = signals.command_rate_figures(t, att, ["lead", "left"])
+    left = figures["vehicles"][1]
+    for axis in ("pitch_rate", "yaw_rate"):
+        assert set(left[axis]) == set(signals.RATE_FIGURES)
+        assert all(value is None for value in left[axis].values())
+    assert figures["peak_rad_s"] == pytest.approx(0.1, abs=1e-3)
+    assert figures["trend_first_settled_s"] is not None
+
+
+def test_a_yaw_that_wraps_is_unwrapped_while_another_vehicle_is_not_commanded() -> None:
+    """Yaw of vehicle 0 grows 0.1 rad a tick of 0.1 s (1 rad/s) through +pi to -pi; vehicle 1 is not
+    commanded (NaN) on half of the ticks. Vehicle 0's yaw rate stays 1 rad/s across the wrap (it was left
+    wrapped, a -62 rad/s spike, whenever any vehicle had a NaN tick)."""
+    t = np.arange(0.0, 6.0, 0.1)
+    yaw = (3.0 + 0.1 * np.arange(len(t)) + math.pi) % (2.0 * math.pi) - math.pi
+    att = np.zeros((len(t), 2, 3))
+    att[:, 0, 2] = yaw
+    att[::2, 1] = np.nan
+    rates = signals.attitude_rates(t, att)
+    np.testing.assert_allclose(rates[:, 0, 2], 1.0, atol=1e-9)
