@@ -150,6 +150,9 @@ class LinkSpec:
     shared: bool | None = None  # the whole swarm on one medium
     buffer_bytes: int | None = None  # each transmitting radio's buffer, bytes (0: one second of capacity)
     radio_status: bool | None = None  # the ground radio sends RADIO_STATUS once a second
+    # bit/s of MAVLink bytes each vehicle's link carries for the ground station, up and down together (None:
+    # no budget); going over it is an event (gcs_swarm.link.link_use)
+    budget_bps: float | None = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

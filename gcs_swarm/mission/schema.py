@@ -433,6 +433,8 @@ class LinkSection(Section):
     shared: bool | None = None
     buffer_bytes: Annotated[int, _radio_range("buffer_bytes")] | None = None
     radio_status: bool | None = None
+    # the ground station's budget per vehicle link, both ways together (docs/mission-schema.md; link.link_use)
+    budget_bps: Annotated[float, Range(gt=0, unit="bit/s")] | None = None
 
 
 class _Heights(Entry):
