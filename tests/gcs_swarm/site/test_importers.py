@@ -118,6 +118,10 @@ def test_gcs_swarm_import_of_buildings_says_the_mission_cannot_fly_yet(
     assert len(mission.prisms) == 1 and len(mission.cylinders) == 2
     with pytest.raises(MissionError, match="world.prisms: prisms are read and checked but not yet avoided"):
         load_mission(out)
+    # `gcs-swarm check` validates it and says why it cannot fly
+    assert main(["check", str(out)]) == 0
+    checked = capsys.readouterr().out
+    assert ": ok: mission 'cmac'" in checked and "note: valid, but it cannot be flown yet" in checked
 
 
 def test_gcs_swarm_import_of_a_bad_file_is_one_error(
