@@ -9,14 +9,23 @@ Rules, per vehicle row (one compiled loop over the vehicles):
 - outside the geofence radius: a tilt that accelerates further out is replaced by level, unless it only
   brakes (given the velocity): the vehicle is moving inward, the tilt opposes its velocity (a . v < 0) and
   points outward no more steeply than straight braking does (a_r / |a| <= -v_r / |v|), so it slows the
-  vehicle down without steering it outward; above the fence ceiling thrust <= hover; below the minimum
-  altitude thrust >= hover (never accelerate down).
+  vehicle down without steering it outward (`_pushes_out`); above the fence ceiling thrust <= hover; below
+  the minimum altitude thrust >= hover (never accelerate down);
+- the site fence (`GuardFence`: the inclusion polygon, exclusion polygons and circles, horizontal ENU m): the
+  same rule as the radius's, with the normal n of the nearest edge (or of the circle) pointing into the
+  forbidden side instead of the radial direction, for every zone the vehicle is in or about to enter: its
+  signed depth into the forbidden side s (m, > 0 outside the polygon or inside an exclusion zone) is
+  s >= -(v . n)^2 / (2 brake) when it closes in at v . n > 0, i.e. it could no longer stop short of the edge
+  braking at `brake` m/s^2 (the guard's braking margin; 0 when it does not close in or its velocity is
+  unknown). Inside the margin a tilt with a . n > 0 is levelled unless it only brakes.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,6 +36,54 @@ from swarm_common.numpy_rules import clip, maximum, minimum
 
 FloatArray = NDArray[np.float64]
 TILT_SLACK = 1e-9  # rad: the guidance's own limit, met to rounding, is left untouched
+INCLUSION, EXCLUSION = 1, -1  # GuardFence.kinds: the vehicle stays inside / outside the ring
+
+
+class ZoneShape(Protocol):
+    """An exclusion zone as the mission gives it (gcs_swarm.mission.model.Zone): a polygon (K, 2) m, or a
+    circle (center (2,) m, radius m)."""
+
+    polygon: np.ndarray | None
+    center: np.ndarray | None
+    radius: float
+
+
+@dataclass(frozen=True, eq=False)
+class GuardFence:
+    """The site fence as the guard's arrays, horizontal ENU m: polygon rings (vertices in order, not closed)
+    stacked in `vertices` (K, 2), ring r being vertices[rings[r]:rings[r + 1]] (rings (R + 1,) int64) of kind
+    kinds[r] (INCLUSION or EXCLUSION); exclusion circles (C, 3) rows (east, north, radius); `brake` m/s^2, the
+    horizontal deceleration the braking margin assumes."""
+
+    vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    rings: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+    kinds: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    circles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    brake: float = 1.0
+
+    @classmethod
+    def of(cls, polygon: np.ndarray | None, exclusions: Sequence[ZoneShape], brake: float) -> GuardFence:
+        """The arrays of an inclusion polygon (K, 2) m (None: none) and exclusion zones; brake m/s^2 > 0."""
+        rings = ([(np.asarray(polygon, dtype=np.float64), INCLUSION)] if polygon is not None else []) + [
+            (np.asarray(zone.polygon, dtype=np.float64), EXCLUSION)
+            for zone in exclusions
+            if zone.polygon is not None
+        ]
+        circles = [
+            (float(zone.center[0]), float(zone.center[1]), float(zone.radius))
+            for zone in exclusions
+            if zone.polygon is None and zone.center is not None
+        ]
+        sizes = [len(ring) for ring, _ in rings]
+        return cls(
+            vertices=np.ascontiguousarray(
+                np.concatenate([r for r, _ in rings]) if rings else np.zeros((0, 2))
+            ),
+            rings=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+            kinds=np.array([kind for _, kind in rings], dtype=np.int64),
+            circles=np.array(circles, dtype=np.float64).reshape(-1, 3),
+            brake=float(brake),
+        )
 
 
 @dataclass(frozen=True)
@@ -38,6 +95,7 @@ class CommandLimits:
     min_altitude: float  # m (ENU z)
     geofence_radius: float  # m, horizontal, around the origin
     geofence_max_alt: float  # m (ENU z)
+    fence: GuardFence = field(default_factory=GuardFence)  # the site fence (none by default)
 
 
 def guard_attitude_commands(
@@ -73,7 +131,104 @@ def guard_attitude_commands(
         float(limits.geofence_radius),
         float(limits.geofence_max_alt),
     )
-    return _guard(r, p, y, t, tilt, x, v, heading, h, bounds, TILT_SLACK)  # type: ignore[no-any-return]
+    fence = limits.fence
+    return _guard(  # type: ignore[no-any-return]
+        r, p, y, t, tilt, x, v, heading, h, bounds, TILT_SLACK,
+        fence.vertices, fence.rings, fence.kinds, fence.circles, fence.brake,
+    )  # fmt: skip
+
+
+@kernel
+def ring_distance(
+    x: float, y: float, vertices: np.ndarray, start: int, end: int
+) -> tuple[bool, float, float, float]:
+    """(inside, distance, n_e, n_n) of the point (x, y) m and the polygon ring vertices[start:end] (in order,
+    not closed): inside by the crossing number (even-odd, as shapely's `contains` off the boundary), the
+    distance m to its nearest edge (shapely's exterior.distance), and the unit normal n of that edge pointing
+    away from the polygon's interior (from the nearest point to the point outside, towards it inside; on the
+    edge itself the edge's outward normal by the ring's orientation, shoelace)."""
+    inside = False
+    best, c_e, c_n, e_e, e_n = np.inf, 0.0, 0.0, 0.0, 0.0
+    twice_area = 0.0
+    j = end - 1
+    for k in range(start, end):
+        x1, y1, x2, y2 = vertices[j, 0], vertices[j, 1], vertices[k, 0], vertices[k, 1]
+        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+            inside = not inside
+        d_e, d_n = x2 - x1, y2 - y1
+        length2 = d_e * d_e + d_n * d_n
+        s = clip(((x - x1) * d_e + (y - y1) * d_n) / length2, 0.0, 1.0) if length2 > 0.0 else 0.0
+        p_e, p_n = x1 + s * d_e, y1 + s * d_n
+        d = np.hypot(x - p_e, y - p_n)
+        if d < best:
+            best, c_e, c_n, e_e, e_n = d, p_e, p_n, d_e, d_n
+        twice_area += x1 * y2 - x2 * y1
+        j = k
+    if best > 0.0:
+        side = -1.0 if inside else 1.0
+        return inside, best, side * (x - c_e) / best, side * (y - c_n) / best
+    length = maximum(np.hypot(e_e, e_n), 1e-300)
+    turn = 1.0 if twice_area > 0.0 else -1.0  # counter-clockwise: the outward normal is the edge turned right
+    return inside, best, turn * e_n / length, -turn * e_e / length
+
+
+@kernel
+def _pushes_out(a_e: float, a_n: float, v_e: float, v_n: float, n_e: float, n_n: float) -> bool:
+    """Whether the horizontal thrust direction (a_e, a_n) accelerates along n (a . n > 0; n need not be
+    unit) other than by only braking: it only brakes when it opposes the velocity (a . v < 0) and its part
+    along n, relative to its size, is at most that of -v (a_n / |a| <= -v_n / |v|, both sides times |a| |v|
+    |n|); a NaN velocity never brakes."""
+    a_out = a_e * n_e + a_n * n_n
+    if not a_out > 0:
+        return False
+    opposes = a_e * v_e + a_n * v_n < 0
+    v_out = v_e * n_e + v_n * n_n
+    not_steeper = a_out * math.hypot(v_e, v_n) <= -v_out * math.hypot(a_e, a_n)
+    return not (opposes and not_steeper)
+
+
+@kernel
+def _fence_pushes_out(
+    x: float,
+    y: float,
+    a_e: float,
+    a_n: float,
+    v_e: float,
+    v_n: float,
+    vertices: np.ndarray,
+    rings: np.ndarray,
+    kinds: np.ndarray,
+    circles: np.ndarray,
+    brake: float,
+) -> bool:
+    """Whether the site fence levels the horizontal thrust direction (a_e, a_n) of a vehicle at (x, y) m
+    moving at (v_e, v_n) m/s (module doc: for each zone, depth s and normal n into the forbidden side)."""
+    for r in range(kinds.shape[0]):
+        inside, d, n_e, n_n = ring_distance(x, y, vertices, rings[r], rings[r + 1])
+        forbidden = inside if kinds[r] == EXCLUSION else not inside
+        depth = d if forbidden else -d
+        if kinds[r] == EXCLUSION:
+            n_e, n_n = -n_e, -n_n
+        if _in_margin(depth, v_e * n_e + v_n * n_n, brake) and _pushes_out(a_e, a_n, v_e, v_n, n_e, n_n):
+            return True
+    for c in range(circles.shape[0]):
+        o_e, o_n = circles[c, 0] - x, circles[c, 1] - y
+        d = np.hypot(o_e, o_n)
+        if not d > 0.0:
+            continue  # at the very centre every direction leads out
+        n_e, n_n = o_e / d, o_n / d
+        depth = circles[c, 2] - d
+        if _in_margin(depth, v_e * n_e + v_n * n_n, brake) and _pushes_out(a_e, a_n, v_e, v_n, n_e, n_n):
+            return True
+    return False
+
+
+@kernel
+def _in_margin(depth: float, closing: float, brake: float) -> bool:
+    """depth m into the forbidden side (> 0 inside it) is within the braking margin of a vehicle closing in
+    at `closing` m/s (v . n): depth >= -closing^2 / (2 brake), the margin 0 when it does not close in."""
+    reach = closing * closing / (2.0 * brake) if closing > 0.0 else 0.0
+    return depth >= -reach
 
 
 @kernel
@@ -89,9 +244,15 @@ def _guard(
     hover: np.ndarray,
     limits: tuple[float, float, float, float, float],
     tilt_slack: float,
+    vertices: np.ndarray,
+    rings: np.ndarray,
+    kinds: np.ndarray,
+    circles: np.ndarray,
+    brake: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """guard_attitude_commands, one loop over the N vehicles; commanded_tilt (N,) rad: arccos(cos roll cos
-    pitch) of the commands; `limits`: CommandLimits' fields in order."""
+    pitch) of the commands; `limits`: CommandLimits' scalar fields in order; vertices .. brake: GuardFence's
+    fields."""
     tilt_max, thrust_max_g, min_altitude, geofence_radius, geofence_max_alt = limits
     n = roll.shape[0]
     r_out, p_out, y_out, t_out = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
@@ -108,19 +269,19 @@ def _guard(
             r, p = r * scale, p * scale
         x_e, y_n, z_u = pos[i, 0], pos[i, 1], pos[i, 2]
         outward = False
-        if math.hypot(x_e, y_n) >= geofence_radius:
+        beyond = math.hypot(x_e, y_n) >= geofence_radius
+        fenced = kinds.shape[0] + circles.shape[0] > 0 and math.isfinite(x_e) and math.isfinite(y_n)
+        if beyond or fenced:
             # horizontal thrust direction of ZYX (yaw, pitch, roll): Rz(yaw) (sin p cos r, -sin r)
             h1, h2 = math.sin(p) * math.cos(r), -math.sin(r)
             a_e = math.cos(y) * h1 - math.sin(y) * h2
             a_n = math.sin(y) * h1 + math.cos(y) * h2
-            if a_e * x_e + a_n * y_n > 0:
-                # it only brakes: it opposes the velocity and its outward part, relative to its size, is at
-                # most that of -v (a_r / |a| <= -v_r / |v|, both sides times |a| |v| |x|)
-                v_e, v_n = vel[i, 0], vel[i, 1]
-                opposes = a_e * v_e + a_n * v_n < 0
-                a_out, v_out = a_e * x_e + a_n * y_n, v_e * x_e + v_n * y_n
-                not_steeper = a_out * math.hypot(v_e, v_n) <= -v_out * math.hypot(a_e, a_n)
-                outward = not (opposes and not_steeper)
+            v_e, v_n = vel[i, 0], vel[i, 1]
+            outward = beyond and _pushes_out(a_e, a_n, v_e, v_n, x_e, y_n)  # the radial direction
+            if fenced and not outward:
+                outward = _fence_pushes_out(
+                    x_e, y_n, a_e, a_n, v_e, v_n, vertices, rings, kinds, circles, brake
+                )
         if outward:
             r, p = 0.0, 0.0
         if z_u >= geofence_max_alt:

@@ -1,0 +1,123 @@
+"""The command guard's site fence (issue 37 item 5): the inclusion polygon and the exclusion polygons and
+circles, with the same only-brake rule as the radius. The geometry (`ring_distance`) is checked against
+shapely on random simple polygons, compiled and as plain Python; the rule on hand-made cases."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from shapely.geometry import Point, Polygon
+from shapely.ops import nearest_points
+
+from gcs_swarm.link.command_limits import CommandLimits, GuardFence, guard_attitude_commands, ring_distance
+
+G_TAN_35 = 9.8 * math.tan(math.radians(35.0))  # m/s^2, the braking the runner gives the guard
+SQUARE = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])  # the inclusion polygon
+HOLE = np.array([[40.0, 40.0], [40.0, 60.0], [60.0, 60.0], [60.0, 40.0]])  # an exclusion polygon, clockwise
+CIRCLE = SimpleNamespace(polygon=None, center=np.array([20.0, 80.0]), radius=5.0)
+FENCE = GuardFence.of(SQUARE, [SimpleNamespace(polygon=HOLE, center=None, radius=0.0), CIRCLE], G_TAN_35)
+LIMITS = CommandLimits(math.radians(35.0), 2.0, 1.0, 1000.0, 500.0, FENCE)
+
+
+@st.composite
+def star_polygons(draw: st.DrawFn) -> np.ndarray:
+    """Simple polygons (K, 2) m: K vertices at increasing angles around a centre, random radii (star-shaped,
+    so simple), in either orientation."""
+    k = draw(st.integers(3, 12))
+    cuts = sorted(draw(st.lists(st.floats(0.0, 1.0), min_size=k, max_size=k, unique=True)))
+    radii = draw(st.lists(st.floats(1.0, 80.0), min_size=k, max_size=k))
+    centre = draw(st.tuples(st.floats(-500.0, 500.0), st.floats(-500.0, 500.0)))
+    angles = 2.0 * math.pi * np.array(cuts)
+    ring = np.column_stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)])
+    return ring[::-1].copy() if draw(st.booleans()) else ring
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "plain Python"])
+@settings(max_examples=300, deadline=None)
+@given(ring=star_polygons(), offset=st.tuples(st.floats(-120.0, 120.0), st.floats(-120.0, 120.0)))
+def test_ring_distance_is_shapelys(compiled: bool, ring: np.ndarray, offset: tuple[float, float]) -> None:
+    polygon = Polygon(ring)
+    assume(polygon.is_valid and polygon.area > 1.0)
+    x, y = float(ring[:, 0].mean() + offset[0]), float(ring[:, 1].mean() + offset[1])
+    point = Point(x, y)
+    expected = polygon.exterior.distance(point)
+    assume(expected > 1e-6)  # on the boundary itself inside/outside is a matter of rounding
+    law = ring_distance if compiled else ring_distance.py_func
+    inside, distance, n_e, n_n = law(x, y, ring, 0, len(ring))
+    assert inside == polygon.contains(point)
+    assert distance == pytest.approx(expected, abs=1e-9)
+    # the normal leads from shapely's nearest boundary point to the point (outside) or away from it (inside)
+    nearest = nearest_points(polygon.exterior, point)[0]
+    side = -1.0 if inside else 1.0
+    assert math.hypot(n_e, n_n) == pytest.approx(1.0)
+    assert x - side * distance * n_e == pytest.approx(nearest.x, abs=1e-6)
+    assert y - side * distance * n_n == pytest.approx(nearest.y, abs=1e-6)
+
+
+def test_on_an_edge_the_normal_points_out_of_either_orientation() -> None:
+    for ring, normal in ((SQUARE, (1.0, 0.0)), (SQUARE[::-1].copy(), (1.0, 0.0)), (HOLE, (-1.0, 0.0))):
+        x = 100.0 if ring is not HOLE else 40.0
+        _, distance, n_e, n_n = ring_distance(x, 50.0, ring, 0, len(ring))
+        assert distance == 0.0 and (n_e, n_n) == pytest.approx(normal)
+
+
+def _guard(pos: tuple[float, float], toward: tuple[float, float], vel: tuple[float, float] | None):
+    """Guard one command at yaw 0 tilting 0.3 rad toward the horizontal direction `toward`, at pos (m ENU,
+    10 m up) with horizontal velocity vel m/s (None: unknown)."""
+    s = math.sin(0.3) / math.hypot(*toward)
+    roll = math.asin(-toward[1] * s)  # horizontal thrust direction at yaw 0: (sin p cos r, -sin r)
+    pitch = math.asin(toward[0] * s / math.cos(roll))
+    v = None if vel is None else np.array([[vel[0], vel[1], 0.0]])
+    out = guard_attitude_commands(
+        np.array([roll]), np.array([pitch]), np.zeros(1), np.array([0.5]), np.array([[pos[0], pos[1], 10.0]]),
+        np.zeros(1), np.full(1, 0.5), LIMITS, vel=v,
+    )  # fmt: skip
+    return bool(out[4][0]), (out[0][0], out[1][0])
+
+
+# Braking margin at 5 m/s closing: 5^2 / (2 * 9.8 tan 35 deg) = 25 / 13.724 = 1.82 m.
+@pytest.mark.parametrize(
+    ("why", "pos", "toward", "vel"),
+    [
+        ("outside the polygon, tilting further out", (105.0, 50.0), (1.0, 0.0), (0.0, 0.0)),
+        ("outside the polygon, velocity unknown", (105.0, 50.0), (1.0, 0.0), None),
+        ("1 m inside, closing at 5 m/s (margin 1.82 m)", (99.0, 50.0), (1.0, 0.2), (5.0, 0.0)),
+        ("inside the exclusion polygon, tilting deeper", (45.0, 50.0), (1.0, 0.0), (0.0, 0.0)),
+        ("1 m short of the exclusion polygon, closing at 5 m/s", (39.0, 50.0), (1.0, 0.0), (5.0, 0.0)),
+        ("1 m short of the exclusion circle, closing at 5 m/s", (14.0, 80.0), (1.0, 0.0), (5.0, 0.0)),
+        ("inside the circle, tilting towards its centre", (18.0, 80.0), (1.0, 0.0), (0.0, 0.0)),
+    ],
+)
+def test_a_tilt_into_the_fence_is_levelled(why, pos, toward, vel) -> None:
+    changed, tilt = _guard(pos, toward, vel)
+    assert changed and tilt == (0.0, 0.0), why
+
+
+@pytest.mark.parametrize(
+    ("why", "pos", "toward", "vel"),
+    [
+        ("3 m inside, closing at 5 m/s (beyond the 1.82 m margin)", (97.0, 50.0), (1.0, 0.0), (5.0, 0.0)),
+        ("1 m inside, not closing in", (99.0, 50.0), (1.0, 0.0), (0.0, 5.0)),
+        ("outside the polygon, tilting back in", (105.0, 50.0), (-1.0, 0.0), (0.0, 0.0)),
+        ("outside the polygon, flying back in and braking", (105.0, 50.0), (1.0, 0.0), (-8.0, 0.0)),
+        ("inside the exclusion polygon, tilting out of it", (45.0, 50.0), (-1.0, 0.0), (0.0, 0.0)),
+        ("1 m short of the circle, tilting along it", (14.0, 80.0), (0.0, 1.0), (5.0, 0.0)),
+        ("2 m short of the exclusion polygon, closing at 5 m/s", (38.0, 50.0), (1.0, 0.0), (5.0, 0.0)),
+    ],
+)
+def test_a_tilt_that_keeps_out_of_the_fence_or_only_brakes_is_left(why, pos, toward, vel) -> None:
+    changed, tilt = _guard(pos, toward, vel)
+    assert not changed and math.hypot(*tilt) > 0.29, why
+
+
+def test_a_row_without_position_skips_the_fence() -> None:
+    out = guard_attitude_commands(
+        np.array([0.0]), np.array([0.3]), np.zeros(1), np.array([0.5]), np.full((1, 3), np.nan),
+        np.zeros(1), np.full(1, 0.5), LIMITS, vel=np.zeros((1, 3)),
+    )  # fmt: skip
+    assert not out[4][0] and out[1][0] == 0.3
