@@ -46,8 +46,9 @@ from gcs_swarm.flight.takeover import TakeoverWatch
 from gcs_swarm.flight.tick_timing import ASSESS, RECORD, SEND, MissedFramesByPhase, TickTiming
 from gcs_swarm.guidance.fleet_controller import Command
 from gcs_swarm.guidance.obstacles import centres_at
+from gcs_swarm.guidance.params import G
 from gcs_swarm.link.autopilots import formation_mode, launch_mode, takeoff_mode
-from gcs_swarm.link.command_limits import CommandLimits
+from gcs_swarm.link.command_limits import CommandLimits, GuardFence
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams
@@ -86,6 +87,12 @@ class MissionRunner:
             min_altitude=mission.safety.min_altitude,
             geofence_radius=mission.safety.geofence_radius,
             geofence_max_alt=mission.safety.geofence_max_alt,
+            # the site fence; its braking margin assumes full-tilt braking, g tan(tilt_max)
+            fence=GuardFence.of(
+                mission.fence.polygon,
+                mission.fence.exclusions,
+                G * math.tan(math.radians(mission.limits.tilt_max_deg)),
+            ),
         )
         self.commands_limited = 0  # vehicle-ticks whose command the final guard had to change
         self.last_command: Command | None = None

@@ -43,9 +43,12 @@ class ZoneShape(Protocol):
     """An exclusion zone as the mission gives it (gcs_swarm.mission.model.Zone): a polygon (K, 2) m, or a
     circle (center (2,) m, radius m)."""
 
-    polygon: np.ndarray | None
-    center: np.ndarray | None
-    radius: float
+    @property
+    def polygon(self) -> np.ndarray | None: ...
+    @property
+    def center(self) -> np.ndarray | None: ...
+    @property
+    def radius(self) -> float: ...
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,10 +30,10 @@ def star_polygons(draw: st.DrawFn) -> np.ndarray:
     so simple), in either orientation."""
     k = draw(st.integers(3, 12))
     cuts = sorted(draw(st.lists(st.floats(0.0, 1.0), min_size=k, max_size=k, unique=True)))
-    radii = draw(st.lists(st.floats(1.0, 80.0), min_size=k, max_size=k))
+    radii = np.array(draw(st.lists(st.floats(1.0, 80.0), min_size=k, max_size=k)))
     centre = draw(st.tuples(st.floats(-500.0, 500.0), st.floats(-500.0, 500.0)))
     angles = 2.0 * math.pi * np.array(cuts)
-    ring = np.column_stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)])
+    ring: np.ndarray = np.column_stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)])
     return ring[::-1].copy() if draw(st.booleans()) else ring
 
 
@@ -47,7 +47,7 @@ def test_ring_distance_is_shapelys(compiled: bool, ring: np.ndarray, offset: tup
     point = Point(x, y)
     expected = polygon.exterior.distance(point)
     assume(expected > 1e-6)  # on the boundary itself inside/outside is a matter of rounding
-    law = ring_distance if compiled else ring_distance.py_func
+    law = ring_distance if compiled else ring_distance.py_func  # type: ignore[attr-defined]
     inside, distance, n_e, n_n = law(x, y, ring, 0, len(ring))
     assert inside == polygon.contains(point)
     assert distance == pytest.approx(expected, abs=1e-9)
