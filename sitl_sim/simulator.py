@@ -13,6 +13,7 @@ import logging
 import math
 import selectors
 import socket
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -509,7 +510,11 @@ class Simulator:
 
     def counters_report(self) -> list[str]:
         """One line per vehicle with its link counters, then how far behind the wall clock a paced (real-time,
-        --speedup or orphaned) run fell, when any of it was paced."""
+        --speedup or orphaned) run fell, when any of it was paced. Uplink datagrams a radio still holds staged
+        are timed first (sitl_sim.network.radio), so that its counts do not depend on whether the stop came
+        before or after the simulator's last look at the network."""
+        for medium in self._media:
+            medium.settle(sys.maxsize)
         lines = [
             f"vehicle {ep.index} (sysid {ep.sysid}): {ep.counters.summary()} {ep.channel.summary()}"
             for ep in self.endpoints

