@@ -16,7 +16,9 @@ import re
 import numpy as np
 from scipy.sparse.csgraph import breadth_first_order
 
+from gcs_swarm.guidance.params import G
 from gcs_swarm.link.autopilots import DIALECTS
+from gcs_swarm.mission.geometry import mission_offsets
 from gcs_swarm.mission.model import Mission
 from gcs_swarm.mission.schema import MissionFile, Range, SafetySection, describe
 from gcs_swarm.mission.yaml_tree import MissionError, Node
@@ -336,24 +338,80 @@ def _in_fence(mission: Mission, root: Node, point: np.ndarray, node: Node, what:
             )
 
 
-# what a mission may carry that the flight cannot yet honour, and who is to make it so (issue 37)
+def fence_reach(mission: Mission) -> tuple[float, str]:
+    """(m, how it is made up): how far from the leader's straight legs the formation may be, which the site
+    fence must leave free: the widest slot's horizontal distance from the leader + the vehicle's collision
+    radius + the command guard's braking margin at the leader's speed cap, v^2 / (2 g tan(tilt_max)) (the
+    guard levels tilts towards a fence edge within that margin, gcs_swarm.link.command_limits)."""
+    offsets = mission_offsets(mission)
+    slots = float(np.hypot(offsets[:, 0], offsets[:, 1]).max())
+    body = float(mission.safety.collision_radius)
+    limits = mission.limits
+    braking = limits.v_xy_leader**2 / (2.0 * G * math.tan(math.radians(limits.tilt_max_deg)))
+    how = f"widest slot {slots:.2f} m + vehicle radius {body:g} m + braking margin {braking:.2f} m"
+    return slots + body + braking, how
+
+
+def _fenced_legs(mission: Mission, root: Node) -> MissionError | None:
+    """The refusal to fly unless every straight leg of the leader's route (its start, then each waypoint up
+    to the goal), widened by the formation's reach (fence_reach), lies inside the fence polygon and clear of
+    every exclusion zone: the guidance flies the legs and does not itself know the fence, so in normal flight
+    it must not need the guard. None when they do (or there is no site fence)."""
+    fence = mission.fence
+    if fence.polygon is None and not fence.exclusions:
+        return None
+    from shapely.geometry import LineString, Point, Polygon
+
+    reach, how = fence_reach(mission)
+    leader = mission.vehicles[mission.leader_index]
+    points = [np.asarray(leader.start.position[:2], dtype=float)]
+    points += [np.asarray(w[:2], dtype=float) for w in mission.waypoints]
+    written_as_goal = len(mission.waypoints) == 1 and root.at(("waypoints",)).value is None
+    for k in range(1, len(points)):
+        a, b = points[k - 1], points[k]
+        leg = LineString([a, b]) if np.any(a != b) else Point(a)
+        swept = leg.buffer(reach)
+        node = root.at(("goal",) if written_as_goal else ("waypoints", k - 1))
+        came = "the leader's start" if k == 1 else f"waypoints[{k - 2}]"
+        what = f"the leg from {came} to {'the goal' if written_as_goal else f'waypoints[{k - 1}]'}"
+        if fence.polygon is not None:
+            polygon = Polygon(fence.polygon)
+            if not polygon.contains(swept):
+                gap = polygon.exterior.distance(leg) if polygon.contains(leg) else 0.0
+                return node.error(
+                    f"{what} comes within {gap:.2f} m of the fence polygon's edge (safety.geofence.polygon); "
+                    f"the formation needs {reach:.2f} m beside its leader's legs ({how})"
+                )
+        for j, zone in enumerate(fence.exclusions):
+            shape = (
+                Polygon(zone.polygon) if zone.polygon is not None else Point(zone.center).buffer(zone.radius)
+            )
+            if swept.intersects(shape):
+                given = root.at(("safety", "geofence", "exclusions", j))
+                return node.error(
+                    f"{what} comes within {leg.distance(shape):.2f} m of exclusion zone {zone.name!r} "
+                    f"({given.path}, line {given.line}); the formation needs {reach:.2f} m beside its "
+                    f"leader's legs ({how})"
+                )
+    return None
+
+
+# what a mission may carry that the flight cannot yet honour, and who is to make it so (issue 37); the site
+# fence (safety.geofence.polygon, .exclusions) is flown: enforced by the command guard, kept clear by the legs
 NOT_YET_FLOWN = (
     (("world", "prisms"), "prisms are read and checked but not yet avoided by the guidance"),
     (("world", "cylinders"), "cylinders are read and checked but not yet avoided by the guidance"),
-    (("safety", "geofence", "polygon"), "the fence polygon is checked but not yet enforced in flight"),
-    (("safety", "geofence", "exclusions"), "exclusion zones are checked but not yet enforced in flight"),
     (("safety", "rally"), "rally points are read but not yet used by the failsafes"),
 )
 
 
 def not_yet_flown(mission: Mission, root: Node) -> MissionError | None:
-    """The refusal to fly a mission with a site part the flight cannot yet honour (NOT_YET_FLOWN), or None:
-    nothing is silently left out of a flight."""
+    """The refusal to fly a mission with a site part the flight cannot yet honour (NOT_YET_FLOWN), or whose
+    leader's legs bring the formation too near the site fence (_fenced_legs), or None: nothing is silently
+    left out of a flight."""
     given = {
         ("world", "prisms"): bool(mission.prisms),
         ("world", "cylinders"): bool(mission.cylinders),
-        ("safety", "geofence", "polygon"): mission.fence.polygon is not None,
-        ("safety", "geofence", "exclusions"): bool(mission.fence.exclusions),
         ("safety", "rally"): bool(mission.rally),
     }
     for loc, sentence in NOT_YET_FLOWN:
@@ -362,7 +420,7 @@ def not_yet_flown(mission: Mission, root: Node) -> MissionError | None:
                 f"{sentence}; the loader refuses to fly such a mission until it is (`gcs-swarm check` "
                 "validates it)"
             )
-    return None
+    return _fenced_legs(mission, root)
 
 
 def _one_leader(mission: Mission, root: Node) -> None:

@@ -173,9 +173,13 @@ def test_fences_prisms_and_cylinders_are_carried_in_enu_and_refused_for_flight()
         parse_mission(SITE)
 
 
-def test_a_fence_alone_is_refused_for_flight_with_one_error() -> None:
+def test_a_fence_too_near_the_route_is_refused_for_flight_with_one_error() -> None:
+    # the fence is flown (issue 37 item 5) if the formation keeps clear of it: the pond (centre (20, 15),
+    # radius 3) is 15 - 3 = 12 m from the leg along y = 0, the formation needs its widest slot 10 m (default
+    # spacing) + the vehicle radius 0.175 m + the braking margin 10^2 / (2 * 9.8 * tan 35 deg) = 7.29 m
     text = SITE.split("world:")[0]
-    with pytest.raises(MissionError, match=r"<string>:8: safety.geofence.polygon: .*not yet enforced"):
+    message = r"<string>:5: goal: the leg from the leader's start to the goal comes within 12.00 m of .*pond"
+    with pytest.raises(MissionError, match=message + r".* needs 17.46 m"):
         parse_mission(text)
 
 
