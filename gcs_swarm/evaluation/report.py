@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gcs_swarm.evaluation import figures, flight_quality, metrics, signals
+from gcs_swarm.evaluation.fence_figures import fence_figures
 from gcs_swarm.evaluation.metrics import rounded
 from gcs_swarm.evaluation.run_data import CommandLog, Trajectories, load_commands, load_trajectories
 from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE
@@ -181,6 +182,7 @@ def _report_from(
         "collisions": int(crashed_any.sum()),
         "min_separation_m": rounded(min_sep),
         "min_obstacle_clearance_m": rounded(clearance),
+        **fence_figures(traj.pos, mission),  # fence_breaches, min_fence_margin_m: with a site fence only
         "formation_rms_m": rounded(formation_rms),
         "formation_max_m": rounded(formation_max),
         "oscillation_time_s": rounded(t_osc),
