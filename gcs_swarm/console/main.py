@@ -67,6 +67,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     latencies: list[float] = []
     limited = 0
     link_stats: dict[str, dict[str, dict[str, int]]] | None = None
+    link_use: dict[str, dict[str, object]] | None = None
     status = EXIT_OK
     if not interactive:
         print(f"run folder {run_dir}", flush=True)
@@ -108,6 +109,8 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
                 limited = runner.commands_limited
                 timing = runner.timing_summary()
                 link_stats = {"vehicles": fleet.stats(), "forwards": fleet.forward_stats()}
+                link_use = fleet.link_use.summary()
+                result.events.extend(fleet.link_use.events)
     except (SimulatorError, MissionError) as exc:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
@@ -115,7 +118,9 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         if sim is not None:
             sim.stop()
     wall_s = time.monotonic() - wall0
-    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing)
+    write_flight(
+        run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing, link_use
+    )
     if result.t_formation_start is not None:
         report = write_report(run_dir, mission)
         print(

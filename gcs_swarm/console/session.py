@@ -43,6 +43,7 @@ from gcs_swarm.flight.phase import Phase
 from gcs_swarm.flight.preflight import PreflightError
 from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.connection import LinkError
+from gcs_swarm.link.link_use import DOWN, UP
 from gcs_swarm.link.streams import telemetry_rates
 from gcs_swarm.link.telemetry import Event
 from gcs_swarm.link.vehicle import VehicleLink
@@ -367,6 +368,9 @@ class FlightSession:
                     ),
                     rtt_ms=float(st.rtt_ms[i]),
                     taken=bool(runner.takeover.taken[i]),
+                    up_B_s=float(fleet.link_use.rate[i, UP]),
+                    down_B_s=float(fleet.link_use.rate[i, DOWN]),
+                    budget_B_s=fleet.link_use.budget_B_s,
                 )
             )
         goal = runner.controller.waypoints[-1]

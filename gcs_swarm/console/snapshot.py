@@ -43,6 +43,16 @@ class VehicleRow:
     warnings: tuple[str, ...]
     rtt_ms: float = math.nan  # wall ms of the latest TIMESYNC round trip
     taken: bool = False  # taken over by another controller: left to its operator (never landed at quit)
+    # MAVLink bytes/s to (up) and from (down) the vehicle over the latest second of vehicle time, and the
+    # budget of its link in bytes/s, up and down together (None: none given) (link.link_use)
+    up_B_s: float = math.nan
+    down_B_s: float = math.nan
+    budget_B_s: float | None = None
+
+    @property
+    def over_budget(self) -> bool:
+        """The latest second's up + down went over the link budget."""
+        return self.budget_B_s is not None and self.up_B_s + self.down_B_s > self.budget_B_s
 
     @property
     def altitude(self) -> float:

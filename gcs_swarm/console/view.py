@@ -38,6 +38,9 @@ _COLUMNS = (  # header, width (right-aligned unless the header starts with "<")
     ("slot m", 7),
     ("obst m", 7),
     ("near m", 7),
+    ("up B/s", 7),
+    ("dn B/s", 7),
+    ("budget", 7),
     ("<warnings", 0),
 )
 
@@ -76,12 +79,17 @@ def _vehicle_line(row: VehicleRow, name_width: int, phase: Phase) -> Line:
         leader_slot or _num(row.slot_error, 2),
         _num(row.obstacle, 1),
         _num(row.neighbour, 1),
+        _num(row.up_B_s, 0),
+        _num(row.down_B_s, 0),
+        _num(row.budget_B_s, 0),
         "",
     ]
     base = "class:stale" if ("STALE" in row.warnings or "LOST" in row.warnings) else ""
     line: Line = [(base, _cells(values, name_width))]
     for word in row.warnings:
         line += [("", " "), (WARNING_STYLE[word], word)]
+    if row.over_budget:  # the link carries more than its budget (docs/mission-schema.md link.budget_bps)
+        line += [("", " "), ("class:failsafe", "OVER BUDGET")]
     return line
 
 
@@ -131,6 +139,7 @@ def status_lines(snapshot: Snapshot) -> list[str]:
             f"{r.name} (sysid {r.sysid if r.sysid is not None else '-'}): {r.mode} "
             f"{'armed' if r.armed else 'disarmed'}{', airborne' if r.airborne else ''}, "
             f"at ({x}, {y}, {z}) m, {_num(r.speed, 1)} m/s, last packet {_num(r.age_s, 1)} s ago, "
-            f"position loss {loss}: {flags}"
+            f"position loss {loss}, link {_num(r.up_B_s, 0)} B/s up {_num(r.down_B_s, 0)} B/s down "
+            f"(budget {_num(r.budget_B_s, 0)} B/s): {flags}"
         )
     return lines

@@ -207,6 +207,8 @@ def _report_from(
         "taken_over": list(flight.get("taken_over", [])),
         "left_to_operator": list(flight.get("left_to_operator", [])),
         "events": list(flight.get("events", [])),
+        # bytes/s each way per vehicle and the link budget (flight.json link_use; None in older runs)
+        "link_use": flight.get("link_use"),
         "source": traj.source,
     }
 
@@ -311,6 +313,24 @@ def render_markdown(report: dict[str, Any]) -> str:
             f"{_fmt(cruise['spacing_max_abs_error_m'])} m, all within 1 m "
             f"{_fmt(cruise['spacing_within_1m_fraction'])} of the time).",
         ]
+    link_use = report.get("link_use")
+    if link_use:
+        lines += [
+            "",
+            "Link use, MAVLink bytes/s (framing and signature included) over the flight:",
+            "",
+            "| vehicle | up mean | up peak | down mean | down peak | budget (up + down) | over budget s | "
+            "radio txbuf min % |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for name, use in link_use.items():
+            radio = use.get("radio_status") or {}
+            lines.append(
+                f"| {name} | {_fmt(use.get('up_mean_B_s'))} | {_fmt(use.get('up_peak_B_s'))} | "
+                f"{_fmt(use.get('down_mean_B_s'))} | {_fmt(use.get('down_peak_B_s'))} | "
+                f"{_fmt(use.get('budget_B_s'))} | {_fmt(use.get('over_budget_s'))} | "
+                f"{_fmt(radio.get('txbuf_min_pct'))} |"
+            )
     figures = report.get("figures")
     if figures is not None:
         lines += ["", "## Figures", ""]

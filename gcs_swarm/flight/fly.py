@@ -114,6 +114,7 @@ def write_flight(
     commands_limited: int,
     link_stats: dict[str, dict[str, dict[str, int]]] | None = None,
     tick_timing: dict[str, object] | None = None,
+    link_use: dict[str, dict[str, object]] | None = None,
 ) -> None:
     """flight.json: what the ground station did (phases, arrival, lost vehicles, events, tick latency, how
     many vehicle-ticks' commands the final guard changed, stale-telemetry figures of docs/reliability.md);
@@ -154,6 +155,7 @@ def write_flight(
         ],
         "wall_duration_s": wall_s,
         "link_stats": link_stats,  # {"vehicles": Fleet.stats(), "forwards": Fleet.forward_stats()}
+        "link_use": link_use,  # bytes/s each way per vehicle and the budget (link.link_use.LinkUse.summary)
     }
     (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
 
@@ -198,6 +200,7 @@ def mission_fleet(
         stream_rate_hz=mission.run.control_rate_hz,
         forwards=[ForwardConfig(text, mission.run.forward_rw) for text in mission.run.forward],
         spin_s=spin_s,
+        link_budget_bps=mission.link.budget_bps,
     )
 
 
@@ -277,6 +280,7 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     status = EXIT_OK
     error: str | None = None
     link_stats: dict[str, dict[str, dict[str, int]]] | None = None
+    link_use: dict[str, dict[str, object]] | None = None
     say(f"run folder {run_dir}")
     if key is not None:
         say(f"MAVLink 2 signing with the key in {key_file}")
@@ -308,6 +312,8 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
                     runner.restore_params()
                     result = runner.result
                 link_stats = {"vehicles": fleet.stats(), "forwards": fleet.forward_stats()}
+                link_use = fleet.link_use.summary()
+                result.events.extend(fleet.link_use.events)
                 for line in fleet.link_summary():
                     say(line)
     except (MissionError, SimulatorError, PreflightError) as exc:
@@ -330,7 +336,9 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
     limited = runner.commands_limited if runner is not None else 0
     wall_s = time.monotonic() - wall0
     timing = runner.timing_summary() if runner is not None else None
-    write_flight(run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing)
+    write_flight(
+        run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing, link_use
+    )
     flown = Flown(status, result, mission, run_dir, error=error)
     if status == EXIT_OK and result.reattached == "land":
         say("every vehicle landed and disarmed" if result.landed_all else "not every vehicle disarmed")

@@ -32,6 +32,10 @@ class LinkStats:
     stream_requests: int = 0  # times the stream watchdog asked a quiet vehicle for its telemetry again
     unsigned: int = 0  # with a signing key: unsigned packets refused (never decoded)
     bad_signature: int = 0  # with a signing key: forged, replayed or too old signed packets refused
+    # MAVLink bytes on this vehicle's connection (framing and signature included): of the packets counted in
+    # `sent` (the ground station's and those a read-write forward routed to it) and in `received`
+    bytes_sent: int = 0
+    bytes_received: int = 0
 
 
 class Channel:
@@ -86,6 +90,7 @@ class Channel:
         self.mav.seq = (self.mav.seq + 1) % 256
         if endpoint.send(packet, self.sysid if self.sysid is not None else self.expected_sysid):
             self.stats.sent += 1
+            self.stats.bytes_sent += len(packet)
             if self.tlog is not None:
                 self.tlog.write(packet)
         else:

@@ -41,6 +41,7 @@ from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_name
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.housekeeping import Housekeeping
+from gcs_swarm.link.link_use import LinkUse
 from gcs_swarm.link.lockstep import frame_ready, take_new_frame
 from gcs_swarm.link.network import Network
 from gcs_swarm.link.operations import Operation, Timeout
@@ -92,9 +93,11 @@ class Fleet:
         stream_rate_hz: float = 50.0,
         forwards: Sequence[ForwardConfig] = (),
         spin_s: float = 0.0,
+        link_budget_bps: float | None = None,
     ) -> None:
         """`stream_rate_hz`: the rate of the state telemetry asked for as soon as a vehicle is heard
-        (`telemetry_rates`; the control loop's rate)."""
+        (`telemetry_rates`; the control loop's rate). `link_budget_bps`: bit/s each vehicle's link carries
+        for the ground station, up and down together (link.link_use; None: no budget)."""
         _validate(vehicles, gcs_sysid, gcs_compid)
         self.stream_rate_hz = stream_rate_hz
         self.configs = list(vehicles)
@@ -111,6 +114,7 @@ class Fleet:
         self._by_name = {link.name: link for link in self.links}
         self.network = Network(self.links, signing_key, forwards, spin_s=spin_s)
         self.housekeeping = Housekeeping(self.links, self.state)  # heartbeats, loss checks, stream watchdog
+        self.link_use = LinkUse(self.links, link_budget_bps)  # bytes/s each way per vehicle, the budget
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
         # wall s every pump so far spent blocked in select for packets, and the rest of its time (decoding
         # what arrived, heartbeats, loss checks, on_pump): read as differences (flight.tick_timing)
@@ -266,6 +270,8 @@ class Fleet:
         start = time.monotonic()
         now = self.network.receive(timeout_s)  # time.monotonic() once select returned
         self.housekeeping.run(now, self.loss_timeout_s, self.loss_wall_timeout_s)
+        if self.state.clock_ms >= self.link_use.next_ms:
+            self.link_use.sample(self.state.clock_ms)
         if self.on_pump is not None:
             self.on_pump()
         self.pump_wait_s += now - start

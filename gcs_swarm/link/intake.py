@@ -83,6 +83,7 @@ class Intake:
             np.empty(MAX_DATAGRAMS, dtype=np.int64),
             np.zeros(len(links), dtype=np.int64),
             np.zeros(len(links), dtype=np.int64),
+            np.zeros(len(links), dtype=np.int64),
             np.full(MAX_DATAGRAMS, -1, dtype=np.int64),
             np.empty(_RECORDS_BYTES, dtype=np.uint8),
             np.empty(_MAX_RECORDS, dtype=np.int64),
@@ -178,8 +179,11 @@ class Intake:
                 self._general(endpoint, data[offset:packet_end], d, now)
                 p = start + packet_end
         for row in np.flatnonzero(g.received):
-            self.links[row].channel.stats.received += int(g.received[row])
+            stats = self.links[row].channel.stats
+            stats.received += int(g.received[row])
+            stats.bytes_received += int(g.received_bytes[row])
         g.received[:] = 0
+        g.received_bytes[:] = 0
         self._count = 0
         self._used = 0
 

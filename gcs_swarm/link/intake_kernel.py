@@ -251,6 +251,7 @@ class Gathered(NamedTuple):
     )  # (D,) int64: the endpoint datagram k was read from (-1: all of it to the general path)
     compid: np.ndarray  # (N,) int64: each vehicle's autopilot component
     received: np.ndarray  # (N,) int64: packets taken per vehicle
+    received_bytes: np.ndarray  # (N,) int64: their bytes (framing and signature included)
     taken_sysid: np.ndarray  # (D,) int64: the sysid of datagram k's latest taken packet (-1: none)
     records: np.ndarray  # uint8: the tlog records of the packets taken (8-byte `stamp`, then the packet)
     record_starts: np.ndarray  # int64: record k starts at byte record_starts[k]
@@ -340,6 +341,7 @@ def take_packets(
                 )
             outcome |= heard(i, now, s)
             g.received[i] += 1
+            g.received_bytes[i] += packet_end - p
             g.taken_sysid[d] = buf[p + 5]
             if keep:
                 g.record_starts[recorded] = written
@@ -379,5 +381,5 @@ def warm_up() -> None:
     heard(0, 0.0, s)
     one = np.zeros(1, dtype=np.int64)
     bytes_ = np.zeros(8, dtype=np.uint8)
-    g = Gathered(bytes_, one, one, one, one, one, one, bytes_, one, bytes_)
+    g = Gathered(bytes_, one, one, one, one, one, one, one, bytes_, one, bytes_)
     take_packets(g, 0, 0, 0, np.full((1, 256), -1, dtype=np.int64), False, -1, -1, False, s, 0.0, 0.0)

@@ -191,8 +191,10 @@ class Network:
             packet = msg.get_msgbuf()
             for link in links:
                 endpoint = link.channel.endpoint
-                if endpoint is not None and endpoint.send(packet, link.sysid) and self._tlog is not None:
-                    self._tlog.write(packet)
+                if endpoint is not None and endpoint.send(packet, link.sysid):
+                    link.channel.stats.bytes_sent += len(packet)
+                    if self._tlog is not None:
+                        self._tlog.write(packet)
 
     def _deliver(self, endpoint: Endpoint, msg: MAVLinkMessage, peer: Any, now: float) -> None:
         mtype = msg.get_type()
@@ -223,8 +225,11 @@ class Network:
         caller has it): counted, garbage and other systems set aside, the rest handed to the link."""
         stats = link.channel.stats
         stats.received += 1
+        stats.bytes_received += len(msg.get_msgbuf())
         if mtype is None:
             mtype = msg.get_type()
+        if mtype == "RADIO_STATUS":  # the radio's own report (sysid 51 for SiK): kept, never bound to
+            link.radio.update(msg)
         if mtype == "BAD_DATA":
             if not is_signature_rejection(msg):
                 stats.bad += 1

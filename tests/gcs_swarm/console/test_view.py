@@ -100,7 +100,10 @@ def test_fleet_table_lines_up_and_styles_warnings() -> None:
     text = [plain(line) for line in lines]
     assert (
         text[0].split()
-        == "name sysid age s loss rtt ms mode armed alt m m/s slot m obst m near m warnings".split()
+        == (
+            "name sysid age s loss rtt ms mode armed alt m m/s slot m obst m near m up B/s dn B/s budget "
+            "warnings"
+        ).split()
     )
     assert text[1].split()[:10] == ["lead", "1", "0.1", "0%", "-", "GUIDED", "ARMED", "10.0", "5.0", "lead"]
     assert text[2].endswith("EMERGENCY") and "2.1" in text[2]
@@ -145,3 +148,21 @@ def test_event_and_status_lines() -> None:
     assert len(lines) == 3
     assert "lead (sysid 1): GUIDED armed, airborne, at (1.0, 2.0, 10.0) m" in lines[1]
     assert lines[2].endswith("STALE")
+
+
+def test_fleet_table_shows_link_use_beside_the_budget() -> None:
+    """Up 3150 B/s (SET_ATTITUDE_TARGET: 63 bytes at 50 Hz) and down 4000 B/s (two 40-byte messages at 50 Hz)
+    against a budget of 6275 B/s (a 64 kbit/s SiK radio, 10.2 bit times a byte): 7150 > 6275, over it."""
+    rows = (
+        row("lead", up_B_s=3150.0, down_B_s=4000.0, budget_B_s=6275.0),
+        row("right", up_B_s=1000.0, down_B_s=2000.0, budget_B_s=6275.0),
+        row("left"),  # not measured yet, no budget
+    )
+    lines = fleet_table(snapshot(rows))
+    text = [plain(line) for line in lines]
+    assert text[1].split()[12:16] == ["3150", "4000", "6275", "OVER"]
+    assert ("class:failsafe", "OVER BUDGET") in lines[1]
+    assert text[2].split()[12:15] == ["1000", "2000", "6275"] and "OVER" not in text[2]
+    assert text[3].split()[12:15] == ["-", "-", "-"]
+    status = status_lines(snapshot(rows))
+    assert "link 3150 B/s up 4000 B/s down (budget 6275 B/s)" in status[1]

@@ -177,3 +177,32 @@ def test_a_flight_json_without_the_count_reports_none(quickstart_mission: Missio
     report = report_from(_hovering(mission), None, mission, flight)
     assert report["commands_limited"] is None
     assert "| commands_limited | - |" in render_markdown(report)
+
+
+def test_link_use_goes_from_flight_json_into_the_report(
+    run_folder: Path, quickstart_mission: Mission, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _hide_matplotlib(monkeypatch)
+    flight = json.loads((run_folder / "flight.json").read_text())
+    use = {
+        "up_mean_B_s": 1668.7,
+        "up_peak_B_s": 2592.0,
+        "down_mean_B_s": 4756.3,
+        "down_peak_B_s": 6860.0,
+        "bytes_up": 163532,
+        "bytes_down": 466118,
+        "measured_s": 98.0,
+        "budget_B_s": 1000.0,
+        "over_budget_s": 97.0,
+        "radio_status": {"txbuf_min_pct": 35},
+    }
+    flight["link_use"] = {"lead": use}
+    (run_folder / "flight.json").write_text(json.dumps(flight))
+    report = write_report(run_folder, quickstart_mission)
+    assert report["link_use"] == {"lead": use}
+    text = (run_folder / "report.md").read_text()
+    assert "| lead | 1668.70 | 2592.00 | 4756.30 | 6860.00 | 1000.00 | 97.00 | 35 |" in text
+    del flight["link_use"]  # a run folder from before link_use: no section
+    (run_folder / "flight.json").write_text(json.dumps(flight))
+    assert write_report(run_folder, quickstart_mission)["link_use"] is None
+    assert "Link use" not in (run_folder / "report.md").read_text()
