@@ -48,3 +48,30 @@ def test_link_use_is_measured_and_going_over_the_budget_is_an_event(tmp_path: Pa
     report = json.loads((run.run_dir / "report.json").read_text())
     assert report["link_use"] == use
     assert "Link use, MAVLink bytes/s" in (run.run_dir / "report.md").read_text()
+
+
+SIK64_B_S = 64000 / 10.2  # bytes/s a SiK pair at 64 kbit/s carries, up and down together (docs/radio.md)
+SIK_BUFFER_B = 1850  # bytes each transmitting SiK radio buffers (serial.c RX_BUFF_MAX, docs/radio.md)
+
+
+def test_over_a_sik_radio_the_use_is_at_most_its_capacity_and_radio_status_is_heard(tmp_path: Path) -> None:
+    """The quickstart behind the simulator's SiK 64 kbit/s radio (half duplex, RADIO_STATUS once a second),
+    with the budget set to what that radio carries (64000 / 10.2 bytes/s, as 8-bit bits). Whatever the flight
+    makes of such a link (issue 38: it does not get airborne), each vehicle's measured up + down over the
+    flight cannot exceed the radio's capacity (plus what its two buffers held at the end), its ground radio's
+    RADIO_STATUS reports are kept, and the streams the ground station asks for fill the radio: over budget."""
+    mission = derived_mission(
+        tmp_path, "quickstart.yaml", "sik", world={"link": {"budget_bps": SIK64_B_S * 8}}
+    )
+    run = fly(mission, tmp_path / "run", timeout_s=400, extra=["--sim-arg=--link-radio=sik64"])
+    assert "Traceback" not in run.output, run.output[-3000:]
+    flight = json.loads((run.run_dir / "flight.json").read_text())
+    for name, figures in flight["link_use"].items():
+        total = figures["bytes_up"] + figures["bytes_down"]
+        assert total / figures["measured_s"] <= SIK64_B_S + 2 * SIK_BUFFER_B / figures["measured_s"], figures
+        radio = figures["radio_status"]
+        # one report a simulated second while the ground station listens (it measures from connect)
+        assert radio is not None and radio["reports"] >= figures["measured_s"] - 5, radio
+        assert 0 <= radio["txbuf_min_pct"] <= 100
+        assert figures["over_budget_s"] > 0, figures
+        assert any(f"s {name}: link use" in e for e in flight["events"]), flight["events"]
