@@ -32,7 +32,16 @@ on loss and timed in vehicle time like every other exchange (gcs_swarm.link.oper
   for each seq, then our MISSION_ACK ACCEPTED.
 - clear: MISSION_CLEAR_ALL(FENCE) -> MISSION_ACK ACCEPTED.
 
-`install_fence` (called from MissionRunner.preflight) reads each vehicle's fence, uploads the circles, reads
+The site fence (`site_items`, when the mission sets safety.geofence.upload): the inclusion polygon as
+MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION items, each exclusion polygon as ..._VERTEX_EXCLUSION items (param1
+the polygon's vertex count, AC_PolyFence_loader::validate_fence), each exclusion circle as
+MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, all at every height as ArduCopter's zones are; uploaded after the obstacle
+circles, in the same fence. ArduCopter then breaches outside the inclusion polygon or inside an exclusion zone
+(AC_PolyFence_loader::breached) and acts as for the circles (FENCE_ACTION). The ground station's own guard
+keeps the vehicles inside anyway (gcs_swarm.link.command_limits); the autopilot's fence is for the time the
+ground station is gone.
+
+`install_fence` (called from MissionRunner.preflight) reads each vehicle's fence, uploads the items, reads
 them back and compares (verify by download), then sets FENCE_TYPE = 4 (exactly: the max-altitude and
 home-circle fences, FENCE_TYPE's default 7, would stop the paper missions flying at 200 m, 6 km out),
 FENCE_ACTION and FENCE_ENABLE = 1 through FlightParams. At the end of the run (FlightParams.restore, on
@@ -59,10 +68,13 @@ from gcs_swarm.link.operations import COMMAND_RETRIES, Operation, Timeout
 from gcs_swarm.link.vehicle import VehicleLink
 from gcs_swarm.mission import Mission
 from gcs_swarm.mission.geometry import mission_offsets
+from gcs_swarm.mission.model import Fence
 
 FENCE = mavlink2.MAV_MISSION_TYPE_FENCE
 CIRCLE_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 CIRCLE_INCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
+POLYGON_INCLUSION = mavlink2.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
+POLYGON_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION
 FENCE_TYPE_POLYGON = 4  # FENCE_TYPE bit 2: inclusion/exclusion circles and polygons (AC_Fence.h)
 FENCE_ACTION = {"report": 0, "rtl": 1, "land": 2, "brake": 4}  # Copter FENCE_ACTION values (AC_Fence.cpp)
 FENCE_ITEMS = "fence items"  # the FlightParams change row of a vehicle's fence
@@ -149,12 +161,35 @@ def exclusion_circles(mission: Mission, margin_m: float) -> tuple[list[FenceCirc
 
 def circle_items(circles: Iterable[FenceCircle], origin: frames.Origin) -> list[FenceItem]:
     """MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION items of the circles (centres geodetic, around the origin)."""
-    items = []
-    for circle in circles:
-        lat, lon, _ = frames.enu_to_geodetic([circle.centre[0], circle.centre[1], 0.0], origin)
-        items.append(
-            FenceItem(CIRCLE_EXCLUSION, round(float(lat) * 1e7), round(float(lon) * 1e7), circle.radius)
+    return [
+        FenceItem(CIRCLE_EXCLUSION, *_geodetic_e7(circle.centre[0], circle.centre[1], origin), circle.radius)
+        for circle in circles
+    ]
+
+
+def _geodetic_e7(east: float, north: float, origin: frames.Origin) -> tuple[int, int]:
+    """(lat, lon) degE7 of the ENU point (east, north, 0) m about the origin."""
+    lat, lon, _ = frames.enu_to_geodetic([east, north, 0.0], origin)
+    return round(float(lat) * 1e7), round(float(lon) * 1e7)
+
+
+def site_items(fence: Fence, origin: frames.Origin) -> list[FenceItem]:
+    """The mission's site fence as fence items (module docstring): the inclusion polygon's vertices, each
+    exclusion polygon's, then the exclusion circles (radius m, param1)."""
+    polygons = [(fence.polygon, POLYGON_INCLUSION)] if fence.polygon is not None else []
+    polygons += [(zone.polygon, POLYGON_EXCLUSION) for zone in fence.exclusions if zone.polygon is not None]
+    items = [
+        FenceItem(command, *_geodetic_e7(float(e), float(n), origin), float(len(vertices)))
+        for vertices, command in polygons
+        for e, n in vertices
+    ]
+    items += [
+        FenceItem(
+            CIRCLE_EXCLUSION, *_geodetic_e7(float(zone.center[0]), float(zone.center[1]), origin), zone.radius
         )
+        for zone in fence.exclusions
+        if zone.polygon is None and zone.center is not None
+    ]
     return items
 
 
@@ -401,18 +436,18 @@ def install_fence(
     progress: Callable[[str], None],
 ) -> FenceInstall | None:
     """Preflight: fence the obstacles on every live vehicle (see the module docstring) when
-    safety.dead_gcs.fence.enabled; notes and breaches go to `events` (flight.json) and `progress`. LinkError
-    when a vehicle does not take the fence; None when nothing is fenced."""
+    safety.dead_gcs.fence.enabled, and the site fence when safety.geofence.upload; notes and breaches go to
+    `events` (flight.json) and `progress`. LinkError when a vehicle does not take the fence; None when nothing
+    is fenced."""
     params = mission.safety.dead_gcs.fence
-    if not params.enabled:
-        return None
-    circles, notes = exclusion_circles(mission, params.margin_m)
+    circles, notes = exclusion_circles(mission, params.margin_m) if params.enabled else ([], [])
     for note in notes:
         events.append(f"fence: {note}")
         progress(f"fence: {note}")
-    if not circles:
+    site = site_items(mission.fence, mission.origin) if mission.fence.upload else []
+    items = circle_items(circles, mission.origin) + site
+    if not items:
         return None
-    items = circle_items(circles, mission.origin)
     links = [link for link in fleet.select() if link.channel.autopilot.geofence]
     unfenced = [link.name for link in fleet.select() if not link.channel.autopilot.geofence]
     if unfenced:
@@ -444,7 +479,7 @@ def install_fence(
         ]
         link.statustext_hooks.append(install.report)
     radii = ", ".join(f"{c.radius:.1f}" for c in circles)
-    progress(
-        f"fence: {len(circles)} exclusion circle(s) on every vehicle, radii {radii} m, action {params.action}"
-    )
+    what = [f"{len(circles)} exclusion circle(s) around obstacles, radii {radii} m"] if circles else []
+    what += [f"the site fence ({len(site)} items)"] if site else []
+    progress(f"fence: {' and '.join(what)} on every vehicle, action {params.action}")
     return install

@@ -211,6 +211,7 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
                 )
                 for k, zone in enumerate(file.safety.geofence.exclusions or ())
             ),
+            upload=file.safety.geofence.upload,
         ),
         prisms=tuple(
             Prism(p.name or f"world.prisms[{k}]", vertices(p.polygon), p.bottom, p.top)

@@ -86,6 +86,7 @@ class Fence(_ValueEquality):
 
     polygon: np.ndarray | None = None  # (K, 2) m, vertices in order, not closed; None: no polygon
     exclusions: tuple[Zone, ...] = ()
+    upload: bool = False  # also install it on the autopilots (gcs_swarm.flight.geofence)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -505,8 +505,9 @@ class ExclusionEntry(Entry):
 class GeofenceSection(Section):
     radius: Annotated[float, Range(gt=0, unit="m")] = 2000.0
     max_alt: float = 300.0  # above safety.min_altitude (checks.py)
-    polygon: list[Vertex] | None = None  # the inclusion polygon; not yet enforced (checks.not_yet_flown)
-    exclusions: list[ExclusionEntry] | None = None  # not yet enforced (checks.not_yet_flown)
+    polygon: list[Vertex] | None = None  # the inclusion polygon (enforced by the command guard)
+    exclusions: list[ExclusionEntry] | None = None  # no-fly zones (enforced by the command guard)
+    upload: bool = False  # also upload polygon and exclusions to the autopilots (flight.geofence)
 
 
 class SafetySection(Section):
