@@ -60,6 +60,8 @@ def build_controller(
         z_min=mission.safety.min_altitude,
         dead_gcs=mission.safety.dead_gcs,
         reshape=mission.reshape,
+        pace=mission.pace,
+        names=tuple(v.name for v in mission.vehicles),
     )
 
 

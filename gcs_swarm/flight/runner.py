@@ -462,11 +462,9 @@ class MissionRunner:
         self.result.final_targets = targets
         self.result.leader, self.result.offsets = ctl.leader, ctl.offsets
         note_formation(self.result.formation_timeline, t, ctl, flown)
-        if ctl.shaper is not None and ctl.shaper.events:  # reshapes around obstacles
-            for event in ctl.shaper.events:
-                self.result.events.append(event)
-                self.progress(event)
-            ctl.shaper.events.clear()
+        for event in ctl.drain_events():  # reshapes around obstacles, the leader's pace
+            self.result.events.append(event)
+            self.progress(event)
         errors = np.linalg.norm(pos - targets, axis=1)
         self.formation_rms = formation_rms(errors, active, ctl.leader)
         last_leg = cmd.waypoint_index == len(ctl.waypoints) - 1

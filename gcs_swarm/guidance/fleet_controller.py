@@ -16,11 +16,13 @@ every kernel ahead of the first tick.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from gcs_swarm.guidance.attitude_slew import slew_step
+from gcs_swarm.guidance.capability import SpeedEnvelope
 from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.degradation import stale_verdict
 from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_caps, speed_caps_from_table
@@ -29,6 +31,7 @@ from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.leader_wait import leader_cap_scale
 from gcs_swarm.guidance.params import (
+    CapabilityParams,
     DeadGcsParams,
     FieldParams,
     G,
@@ -52,6 +55,7 @@ from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency
 
 NO_ROWS = np.zeros((0, 3))
 RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in a reshape
+PACE_EVENT_SHARE = 0.1  # a new pace event when the followers' cap moves by more than this share
 RESHAPE_CUSHION_M = 1.0  # m: in a tighter shape, neighbours repel once this much closer than min_spacing_m
 _prepared = False  # every kernel was called once in this process (prepare_kernels)
 
@@ -82,7 +86,13 @@ def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
         ctl.reset(pos, np.zeros((3, 3)), np.zeros(3))
         ctl.tick(0.0, pos, np.ones((3, 3)), np.zeros((3, 3)), obstacle_c, obstacle_r, np.ones(3, dtype=bool))
     shape_clearance(
-        offsets, np.flatnonzero(offsets[:, 0]), pos, np.zeros(3), obstacle_c, obstacle_r
+        offsets[None],
+        np.zeros(3, dtype=np.int64),
+        np.flatnonzero(offsets[:, 0]),
+        pos,
+        np.zeros(3),
+        obstacle_c,
+        obstacle_r,
     )  # reshape
     table = np.array([0.0, 1.0])  # the failsafe speed scheduling's kernels, on a small table
     brake_distances(table, 7.5, 5.0, 0.002, 2)
@@ -151,6 +161,8 @@ class FleetController:
         z_min: float | None = None,
         dead_gcs: DeadGcsParams | None = None,
         reshape: ReshapeParams | None = None,
+        pace: CapabilityParams | None = None,
+        names: tuple[str, ...] = (),
     ) -> None:
         """`n` vehicles, `leader` its index; `offsets` (N, 3) leader-frame slots (leader row zero),
         `goal_waypoints` (W, 3) the leader's goals in order, `follower_targets` (N, 3) final destinations g_i
@@ -161,7 +173,9 @@ class FleetController:
         choice), `thrust_mode` "measured" (Eq 36) or "norm" (m|U|), `control_dt` s the nominal tick,
         `dead_gcs` the failsafe speed scheduling (None: off, gcs_swarm.guidance.failsafe_speed), `reshape`
         the deliberate reshaping around obstacles (None or not enabled: the paper's fixed formation,
-        gcs_swarm.guidance.reshape).
+        gcs_swarm.guidance.reshape), `pace` the leader's cap from its followers' measured drag (None or not
+        enabled: v_xy_leader alone, gcs_swarm.guidance.capability), `names` the vehicles' names for events
+        (default "vehicle <i+1>").
         """
         if n < 1 or not 0 <= leader < n:
             raise ValueError(f"leader index {leader} is not a vehicle of a fleet of {n}")
@@ -219,6 +233,12 @@ class FleetController:
             if self.reshape is None
             else FormationShaper(self.reshape, self.offsets, leader, self.separation.d_emg + RESHAPE_GAP_M)
         )
+        self.envelope = (
+            None if pace is None or not pace.enabled else SpeedEnvelope(n, pace, self.limits.tilt_max, g)
+        )
+        self.follower_pace = math.inf  # m/s, the leader's cap from its followers' top speeds (`envelope`)
+        self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
+        self.names = names if len(names) == n else tuple(f"vehicle {i + 1}" for i in range(n))
         prepare_kernels(dead_gcs)  # now, not in the first formation tick, where it stalled the control loop
 
     # ----- live changes (operator console) -----
@@ -269,7 +289,44 @@ class FleetController:
             cap[self.leader] *= self.leader_speed_scale
         if self.shaper is not None:  # [add] the leader gives its followers time to change shape (reshape)
             cap[self.leader] = min(cap[self.leader], self.shaper.pace_cap)
+        if self.follower_pace < cap[self.leader]:  # [add] no faster than the slowest follower (capability)
+            cap[self.leader] = self.follower_pace
         return cap
+
+    def drain_events(self) -> list[str]:
+        """The guidance's events since the last call (reshapes, pace changes), as "t=... s ..." lines."""
+        out = self.events
+        if self.shaper is not None:
+            out += self.shaper.events
+            self.shaper.events = []
+        self.events = []
+        return out
+
+    def _update_pace(self, t: float, vel: np.ndarray, att: np.ndarray, active: np.ndarray) -> None:
+        """Feed the followers' telemetry to the drag fits; when they change, the leader's cap (spec 6b) and an
+        event when it binds, leaves off, or moves by PACE_EVENT_SHARE."""
+        assert self.envelope is not None and self.heading is not None
+        if not self.envelope.update(t, vel, att, active):
+            return
+        followers = active & ~self.is_leader
+        cap = self.envelope.leader_cap(self.heading.psi, followers)
+        nominal = float(self.v_xy_cap[self.leader])
+        was = self.follower_pace
+        self.follower_pace = cap
+        binds, bound = cap < nominal, was < nominal
+        if binds and (not bound or abs(cap - was) > PACE_EVENT_SHARE * was):
+            speeds = self.envelope.top_speeds(self.heading.psi)
+            slowest = int(np.nanargmin(np.where(followers, speeds, np.nan)))
+            self.events.append(
+                f"t={t:.2f} s pace: leader capped at {cap:.1f} m/s, what {self.names[slowest]} flies at "
+                f"{self.envelope.params.tilt_share:.0%} tilt against its measured drag "
+                f"{self.envelope.drag[slowest]:.2f} 1/s"
+            )
+        elif bound and not binds:
+            self.follower_pace = math.inf
+            self.events.append(f"t={t:.2f} s pace: every follower can fly the leader's {nominal:.1f} m/s")
+        if not binds:
+            self.follower_pace = math.inf
 
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
         arr = _as_array("follower_targets", targets, (self.n, 3))
@@ -369,6 +426,8 @@ class FleetController:
             pos, vel, att, obstacles_c, obstacles_r, active
         )
         dt = self._tick_dt(t)
+        if self.envelope is not None:  # [add] what the followers can fly, from their telemetry (capability)
+            self._update_pace(t, vel, att, active)
         returning = active & ~self.was_active
         self.last_pos[active] = pos[active]
         self.last_vel[active] = vel[active]
@@ -402,7 +461,8 @@ class FleetController:
         if self.shaper is not None:  # [add] deliberate reshaping around obstacles (reshape)
             self.shaper.decide(
                 t, p_lead, self.heading.psi, self.waypoints[self.waypoint_index :],
-                float(self.v_xy_cap[lead] * self.speed_scale), centres, radii,
+                float(self.v_xy_cap[lead] * self.speed_scale), float(np.hypot(*self.last_vel[lead, :2])),
+                centres, radii,
             )  # fmt: skip
             offsets, offset_rate = self.shaper.flown(t)
             shrink = self.shaper.scale(t)

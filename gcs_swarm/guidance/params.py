@@ -319,6 +319,29 @@ class ReshapeParams:
             raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
 
 
+@dataclass(frozen=True)
+class CapabilityParams:
+    """The leader's pace from what its followers can fly, measured from their telemetry in flight [add]
+    (gcs_swarm.guidance.capability; docs/iaapf-smc-spec.md section 6b): the leader cruises no faster than the
+    slowest follower flies at `tilt_share` of the tilt limit against its fitted drag and the wind."""
+
+    enabled: bool = True  # false: the leader's cap is limits.v_xy_leader alone (the paper)
+    # share of the tilt limit a follower spends to keep the leader's cruise; the rest is for catching up
+    tilt_share: float = 0.7
+    memory_s: float = 20.0  # s, time constant over which old samples are forgotten
+    sample_s: float = 0.2  # s between samples (acceleration from the change of velocity over one)
+    min_samples: float = 25.0  # samples (forgotten count) before a fit is trusted ...
+    min_spread_m_s: float = 1.5  # m/s ... and RMS spread of the velocities it saw
+
+    def __post_init__(self) -> None:
+        if not 0 < self.tilt_share <= 1:
+            raise ValueError("tilt_share must lie in (0, 1]")
+        if not (self.memory_s > 0 and self.sample_s > 0):
+            raise ValueError("need memory_s > 0 and sample_s > 0")
+        if not (self.min_samples >= 3 and self.min_spread_m_s > 0):
+            raise ValueError("need min_samples >= 3 and min_spread_m_s > 0")
+
+
 FENCE_ACTIONS = ("brake", "land", "rtl", "report")  # safety.dead_gcs.fence.action -> FENCE_ACTION 4, 2, 1, 0
 
 
@@ -408,6 +431,7 @@ PAPER_PLAIN: dict[str, dict[str, float]] = {
     "control.smc.xy": {"disturbance_gain": 0.0},
     "safety.separation": {"closing_brake_accel": 0.0},
     "guidance.reshape": {"enabled": False},
+    "guidance.pace": {"enabled": False},
 }
 
 

@@ -37,7 +37,7 @@ spacing of the flown shape over the mission's (1 unreshaped); the inter-UAV repu
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -52,6 +52,7 @@ SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
 PACE_MARGIN_M_S = 1.5
 WIDEN_MARGIN_M = 1.0  # m more than clearance_m a wider shape must keep to be taken (no flapping at the edge)
 CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
+MOVE_SAMPLE_S = 0.25  # s between the moments of a move checked for clearance (move_clearance)
 
 
 @dataclass(frozen=True)
@@ -123,25 +124,37 @@ def route_samples(
 
 @kernel
 def shape_clearance(
-    offsets: np.ndarray, followers: np.ndarray, points: np.ndarray, headings: np.ndarray,
+    offsets: np.ndarray, which: np.ndarray, followers: np.ndarray, points: np.ndarray, headings: np.ndarray,
     centres: np.ndarray, radii: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
-    """Smallest distance (P,) m from a follower slot (rows `followers` (F,) int of the (N, 3) offsets) to an
-    obstacle surface ((K, 3) centres, (K,) radii) with the leader at each of points (P, 3), heading (P,)
-    rad; inf without obstacles or followers."""
+    """Smallest distance (P,) m from a follower slot to an obstacle surface ((K, 3) centres, (K,) radii) with
+    the leader at each of points (P, 3) ENU m, heading (P,) rad, flying offsets[which[p]] there: offsets
+    (S, N, 3) leader-frame m (one shape along the route: S = 1 and `which` zeros; a move: one row per
+    moment), `followers` (F,) int the rows of the slots checked; inf without obstacles or followers."""
     out = np.full(points.shape[0], np.inf)
     for p in range(points.shape[0]):
         c, s = math.cos(headings[p]), math.sin(headings[p])
+        shape = which[p]
         for i in followers:
-            x = points[p, 0] + offsets[i, 0] * c - offsets[i, 1] * s
-            y = points[p, 1] + offsets[i, 0] * s + offsets[i, 1] * c
-            z = points[p, 2] + offsets[i, 2]
+            x = points[p, 0] + offsets[shape, i, 0] * c - offsets[shape, i, 1] * s
+            y = points[p, 1] + offsets[shape, i, 0] * s + offsets[shape, i, 1] * c
+            z = points[p, 2] + offsets[shape, i, 2]
             for k in range(radii.shape[0]):
                 dx, dy, dz = x - centres[k, 0], y - centres[k, 1], z - centres[k, 2]
                 gap = math.sqrt(dx * dx + dy * dy + dz * dz) - radii[k]
                 if gap < out[p]:
                     out[p] = gap
     return out
+
+
+def clearance_along(
+    offsets: np.ndarray, points: np.ndarray, headings: np.ndarray, centres: np.ndarray, radii: np.ndarray
+) -> np.ndarray:
+    """shape_clearance (P,) m of one shape's offsets (N, 3), its follower rows (non-zero offsets) checked,
+    with the leader at each of points (P, 3), heading (P,) rad."""
+    followers = np.flatnonzero(np.any(offsets != 0.0, axis=1))
+    which = np.zeros(len(points), dtype=np.int64)
+    return shape_clearance(offsets[None], which, followers, points, headings, centres, radii)
 
 
 def min_jerk(tau: float) -> tuple[float, float]:
@@ -240,6 +253,7 @@ class FormationShaper:
         self.next_decision = -math.inf
         self.wider_since: float | None = None
         self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
+        self.waiting_move: tuple[int, SlotMove] | None = None  # a widening planned, waiting for a clear way
 
     def _set(self, nominal: np.ndarray) -> None:
         self.shapes = candidate_shapes(nominal, self.leader, self.params)
@@ -273,8 +287,9 @@ class FormationShaper:
         """Name of the shape flown or being formed."""
         return self.shapes[self.current].name
 
-    def _change_to(self, index: int, now: np.ndarray, t: float, announce: bool = True) -> None:
-        """Start moving the slots from the offsets `now` (N, 3) to shape `index` at t."""
+    def _plan(self, index: int, now: np.ndarray, t: float) -> SlotMove:
+        """The move from the offsets `now` (N, 3) to shape `index` starting at t: followers assigned to the
+        new slots by the shortest longest move, the move order that keeps them farthest apart."""
         target = self.shapes[index]
         followers = np.flatnonzero(np.any(target.offsets != 0.0, axis=1))
         end = np.array(target.offsets)
@@ -283,23 +298,66 @@ class FormationShaper:
             end[followers] = target.offsets[followers[order]]
         rows = np.any(now != 0.0, axis=1) | np.any(end != 0.0, axis=1)
         rows[self.leader] = True
-        self.start_scale, self.end_scale = self.scale(t), target.scale
-        self.move = plan_move(now, end, rows, t, self.params.speed_m_s)
+        return plan_move(now, end, rows, t, self.params.speed_m_s)
+
+    def _change_to(
+        self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None
+    ) -> None:
+        """Start moving the slots from the offsets `now` (N, 3) to shape `index` at t (along `move`, planned
+        by `_plan`, when given)."""
+        self.start_scale, self.end_scale = self.scale(t), self.shapes[index].scale
+        self.move = move if move is not None else self._plan(index, now, t)
+        self.waiting_move = None
         if announce:
             change = "narrows" if index > self.current else "widens"
             self.events.append(
-                f"t={t:.2f} s formation {change}: {target.name}"
+                f"t={t:.2f} s formation {change}: {self.shapes[index].name}"
                 if index
                 else f"t={t:.2f} s formation restored"
             )
         self.current = index
 
+    @property
+    def pace_floor(self) -> float:
+        """m/s, the slowest the pace holds the leader to while the slots move (module docstring, Pace)."""
+        return max(1.875 * self.params.speed_m_s - PACE_MARGIN_M_S, 0.0)
+
+    def _widening(self, index: int, t: float) -> SlotMove:
+        """The move to the wider shape `index` from t: planned once while the slots stand still, then the
+        same move started later (the assignment is the costly part)."""
+        cached = self.waiting_move
+        if cached is None or cached[0] != index or cached[1].start is not self.move.end:
+            settled = t >= self.move.t0 + self.move.duration
+            now = self.move.end if settled else self.flown(t)[0]
+            cached = (index, self._plan(index, now, t))
+            self.waiting_move = cached if settled else None
+        return replace(cached[1], t0=t)
+
+    def move_clearance(
+        self, move: SlotMove, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed: float,
+        centres: np.ndarray, radii: np.ndarray,
+    ) -> float:  # fmt: skip
+        """Smallest distance m from a moving slot to an obstacle surface while `move` runs, the leader going
+        on along its route from p_leader (3,) ENU m, heading psi_leader rad, through `waypoints` (W, 3) at
+        `speed` m/s (stopping at the last): the slots of a tail still short of a gap must not cut through
+        its sides on their way to a wider shape. Sampled every MOVE_SAMPLE_S; inf without obstacles."""
+        moments = np.linspace(0.0, move.duration, max(2, math.ceil(move.duration / MOVE_SAMPLE_S) + 1))
+        travel = speed * moments
+        points, headings, along = route_samples(p_leader, psi_leader, waypoints, float(travel[-1]))
+        at = np.minimum(np.searchsorted(along, travel), len(along) - 1)
+        offsets = np.stack([move.at(move.t0 + m)[0] for m in moments])
+        rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
+        which = np.arange(len(moments), dtype=np.int64)
+        gaps = shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii)
+        return float(gaps.min(initial=math.inf))
+
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
-        centres: np.ndarray, radii: np.ndarray,
+        speed: float, centres: np.ndarray, radii: np.ndarray,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
-        psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, among obstacles (K, 3), (K,) m."""
+        psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
+        obstacles (K, 3), (K,) m."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
@@ -307,11 +365,11 @@ class FormationShaper:
         points, headings, along = route_samples(p_leader, psi_leader, waypoints, length)
         reach = max(float(np.max(np.linalg.norm(s.offsets, axis=1))) for s in self.shapes)
         near = np.linalg.norm(centres - p_leader, axis=1) - radii <= length + reach + self.params.clearance_m
+        every = centres, radii
         centres, radii = centres[near], radii[near]  # only obstacles a slot can come near in the look-ahead
         best, best_gap, gaps = 0, -math.inf, {}
         for k, shape in enumerate(self.shapes):
-            followers = np.flatnonzero(np.any(shape.offsets != 0.0, axis=1))
-            gaps[k] = float(shape_clearance(shape.offsets, followers, points, headings, centres, radii).min())
+            gaps[k] = float(clearance_along(shape.offsets, points, headings, centres, radii).min())
             if gaps[k] >= self.params.clearance_m + (WIDEN_MARGIN_M if k < self.current else 0.0):
                 best = k
                 break
@@ -327,8 +385,12 @@ class FormationShaper:
             if self.wider_since is None:
                 self.wider_since = t
             if t - self.wider_since >= self.params.restore_after_s:
-                self.wider_since = None
-                self._change_to(best, self.flown(t)[0], t)
+                move = self._widening(best, t)
+                if self.move_clearance(move, p_leader, psi_leader, waypoints, speed, *every) >= (
+                    self.params.clearance_m
+                ):  # the way there is clear too
+                    self.wider_since = None
+                    self._change_to(best, move.start, t, move=move)
         else:
             self.wider_since = None
         self._pace(t, points, headings, along, centres, radii)
@@ -344,10 +406,7 @@ class FormationShaper:
         self.pace_cap = math.inf
         if left <= 0.0 or self.current == 0:
             return
-        offsets = self.flown(t)[0]
-        followers = np.flatnonzero(np.any(offsets != 0.0, axis=1))
-        gap = shape_clearance(offsets, followers, points, headings, centres, radii)
+        gap = clearance_along(self.flown(t)[0], points, headings, centres, radii)
         tight = np.flatnonzero(gap < self.params.clearance_m)
         if len(tight):
-            floor = max(1.875 * self.params.speed_m_s - PACE_MARGIN_M_S, 0.0)
-            self.pace_cap = max(floor, float(along[tight[0]]) / left)
+            self.pace_cap = max(self.pace_floor, float(along[tight[0]]) / left)

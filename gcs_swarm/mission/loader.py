@@ -189,6 +189,7 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
         field=file.guidance,
         reference=file.reference,
         reshape=file.reshape,
+        pace=file.pace,
         controller=file.control.controller,
         smc=file.control.smc,
         pid=file.control.pid,

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm.guidance.params import (
+    CapabilityParams,
     DeadGcsParams,
     FieldParams,
     Limits,
@@ -275,6 +276,8 @@ class Mission(_ValueEquality):
     safety: SafetySpec
     run: RunSpec
     planner: PlannerSpec
+    # [add] the leader's pace from what its followers can fly (guidance.pace)
+    pace: CapabilityParams = dataclasses.field(default_factory=CapabilityParams)
     # [add] the site (issue 37): carried and checked, not yet flown (checks.not_yet_flown refuses to fly them)
     fence: Fence = dataclasses.field(default_factory=Fence)
     prisms: tuple[Prism, ...] = ()

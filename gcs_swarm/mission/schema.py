@@ -40,6 +40,7 @@ from pydantic_core.core_schema import ValidatorFunctionWrapHandler
 
 from gcs_swarm.guidance.controller import CONTROLLERS
 from gcs_swarm.guidance.params import (
+    CapabilityParams,
     DeadGcsParams,
     FieldParams,
     Limits,
@@ -588,12 +589,15 @@ class MissionFile(Section):
     goal: Position = ZERO
     waypoints: list[Position] = []
     world: WorldSection = WorldSection()
-    guidance: Annotated[FieldParams, Params(skip=("reference", "reshape"))] = FieldParams()
+    guidance: Annotated[FieldParams, Params(skip=("reference", "reshape", "pace"))] = FieldParams()
     reference: Annotated[ReferenceParams, Params()] = Field(
         ReferenceParams(), validation_alias=AliasPath("guidance", "reference")
     )
     reshape: Annotated[ReshapeParams, Params()] = Field(
         ReshapeParams(), validation_alias=AliasPath("guidance", "reshape")
+    )
+    pace: Annotated[CapabilityParams, Params()] = Field(
+        CapabilityParams(), validation_alias=AliasPath("guidance", "pace")
     )
     control: ControlSection = ControlSection()
     limits: Annotated[Limits, Params()] = Limits()

@@ -75,8 +75,15 @@ def test_clearance_of_a_slot_is_its_distance_to_the_surface():
     offsets = np.array([[0.0, 0.0, 0.0], [-5.0, 5.0, 0.0]])
     centre, radius = np.array([[-5.0, 10.0, 0.0]]), np.array([2.0])
     points = np.zeros((2, 3))
-    gaps = shape_clearance(offsets, np.array([1]), points, np.array([0.0, math.pi / 2]), centre, radius)
+    which = np.zeros(2, dtype=np.int64)  # one shape, flown at both points
+    gaps = shape_clearance(
+        offsets[None], which, np.array([1]), points, np.array([0.0, math.pi / 2]), centre, radius
+    )
     np.testing.assert_allclose(gaps, [3.0, 15.0 - 2.0])
+    # a move: the follower's offset (-5, 5) at the first point, (-5, 9) at the second (heading east, 1 m off)
+    moving = np.stack([offsets, np.array([[0.0, 0.0, 0.0], [-5.0, 9.0, 0.0]])])
+    gaps = shape_clearance(moving, np.arange(2), np.array([1]), points, np.zeros(2), centre, radius)
+    np.testing.assert_allclose(gaps, [3.0, -1.0])
 
 
 def test_min_jerk_profile_starts_and_ends_at_rest():
@@ -92,7 +99,9 @@ def _fly_shaper(shaper: FormationShaper, centres, radii, x0: float, x1: float, s
     flown, t, x = [], 0.0, x0
     wp = np.array([[400.0, 0.0, 10.0]])
     while x < x1:
-        shaper.decide(t, np.array([x, 0.0, 10.0]), 0.0, wp, speed, centres, radii)
+        shaper.decide(
+            t, np.array([x, 0.0, 10.0]), 0.0, wp, speed, min(speed, shaper.pace_cap), centres, radii
+        )
         flown.append((t, x, *shaper.flown(t), shaper.shape_name))
         t += 0.02
         x += min(speed, shaper.pace_cap) * 0.02
@@ -123,16 +132,60 @@ def test_a_v_wider_than_a_gap_narrows_or_falls_into_a_column_before_it_and_is_re
     assert any("narrows" in e for e in shaper.events)
 
 
+def test_a_column_whose_tail_is_short_of_a_gap_waits_to_open_until_the_way_is_clear():
+    """A line abreast of four 10 m apart flown as a column 7 m apart (tail 28 m behind the leader), the
+    leader 20 m past a 12 m gap at x = 60 (spheres of radius 8 at (60, +-14)). The line itself would fit
+    where the leader is (its nearest slot (80, +-10) is 12.4 m from a sphere's surface), but its tail is at
+    x = 52, still short of the gap: opening across first would carry the tail slots through the spheres. So
+    the shaper keeps the column while the leader hovers there, and opens once the tail is through (leader at
+    x = 110); the slots of the move it then flies, with the leader going on east at 10 m/s, keep clearance_m
+    from both spheres at every moment (checked here by stepping the move in time)."""
+    nominal = np.zeros((5, 3))
+    nominal[1:] = formation_offsets("line", 4, 10.0)
+    centres, radii = _gap_world(12.0)
+    shaper = FormationShaper(PARAMS, nominal, 0, 4.0)
+    column = len(shaper.shapes) - 1
+    shaper._change_to(column, nominal, -100.0, announce=False)  # settled in the column long before t = 0
+    assert shaper.move.duration < 100.0
+    east = np.array([[400.0, 0.0, 10.0]])
+    for t in np.arange(0.0, 3 * PARAMS.restore_after_s, PARAMS.decide_every_s):
+        shaper.decide(t, np.array([80.0, 0.0, 10.0]), 0.0, east, 10.0, 0.0, centres, radii)
+    assert shaper.current == column  # the line fits here, but the way there does not
+    t0 = 10.0
+    for t in np.arange(t0, t0 + 3 * PARAMS.restore_after_s, PARAMS.decide_every_s):
+        shaper.decide(
+            t, np.array([110.0 + 10.0 * (t - t0), 0.0, 10.0]), 0.0, east, 10.0, 10.0, centres, radii
+        )
+    assert shaper.current == 0
+    move = shaper.move
+    for t in np.arange(move.t0, move.t0 + move.duration, 0.05):
+        leader = np.array([110.0 + 10.0 * (t - t0), 0.0, 10.0])
+        slots = leader + move.at(t)[0][1:]  # heading east: leader frame = world frame
+        gap = np.linalg.norm(slots[:, None, :] - centres[None], axis=-1) - radii
+        assert gap.min() >= PARAMS.clearance_m - 1e-6, t
+
+
 def test_a_wider_shape_waits_restore_after_s_before_the_formation_widens():
     centres, radii = _gap_world(12.0)
     shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
-    shaper.decide(0.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, centres, radii)
+    shaper.decide(
+        0.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, 10.0, centres, radii
+    )
     narrowed = shaper.current
     assert narrowed > 0
     far = centres + [1000.0, 0.0, 0.0]  # the obstacles gone: the V fits again
-    shaper.decide(1.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, far, radii)
     shaper.decide(
-        1.0 + PARAMS.restore_after_s / 2, np.zeros(3), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, far, radii
+        1.0, np.array([30.0, 0.0, 10.0]), 0.0, np.array([[400.0, 0.0, 10.0]]), 10.0, 10.0, far, radii
+    )
+    shaper.decide(
+        1.0 + PARAMS.restore_after_s / 2,
+        np.zeros(3),
+        0.0,
+        np.array([[400.0, 0.0, 10.0]]),
+        10.0,
+        10.0,
+        far,
+        radii,
     )
     assert shaper.current == narrowed
     shaper.decide(
@@ -140,6 +193,7 @@ def test_a_wider_shape_waits_restore_after_s_before_the_formation_widens():
         np.zeros(3),
         0.0,
         np.array([[400.0, 0.0, 10.0]]),
+        10.0,
         10.0,
         far,
         radii,

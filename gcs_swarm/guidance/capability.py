@@ -1,0 +1,127 @@
+"""What each vehicle can fly, measured from its own telemetry during the flight [add] (docs/iaapf-smc-spec.md
+section 6b): its horizontal drag, and from it the fastest it can fly at a share of its tilt limit, so that the
+leader never cruises faster than its slowest follower can follow (`leader_cap`).
+
+A formation is as fast as its slowest member. The mission cannot know each airframe's drag (real PX4 SIH tops
+out at 6.9 m/s at the 35 deg tilt limit, under the leader's 10 m/s cap; sitl-sim's airframe at 24.7 m/s), but
+the telemetry tells it. In level flight the thrust's horizontal part and the drag make the acceleration:
+
+    a_xy = U_xy - c (v_xy - w),    U_xy = (a_z + g) axis_xy / axis_z,    axis = R(roll, pitch, yaw) e3
+
+(inversion.thrust_vector's axis; c 1/s the linear drag per unit mass, w m/s the wind, taken as steady over the
+estimate's memory). The residual r = a_xy - U_xy = -c v_xy + c w is linear in theta = (c, c w_x, c w_y): each
+vehicle's theta is the least-squares fit over samples every `sample_s` (a from the change of velocity over the
+sample, U and v the means of both ends), older samples forgotten with time constant `memory_s`. The fit is
+trusted once the velocities it saw spread by `min_spread_m_s` (the determinant of the normal equations is the
+weight cubed times that spread squared, so c is then well defined) and c > 0.
+
+At a share f (`tilt_share`) of the tilt limit theta_max the drag across the heading u is balanced first, the
+rest drives along it:
+
+    v_cap(u) = w.u + sqrt((f g tan theta_max)^2 - (c w_perp)^2) / c
+
+and the leader's cap is the smallest v_cap of the followers the estimate trusts, along the leader's heading.
+The remaining (1 - f) of the tilt is what a follower has to catch up and correct. Shapes: N vehicles; ENU.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gcs_swarm.guidance.inversion import thrust_vector
+from gcs_swarm.guidance.params import CapabilityParams
+
+
+class SpeedEnvelope:
+    """Per-vehicle drag fits from telemetry (module docstring) and the leader cap they give."""
+
+    def __init__(self, n: int, params: CapabilityParams, tilt_max: float, g: float) -> None:
+        """`n` vehicles, `tilt_max` rad the tilt limit, g m/s^2."""
+        self.params = params
+        self.g = g
+        self.thrust_xy = params.tilt_share * g * math.tan(tilt_max)  # m/s^2, f g tan(theta_max)
+        self.normal = np.zeros((n, 3, 3))  # forgotten sums of the normal equations (A^T A)
+        self.moment = np.zeros((n, 3))  # ... and A^T r
+        self.weight = np.zeros(n)  # forgotten sample count
+        self.v_sum = np.zeros((n, 2))  # forgotten sums of v_xy and |v_xy|^2, for the spread
+        self.v2_sum = np.zeros(n)
+        self.last_t = math.nan
+        self.last_vel = np.full((n, 3), np.nan)
+        self.last_axis = np.full((n, 3), np.nan)
+        self.theta = np.full((n, 3), np.nan)  # (c 1/s, c w_x, c w_y m/s^2); NaN until trusted
+
+    def update(self, t: float, vel: np.ndarray, att: np.ndarray, active: np.ndarray) -> bool:
+        """Take a sample at t s from measured vel (N, 3) m/s and att (N, 3) roll, pitch, yaw rad of the
+        (N,) bool `active` vehicles if `sample_s` has passed since the last; True when the fits changed."""
+        if t - self.last_t < self.params.sample_s:
+            return False
+        axis = thrust_vector(att[:, 0], att[:, 1], att[:, 2], np.ones(len(att)))
+        dt = t - self.last_t
+        fresh = active & np.isfinite(self.last_vel).all(axis=1) & np.isfinite(vel).all(axis=1)
+        fresh &= np.isfinite(axis).all(axis=1) & np.isfinite(self.last_axis).all(axis=1)
+        changed = False
+        if fresh.any() and dt > 0.0:
+            accel = (vel[fresh] - self.last_vel[fresh]) / dt
+            mean_axis = 0.5 * (axis[fresh] + self.last_axis[fresh])
+            v = 0.5 * (vel[fresh, :2] + self.last_vel[fresh, :2])
+            thrust_xy = (accel[:, 2:3] + self.g) * mean_axis[:, :2] / mean_axis[:, 2:3]
+            r = accel[:, :2] - thrust_xy
+            keep = math.exp(-dt / self.params.memory_s)
+            self.normal *= keep
+            self.moment *= keep
+            self.weight *= keep
+            self.v_sum *= keep
+            self.v2_sum *= keep
+            rows = np.zeros((len(v), 2, 3))  # the sample's two rows of A: (-v_x, 1, 0) and (-v_y, 0, 1)
+            rows[:, :, 0] = -v
+            rows[:, 0, 1] = rows[:, 1, 2] = 1.0
+            self.normal[fresh] += np.einsum("kai,kaj->kij", rows, rows)
+            self.moment[fresh] += np.einsum("kai,ka->ki", rows, r)
+            self.weight[fresh] += 1.0
+            self.v_sum[fresh] += v
+            self.v2_sum[fresh] += np.einsum("ka,ka->k", v, v)
+            changed = self._solve()
+        self.last_t = t
+        self.last_vel = np.where(active[:, None], vel, np.nan)
+        self.last_axis = np.where(active[:, None], axis, np.nan)
+        return changed
+
+    def spread(self) -> np.ndarray:
+        """(N,) m/s: the RMS spread of the horizontal velocities in each fit (0 before any sample)."""
+        w = np.maximum(self.weight, 1e-12)
+        mean = self.v_sum / w[:, None]
+        return np.sqrt(np.maximum(self.v2_sum / w - np.einsum("ka,ka->k", mean, mean), 0.0))
+
+    def _solve(self) -> bool:
+        ready = (self.weight >= self.params.min_samples) & (self.spread() >= self.params.min_spread_m_s)
+        theta = np.full_like(self.theta, np.nan)
+        if ready.any():
+            theta[ready] = np.linalg.solve(self.normal[ready], self.moment[ready][..., None])[..., 0]
+        theta[~(theta[:, 0] > 0.0)] = np.nan  # no drag measured: no cap from this vehicle
+        changed = not np.array_equal(theta, self.theta, equal_nan=True)
+        self.theta = theta
+        return changed
+
+    @property
+    def drag(self) -> np.ndarray:
+        """(N,) 1/s: the fitted linear drag per unit mass c (NaN where not trusted)."""
+        return self.theta[:, 0]
+
+    def top_speeds(self, heading: float) -> np.ndarray:
+        """(N,) m/s: v_cap along the unit heading (rad, ENU) at tilt_share of the tilt limit (module
+        docstring); NaN where the fit is not trusted, 0 where the wind across takes the whole share."""
+        c, cw = self.theta[:, 0], self.theta[:, 1:]
+        u = np.array([math.cos(heading), math.sin(heading)])
+        along = cw @ u  # c (w . u)
+        across = cw @ np.array([-u[1], u[0]])  # c (w . u_perp)
+        drive = np.sqrt(np.maximum(self.thrust_xy**2 - across**2, 0.0))
+        return (along + drive) / c
+
+    def leader_cap(self, heading: float, followers: np.ndarray) -> float:
+        """m/s: the smallest top speed along `heading` rad of the (N,) bool `followers` whose fit is trusted;
+        inf when none is."""
+        speeds = self.top_speeds(heading)[followers]
+        speeds = speeds[np.isfinite(speeds)]
+        return float(max(speeds.min(), 0.0)) if len(speeds) else math.inf
