@@ -1,6 +1,7 @@
 """The site fence flies (issue 37 item 5): a mission with an inclusion polygon and an exclusion polygon beside
-the route loads to fly, flies in lockstep (`gcs-swarm run` and the simulator on 127.0.0.1 free ports) to its
-goal, and its ground truth never crosses the fence. Also the report's fence figures on hand-made tracks."""
+the route, uploaded to the simulated autopilots too, loads to fly, flies in lockstep (`gcs-swarm run` and the
+simulator on 127.0.0.1 free ports) to its goal, and its ground truth never crosses the fence. Also the
+report's fence figures on hand-made tracks."""
 
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ safety:
     polygon: [[-30, -25], [90, -25], [90, 30], [30, 40], [-30, 30]]
     exclusions:
       - {name: hangar, polygon: [[20, 20], [40, 20], [40, 30], [20, 30]]}
+    upload: true
 """
 
 
@@ -78,5 +80,8 @@ def test_the_fenced_mission_reaches_its_goal_without_a_fence_breach(tmp_path: Pa
     report = flight.report
     assert report["reached"] and report["collisions"] == 0, flight.output[-2000:]
     assert report["fence_breaches"] == 0
+    # the autopilots had the fence too (upload: true) and never took over
+    assert any("the site fence (9 items) on every vehicle" in line for line in flight.output.splitlines())
+    assert not [event for event in report["events"] if "breached" in event]
     # the left follower's lane is 20 - 7.07 = 12.9 m from the hangar; it and the others keep well clear
     assert report["min_fence_margin_m"] > 5.0
