@@ -33,7 +33,9 @@ def star_polygons(draw: st.DrawFn) -> np.ndarray:
     radii = np.array(draw(st.lists(st.floats(1.0, 80.0), min_size=k, max_size=k)))
     centre = draw(st.tuples(st.floats(-500.0, 500.0), st.floats(-500.0, 500.0)))
     angles = 2.0 * math.pi * np.array(cuts)
-    ring: np.ndarray = np.column_stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)])
+    ring: np.ndarray = np.column_stack(
+        [centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)]
+    )
     return ring[::-1].copy() if draw(st.booleans()) else ring
 
 
