@@ -178,6 +178,11 @@ def check_mission(mission: Mission, root: Node) -> None:
     """One leader; unique names, sysids and endpoints; starts, targets, slots; relay reach; placement of the
     route and the planner start; formation altitude; the leader's speed cap."""
     _site_polygons(mission, root)
+    fence = mission.fence
+    if fence.upload and fence.polygon is None and not fence.exclusions:
+        raise root.at(("safety", "geofence", "upload")).error(
+            "there is no site fence to upload: give safety.geofence.polygon or .exclusions"
+        )
     _one_leader(mission, root)
     _unique_identities(mission, root)
     _starts(mission, root)

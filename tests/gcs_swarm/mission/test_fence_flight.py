@@ -51,6 +51,12 @@ def test_the_hangar_moved_onto_the_route_is_refused_for_flight() -> None:
         )
 
 
+def test_upload_without_a_site_fence_is_one_clear_error() -> None:
+    text = FENCED.split("safety:")[0] + "safety: {geofence: {upload: true}}\n"
+    with pytest.raises(MissionError, match=r"safety.geofence.upload: there is no site fence to upload"):
+        parse_mission(text)
+
+
 def test_fence_figures_count_entries_and_the_closest_approach() -> None:
     # one vehicle: inside, 2 m into the hangar (y = 22, edge y = 20), out, in again at (30, 21): 2 entries;
     # the other stays 5 m inside the south edge (y = -20 against -25); closest: -2 m (2 m into the hangar)
