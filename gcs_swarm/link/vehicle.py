@@ -18,10 +18,10 @@ from gcs_swarm.link.autopilots import formation_mode
 from gcs_swarm.link.channel import Channel
 from gcs_swarm.link.connection import LinkError, MAVLinkMessage
 from gcs_swarm.link.heartbeat import GcsHeartbeat
-from gcs_swarm.link.link_use import RadioStatus
 from gcs_swarm.link.lockstep import LockstepAnswer, is_clock_tick
 from gcs_swarm.link.operations import Commands, Operation, Timeout
 from gcs_swarm.link.parameters import Parameters
+from gcs_swarm.link.radio_status import RadioStatus
 from gcs_swarm.link.setpoints import Setpoints
 from gcs_swarm.link.streams import Streams
 from gcs_swarm.link.telemetry import Event, TelemetryState, VehicleTelemetry
@@ -76,7 +76,7 @@ class VehicleLink:
         self.commands = Commands(self.channel, self.telemetry)
         self.streams = Streams(self.channel, self.telemetry, self.commands)
         self.parameters = Parameters(self.channel, self.telemetry)
-        self.radio = RadioStatus()  # RADIO_STATUS reports heard on this connection (link.link_use)
+        self.radio = RadioStatus()  # RADIO_STATUS reports heard on this connection (link.radio_status)
         # MISSION_* messages from the vehicle, read by the mission-protocol operations (flight.geofence)
         self.mission_messages: deque[MAVLinkMessage] = deque(maxlen=512)
         self.statustext_hooks: list[Callable[[VehicleLink, str], None]] = []  # called with every STATUSTEXT
