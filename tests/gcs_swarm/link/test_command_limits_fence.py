@@ -148,3 +148,39 @@ def test_the_braking_margin_is_what_the_simulated_quadrotor_needs_to_stop(v0: fl
     assert state.vel[0, 0] <= 0.0
     margin = v0**2 / (2.0 * G_TAN_35)
     assert 0.8 * margin <= state.pos[0, 0] <= 1.2 * margin
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    ring=star_polygons(),
+    hole=star_polygons(),
+    circle=st.tuples(st.floats(-600.0, 600.0), st.floats(-600.0, 600.0), st.floats(0.5, 50.0)),
+    rows=st.lists(
+        st.tuples(
+            st.floats(-700.0, 700.0), st.floats(-700.0, 700.0), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5),
+            st.floats(-20.0, 20.0), st.floats(-20.0, 20.0),
+        ),
+        min_size=1, max_size=8,
+    ),
+)  # fmt: skip
+def test_the_fence_only_ever_levels_a_tilt(ring, hole, circle, rows) -> None:
+    """Whatever the fence and the states: the guard's answer is finite, and a row it changes (thrust and tilt
+    within limits, inside the radius) is the same command levelled."""
+    zones = [SimpleNamespace(polygon=hole, center=None, radius=0.0)]
+    zones.append(SimpleNamespace(polygon=None, center=np.array(circle[:2]), radius=circle[2]))
+    limits = CommandLimits(1.0, 2.0, 0.0, 1e6, 1e6, GuardFence.of(ring, zones, G_TAN_35))
+    x, y, roll, pitch, v_e, v_n = (np.array(column) for column in zip(*rows, strict=True))
+    pos = np.column_stack([x, y, np.full(len(x), 10.0)])
+    vel = np.column_stack([v_e, v_n, np.zeros(len(x))])
+    roll, pitch = (
+        roll * 0.45,
+        pitch * 0.45,
+    )  # tilt <= acos(cos(0.675)^2) = 0.92 rad: the tilt rule leaves them
+    out = guard_attitude_commands(
+        roll, pitch, np.zeros(len(x)), np.full(len(x), 0.5), pos, np.zeros(len(x)), np.full(len(x), 0.5),
+        limits, vel=vel,
+    )  # fmt: skip
+    r, p, _, t, changed = out
+    assert np.isfinite(np.stack([r, p, t])).all()
+    np.testing.assert_array_equal(np.where(changed, 0.0, roll), r)
+    np.testing.assert_array_equal(np.where(changed, 0.0, pitch), p)
