@@ -59,7 +59,7 @@ def read_columns(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
     return {c: data[:, k] for k, c in enumerate(columns)}
 
 
-def _by_vehicle(
+def by_vehicle(
     table: dict[str, np.ndarray], key: str, columns: list[str], n: int | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Pivot long rows (one per vehicle per sample, in vehicle order; `key` holds the vehicle's 0-based
@@ -85,7 +85,7 @@ def load_truth(path: Path, n: int | None = None) -> Trajectories:
     """Read the simulator's truth log (and its .obstacles.csv sidecar); n vehicles (None: as many as the log
     names)."""
     columns = ["x", "y", "z", "vx", "vy", "vz", "crashed"]
-    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns, n)
+    t, v = by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns, n)
     obstacle_path = path.with_suffix(".obstacles.csv")
     centres = np.zeros((len(t), 0, 3))
     radii = np.zeros(0)
@@ -93,7 +93,7 @@ def load_truth(path: Path, n: int | None = None) -> Trajectories:
         columns = ["x", "y", "z", "radius"]
         otable = read_columns(obstacle_path, ["t", "obstacle", *columns])
         if len(otable["t"]):
-            ot, ov = _by_vehicle(otable, "obstacle", columns)
+            ot, ov = by_vehicle(otable, "obstacle", columns)
             idx = np.clip(np.searchsorted(ot, t), 0, len(ot) - 1)
             centres, radii = ov[idx, :, :3], ov[0, :, 3]
     return Trajectories(t, v[..., :3], v[..., 3:6], v[..., 6] > 0.5, centres, radii, "truth")
@@ -103,7 +103,7 @@ def load_record(path: Path, obstacles: list[Any], n: int | None = None) -> Traje
     """The ground station's telemetry record as trajectories (used when no truth log exists); n vehicles
     (None: as many as the record names)."""
     columns = ["x", "y", "z", "vx", "vy", "vz"]
-    t, v = _by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns, n)
+    t, v = by_vehicle(read_columns(path, ["t", "vehicle", *columns]), "vehicle", columns, n)
     centres = np.array([[o.center_at(tt) for o in obstacles] for tt in t]).reshape(len(t), len(obstacles), 3)
     radii = np.array([o.radius for o in obstacles], dtype=float)
     crashed = np.zeros(v.shape[:2], dtype=bool)
@@ -129,7 +129,7 @@ def load_commands(record_path: Path, n: int | None = None) -> CommandLog | None:
     table = read_columns(record_path, ["t", "vehicle", *columns])
     if len(table["t"]) == 0:
         return None
-    t, v = _by_vehicle(table, "vehicle", columns, n)
+    t, v = by_vehicle(table, "vehicle", columns, n)
     with np.errstate(all="ignore"):
         psi_l = np.fmax.reduce(v[..., 3], axis=1)  # the same on every row of a tick: any row that has it
     return CommandLog(t, v[..., :3], psi_l)
