@@ -1,4 +1,4 @@
-"""`gcs-swarm` command line: run, console, check, plan, report, compare, montecarlo, import."""
+"""`gcs-swarm` command line: run, console, check, plan, report, replay, compare, montecarlo, import."""
 
 from __future__ import annotations
 
@@ -167,6 +167,19 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0 if report["reached"] and report["collisions"] == 0 else 1
 
 
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from gcs_swarm.cli.replay import replay_command
+
+    return replay_command(
+        Path(args.run_dir),
+        Path(args.mission) if args.mission else None,
+        args.host,
+        args.port,
+        args.speed,
+        Path(args.export) if args.export else None,
+    )
+
+
 def _csv_list(kind: type, text: str) -> list:
     try:
         return [kind(x.strip()) for x in text.split(",") if x.strip()]
@@ -273,6 +286,23 @@ def build_parser() -> argparse.ArgumentParser:
     report.add_argument("run_dir")
     report.add_argument("--mission", help="mission file (default: the one recorded in the run folder)")
     report.set_defaults(func=_cmd_report)
+
+    replay = sub.add_parser(
+        "replay", help="watch a run folder in the browser, or --export its top view (docs/replay.md)"
+    )
+    replay.add_argument("run_dir", metavar="RUN_DIR")
+    replay.add_argument("--mission", help="mission file (default: the one recorded in the run folder)")
+    replay.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
+    replay.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any free one)")
+    replay.add_argument(
+        "--speed", type=float, help="replay s per s: on the page at the start (default 1), in the export (4)"
+    )
+    replay.add_argument(
+        "--export",
+        metavar="OUT.gif|OUT.mp4",
+        help="write an animation of the top view instead (.mp4: ffmpeg)",
+    )
+    replay.set_defaults(func=_cmd_replay)
 
     compare = sub.add_parser("compare", help="fly a mission under several variants and compare them")
     compare.add_argument("mission")
