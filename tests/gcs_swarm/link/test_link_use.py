@@ -4,6 +4,7 @@ measured at the other end), the rates of a window worked out by hand, the budget
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -131,5 +132,41 @@ def test_a_radio_buffer_filling_up_is_an_event_once_until_it_drains(tmp_path: Pa
             "radio transmit buffer 95% free again",
         ]
         assert use.summary()["v0"]["radio_status"]["txbuf_min_pct"] == 20
+    finally:
+        f.close()
+
+
+def test_a_command_a_read_write_forward_routes_to_a_vehicle_counts_up(tmp_path: Path) -> None:
+    """Another ground station on a read-write forward sends a COMMAND_LONG to the vehicle: its bytes go up
+    the vehicle's link unchanged, and are counted there."""
+    f = LoopbackFleet(tmp_path, forward=True)
+    try:
+        forward = f.fleet.network.forwards[0]
+        forward.config = replace(forward.config, read_write=True)
+        assert f.forward_socket is not None
+        f.sockets[0].sendto(heartbeat(encoder()), f.gcs[0])
+        f.forward_socket.settimeout(0.01)
+        gcs_forward = None
+        for _ in range(500):  # the forwarded HEARTBEAT comes from where the forward endpoint is
+            f.fleet.network.receive(0.01)
+            try:
+                _, gcs_forward = f.forward_socket.recvfrom(2048)
+                break
+            except TimeoutError:
+                continue
+        assert gcs_forward is not None
+        f.forward_socket.setblocking(False)
+        other = mavlink2.MAVLink(None, 250, 190)
+        command = other.command_long_encode(7, 1, mavlink2.MAV_CMD_DO_SET_MODE, 0, 1, 5, 0, 0, 0, 0, 0).pack(
+            other
+        )
+        before, seen = f.stats().bytes_sent, len(f.from_gcs[0])
+        f.forward_socket.sendto(command, gcs_forward)
+        for _ in range(500):  # until the vehicle's socket has it
+            f.feed([])
+            if command in f.from_gcs[0][seen:]:
+                break
+        assert command in f.from_gcs[0][seen:]
+        assert f.stats().bytes_sent - before == sum(len(d) for d in f.from_gcs[0][seen:])
     finally:
         f.close()
