@@ -11,8 +11,12 @@ Results go to OUT/results.jsonl, one line per flight (rerunning the same command
 and a summary per family (median, 90th percentile and worst of each figure, and how many courses meet each
 bound) to OUT/summary.md and stdout.
 
+`--set KEY=VALUE` (repeatable) sets a mission key by its dotted path on every course, after the form's own
+settings: `--set limits.tilt_max_deg=17` flies airframes that top out at 10.8 m/s (a slow airframe, as PX4
+SIH), `--set guidance.pace.enabled=false` without the leader's pace from the followers' drag.
+
 Usage: python benchmarks/bench_formation_courses.py [--families slalom,gap,legs2,legs3] [--seeds 20]
-       [--first-seed 0] [--forms smooth,paper] [--jobs 2] [--out runs/courses]
+       [--first-seed 0] [--forms smooth,paper] [--jobs 2] [--set KEY=VALUE ...] [--out runs/courses]
 """
 
 from __future__ import annotations
@@ -46,11 +50,19 @@ BOUNDS = {  # figure: (bound, "<=" or ">=")
 }
 
 
-def fly_one(family: str, seed: int, form: str, out: Path) -> dict[str, Any]:
-    """Fly one course in one form; its result line."""
+def fly_one(family: str, seed: int, form: str, out: Path, settings: dict[str, Any]) -> dict[str, Any]:
+    """Fly one course in one form, with the mission keys `settings` (dotted path: value) set; its result
+    line."""
     run_dir = out / "runs" / form / f"{family}-{seed}"
     run_dir.mkdir(parents=True, exist_ok=True)
     data = apply_variant(course(family, seed), Variant(form=form), f"course-{family}-{seed}-{form}")
+    for path, value in settings.items():
+        *sections, key = path.split(".")
+        section = data
+        for name in sections:
+            section[name] = dict(section.get(name) or {})
+            section = section[name]
+        section[key] = value
     path = run_dir / "mission.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     start = time.monotonic()
@@ -111,8 +123,15 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--forms", default="smooth,paper")
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--out", default="runs/courses")
     args = parser.parse_args()
+    settings = {}
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            parser.error(f"--set {item!r}: expected KEY=VALUE, e.g. limits.tilt_max_deg=17")
+        settings[key] = yaml.safe_load(value)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     families = args.families.split(",")
@@ -129,7 +148,7 @@ def main() -> None:
         if (family, seed, form) not in done
     ]
     with cf.ProcessPoolExecutor(max_workers=args.jobs) as pool, store.open("a") as sink:
-        futures = {pool.submit(fly_one, *task, out): task for task in todo}
+        futures = {pool.submit(fly_one, *task, out, settings): task for task in todo}
         for future in cf.as_completed(futures):
             line = future.result()
             sink.write(json.dumps(line) + "\n")
