@@ -1,7 +1,8 @@
-"""Cost of the deliberate reshaping (gcs_swarm.guidance.reshape) in FleetController.tick: a grid of N vehicles
-9 m apart flies east at 8 m/s past 10 obstacles spread over its course, 150 ticks, with `guidance.reshape` on
-and off, interleaved run by run. Prints per N and setting the median tick (ms) and the slowest tick (ms; the
-tick of a decision that changes the shape) of each run.
+"""Cost of the deliberate reshaping (gcs_swarm.guidance.reshape) and of the leader's pace from the followers'
+measured drag (gcs_swarm.guidance.capability) in FleetController.tick: a grid of N vehicles 9 m apart flies
+east at 8 m/s past 10 obstacles spread over its course, 150 ticks, with `guidance.reshape` off, on, and on
+with `guidance.pace` (fed every tick, sampled every 0.2 s), interleaved run by run. Prints per N and setting
+the median tick (ms) and the slowest tick (ms; the tick of a decision that changes the shape) of each run.
 
 Usage: python benchmarks/bench_reshape.py [--sizes 9,100] [--repeats 5]
 """
@@ -20,20 +21,22 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gcs_swarm.guidance.fleet_controller import FleetController  # noqa: E402
 from gcs_swarm.guidance.formation import formation_offsets  # noqa: E402
-from gcs_swarm.guidance.params import ReshapeParams  # noqa: E402
+from gcs_swarm.guidance.params import CapabilityParams, ReshapeParams  # noqa: E402
 
 TICKS = 150
 DT = 0.02  # s
 
 
-def run(n: int, reshape: ReshapeParams | None) -> tuple[float, float]:
+def run(n: int, reshape: ReshapeParams | None, pace: CapabilityParams | None = None) -> tuple[float, float]:
     """(median, max) ms of TICKS ticks of an N-vehicle grid."""
     offsets = np.zeros((n, 3))
     offsets[1:] = formation_offsets("grid", n - 1, 9.0)
     rng = np.random.default_rng(0)
     centres = np.column_stack([rng.uniform(20, 200, 10), rng.uniform(-40, 40, 10), np.full(10, 10.0)])
     radii = np.full(10, 3.0)
-    ctl = FleetController(n, 0, offsets, np.array([[400.0, 0.0, 10.0]]), reshape=reshape, z_min=1.0)
+    ctl = FleetController(
+        n, 0, offsets, np.array([[400.0, 0.0, 10.0]]), reshape=reshape, pace=pace, z_min=1.0
+    )
     pos = offsets + [0.0, 0.0, 10.0]
     vel = np.zeros((n, 3))
     vel[:, 0] = 8.0
@@ -57,10 +60,15 @@ def main() -> None:
     print("| N | reshape | median tick ms (per run) | slowest tick ms (per run) |")
     print("|---|---|---|---|")
     for n in (int(s) for s in args.sizes.split(",")):
-        results: dict[str, list[tuple[float, float]]] = {"off": [], "on": []}
+        settings = {
+            "off": (None, None),
+            "on": (ReshapeParams(), None),
+            "on, pace": (ReshapeParams(), CapabilityParams()),
+        }
+        results: dict[str, list[tuple[float, float]]] = {label: [] for label in settings}
         for _ in range(args.repeats):
-            for label, reshape in (("off", None), ("on", ReshapeParams())):
-                results[label].append(run(n, reshape))
+            for label, (reshape, pace) in settings.items():
+                results[label].append(run(n, reshape, pace))
         for label, rows in results.items():
             medians = ", ".join(f"{m:.3f}" for m, _ in rows)
             slowest = ", ".join(f"{s:.1f}" for _, s in rows)
