@@ -27,6 +27,7 @@ from gcs_swarm.flight.run_record import RunRecord
 from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.guidance.fleet_controller import prepare_kernels
 from gcs_swarm.link import signing
+from gcs_swarm.link.command_mode import CommandModeError, CommandPlan, command_plan, link_budget
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.forward import ForwardConfig
@@ -156,6 +157,7 @@ def write_flight(
         "wall_duration_s": wall_s,
         "link_stats": link_stats,  # {"vehicles": Fleet.stats(), "forwards": Fleet.forward_stats()}
         "link_use": link_use,  # bytes/s each way per vehicle and the budget (link.link_use.LinkUse.summary)
+        "command_mode": result.command_mode,  # link.command_mode.CommandPlan.as_json (None: not chosen)
     }
     (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
 
@@ -191,6 +193,7 @@ def mission_fleet(
     """The (unconnected) Fleet that flies `mission`: its vehicles (see vehicle_configs), the run folder's
     telemetry.tlog, the signing key, safety.telemetry.lost_s as the loss timeout, run.forward, and spin_s
     (wall s each wait for packets polls first, see lockstep_spin_s)."""
+    plan = mission_command_plan(mission, signed=key is not None)
     return Fleet(
         vehicle_configs(mission, base_port),
         mission.origin,
@@ -200,8 +203,20 @@ def mission_fleet(
         stream_rate_hz=mission.run.control_rate_hz,
         forwards=[ForwardConfig(text, mission.run.forward_rw) for text in mission.run.forward],
         spin_s=spin_s,
-        link_budget_bps=mission.link.budget_bps,
+        # world.link.budget_bps, else the mission's radio's capacity in MAVLink bytes (link.command_mode)
+        link_budget_bps=None if plan.budget is None else plan.budget.bytes_per_s * 8.0,
+        command_plan=plan,
     )
+
+
+def mission_command_plan(mission: Mission, signed: bool) -> CommandPlan:
+    """The command mode and telemetry rates for the mission's link budget (link.command_mode); MissionError
+    (one sentence) when the budget cannot carry even the slowest mode."""
+    budget = link_budget(mission.link, len(mission.vehicles))
+    try:
+        return command_plan(budget, mission.run.control_rate_hz, signed, mission.link.command_mode)
+    except CommandModeError as exc:
+        raise MissionError(str(exc)) from None
 
 
 def lockstep_spin_s(mission: Mission, embedded: bool, time_mode: str | None = None) -> float:

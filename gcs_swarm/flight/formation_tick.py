@@ -1,6 +1,9 @@
 """One tick of formation flight: measured state -> guidance (FleetController.tick) -> ArduPilot thrust ->
 final command guard -> SET_ATTITUDE_TARGET to every active vehicle (and a zero-velocity target to every held
-one), then how far each vehicle is from where it should end."""
+one), then how far each vehicle is from where it should end. In the position command mode (a link too slow for
+attitude targets, link.command_mode) each active vehicle gets the guidance's reference position, velocity and
+acceleration instead, once per position report; the attitude commands are still made (record.csv keeps them)
+but not sent."""
 
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.params import G
 from gcs_swarm.link.attitude_commands import attitude_commands
 from gcs_swarm.link.command_limits import CommandLimits
+from gcs_swarm.link.command_mode import POSITION
 from gcs_swarm.link.fleet import Fleet
 
 
@@ -50,7 +54,7 @@ def send_formation_tick(
     ((K, 3) ENU m centres, (K,) m radii at time t). A vehicle whose state is not finite (broken telemetry)
     gets no command this tick, as if lost; a held one brakes on its own autopilot. Only vehicles of the
     (N,) bool mask `flown` (live, not taken over by an operator) are sent anything. `timing`, if given, marks
-    the end of the guidance (flight.tick_timing)."""
+    the end of the guidance (flight.tick_timing). What is sent follows fleet.command_plan (module doc)."""
     pos, vel, att = state
     finite = cast(NDArray[np.bool_], np.isfinite(np.hstack((pos, vel, att))).all(axis=1))  # (N,)
     active = flown & finite & ~verdict.held
@@ -63,7 +67,11 @@ def send_formation_tick(
         cmd.roll_d, cmd.pitch_d, cmd.yaw_d, cmd.thrust_acc, att, verdict.pos, vel, setup.hover,
         setup.angle_boost, G, limits, fleet.dialects,
     )  # fmt: skip
-    fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
+    plan = fleet.command_plan
+    if plan is not None and plan.mode == POSITION:  # the reference as a trajectory point (command_mode)
+        fleet.send_trajectory_targets(cmd.ref_pos, cmd.ref_vel, cmd.ref_acc, cmd.yaw_d, active)
+    else:
+        fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
     for i in np.flatnonzero(verdict.held & flown):
         fleet.vehicle(int(i)).setpoints.send_velocity_target(
             np.zeros(3), yaw=float(att[i, 2]) if finite[i] else None

@@ -15,6 +15,7 @@ class FlightResult:
     """What the run did, from the ground station's point of view (metrics come from report.py)."""
 
     phase_reached: Phase = Phase.CONNECT
+    command_mode: dict[str, object] | None = None  # the command mode chosen before take-off (CommandPlan)
     arrived: bool = False
     t_formation_start: float | None = None
     t_arrival: float | None = None

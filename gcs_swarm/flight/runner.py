@@ -49,6 +49,7 @@ from gcs_swarm.guidance.obstacles import centres_at
 from gcs_swarm.guidance.params import G
 from gcs_swarm.link.autopilots import formation_mode, launch_mode, takeoff_mode
 from gcs_swarm.link.command_limits import CommandLimits, GuardFence
+from gcs_swarm.link.command_mode import ATTITUDE
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams
@@ -163,6 +164,11 @@ class MissionRunner:
     def preflight(self) -> None:
         """Wait for position estimates and pre-arm health; set and verify params; hover thrust; streams."""
         self._set_phase(Phase.PREFLIGHT)
+        plan = self.fleet.command_plan
+        if plan is not None:  # chosen from the link budget before the fleet connected (link.command_mode)
+            self.result.command_mode = plan.as_json()
+            self.result.events.append(plan.text())
+            self.progress(plan.text())
         self.setup = preflight_fleet(
             self.fleet, self.mission, self.flight_params, self.result.events, self.progress
         )
@@ -674,4 +680,12 @@ class MissionRunner:
             f"t={t:7.1f} s  leader to goal {cmd.leader_goal_distance:8.1f} m  "
             f"formation rms {self.formation_rms:6.2f} m"
             + ("" if self.controller.shaper is None else f"  shape {self.controller.shaper.shape_name}")
+            + self._command_mode_note()
         )
+
+    def _command_mode_note(self) -> str:
+        """The progress line's note of the command mode, when it is not the paper's attitude targets."""
+        plan = self.fleet.command_plan
+        if plan is None or plan.mode == ATTITUDE:
+            return ""
+        return f"  {plan.mode} targets {plan.setpoint_hz:g} Hz"

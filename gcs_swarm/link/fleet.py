@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm.link import attitude_commands, frames, intake_kernel
 from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
+from gcs_swarm.link.command_mode import CommandPlan
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.housekeeping import Housekeeping
@@ -94,12 +95,18 @@ class Fleet:
         forwards: Sequence[ForwardConfig] = (),
         spin_s: float = 0.0,
         link_budget_bps: float | None = None,
+        command_plan: CommandPlan | None = None,
     ) -> None:
         """`stream_rate_hz`: the rate of the state telemetry asked for as soon as a vehicle is heard
         (`telemetry_rates`; the control loop's rate). `link_budget_bps`: bit/s each vehicle's link carries
-        for the ground station, up and down together (link.link_use; None: no budget)."""
+        for the ground station, up and down together (link.link_use; None: no budget). `command_plan`: the
+        command mode and telemetry rates chosen for the link (link.command_mode); its telemetry is asked
+        for instead (None: attitude targets, telemetry at stream_rate_hz)."""
         _validate(vehicles, gcs_sysid, gcs_compid)
         self.stream_rate_hz = stream_rate_hz
+        self.command_plan = command_plan
+        self._trajectory_ms = np.full(len(vehicles), -1, dtype=np.int64)  # position report of the last
+        # trajectory target sent to each vehicle (send_trajectory_targets)
         self.configs = list(vehicles)
         self.lockstep_answers = lockstep_answers
         self.loss_timeout_s = loss_timeout_s
@@ -239,7 +246,8 @@ class Fleet:
         streams nothing on a link until a ground station asks (its MAVn_* / SRn_* rates are 0 by default),
         and MAVProxy and QGroundControl ask at the first HEARTBEAT too. A vehicle that refuses is reported
         (an event) and asked again by the stream watchdog; nothing here stops the connection."""
-        rates = telemetry_rates(self.stream_rate_hz)
+        plan = self.command_plan
+        rates = telemetry_rates(self.stream_rate_hz) if plan is None else plan.telemetry
         results = self.run((link.streams.op_request_streams(rates) for link in self.links), strict=False)
         for link, result in zip(self.links, results, strict=True):
             if isinstance(result, LinkError):
@@ -410,6 +418,28 @@ class Fleet:
             i = link.index
             if selected[i] and link.sysid is not None:
                 link.setpoints.send_attitude_quaternion(q[i], thrust_list[i])
+
+    def send_trajectory_targets(
+        self,
+        pos: NDArray[np.float64],
+        vel: NDArray[np.float64],
+        acc: NDArray[np.float64],
+        yaw: NDArray[np.float64],
+        mask: NDArray[np.bool_],
+    ) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT with position (N, 3) ENU m, velocity (N, 3) m/s, acceleration
+        (N, 3) m/s^2 and yaw (N,) rad ENU to each connected vehicle in the (N,) bool `mask` whose latest
+        GLOBAL_POSITION_INT is not the one its last target was sent on: one target per position report, so
+        the setpoints go at the state telemetry's rate (CommandPlan.state_hz), whatever the tick rate.
+        Each echoes its vehicle's time_boot_ms (Setpoints.send_trajectory_target; a non-finite row raises
+        ValueError)."""
+        st = self.state
+        fresh = np.asarray(mask, dtype=bool) & (st.position_ms >= 0) & (st.position_ms != self._trajectory_ms)
+        for link in self.links:
+            i = link.index
+            if fresh[i] and link.sysid is not None:
+                link.setpoints.send_trajectory_target(pos[i], vel[i], acc[i], float(yaw[i]))
+                self._trajectory_ms[i] = st.position_ms[i]
 
     def _mask(self, mask: ArrayLike | None) -> NDArray[np.bool_]:
         n = len(self.links)

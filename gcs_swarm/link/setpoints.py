@@ -135,6 +135,41 @@ class Setpoints:
             )
         )
 
+    def send_trajectory_target(
+        self, pos_enu: ArrayLike, vel_enu: ArrayLike, acc_enu: ArrayLike, yaw: float
+    ) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT with a mission-frame ENU position (m), velocity (m/s), acceleration
+        (m/s^2) and ENU yaw (rad): a point of a trajectory, which ArduCopter GUIDED flies with its
+        pos-vel-accel controller (propagating the position with the velocity and acceleration until the next
+        target) and PX4 OFFBOARD as a position setpoint with velocity feed-forward (docs/command-modes.md).
+        Global coordinates, as send_position_target."""
+        p, v, a = (np.asarray(x, dtype=float) for x in (pos_enu, vel_enu, acc_enu))
+        for what, values in (("position", p), ("velocity", v), ("acceleration", a)):
+            _require_finite(self.name, f"trajectory target {what}", values, yaw)
+        lat, lon, alt = frames.enu_to_geodetic(p, self.lockstep.state.origin)
+        vn, an = frames.enu_to_ned(v), frames.enu_to_ned(a)
+        ch = self.channel
+        ch.send(
+            ch.mav.set_position_target_global_int_encode(
+                self.lockstep.answer_time_ms(),
+                ch.target_sysid,
+                ch.compid,
+                mavlink2.MAV_FRAME_GLOBAL_INT,
+                mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE,
+                int(round(float(lat) * 1e7)),
+                int(round(float(lon) * 1e7)),
+                float(alt),
+                float(vn[0]),
+                float(vn[1]),
+                float(vn[2]),
+                float(an[0]),
+                float(an[1]),
+                float(an[2]),
+                float(yaw_ned_enu(yaw)),
+                0.0,
+            )
+        )
+
     def hold(self) -> None:
         """Hold the current position and heading with a position target (vehicle must be in GUIDED)."""
         st, i = self.lockstep.state, self.lockstep.index

@@ -155,6 +155,7 @@ class LinkSpec:
     # bit/s of MAVLink bytes each vehicle's link carries for the ground station, up and down together (None:
     # no budget); going over it is an event (gcs_swarm.link.link_use)
     budget_bps: float | None = None
+    command_mode: str = "auto"  # auto (from the budget) | attitude | position (gcs_swarm.link.command_mode)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -436,6 +436,9 @@ class LinkSection(Section):
     radio_status: bool | None = None
     # the ground station's budget per vehicle link, both ways together (docs/mission-schema.md; link.link_use)
     budget_bps: Annotated[float, Range(gt=0, unit="bit/s")] | None = None
+    # how the ground station commands the vehicles: auto (from the budget), attitude or position
+    # (docs/command-modes.md; link.command_mode)
+    command_mode: Annotated[str, one_of("auto", "attitude", "position")] = "auto"
 
 
 class _Heights(Entry):

@@ -47,6 +47,7 @@ TAKEOFF_REACHED_M = 0.1  # m below the takeoff altitude at which the takeoff is 
 SMOOTH_P = 10.0
 
 EVENT_DISARM, EVENT_GCS_FAILSAFE = 1, 2
+NO_VELOCITY = np.zeros(3)  # the feed-forward velocity of a target without one
 LOOP_PARAMS = (
     "MOT_THST_HOVER", "ANGLE_MAX", "GUID_TIMEOUT", "PSC_POSXY_P", "PSC_POSZ_P", "PSC_VELXY_P", "PSC_VELXY_I",
     "PSC_VELZ_P", "PSC_VELZ_I", "WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
@@ -246,6 +247,13 @@ def outer_loop(
         if guided and control[i] == CTRL_POS and stale and nav_kind[i] != KIND_POS:
             nav_vel[i] = 0.0
             nav_acc[i] = 0.0
+        # A pos-vel-accel target moves on between two setpoints as ArduCopter's does: AC_PosControl::
+        # input_pos_vel_accel_xy / _z project the guided position and velocity forward with the target's
+        # acceleration every loop (update_pos_vel_accel); after GUID_TIMEOUT (above) it stops where it got to
+        if guided and control[i] == CTRL_POS and nav_kind[i] == KIND_POSVEL:
+            for k in range(3):
+                nav_pos[i, k] += (nav_vel[i, k] + 0.5 * nav_acc[i, k] * dt) * dt
+                nav_vel[i, k] += nav_acc[i, k] * dt
         if angle_guided and stale and not timed_out[i]:
             _set_level(angle_quat, i, yaw_now)
             angle_rates[i] = 0.0
@@ -313,10 +321,16 @@ def outer_loop(
         flying = armed[i] and not land_complete[i]
         speed_dn = p[columns[P_SPEED_DN]] / 100.0
         speed_up = p[columns[P_SPEED_UP]] / 100.0
+        # a pos-vel-accel target's speed limits bound the position correction only, its velocity is added
+        # after (AC_PosControl::input_pos_vel_accel_xy with limit_output false, as ModeGuided calls it)
+        trajectory = guided and control[i] == CTRL_POS and nav_kind[i] == KIND_POSVEL
         vx, vy, vz = velocity_demand(
-            pos[i], nav_pos[i], nav_vel[i], p[columns[P_POSXY_P]], p[columns[P_POSZ_P]],
-            p[columns[P_ACCEL]] / 100.0, p[columns[P_SPEED]] / 100.0, speed_up, speed_dn,
+            pos[i], nav_pos[i], NO_VELOCITY if trajectory else nav_vel[i], p[columns[P_POSXY_P]],
+            p[columns[P_POSZ_P]], p[columns[P_ACCEL]] / 100.0, p[columns[P_SPEED]] / 100.0, speed_up,
+            speed_dn,
         )  # fmt: skip
+        if trajectory:
+            vx, vy, vz = vx + nav_vel[i, 0], vy + nav_vel[i, 1], vz + nav_vel[i, 2]
         if climb_cap[i] < vz:  # a persona's upward limit (+inf: none)
             vz = climb_cap[i]
         ax = ay = az = 0.0

@@ -22,7 +22,11 @@ DOWN_FLOOR_B_S = RATE_HZ * (28 + 28)
 
 def test_link_use_is_measured_and_going_over_the_budget_is_an_event(tmp_path: Path) -> None:
     mission = derived_mission(
-        tmp_path, "quickstart.yaml", "budget", world={"link": {"budget_bps": BUDGET_BPS}}
+        tmp_path,
+        "quickstart.yaml",
+        "budget",
+        # attitude targets forced: the streams of today, far over the budget (else position targets)
+        world={"link": {"budget_bps": BUDGET_BPS, "command_mode": "attitude"}},
     )
     run = fly(mission, tmp_path / "run", timeout_s=400)
     assert "Traceback" not in run.output, run.output[-3000:]
@@ -61,7 +65,11 @@ def test_over_a_sik_radio_the_use_is_at_most_its_capacity_and_radio_status_is_he
     flight cannot exceed the radio's capacity (plus what its two buffers held at the end), its ground radio's
     RADIO_STATUS reports are kept, and the streams the ground station asks for fill the radio: over budget."""
     mission = derived_mission(
-        tmp_path, "quickstart.yaml", "sik", world={"link": {"budget_bps": SIK64_B_S * 8}}
+        tmp_path,
+        "quickstart.yaml",
+        "sik",
+        # attitude targets forced: the streams of today, which overfill the radio (else position targets)
+        world={"link": {"budget_bps": SIK64_B_S * 8, "command_mode": "attitude"}},
     )
     run = fly(mission, tmp_path / "run", timeout_s=400, extra=["--sim-arg=--link-radio=sik64"])
     assert "Traceback" not in run.output, run.output[-3000:]

@@ -33,7 +33,8 @@ def test_quickstart_over_a_wide_radio_reaches_and_a_narrow_one_drops(tmp_path: P
         tmp_path,
         "quickstart.yaml",
         "radio_narrow",
-        world={"link": {"capacity_bps": 2000.0, "half_duplex": True}},
+        # attitude targets forced: a budget of 250 B/s carries no command mode, the flight would be refused
+        world={"link": {"capacity_bps": 2000.0, "half_duplex": True, "command_mode": "attitude"}},
     )
     run = fly(narrow, tmp_path / "narrow", timeout_s=400)
     assert "Traceback" not in run.output, run.output[-2000:]
