@@ -1,7 +1,8 @@
 """The ground station's side of the simulator's lockstep protocol (docs/sitl.md).
 
-A lockstep simulator sends each frame's telemetry stamped with time_boot_ms and waits until the frame is
-answered by a SYSTEM_TIME / SET_ATTITUDE_TARGET / SET_POSITION_TARGET_* carrying time_boot_ms >= the frame's.
+A lockstep simulator sends each frame's telemetry stamped with time_boot_ms (a SYSTEM_TIME when no stream
+carries a stamped message in that frame) and waits until the frame is answered by a SYSTEM_TIME /
+SET_ATTITUDE_TARGET / SET_POSITION_TARGET_* carrying time_boot_ms >= the frame's.
 With link faults it also marks each frame's end with SYSTEM_TIME(time_unix_usec=0) (a clock tick), so a frame
 is complete even when the vehicle's telemetry was lost or delayed. A real ArduPilot ignores the answers (it
 refuses UNIX times before 2022) and sends no clock ticks, so all this is always safe.
@@ -43,6 +44,15 @@ class LockstepAnswer:
         """A clock tick (`is_clock_tick`): the frame it ends is complete."""
         if self.telemetry.on_time(m.time_boot_ms, CLOCK_KIND):
             self.state.frame_ms[self.index] = max(int(self.state.frame_ms[self.index]), m.time_boot_ms)
+
+    def on_system_time(self, m: MAVLinkMessage) -> None:
+        """A SYSTEM_TIME that is no clock tick, already taken as the vehicle's time: a lockstep simulator
+        stamps each frame whose streams carry no stamped message with one (telemetry slower than the frames,
+        e.g. the position command mode's 10 Hz), so it completes that frame as a clock tick would. A late
+        one (older than the vehicle's newest time) completes nothing."""
+        t, i = int(m.time_boot_ms), self.index
+        if t == int(self.state.time_ms[i]) and t > int(self.state.frame_ms[i]):
+            self.state.frame_ms[i] = t
 
     @property
     def needs_answer(self) -> bool:
@@ -91,7 +101,8 @@ def take_new_frame(
     alive: np.ndarray, position_ms: np.ndarray, frame_ms: np.ndarray, tick_ms: np.ndarray
 ) -> bool:
     """Whether every vehicle expected in a new tick has a frame newer than its last tick: a
-    GLOBAL_POSITION_INT or a lockstep clock tick (position_ms, frame_ms: (N,) int64 time_boot_ms, -1 for
+    GLOBAL_POSITION_INT or a lockstep clock tick or frame SYSTEM_TIME (position_ms, frame_ms: (N,) int64
+    time_boot_ms, -1 for
     none) newer than tick_ms (N,), for every alive vehicle and every lost one whose clock ticks were current
     at the fleet's last tick (a lockstep simulator waits for its answer). If so, that frame is consumed: each
     expected vehicle's tick_ms becomes its newest frame's. `alive`: (N,) bool. False while nobody is alive.

@@ -186,6 +186,8 @@ class VehicleLink:
             handler = self._handlers.get(mtype)
             if handler is not None:
                 handler(msg)
+            if mtype == "SYSTEM_TIME":
+                self.lockstep.on_system_time(msg)  # a frame of a lockstep simulator
         self.telemetry.heard(now)
 
     def _rebooted(self) -> None:

@@ -120,9 +120,9 @@ def test_the_mission_may_force_either_mode() -> None:
 def test_position_targets_go_once_per_position_report_with_position_velocity_acceleration(
     simulator, fleet_of
 ) -> None:
-    """Against the simulator in lockstep: a fleet whose plan is position targets at 10 Hz asks for its state
-    telemetry every 100 ms and its health every second; told twice a tick to send a trajectory target, it
-    sends one per GLOBAL_POSITION_INT, each with every field but the yaw rate, in NED."""
+    """Against the simulator in lockstep (20 ms frames): a fleet whose plan is position targets at 10 Hz asks
+    for its state telemetry every 100 ms and its health every second; told twice a tick to send a trajectory
+    target, it sends one per GLOBAL_POSITION_INT, each with every field but the yaw rate, in NED."""
     vehicles = simulator(1)
     tap = vehicles.tap(0)
     plan = command_plan(None, 50.0, mode="position")
@@ -142,16 +142,22 @@ def test_position_targets_go_once_per_position_report_with_position_velocity_acc
     sent_before = len(tap.sent("SET_POSITION_TARGET_GLOBAL_INT"))
     target = np.array([[5.0, -3.0, 4.0]])
     vel, acc, yaw = np.array([[1.0, 2.0, -0.5]]), np.array([[0.2, -0.1, 0.3]]), np.array([0.5])
-    for _ in range(20):
+    ticks: list[int] = []
+    for _ in range(50):
         assert fleet.wait_tick(timeout_s=2.0)
         for _ in range(2):  # the second finds no new position report: nothing goes
             fleet.send_trajectory_targets(target, vel, acc, yaw, np.array([True]))
         reports.append(int(fleet.state.position_ms[0]))
+        ticks.append(int(fleet.state.time_ms[0]))
         fleet.answer_frame()
-    assert set(np.diff(reports)) == {100}  # a tick per report, 10 Hz
+    # the ticks come every 20 ms frame (the simulator's SYSTEM_TIME stamps the frames without a position),
+    # the position reports every 100 ms: one target per report
+    assert set(np.diff(ticks)) == {20}
+    distinct = sorted(set(reports))
+    assert set(np.diff(distinct)) == {100} and len(distinct) >= 9
     fleet.pump(0.2)  # the tap passes the last targets on
     sent = tap.sent("SET_POSITION_TARGET_GLOBAL_INT")[sent_before:]
-    assert [m.time_boot_ms for m in sent] == reports
+    assert [m.time_boot_ms for m in sent] == distinct
     last = sent[-1]
     assert last.type_mask == mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE  # pos, vel, acc, yaw used
     assert last.coordinate_frame == mavlink2.MAV_FRAME_GLOBAL_INT
