@@ -48,6 +48,7 @@ class ScriptedFleet:
     on_tick: Callable[[], None] | None = None  # called after each tick's clock step: the test's script
     pump_wait_s: float = 0.0  # Fleet's pump clock (flight.tick_timing): no time passes here
     pump_work_s: float = 0.0
+    command_plan: None = None  # Fleet.command_plan: None, the paper's attitude targets (link.command_mode)
 
     def __post_init__(self) -> None:
         n = len(self.names)
