@@ -86,8 +86,8 @@ async def _read_commands(ws: web.WebSocketResponse, inbox: asyncio.Queue[Any]) -
 
 
 class ReplaySession:
-    """Serves one page a replay: the scene, then frames as the player moves, and a status after each
-    command and when playing stops at the end."""
+    """Serves one page a replay: the scene, then frames as the player moves; a status and the frame after
+    each command obeyed, a status when playing stops at the end, an error for each command refused."""
 
     def __init__(self, replay: Replay, speed: float) -> None:
         self.replay = replay
@@ -116,14 +116,13 @@ class ReplaySession:
                 was_playing = player.playing
                 player.advance(now - last)
                 last = now
-                commanded = message is not _NOTHING
-                if commanded:
-                    refused = player.command(message)
-                    if refused:
-                        await ws.send_json({"type": "error", "text": refused})
-                if commanded or player.playing != was_playing:
+                refused = None if message is _NOTHING else player.command(message)
+                if refused:
+                    await ws.send_json({"type": "error", "text": refused})
+                obeyed = message is not _NOTHING and not refused
+                if obeyed or player.playing != was_playing:
                     await ws.send_json(player.status())
-                if player.index() != sent or commanded:
+                if player.index() != sent or obeyed:
                     sent = player.index()
                     await ws.send_json(self.replay.frame(sent))
         except ConnectionResetError:
