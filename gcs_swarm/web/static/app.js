@@ -213,7 +213,7 @@ function drawVehicles(scene, frame) {
   frame.vehicles.forEach((v, i) => {
     if (v.x === null || v.y === null) return;
     const [sx, sy] = px(v.x, v.y);
-    if (v.slot) {
+    if (v.slot && i !== frame.leader) {  // the leader's record slot is its goal, drawn already
       const [qx, qy] = px(v.slot[0], v.slot[1]);
       ctx.strokeStyle = colour(i); ctx.setLineDash([2, 3]);
       ctx.beginPath(); ctx.moveTo(sx, sy); ctx.lineTo(qx, qy); ctx.stroke(); ctx.setLineDash([]);
