@@ -40,6 +40,10 @@ STATUS_HZ = 2.0  # health telemetry (SYS_STATUS, EKF_STATUS_REPORT, EXTENDED_SYS
 # as streams.telemetry_rates asks by default
 STATUS_HZ_SLOW = 1.0  # ... in position mode
 HEARTBEAT_HZ = 1.0  # each side's HEARTBEAT
+# streams some autopilots send unasked (PX4's default set: ATTITUDE_QUATERNION and LOCAL_POSITION_NED at
+# tens of Hz) with nothing the ground station does not also have from ATTITUDE and GLOBAL_POSITION_INT:
+# stopped in the position mode
+UNREAD_STREAMS = ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED")
 MAVLINK2_FRAMING = 12  # bytes around a MAVLink 2 payload: 10 header + 2 checksum
 SIGNATURE = 13  # bytes a MAVLink 2 signature adds
 SETPOINT_MESSAGE = {ATTITUDE: "SET_ATTITUDE_TARGET", POSITION: "SET_POSITION_TARGET_GLOBAL_INT"}
@@ -108,8 +112,11 @@ class CommandPlan:
 
     @property
     def telemetry(self) -> dict[str, float]:
-        """Message name -> rate Hz to ask each vehicle for (streams.Streams.op_request_streams)."""
-        return telemetry_rates(self.state_hz, self.status_hz)
+        """Message name -> rate Hz to ask each vehicle for (streams.Streams.op_request_streams; 0: stop)."""
+        rates = telemetry_rates(self.state_hz, self.status_hz)
+        if self.mode == POSITION:
+            rates.update({name: 0.0 for name in UNREAD_STREAMS})
+        return rates
 
     def text(self) -> str:
         """The event that says which mode was chosen and why."""

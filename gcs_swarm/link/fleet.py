@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm.link import attitude_commands, frames, intake_kernel
 from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
-from gcs_swarm.link.command_mode import CommandPlan
+from gcs_swarm.link.command_mode import POSITION, CommandPlan
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.housekeeping import Housekeeping
@@ -493,8 +493,10 @@ class Fleet:
 
     def take_control_all(self, vehicles: Iterable[int | str] | None = None) -> None:
         """Each vehicle into its formation mode (GUIDED; PX4's OFFBOARD after the setpoint stream it needs:
-        VehicleLink.op_take_control), confirmed by HEARTBEAT."""
-        self.run(link.op_take_control() for link in self.select(vehicles))
+        VehicleLink.op_take_control, at the position command mode's setpoint rate), confirmed by HEARTBEAT."""
+        plan = self.command_plan
+        period_ms = int(1000 / plan.setpoint_hz) if plan is not None and plan.mode == POSITION else 0
+        self.run(link.op_take_control(period_ms) for link in self.select(vehicles))
 
     def arm_all(self, force: bool = False, vehicles: Iterable[int | str] | None = None) -> None:
         self.run(link.commands.op_arm(force) for link in self.select(vehicles))

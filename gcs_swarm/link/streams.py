@@ -59,8 +59,9 @@ class Streams:
     def op_request_streams(self, rates: Mapping[MessageT, float]) -> Operation[None]:
         """Ask for each message at its rate (Hz): SET_MESSAGE_INTERVAL, acknowledged, one after the other; a
         message the vehicle refuses (COMMAND_ACK other than ACCEPTED) is asked for by REQUEST_DATA_STREAM of
-        its stream group in the autopilot's dialect instead (no ACK exists for that; the stream watchdog,
-        `check`, asks again if the telemetry does not come). Messages the autopilot does not have (its
+        its stream group in the autopilot's dialect instead, unless it is to stop (hz <= 0: that would stop
+        the group's other messages) (no ACK exists for that; the stream watchdog, `check`, asks again if the
+        telemetry does not come). Messages the autopilot does not have (its
         dialect's `unsupported_streams`, e.g. PX4's EKF_STATUS_REPORT) are not asked for. The rates are
         remembered for `check`."""
         missing = self.channel.autopilot.unsupported_streams
@@ -71,7 +72,8 @@ class Streams:
             except LinkError as err:
                 if "refused" not in str(err):
                     raise
-                self.request_data_stream(message, hz)
+                if hz > 0:  # stopping a whole group would stop the other messages in it too
+                    self.request_data_stream(message, hz)
 
     def request_data_stream(self, message: str | int, hz: float) -> None:
         """REQUEST_DATA_STREAM of the stream group that carries `message` (if any), at `hz`."""
@@ -109,7 +111,9 @@ class Streams:
                 msg_id = message_id(message)
             except ValueError:
                 continue
+            interval_us = 1e6 / hz if hz > 0 else -1.0
             self.channel.send_command(
-                mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, 0, [float(msg_id), 1e6 / hz, 0, 0, 0, 0, 0]
+                mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, 0, [float(msg_id), interval_us, 0, 0, 0, 0, 0]
             )
-            self.request_data_stream(message, hz)
+            if hz > 0:
+                self.request_data_stream(message, hz)

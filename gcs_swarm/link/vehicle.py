@@ -125,10 +125,11 @@ class VehicleLink:
         """The vehicle's flight mode, named in its autopilot's dialect ("UNKNOWN" before a HEARTBEAT)."""
         return self.channel.autopilot.mode_name(int(self.state.mode[self.index]))
 
-    def op_take_control(self) -> Operation[None]:
+    def op_take_control(self, period_ms: int = 0) -> Operation[None]:
         """Into the dialect's formation mode, confirmed by HEARTBEAT. An autopilot that accepts it only over a
         flowing setpoint stream (PX4's OFFBOARD: `setpoint_proof_s`) first gets position holds where the
-        vehicle is, one per new frame of its clock, for that long, and on until the mode shows."""
+        vehicle is, one per new frame of its clock at least period_ms of its time after the previous one
+        (the command mode's setpoint period; 0: every frame), for that long, and on until the mode shows."""
         dialect = self.channel.autopilot
         st, i = self.state, self.index
         if dialect.setpoint_proof_s <= 0 or st.mode[i] == dialect.mode_number(dialect.formation_mode):
@@ -141,7 +142,7 @@ class VehicleLink:
 
         def stream() -> None:
             nonlocal sent_ms
-            if st.time_ms[i] != sent_ms:
+            if st.time_ms[i] != sent_ms and (sent_ms < 0 or st.time_ms[i] - sent_ms >= period_ms):
                 sent_ms = int(st.time_ms[i])
                 self.setpoints.send_position_target(point, yaw)
 

@@ -78,6 +78,8 @@ def test_a_sik64_radio_gets_position_targets_at_10_hz() -> None:
         "budget (sik64 64000 bit/s / 10.2 bit times a byte)"
     )
     assert plan.as_json()["mode"] == "position" and plan.as_json()["forced"] is False
+    # PX4's unasked default streams, whose data ATTITUDE and GLOBAL_POSITION_INT carry, are stopped
+    assert plan.telemetry["ATTITUDE_QUATERNION"] == plan.telemetry["LOCAL_POSITION_NED"] == 0.0
 
 
 def test_the_mission_s_budget_comes_before_its_radio() -> None:
