@@ -111,29 +111,8 @@ class Setpoints:
         """
         p = np.asarray(pos_enu, dtype=float)
         _require_finite(self.name, "position target", p, yaw)
-        lat, lon, alt = frames.enu_to_geodetic(p, self.lockstep.state.origin)
         mask, yaw_ned = _with_yaw(_IGNORE_VELOCITY | _IGNORE_ACCEL, yaw)
-        ch = self.channel
-        ch.send(
-            ch.mav.set_position_target_global_int_encode(
-                self.lockstep.answer_time_ms(),
-                ch.target_sysid,
-                ch.compid,
-                mavlink2.MAV_FRAME_GLOBAL_INT,
-                mask,
-                int(round(float(lat) * 1e7)),
-                int(round(float(lon) * 1e7)),
-                float(alt),
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-                yaw_ned,
-                0.0,
-            )
-        )
+        self._send_global_target(p, np.zeros(3), np.zeros(3), mask, yaw_ned)
 
     def send_trajectory_target(
         self, pos_enu: ArrayLike, vel_enu: ArrayLike, acc_enu: ArrayLike, yaw: float
@@ -146,8 +125,17 @@ class Setpoints:
         p, v, a = (np.asarray(x, dtype=float) for x in (pos_enu, vel_enu, acc_enu))
         for what, values in (("position", p), ("velocity", v), ("acceleration", a)):
             _require_finite(self.name, f"trajectory target {what}", values, yaw)
+        mask = mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+        self._send_global_target(p, v, a, mask, float(yaw_ned_enu(yaw)))
+
+    def _send_global_target(
+        self, p: np.ndarray, v: np.ndarray, a: np.ndarray, mask: int, yaw_ned: float
+    ) -> None:
+        """One SET_POSITION_TARGET_GLOBAL_INT: ENU position p (3,) m about the mission origin, velocity v (3,)
+        m/s and acceleration a (3,) m/s^2 turned to the wire's lat/lon/alt and NED here, `mask` its type mask,
+        yaw_ned rad."""
         lat, lon, alt = frames.enu_to_geodetic(p, self.lockstep.state.origin)
-        vn, an = frames.enu_to_ned(v), frames.enu_to_ned(a)
+        vn, an = frames.enu_to_ned(v) + 0.0, frames.enu_to_ned(a) + 0.0  # + 0.0: no -0.0 on the wire
         ch = self.channel
         ch.send(
             ch.mav.set_position_target_global_int_encode(
@@ -155,7 +143,7 @@ class Setpoints:
                 ch.target_sysid,
                 ch.compid,
                 mavlink2.MAV_FRAME_GLOBAL_INT,
-                mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE,
+                mask,
                 int(round(float(lat) * 1e7)),
                 int(round(float(lon) * 1e7)),
                 float(alt),
@@ -165,7 +153,7 @@ class Setpoints:
                 float(an[0]),
                 float(an[1]),
                 float(an[2]),
-                float(yaw_ned_enu(yaw)),
+                yaw_ned,
                 0.0,
             )
         )
