@@ -3,22 +3,14 @@
 
 from __future__ import annotations
 
-import json
-
 from gcs_swarm.site.features import feature_shapes
 from gcs_swarm.site.model import Area, Circle, Site, SiteError, SitePoint
-from gcs_swarm.site.values import describe, mapping, sequence
+from gcs_swarm.site.values import describe, json_mapping, mapping, sequence
 
 
 def read_geojson(text: str, source: str) -> Site:
     """The site of a GeoJSON file's text; SiteError "source: feature k ('name'): what is wrong"."""
-    try:
-        document = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise SiteError(f"{source}: not JSON: line {exc.lineno} column {exc.colno}: {exc.msg}") from None
-    except RecursionError:
-        raise SiteError(f"{source}: the JSON is nested too deeply") from None
-    document = mapping(document, source)
+    document = json_mapping(text, source)
     kind = document.get("type")
     if kind == "FeatureCollection":
         features = list(sequence(document.get("features"), f"{source}: features"))

@@ -23,13 +23,12 @@ the formation flight has no meaning for it, and nothing is dropped silently.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 
 from pymavlink.dialects.v20 import common as mavlink
 
 from gcs_swarm.site.model import Area, Circle, Site, SiteError, SitePoint
-from gcs_swarm.site.values import describe, lat_lon, mapping, number, sequence, simple_polygon
+from gcs_swarm.site.values import describe, json_mapping, lat_lon, mapping, number, sequence, simple_polygon
 
 PLAN_VERSION = 1  # PlanMasterController::kPlanFileVersion
 GEOFENCE_VERSION = 2  # GeoFenceController::_jsonCurrentVersion
@@ -46,13 +45,7 @@ AMSL_FRAMES = (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT)
 
 def read_plan(text: str, source: str) -> Site:
     """The site of a .plan file's text; SiteError "source: where: what is wrong" on any mistake."""
-    try:
-        plan = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise SiteError(f"{source}: not JSON: line {exc.lineno} column {exc.colno}: {exc.msg}") from None
-    except RecursionError:
-        raise SiteError(f"{source}: the JSON is nested too deeply") from None
-    plan = mapping(plan, source)
+    plan = json_mapping(text, source)
     if plan.get("fileType") != "Plan":
         raise SiteError(f'{source}: fileType: expected "Plan", got {describe(plan.get("fileType"))}')
     _version(plan, PLAN_VERSION, source)

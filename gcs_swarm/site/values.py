@@ -3,6 +3,7 @@ wrong in one SiteError (docs/site.md). Shared by the importers."""
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 
@@ -10,6 +11,18 @@ import shapely
 from shapely.geometry import Polygon
 
 from gcs_swarm.site.model import LatLon, SiteError
+
+
+def json_mapping(text: str, source: str) -> Mapping[str, object]:
+    """A JSON file's text as its top-level mapping; SiteError "source: not JSON: line L column C: why", or
+    when it is nested too deeply or not a mapping."""
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SiteError(f"{source}: not JSON: line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+    except RecursionError:
+        raise SiteError(f"{source}: the JSON is nested too deeply") from None
+    return mapping(document, source)
 
 
 def describe(value: object) -> str:
