@@ -62,6 +62,7 @@ class RunOptions(SetupChoices):
     sim_args: tuple[str, ...] = ()  # passed verbatim to the embedded simulator (e.g. --link-loss=0.1)
     crash_at: float | None = None  # vehicle s at which the ground station SIGKILLs itself (a rehearsal)
     airborne: str | None = None  # vehicles found flying: "finish" the mission or "land" them (None: refuse)
+    watch: Callable[[MissionRunner], None] | None = None  # given the runner before it flies (`--web`)
 
 
 @dataclass(frozen=True)
@@ -320,6 +321,8 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
                 runner = MissionRunner(mission, fleet, record, progress=say)
                 runner.crash_at_s = options.crash_at
                 runner.airborne = options.airborne
+                if options.watch is not None:
+                    options.watch(runner)
                 result = runner.run()
             finally:
                 record.close()

@@ -131,6 +131,9 @@ class MissionRunner:
         # what to do with vehicles found flying at the start (`gcs-swarm run --airborne`): "finish" the
         # mission from where they are, "land" them, or None: refuse and say so
         self.airborne: str | None = None
+        # called after each step() and idle(), once the tick's commands are out and its frame answered: a
+        # watcher copies what it shows there (the live page, gcs_swarm.web.live), never inside the tick
+        self.on_tick: Callable[[], None] | None = None
 
     # ----- the whole mission -----
 
@@ -318,6 +321,8 @@ class MissionRunner:
             self._landing_tick()
         fleet.answer_frame()  # vehicles not commanded this tick
         self.tick_timing.end(fleet)
+        if self.on_tick is not None:
+            self.on_tick()
         return True
 
     def timing_summary(self) -> dict[str, object]:
@@ -335,6 +340,8 @@ class MissionRunner:
         self.fleet.pump(timeout_s)
         self._note_lost()
         self.fleet.answer_frame()
+        if self.on_tick is not None:
+            self.on_tick()
 
     def land(self) -> None:
         """LAND every reachable vehicle and wait until they disarm (auto-disarm after touchdown)."""
