@@ -13,7 +13,6 @@ Comparison and Monte Carlo figures: `plot_compare`, `plot_histograms`.
 
 from __future__ import annotations
 
-import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,7 +30,6 @@ ENABLED = True  # False: write_run_figures draws nothing (Monte Carlo workers)
 MAX_POINTS = 4000  # samples per plotted series; longer logs are decimated for drawing only
 MAX_LEGEND = 10  # vehicles (or pairs) beyond which legends are left out
 FORMATION_SNAPSHOTS = 8  # moments of formation flight whose shape the top view shows
-RESHAPE_EVENT = re.compile(r"t=([0-9.]+) s formation (narrows: .+|widens: .+|restored)$")
 
 
 def pyplot() -> ModuleType | None:
@@ -136,14 +134,12 @@ def _draw_slot_errors(
 
 
 def reshape_events(flight: dict[str, Any]) -> list[tuple[float, str]]:
-    """(t s, what) of each change of the formation's shape in flight.json's events ("t=12.30 s formation
-    narrows: column", ... "formation restored")."""
-    out = []
-    for event in flight.get("events", []):
-        match = RESHAPE_EVENT.match(event)
-        if match:
-            out.append((float(match.group(1)), match.group(2)))
-    return out
+    """(vehicle time s, what) of each change of the formation's shape, from flight.json's reshapes
+    (guidance.reshape.ShapeChange.as_json): "narrows: column", "widens: formation x0.71", "restored"."""
+    return [
+        (float(r["t_s"]), "restored" if r["change"] == "restored" else f"{r['change']}: {r['shape']}")
+        for r in flight.get("reshapes", [])
+    ]
 
 
 def _draw_formation_shapes(ax: Any, traj: Trajectories, leader: int, t0: float, t1: float) -> None:

@@ -207,6 +207,8 @@ def _report_from(
         "taken_over": list(flight.get("taken_over", [])),
         "left_to_operator": list(flight.get("left_to_operator", [])),
         "events": list(flight.get("events", [])),
+        # the formation's changes of shape (flight.json reshapes: t_s, change, shape, scale)
+        "reshapes": list(flight.get("reshapes", [])),
         # bytes/s each way per vehicle and the link budget (flight.json link_use; None in older runs)
         "link_use": flight.get("link_use"),
         "source": traj.source,
@@ -331,6 +333,14 @@ def render_markdown(report: dict[str, Any]) -> str:
                 f"{_fmt(use.get('budget_B_s'))} | {_fmt(use.get('over_budget_s'))} | "
                 f"{_fmt(radio.get('txbuf_min_pct'))} |"
             )
+    reshapes = report.get("reshapes")
+    if reshapes:
+        lines += ["", "Changes of the formation's shape (guidance.reshape):", ""]
+        lines += ["| vehicle time s | change | shape | spacing of the mission's |", "|---|---|---|---|"]
+        lines += [
+            f"| {_fmt(r.get('t_s'))} | {r.get('change')} | {r.get('shape')} | {_fmt(r.get('scale'))} |"
+            for r in reshapes
+        ]
     figures = report.get("figures")
     if figures is not None:
         lines += ["", "## Figures", ""]

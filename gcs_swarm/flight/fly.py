@@ -147,6 +147,7 @@ def write_flight(
         "taken_over": result.taken_over,
         "left_to_operator": result.left_to_operator,
         "autopilots": result.autopilots,
+        "reshapes": result.reshapes,  # guidance.reshape.ShapeChange.as_json rows, oldest first
         "formation_timeline": [
             {
                 "t": t,

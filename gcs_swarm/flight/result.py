@@ -23,6 +23,8 @@ class FlightResult:
     lost: list[str] = field(default_factory=list)
     lost_at: dict[str, float] = field(default_factory=dict)  # vehicle time s at which each was declared lost
     events: list[str] = field(default_factory=list)
+    # the formation's changes of shape (guidance.reshape.ShapeChange.as_json: t_s, change, shape, scale)
+    reshapes: list[dict[str, float | str]] = field(default_factory=list)
     ticks: int = 0
     final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
     leader: int | None = None  # the leading vehicle at the end (the lead passes on when a leader is lost)

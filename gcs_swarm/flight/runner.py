@@ -475,7 +475,9 @@ class MissionRunner:
         self.result.final_targets = targets
         self.result.leader, self.result.offsets = ctl.leader, ctl.offsets
         note_formation(self.result.formation_timeline, t, ctl, flown)
-        for event in ctl.drain_events():  # reshapes around obstacles, the leader's pace
+        changes = ctl.drain_shape_changes()  # reshapes around obstacles
+        self.result.reshapes += [change.as_json() for change in changes]
+        for event in [change.sentence for change in changes] + ctl.drain_events():  # and the leader's pace
             self.result.events.append(event)
             self.progress(event)
         errors = np.linalg.norm(pos - targets, axis=1)

@@ -42,7 +42,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
-from gcs_swarm.guidance.reshape import FormationShaper, shape_clearance
+from gcs_swarm.guidance.reshape import FormationShaper, ShapeChange, shape_clearance
 from gcs_swarm.guidance.separation import (
     closing_deceleration,
     closing_range,
@@ -294,12 +294,16 @@ class FleetController:
         return cap
 
     def drain_events(self) -> list[str]:
-        """The guidance's events since the last call (reshapes, pace changes), as "t=... s ..." lines."""
-        out = self.events
-        if self.shaper is not None:
-            out += self.shaper.events
-            self.shaper.events = []
-        self.events = []
+        """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
+        shape come apart, from `drain_shape_changes`."""
+        out, self.events = self.events, []
+        return out
+
+    def drain_shape_changes(self) -> list[ShapeChange]:
+        """The formation's changes of shape (reshape) since the last call, oldest first."""
+        if self.shaper is None:
+            return []
+        out, self.shaper.changes = self.shaper.changes, []
         return out
 
     def _update_pace(self, t: float, vel: np.ndarray, att: np.ndarray, active: np.ndarray) -> None:

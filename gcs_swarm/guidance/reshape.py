@@ -56,6 +56,34 @@ MOVE_SAMPLE_S = 0.25  # s between the moments of a move checked for clearance (m
 
 
 @dataclass(frozen=True)
+class ShapeChange:
+    """One change of the formation's shape, for the flight's events, flight.json and the report: at vehicle
+    time `t` s the formation `change`s ("narrows", "widens" or "restored": back to the mission's own shape)
+    to the candidate `shape` (Shape.name) at spacing `scale` of the mission's."""
+
+    t: float
+    change: str
+    shape: str
+    scale: float
+
+    @property
+    def sentence(self) -> str:
+        """The event line ("t=12.30 s formation narrows: column", "t=40.00 s formation restored")."""
+        if self.change == "restored":
+            return f"t={self.t:.2f} s formation restored"
+        return f"t={self.t:.2f} s formation {self.change}: {self.shape}"
+
+    def as_json(self) -> dict[str, float | str]:
+        """flight.json's "reshapes" row: t_s, change, shape, scale."""
+        return {
+            "t_s": round(self.t, 3),
+            "change": self.change,
+            "shape": self.shape,
+            "scale": round(self.scale, 4),
+        }
+
+
+@dataclass(frozen=True)
 class Shape:
     """One candidate: `name` (for events), leader-frame offsets (N, 3), spacing scale (1: the mission's)."""
 
@@ -248,7 +276,7 @@ class FormationShaper:
         self.params = params
         self.leader = leader
         self.min_gap = min_gap
-        self.events: list[str] = []  # what changed, for the flight's events; the caller empties it
+        self.changes: list[ShapeChange] = []  # the changes of shape made; the caller empties it
         self._set(np.array(nominal, dtype=float))
         self.next_decision = -math.inf
         self.wider_since: float | None = None
@@ -309,12 +337,9 @@ class FormationShaper:
         self.move = move if move is not None else self._plan(index, now, t)
         self.waiting_move = None
         if announce:
-            change = "narrows" if index > self.current else "widens"
-            self.events.append(
-                f"t={t:.2f} s formation {change}: {self.shapes[index].name}"
-                if index
-                else f"t={t:.2f} s formation restored"
-            )
+            change = "restored" if index == 0 else "narrows" if index > self.current else "widens"
+            shape = self.shapes[index]
+            self.changes.append(ShapeChange(t, change, shape.name, shape.scale))
         self.current = index
 
     @property

@@ -37,12 +37,18 @@ EVENTS = (
     "lost right at t=1.5 s",
     "interrupted by the operator",
 )
+# flight.json's reshapes rows of the EVENTS that are changes of shape
+RESHAPES = {
+    EVENTS[0]: {"t_s": 3.1, "change": "narrows", "shape": "column", "scale": 0.5},
+    EVENTS[1]: {"t_s": 4.0, "change": "restored", "shape": "formation", "scale": 1.0},
+}
 OPTIONAL_FLIGHT_KEYS = (
     "leader",
     "t_formation_end",
     "final_targets",
     "lost",
     "events",
+    "reshapes",
     "taken_over",
     "left_to_operator",
     "formation_timeline",
@@ -208,6 +214,7 @@ def write_story(run_dir: Path, story: RunStory) -> dict[str, Any]:
         "offsets": offsets.tolist(),
         "lost": lost,
         "events": list(story.events),
+        "reshapes": [RESHAPES[e] for e in story.events if e in RESHAPES],
         "taken_over": taken,
         "left_to_operator": [entry["vehicle"] for entry in taken],
         "formation_timeline": [

@@ -128,8 +128,10 @@ def test_a_v_wider_than_a_gap_narrows_or_falls_into_a_column_before_it_and_is_re
     assert names[0] == "formation"
     assert any(n != "formation" for n in names)
     assert names[-1] == "formation"
-    assert "formation restored" in shaper.events[-1]
-    assert any("narrows" in e for e in shaper.events)
+    changes = [(c.change, c.shape) for c in shaper.changes]
+    assert changes[-1] == ("restored", "formation")
+    assert any(change == "narrows" for change, _ in changes)
+    assert shaper.changes[-1].sentence.endswith("s formation restored")
 
 
 def test_a_column_whose_tail_is_short_of_a_gap_waits_to_open_until_the_way_is_clear():
