@@ -1,0 +1,269 @@
+"""The distance from a point to an obstacle's surface and the surface's outward normal, for every obstacle
+shape the project flies (docs/iaapf-smc-spec.md 2.1 and 2.2): the paper's sphere, a vertical cylinder (a tree,
+a mast) and a vertical prism (a building: a simple polygon footprint between a bottom and a top height).
+
+`surface` is the one rule; the other kernels here are the queries the consumers ask of it (the nearest point
+of a segment, the first point of a horizontal ray within a clearance, the distances of many points). Shapes
+are packed as plain arrays numba takes (`ShapeArrays`, built by `pack_shapes`):
+
+- `kinds` (S,) int64: SPHERE, CYLINDER or PRISM;
+- `params` (S, 6) float64: sphere (cx, cy, cz, r, 0, 0); cylinder (cx, cy, r, 0, bottom, top); prism
+  (first, count, 0, 0, bottom, top), its footprint the rows first .. first + count - 1 of `vertices`;
+- `vertices` (V, 2) float64: the prisms' footprints, each counter-clockwise, not closed.
+
+ENU metres, z up. Distances are signed: negative inside, with the normal of the nearest face (a cylinder's or
+a prism's extrusion distance, exact: the footprint's signed distance h and the slab's v = max(bottom - z,
+z - top) combine as |max((h, v), 0)| + min(max(h, v), 0)).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import NamedTuple
+
+import numpy as np
+
+from swarm_common.jit import kernel
+from swarm_common.numpy_rules import dot3
+
+SPHERE, CYLINDER, PRISM = 0, 1, 2
+SEGMENT_SAMPLES = 8  # intervals a segment is sampled in before its nearest point is refined (segment_nearest)
+GOLDEN_STEPS = 40  # golden-section steps of that refinement: the bracket shrinks to 0.618^40 ~ 4e-9 of it
+TRACE_STEPS = 200  # sphere-tracing steps of a ray before it stops where it got to (course_entry)
+TRACE_TOLERANCE = 1e-4  # m, a ray is at the grown surface once this close to it
+
+
+class ShapeArrays(NamedTuple):
+    """Packed shapes (module docstring): kinds (S,) int64, params (S, 6), vertices (V, 2)."""
+
+    kinds: np.ndarray
+    params: np.ndarray
+    vertices: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """S, the number of shapes."""
+        return int(self.kinds.shape[0])
+
+
+def pack_shapes(
+    spheres: Iterable[tuple[object, float]] = (),
+    cylinders: Iterable[tuple[object, float, float, float]] = (),
+    prisms: Iterable[tuple[object, float, float]] = (),
+) -> ShapeArrays:
+    """Pack spheres (centre (3,), radius), cylinders (centre (2,), radius, bottom, top) and prisms (footprint
+    (K, 2) in either order, bottom, top), in that order, m ENU. A footprint is turned counter-clockwise (by
+    the sign of its shoelace area); ValueError for a footprint of fewer than 3 vertices or a shape with top <=
+    bottom or a negative radius (the mission loader refuses these before)."""
+    kinds: list[int] = []
+    rows: list[list[float]] = []
+    chunks: list[np.ndarray] = []
+    first = 0
+    for centre, radius in spheres:
+        c = np.asarray(centre, dtype=float).reshape(3)
+        _check(float(radius) >= 0.0, "a sphere's radius must be >= 0")
+        kinds.append(SPHERE)
+        rows.append([c[0], c[1], c[2], float(radius), 0.0, 0.0])
+    for centre, radius, bottom, top in cylinders:
+        c = np.asarray(centre, dtype=float).reshape(-1)[:2]
+        _check(
+            float(radius) >= 0.0 and float(top) > float(bottom), "a cylinder needs radius >= 0, top > bottom"
+        )
+        kinds.append(CYLINDER)
+        rows.append([c[0], c[1], float(radius), 0.0, float(bottom), float(top)])
+    for footprint, bottom, top in prisms:
+        ring = np.asarray(footprint, dtype=float).reshape(-1, 2)
+        _check(
+            len(ring) >= 3 and float(top) > float(bottom), "a prism needs 3 vertices or more, top > bottom"
+        )
+        x, y = ring[:, 0], ring[:, 1]
+        if float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) < 0.0:  # clockwise: reverse
+            ring = ring[::-1]
+        kinds.append(PRISM)
+        rows.append([float(first), float(len(ring)), 0.0, 0.0, float(bottom), float(top)])
+        chunks.append(ring)
+        first += len(ring)
+    return ShapeArrays(
+        np.array(kinds, dtype=np.int64),
+        np.array(rows, dtype=float).reshape(-1, 6),
+        np.ascontiguousarray(np.vstack(chunks) if chunks else np.zeros((0, 2))),
+    )
+
+
+def _check(ok: bool, message: str) -> None:
+    if not ok:
+        raise ValueError(message)
+
+
+NO_SHAPES = pack_shapes()
+
+
+@kernel
+def sphere_surface(
+    x: float, y: float, z: float, cx: float, cy: float, cz: float, r: float
+) -> tuple[float, float, float, float]:
+    """The paper's sphere (spec 2.1): l = |q - c| - r and n_o = (q - c) / |q - c| (+z on the centre)."""
+    d0, d1, d2 = x - cx, y - cy, z - cz
+    d = math.sqrt(dot3(d0, d1, d2, d0, d1, d2))
+    safe = 1.0 if d == 0.0 else d
+    n0, n1, n2 = d0 / safe, d1 / safe, d2 / safe
+    if d == 0.0:
+        n2 = 1.0
+    return d - r, n0, n1, n2
+
+
+@kernel
+def footprint_distance(
+    x: float, y: float, kind: int, row: np.ndarray, vertices: np.ndarray
+) -> tuple[float, float, float]:
+    """The signed horizontal distance h (m, < 0 inside) from (x, y) to a cylinder's circle or a prism's
+    footprint polygon (`row` its params (6,)) and the outward horizontal unit normal (nx, ny) at the nearest
+    boundary point: on a cylinder's axis +x; on a polygon's edge that edge's outward normal."""
+    if kind == CYLINDER:
+        h0, h1 = x - row[0], y - row[1]
+        rho = math.sqrt(h0 * h0 + h1 * h1)
+        if rho > 0.0:
+            return rho - row[2], h0 / rho, h1 / rho
+        return -row[2], 1.0, 0.0
+    first, count = int(row[0]), int(row[1])
+    best, bx, by = np.inf, 0.0, 0.0  # squared distance to the nearest boundary point, that point
+    ex, ey = 1.0, 0.0  # the outward normal of the nearest edge (counter-clockwise ring: (dy, -dx) / length)
+    inside = False
+    for j in range(count):
+        ax, ay = vertices[first + j, 0], vertices[first + j, 1]
+        k = first + (j + 1) % count
+        cx, cy = vertices[k, 0], vertices[k, 1]
+        sx, sy = cx - ax, cy - ay
+        length_sq = sx * sx + sy * sy
+        s = ((x - ax) * sx + (y - ay) * sy) / length_sq if length_sq > 0.0 else 0.0
+        s = 0.0 if s < 0.0 else (1.0 if s > 1.0 else s)
+        px, py = ax + s * sx, ay + s * sy
+        dist_sq = (x - px) * (x - px) + (y - py) * (y - py)
+        if dist_sq < best:
+            best, bx, by = dist_sq, px, py
+            length = math.sqrt(length_sq)
+            ex, ey = (sy / length, -sx / length) if length > 0.0 else (1.0, 0.0)
+        if (ay > y) != (cy > y) and x < ax + (y - ay) * sx / sy:  # crossing number (a ray toward +x)
+            inside = not inside
+    h = math.sqrt(best)
+    if h == 0.0:
+        return 0.0, ex, ey
+    if inside:
+        return -h, (bx - x) / h, (by - y) / h
+    return h, (x - bx) / h, (y - by) / h
+
+
+@kernel
+def surface(
+    x: float, y: float, z: float, k: int, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray
+) -> tuple[float, float, float, float]:
+    """The signed distance l (m) from (x, y, z) to the surface of shape k and the outward unit normal (n0, n1,
+    n2) at its nearest point (module docstring; spec 2.2): beside a wall the wall's normal, above a roof +z,
+    near an edge the direction from the edge, inside the normal of the nearest face."""
+    row = params[k]
+    kind = kinds[k]
+    if kind == SPHERE:
+        return sphere_surface(x, y, z, row[0], row[1], row[2], row[3])
+    h, hx, hy = footprint_distance(x, y, kind, row, vertices)
+    below, above = row[4] - z, z - row[5]
+    v, vz = (above, 1.0) if above >= below else (below, -1.0)
+    if h > 0.0 and v > 0.0:  # beside an edge of the roof or the floor
+        d = math.sqrt(h * h + v * v)
+        return d, h * hx / d, h * hy / d, v * vz / d
+    if h > 0.0 or h >= v:  # beside a wall, or inside and nearer a wall than the roof or floor
+        return h, hx, hy, 0.0
+    return v, 0.0, 0.0, vz  # above the roof, below the floor, or inside nearer them than a wall
+
+
+@kernel
+def segment_nearest(
+    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, k: int, kinds: np.ndarray,
+    params: np.ndarray, vertices: np.ndarray,
+) -> float:  # fmt: skip
+    """The fraction f in [0, 1] of the segment (x0, y0, z0) -> (x1, y1, z1) whose point is nearest the surface
+    of shape k: for a sphere the point nearest its centre (exact); otherwise the best of SEGMENT_SAMPLES + 1
+    evenly spaced points, refined by golden-section search in the intervals beside it (the distance along a
+    segment is not convex near a polygon's notch: the samples pick the valley)."""
+    g0, g1, g2 = x1 - x0, y1 - y0, z1 - z0
+    length_sq = dot3(g0, g1, g2, g0, g1, g2)
+    if not length_sq > 0.0:
+        return 0.0
+    if kinds[k] == SPHERE:
+        c0, c1, c2 = params[k, 0], params[k, 1], params[k, 2]
+        along = dot3(c0 - x0, c1 - y0, c2 - z0, g0, g1, g2) / length_sq
+        return 0.0 if along < 0.0 else (1.0 if along > 1.0 else along)
+    best_f, best_l = 0.0, np.inf
+    for j in range(SEGMENT_SAMPLES + 1):
+        f = j / SEGMENT_SAMPLES
+        l = surface(x0 + g0 * f, y0 + g1 * f, z0 + g2 * f, k, kinds, params, vertices)[0]
+        if l < best_l:
+            best_f, best_l = f, l
+    lo = best_f - 1.0 / SEGMENT_SAMPLES
+    hi = best_f + 1.0 / SEGMENT_SAMPLES
+    lo, hi = (0.0 if lo < 0.0 else lo), (1.0 if hi > 1.0 else hi)
+    ratio = 0.5 * (math.sqrt(5.0) - 1.0)
+    a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+    la = surface(x0 + g0 * a, y0 + g1 * a, z0 + g2 * a, k, kinds, params, vertices)[0]
+    lb = surface(x0 + g0 * b, y0 + g1 * b, z0 + g2 * b, k, kinds, params, vertices)[0]
+    for _ in range(GOLDEN_STEPS):
+        if la <= lb:
+            hi, b, lb = b, a, la
+            a = hi - ratio * (hi - lo)
+            la = surface(x0 + g0 * a, y0 + g1 * a, z0 + g2 * a, k, kinds, params, vertices)[0]
+        else:
+            lo, a, la = a, b, lb
+            b = lo + ratio * (hi - lo)
+            lb = surface(x0 + g0 * b, y0 + g1 * b, z0 + g2 * b, k, kinds, params, vertices)[0]
+    f = a if la <= lb else b
+    return f if (la if la <= lb else lb) < best_l else best_f
+
+
+@kernel
+def course_entry(
+    x: float, y: float, z: float, u0: float, u1: float, clearance: float, horizon: float, k: int,
+    kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
+) -> float:  # fmt: skip
+    """How far (m) the point (x, y, z) goes along the horizontal unit direction (u0, u1) before it comes
+    within `clearance` m of shape k's surface: 0 if it is already; inf if it does not within `horizon` m.
+    Sphere tracing (J. C. Hart, 1996): the surface distance is 1-Lipschitz, so a step of (distance -
+    clearance) never passes the grown surface; after TRACE_STEPS steps (a ray grazing it) where it got to,
+    which is short of the entry (on the safe side)."""
+    t = 0.0
+    for _ in range(TRACE_STEPS):
+        gap = surface(x + u0 * t, y + u1 * t, z, k, kinds, params, vertices)[0] - clearance
+        if gap <= TRACE_TOLERANCE:
+            return t
+        t += gap
+        if t > horizon:
+            return np.inf
+    return t
+
+
+@kernel
+def surface_distances(
+    points: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray
+) -> np.ndarray:
+    """(M, S) m: the signed surface distance of every point (M, 3) to every shape (`surface`)."""
+    m, s = points.shape[0], kinds.shape[0]
+    out = np.empty((m, s))
+    for i in range(m):
+        for k in range(s):
+            out[i, k] = surface(points[i, 0], points[i, 1], points[i, 2], k, kinds, params, vertices)[0]
+    return out
+
+
+__all__ = [
+    "CYLINDER",
+    "NO_SHAPES",
+    "PRISM",
+    "SPHERE",
+    "ShapeArrays",
+    "course_entry",
+    "footprint_distance",
+    "pack_shapes",
+    "segment_nearest",
+    "sphere_surface",
+    "surface",
+    "surface_distances",
+]
