@@ -35,6 +35,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from gcs_swarm.cli.run import run_command
     from gcs_swarm.flight.fly import RunOptions
 
+    page = None
+    if args.web is not None:
+        from gcs_swarm.web.live import start_live_page
+
+        page = start_live_page(args.web, None)
+        if page is None:
+            return EXIT_USER_ERROR
     options = RunOptions(
         **_flight_options(args),
         time_mode=args.time_mode,
@@ -43,15 +50,26 @@ def _cmd_run(args: argparse.Namespace) -> int:
         sim_args=tuple(args.sim_arg),
         crash_at=args.crash_at,
         airborne=args.airborne,
+        watch=None if page is None else page.watch,
     )
-    return run_command(args.mission, options)
+    try:
+        return run_command(args.mission, options)
+    finally:
+        if page is not None:
+            page.stop()
 
 
 def _cmd_console(args: argparse.Namespace) -> int:
     from gcs_swarm.console.main import ConsoleOptions, console_command
 
     script = Path(args.script) if args.script else None
-    return console_command(args.mission, ConsoleOptions(**_flight_options(args), script=script, yes=args.yes))
+    if args.web_token is not None and args.web is None:
+        print("error: --web-token needs --web (the page it allows actions on)")
+        return EXIT_USER_ERROR
+    options = ConsoleOptions(
+        **_flight_options(args), script=script, yes=args.yes, web=args.web, web_token=args.web_token
+    )
+    return console_command(args.mission, options)
 
 
 def _add_flight_flags(parser: argparse.ArgumentParser, verb: str) -> None:
@@ -88,6 +106,14 @@ def _add_flight_flags(parser: argparse.ArgumentParser, verb: str) -> None:
         action="store_true",
         help="let the forwards' commands through to the vehicle their target system names (modes, arming, "
         "parameters...); on a signed fleet only if they carry a valid signature (also run.forward_rw)",
+    )
+    parser.add_argument(
+        "--web",
+        nargs="?",
+        const="127.0.0.1:8765",
+        metavar="HOST:PORT",
+        help="serve the live page (docs/replay.md) on HOST:PORT (default 127.0.0.1:8765; port 0: any free "
+        "one); another host than loopback lets other machines watch",
     )
 
 
@@ -259,6 +285,12 @@ def build_parser() -> argparse.ArgumentParser:
     console.add_argument("--yes", action="store_true", help="do not ask before commands that arm or launch")
     console.add_argument(
         "--script", metavar="FILE", help="run the commands in FILE (plain output, no full-screen UI)"
+    )
+    console.add_argument(
+        "--web-token",
+        metavar="TOKEN",
+        help="with --web: the page may land, rtl, hold, rejoin and lead (the console's verbs) when it gives "
+        "TOKEN; without it the page is read-only",
     )
     console.set_defaults(func=_cmd_console)
 

@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from gcs_swarm.console.page_actions import ConsoleOperator
 from gcs_swarm.console.script import PlainConsole
 from gcs_swarm.console.session import FlightSession
 from gcs_swarm.evaluation.report import write_report
@@ -31,6 +32,7 @@ from gcs_swarm.flight.run_record import RunRecord
 from gcs_swarm.flight.runner import MissionRunner
 from gcs_swarm.link.signing import SigningKeyError
 from gcs_swarm.mission import MissionError
+from gcs_swarm.web.live import start_live_page
 
 EXIT_OK, EXIT_USER_ERROR = 0, 2
 HISTORY_FILE = "console_history.txt"
@@ -42,6 +44,8 @@ class ConsoleOptions(SetupChoices):
 
     script: Path | None = None
     yes: bool = False
+    web: str | None = None  # --web HOST:PORT: the live page (gcs_swarm.web.live)
+    web_token: str | None = None  # --web-token: the page's actions allowed with it
 
 
 def console_command(mission_path: str, options: ConsoleOptions) -> int:
@@ -59,6 +63,11 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
         print(f"error: {exc}")
         return EXIT_USER_ERROR
     mission, run_dir, base_port = setup.mission, setup.run_dir, setup.base_port
+    page = None
+    if options.web is not None:
+        page = start_live_page(options.web, options.web_token)
+        if page is None:
+            return EXIT_USER_ERROR
     embedded = base_port is not None
     interactive = script is None and sys.stdin.isatty() and sys.stdout.isatty()
     wall0 = time.monotonic()
@@ -89,6 +98,9 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
             )
             # A person typing wants vehicle time at wall-clock pace; a script runs as fast as the link goes.
             session = FlightSession(runner, run_dir, realtime=sys.stdin.isatty() and script is None)
+            if page is not None:  # after the session: the page's pump hook follows the session's
+                page.watch(runner)
+                page.serve_actions(ConsoleOperator(session, mission, options.yes))
             session.start()
             try:
                 if interactive:
@@ -117,6 +129,8 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
     finally:
         if sim is not None:
             sim.stop()
+        if page is not None:
+            page.stop()
     wall_s = time.monotonic() - wall0
     write_flight(
         run_dir, mission, mission_path, result, wall_s, latencies, limited, link_stats, timing, link_use

@@ -7,11 +7,17 @@ Server to page:
 - `frame`: one per update: t s, the flight phase, the formation's state (its last reshape), the leader's
   index, and per vehicle x, y, z (m ENU), yaw (rad, ENU: counter-clockwise from east), slot (the slot's
   point, m ENU x, y, or null), mode, lost, crashed; `obstacles`: centres (m ENU x, y) when any moves.
+  A live frame (live_frame_message) adds: stamp (s since 1970, wall clock, when the flight thread copied
+  the state: the page's latency is its receipt time minus this), per vehicle taken (over by someone else),
+  up and down (MAVLink bytes/s each way over the latest second, null before one), the link budget (bytes/s
+  up and down together, or null), progress (leader_to_goal_m, formation_rms_m, formation_s: s since
+  formation flight began) and the flight's events from index first_event on (each {t, kind, text}).
 - `status`: playing, speed, t (replay only).
 - `error`: text (a command the source refused).
+- `action`: line, ok, text: the outcome of an operator action from the page (live, docs/replay.md).
 
-Page to server (replay only): {"cmd": "play"}, {"cmd": "pause"}, {"cmd": "speed", "value": X},
-{"cmd": "seek", "t": T}.
+Page to server: replay: {"cmd": "play"}, {"cmd": "pause"}, {"cmd": "speed", "value": X},
+{"cmd": "seek", "t": T}; live: {"cmd": "action", "line": "land left", "token": TOKEN}.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from gcs_swarm.mission import Mission
 from gcs_swarm.mission.model import Zone
 
 DECIMALS = 3  # positions to the millimetre, angles to the milliradian: what the page can show
+MARGIN_M = 10.0  # m around everything the first view shows
 
 
 def _xy(points: Any) -> list[list[float]]:
@@ -126,3 +133,46 @@ def frame_message(
     if obstacles is not None:
         message["obstacles"] = _xy(obstacles)
     return message
+
+
+def view_bounds(mission: Mission, tracks: np.ndarray) -> tuple[float, float, float, float]:
+    """(x_min, y_min, x_max, y_max) m ENU the first view shows: the vehicles' points `tracks` (K, 2) m ENU
+    (NaN rows skipped), the goal, the waypoints, the obstacles, prisms, cylinders and fence, and MARGIN_M."""
+    m = mission
+    xy = [np.asarray(tracks, dtype=float), np.array([m.goal[:2]]), np.array([w[:2] for w in m.waypoints])]
+    xy += [np.array([o.center[:2] - o.radius, o.center[:2] + o.radius]) for o in m.obstacles]
+    xy += [p.footprint for p in m.prisms]
+    xy += [np.array([c.center - c.radius, c.center + c.radius]) for c in m.cylinders]
+    if m.fence.polygon is not None:
+        xy.append(m.fence.polygon)
+    points = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in xy])
+    points = points[np.isfinite(points).all(axis=1)]
+    low, high = points.min(axis=0) - MARGIN_M, points.max(axis=0) + MARGIN_M
+    return float(low[0]), float(low[1]), float(high[0]), float(high[1])
+
+
+def live_frame_message(
+    frame: dict[str, Any],
+    stamp: float,
+    taken: np.ndarray,
+    link: np.ndarray,
+    budget: float | None,
+    progress: dict[str, float | None],
+    events: list[dict[str, Any]],
+    first_event: int,
+) -> dict[str, Any]:
+    """A `frame` (frame_message) with what only a live flight has: stamp s since 1970 (wall clock); taken
+    (N,) bool; link (N, 2) bytes/s up, down (NaN: not measured yet); budget bytes/s or None; progress: named
+    figures (m, s; None when not known); events: the flight's events from index first_event on."""
+    for i, vehicle in enumerate(frame["vehicles"]):
+        vehicle["taken"] = bool(taken[i])
+        vehicle["up"] = _number(link[i, 0])
+        vehicle["down"] = _number(link[i, 1])
+    frame.update(
+        stamp=stamp,
+        budget=budget,
+        progress={k: None if v is None else _number(v) for k, v in progress.items()},
+        events=events,
+        first_event=first_event,
+    )
+    return frame

@@ -23,9 +23,7 @@ from gcs_swarm.evaluation.run_data import by_vehicle, read_columns
 from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE, TRUTH_FILE
 from gcs_swarm.link.autopilots import dialect_named
 from gcs_swarm.mission import Mission, MissionError, load_mission
-from gcs_swarm.web.messages import frame_message, scene_message
-
-MARGIN_M = 10.0  # m around everything the first view shows
+from gcs_swarm.web.messages import frame_message, scene_message, view_bounds
 
 # an event's kind, by the first of these phrases its text holds (flight.json events are sentences)
 _KINDS = (
@@ -51,15 +49,19 @@ def event_kind(text: str) -> str:
     return "note"
 
 
+def event_entry(sentence: object) -> dict[str, Any]:
+    """One event sentence of a flight (flight.json's `events`, FlightResult.events) as the page's
+    {t (s or None), kind, text}: "t=54.38 s formation narrows: column" carries its time."""
+    timed = _TIMED.match(str(sentence))
+    t, text = (float(timed.group(1)), timed.group(2)) if timed else (None, str(sentence))
+    return {"t": t, "kind": event_kind(text), "text": text}
+
+
 def flight_events(flight: dict[str, Any], names: list[str]) -> list[dict[str, Any]]:
     """flight.json's events as {t (s or None), kind, text}, untimed ones first, then by time: its event
     sentences ("t=54.38 s formation narrows: column" carry their time), each lost vehicle (lost_at_s), each
     change of leader in the formation timeline."""
-    events: list[dict[str, Any]] = []
-    for sentence in flight.get("events") or []:
-        timed = _TIMED.match(str(sentence))
-        t, text = (float(timed.group(1)), timed.group(2)) if timed else (None, str(sentence))
-        events.append({"t": t, "kind": event_kind(text), "text": text})
+    events = [event_entry(sentence) for sentence in flight.get("events") or []]
     for name, t in (flight.get("lost_at_s") or {}).items():
         events.append({"t": float(t), "kind": "lost", "text": f"{name} lost"})
     leader = None
@@ -113,22 +115,8 @@ class Replay:
         return any(np.any(o.velocity != 0) for o in self.mission.obstacles)
 
     def bounds(self) -> tuple[float, float, float, float]:
-        """(x_min, y_min, x_max, y_max) m ENU around the tracks, the site and a margin (MARGIN_M)."""
-        m = self.mission
-        xy = [
-            self.pos[..., :2].reshape(-1, 2),
-            np.array([m.goal[:2]]),
-            np.array([w[:2] for w in m.waypoints]),
-        ]
-        xy += [np.array([o.center[:2] - o.radius, o.center[:2] + o.radius]) for o in m.obstacles]
-        xy += [p.footprint for p in m.prisms]
-        xy += [np.array([c.center - c.radius, c.center + c.radius]) for c in m.cylinders]
-        if m.fence.polygon is not None:
-            xy.append(m.fence.polygon)
-        points = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in xy])
-        points = points[np.isfinite(points).all(axis=1)]
-        low, high = points.min(axis=0) - MARGIN_M, points.max(axis=0) + MARGIN_M
-        return float(low[0]), float(low[1]), float(high[0]), float(high[1])
+        """(x_min, y_min, x_max, y_max) m ENU around the tracks and the site (messages.view_bounds)."""
+        return view_bounds(self.mission, self.pos[..., :2].reshape(-1, 2))
 
     def scene(self) -> dict[str, Any]:
         return scene_message(self.mission, list(self.events), self.t_span, self.bounds())

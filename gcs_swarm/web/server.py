@@ -51,3 +51,19 @@ async def serve(app: web.Application, host: str, port: int, ready: Callable[[str
         await asyncio.Event().wait()
     finally:
         await runner.cleanup()
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """`--web`'s HOST:PORT, HOST, :PORT or PORT (IPv6 as [HOST]:PORT) -> (host, port), DEFAULT_HOST and
+    DEFAULT_PORT where left out; ValueError (one sentence) otherwise."""
+    host, port = text.strip(), ""
+    if host.startswith("["):  # [::1]:8765
+        host, _, rest = host[1:].partition("]")
+        port = rest.removeprefix(":")
+    elif host.isdigit():
+        host, port = "", host
+    elif host.count(":") == 1:
+        host, port = host.split(":")
+    if port and not (port.isdigit() and 0 <= int(port) <= 65535):
+        raise ValueError(f"{text!r}: the port must be a number 0..65535 (0: any free one)")
+    return host or DEFAULT_HOST, int(port) if port else DEFAULT_PORT

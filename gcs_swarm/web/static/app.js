@@ -9,6 +9,7 @@ const COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf
 
 const state = window.swarmState = {
   connected: false, scene: null, frame: null, status: null, frames: 0, errors: [], trails: [],
+  events: [], actions: [], latency: [],  // live: the flight's events, action replies, s from copy to receipt
   view: { cx: 0, cy: 0, scale: 4 },  // centre m ENU, px per m
 };
 
@@ -39,6 +40,7 @@ function receive(message) {
   else if (message.type === "frame") onFrame(message);
   else if (message.type === "status") onStatus(message);
   else if (message.type === "error") state.errors.push(message.text);
+  else if (message.type === "action") onAction(message);
   draw();
 }
 
@@ -53,21 +55,59 @@ function onScene(scene) {
     el("slider").min = scene.t0;
     el("slider").max = scene.t1;
   }
-  const events = el("events");
-  events.replaceChildren(...scene.events.map((e) => {
-    const li = document.createElement("li");
-    li.dataset.t = e.t === null ? "" : e.t;
-    li.innerHTML = `<span class="kind">${e.kind}</span>${e.t === null ? "" : `t=${e.t.toFixed(2)} s `}`;
-    li.append(document.createTextNode(e.text));
-    return li;
+  state.events = scene.events.slice();
+  el("events").replaceChildren(...scene.events.map(eventItem));
+  el("actions").hidden = scene.replay;
+  document.body.classList.toggle("replay", scene.replay);
+  el("progress").hidden = scene.replay;
+  el("target").replaceChildren(...["all", ...scene.vehicles].map((name) => {
+    const option = document.createElement("option");
+    option.textContent = name;
+    return option;
   }));
   const rows = el("vehicles").tBodies[0];
   rows.replaceChildren(...scene.vehicles.map((name, i) => {
     const tr = document.createElement("tr");
-    tr.innerHTML = `<td><span class="swatch" style="background:${colour(i)}"></span></td><td></td><td></td><td></td>`;
+    tr.innerHTML = `<td><span class="swatch" style="background:${colour(i)}"></span></td><td></td><td></td><td></td><td class="link"></td>`;
     tr.cells[1].textContent = name;
     return tr;
   }));
+}
+
+function eventItem(e) {
+  const li = document.createElement("li");
+  li.dataset.t = e.t === null ? "" : e.t;
+  li.innerHTML = `<span class="kind">${e.kind}</span>${e.t === null ? "" : `t=${e.t.toFixed(2)} s `}`;
+  li.append(document.createTextNode(e.text));
+  return li;
+}
+
+function onLive(frame) {
+  state.latency.push(Date.now() / 1000 - frame.stamp);
+  if (state.latency.length > 1000) state.latency.shift();
+  frame.events.forEach((e, k) => {  // a page that joined late has some of them from its scene already
+    if (frame.first_event + k < state.events.length) return;
+    state.events.push(e);
+    el("events").append(eventItem(e));
+  });
+  const p = frame.progress, fmt = (v, unit) => (v === null ? "–" : `${v.toFixed(1)} ${unit}`);
+  el("progress").textContent = `leader to goal ${fmt(p.leader_to_goal_m, "m")}, formation rms `
+    + `${fmt(p.formation_rms_m, "m")}, in formation ${fmt(p.formation_s, "s")}`;
+  const rows = el("vehicles").tBodies[0].rows;
+  frame.vehicles.forEach((v, i) => {
+    if (!rows[i]) return;
+    const rate = (x) => (x === null ? "–" : x.toFixed(0));
+    const over = frame.budget !== null && v.up !== null && v.up + v.down > frame.budget;
+    rows[i].cells[4].textContent = `${rate(v.up)}/${rate(v.down)}`;
+    rows[i].cells[4].className = over || !state.connected ? "lost" : "";
+    if (v.taken) { rows[i].cells[2].textContent += " (taken)"; rows[i].cells[2].className = "lost"; }
+  });
+}
+
+function onAction(reply) {
+  state.actions.push(reply);
+  el("reply").textContent = `${reply.line}: ${reply.ok ? "done" : "refused"}${reply.text ? `: ${reply.text}` : ""}`;
+  el("reply").className = reply.ok ? "obeyed" : "refused";
 }
 
 function onFrame(frame) {
@@ -102,6 +142,7 @@ function onFrame(frame) {
   }
   if (latest) latest.className = "latest";
   if (!sliderHeld && state.scene?.replay) el("slider").value = frame.t;
+  if (frame.stamp !== undefined) onLive(frame);
 }
 
 function onStatus(status) {
@@ -252,6 +293,11 @@ function draw() {
 
 // ---- controls: replay commands, zoom and pan ----
 
+el("act").addEventListener("click", () => {
+  const verb = el("verb").value, target = el("target").value;
+  const line = verb === "hold" || target === "all" ? verb : `${verb} ${target}`;
+  send({ cmd: "action", line, token: el("token").value });
+});
 el("play").addEventListener("click", () => send({ cmd: state.status && state.status.playing ? "pause" : "play" }));
 el("speed").addEventListener("change", (e) => send({ cmd: "speed", value: Number(e.target.value) }));
 el("slider").addEventListener("input", (e) => { sliderHeld = true; send({ cmd: "seek", t: Number(e.target.value) }); });
