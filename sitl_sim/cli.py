@@ -8,7 +8,7 @@
              [--link-reorder P] [--link-from S] [--link-outage [I@]START:DURATION ...]
              [--link-radio NAME|none] [--link-capacity-bps B] [--link-bits-per-byte N]
              [--link-overhead-bytes N] [--link-overhead-us US] [--[no-]link-half-duplex] [--[no-]link-shared]
-             [--link-buffer-bytes N] [--[no-]link-radio-status]
+             [--link-buffer-bytes N] [--[no-]link-radio-status] [--link-capacity-change START:BPS ...]
              [--signing-key FILE] [--autopilot ardupilot|px4[,...]]
 
 Prints one line per vehicle (index, sysid, UDP address), then READY, and runs until SIGINT/SIGTERM.
@@ -35,6 +35,7 @@ from sitl_sim.autopilot.params import PARAM_NAME_RELEASES
 from sitl_sim.autopilot.registry import parse_autopilots
 from sitl_sim.clock import plan_timing
 from sitl_sim.network.link_faults import LinkFaults, Outage, parse_outage
+from sitl_sim.network.radio import parse_capacity_change
 from sitl_sim.orphan import ParentWatch, detach_output
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
@@ -213,6 +214,12 @@ def build_parser() -> OneLineParser:
             radio.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=helptext)
         else:
             radio.add_argument(flag, type=kind, metavar=key.upper(), help=helptext)
+    radio.add_argument(
+        "--link-capacity-change",
+        action="append",
+        metavar="START:BPS",
+        help="from sim s START on, the radio's capacity is BPS bit/s (needs a radio); repeatable",
+    )
     return parser
 
 
@@ -266,6 +273,13 @@ def link_faults(
                 parser.error(str(exc))
         given["outages"] = tuple(parsed)
     given["radio"] = link_radio(parser, args, radio_name, radio_overrides or {})
+    if args.link_capacity_change is not None:
+        if given["radio"] is None:
+            parser.error("--link-capacity-change needs a radio (--link-radio or the mission's world.link)")
+        try:
+            given["capacity_changes"] = tuple(parse_capacity_change(t) for t in args.link_capacity_change)
+        except ValueError as exc:
+            parser.error(str(exc))
     return dataclasses.replace(base, **{field: value for field, value in given.items() if value is not None})
 
 

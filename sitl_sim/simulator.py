@@ -164,7 +164,7 @@ class Simulator:
         self.selector = selectors.DefaultSelector()
         self.endpoints: list[VehicleEndpoint] = []
         self.truth: TruthLog | None = None
-        radios = fleet_radios(config.link.radio, n)
+        radios = fleet_radios(config.link.radio, n, config.link.capacity_changes)
         # each medium once (a shared one serves every vehicle), for _serve's settle of staged uplink arrivals
         self._media = list({id(r.medium): r.medium for r in radios if r is not None}.values())
         try:

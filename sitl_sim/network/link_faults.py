@@ -25,7 +25,7 @@ import struct
 from dataclasses import dataclass, fields
 
 from sitl_sim.network.radio import DOWN as DOWN  # directions: ground station -> vehicle, vehicle -> ground
-from sitl_sim.network.radio import NS_PER_MS, RadioLink
+from sitl_sim.network.radio import NS_PER_MS, CapacityChange, RadioLink
 from sitl_sim.network.radio import UP as UP
 from swarm_common.radio_presets import RadioSpec
 
@@ -61,6 +61,7 @@ class LinkFaults:
     outages: tuple[Outage, ...] = ()
     start_s: float = 0.0  # loss/delay/jitter/dup/corrupt/reorder act from this simulated time on
     radio: RadioSpec | None = None  # the radio under every link (None: unlimited capacity)
+    capacity_changes: tuple[CapacityChange, ...] = ()  # the radio's capacity changing in flight
 
     def params(self) -> dict[str, float]:
         """The SIM_LINK_* parameter defaults these settings give, in FaultChannel.push's order of rates."""

@@ -12,18 +12,45 @@ Order of packets entering a medium in the same simulated ms: downlink packets as
 after them, sorted by vehicle and arrival (`Medium.settle`), so that the wall-clock order in which sockets are
 read never changes the result. An uplink datagram arriving at ms m is due after m in any case (air time > 0),
 so staging it until time moves on delays nothing.
+
+A radio's capacity may change in flight (`CapacityChange`, sitl-sim --link-capacity-change): a packet is
+timed at the capacity in force when it starts on the air; the buffers keep their size.
 """
 
 from __future__ import annotations
 
+import math
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 from swarm_common.radio_presets import RadioSpec
 
 UP, DOWN = 0, 1  # directions, as in link_faults: ground station -> vehicle, vehicle -> ground station
 NS_PER_MS = 1_000_000
+
+
+@dataclass(frozen=True)
+class CapacityChange:
+    """From simulated second start_s on, every radio's capacity is capacity_bps bit/s (the air time of a
+    packet that starts then or later, eq. 1 of docs/radio.md)."""
+
+    start_s: float
+    capacity_bps: float
+
+
+def parse_capacity_change(text: str) -> CapacityChange:
+    """--link-capacity-change START:BPS (simulated s >= 0, bit/s > 0); ValueError with one sentence."""
+    try:
+        start_text, bps_text = text.split(":")
+        start_s, bps = float(start_text), float(bps_text)
+    except ValueError:
+        raise ValueError(f"--link-capacity-change must be START:BPS (s, bit/s), not {text!r}") from None
+    if not 0.0 <= start_s < math.inf:
+        raise ValueError(f"--link-capacity-change start must be >= 0 s, not {start_text!r}")
+    if not 0.0 < bps < math.inf:
+        raise ValueError(f"--link-capacity-change capacity must be > 0 bit/s, not {bps_text!r}")
+    return CapacityChange(start_s, bps)
 
 
 class TxBuffer:
@@ -77,10 +104,16 @@ Staged = tuple[int, int, int, Callable[[], None]]
 
 
 class Medium:
-    """The air one or more radio links share: its FIFO time lines and the uplink arrivals not yet timed."""
+    """The air one or more radio links share: its FIFO time lines and the uplink arrivals not yet timed;
+    `changes`: the capacity changes in flight (any order)."""
 
-    def __init__(self, spec: RadioSpec) -> None:
+    def __init__(self, spec: RadioSpec, changes: Sequence[CapacityChange] = ()) -> None:
         self.spec = spec
+        # (from ns, the radio from then on), in time order: air_time_ns of the last one started at or before
+        self._specs = [(0, spec)] + [
+            (round(c.start_s * 1e9), replace(spec, capacity_bps=c.capacity_bps))
+            for c in sorted(changes, key=lambda c: c.start_s)
+        ]
         self._free_at = [0, 0]  # ns at which each time line is free (half duplex: only [0])
         self._staged: list[Staged] = []
         self._arrivals = 0
@@ -96,7 +129,7 @@ class Medium:
             return None
         line = 0 if self.spec.half_duplex else direction
         start = max(now_ns, self._free_at[line])
-        end = start + self.spec.air_time_ns(size)
+        end = start + self._spec_at(start).air_time_ns(size)
         self._free_at[line] = end
         buffer.hold(start, size)
         wait = start - now_ns
@@ -105,6 +138,15 @@ class Medium:
         counts.delay_ns_sum += wait
         counts.delay_ns_max = max(counts.delay_ns_max, wait)
         return end
+
+    def _spec_at(self, t_ns: int) -> RadioSpec:
+        """The radio in force at simulated time t_ns (the latest capacity change at or before it)."""
+        current = self.spec
+        for start_ns, spec in self._specs:
+            if start_ns > t_ns:
+                break
+            current = spec
+        return current
 
     def stage(self, now_ms: int, vehicle: int, transmit: Callable[[], None]) -> None:
         """An uplink datagram of `vehicle` reached its socket at now_ms: `transmit` times it at `settle`."""
@@ -141,12 +183,14 @@ class RadioLink:
         return f"{self.counts[UP].summary('radio_up')} {self.counts[DOWN].summary('radio_down')}"
 
 
-def fleet_radios(spec: RadioSpec | None, vehicles: int) -> list[RadioLink | None]:
-    """Each vehicle's RadioLink for `spec` (None: no radio model): one medium and one ground radio for all
-    when spec.shared, else one pair of radios each."""
+def fleet_radios(
+    spec: RadioSpec | None, vehicles: int, changes: Sequence[CapacityChange] = ()
+) -> list[RadioLink | None]:
+    """Each vehicle's RadioLink for `spec` (None: no radio model), its capacity changing in flight as
+    `changes` say: one medium and one ground radio for all when spec.shared, else one pair of radios each."""
     if spec is None:
         return [None] * vehicles
     if spec.shared:
-        medium, ground = Medium(spec), TxBuffer(spec.buffer_limit)
+        medium, ground = Medium(spec, changes), TxBuffer(spec.buffer_limit)
         return [RadioLink(medium, ground) for _ in range(vehicles)]
-    return [RadioLink(Medium(spec), TxBuffer(spec.buffer_limit)) for _ in range(vehicles)]
+    return [RadioLink(Medium(spec, changes), TxBuffer(spec.buffer_limit)) for _ in range(vehicles)]

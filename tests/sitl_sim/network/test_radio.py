@@ -17,7 +17,7 @@ from pymavlink import mavutil
 
 from sitl_sim.cli import build_config, build_parser
 from sitl_sim.network.link_faults import DOWN, UP, FaultChannel
-from sitl_sim.network.radio import NS_PER_MS, Medium, RadioLink, TxBuffer, fleet_radios
+from sitl_sim.network.radio import NS_PER_MS, CapacityChange, Medium, RadioLink, TxBuffer, fleet_radios
 from swarm_common.radio_presets import RADIO_PRESETS, RadioSpec
 
 CLEAN = (0.0,) * 6  # no loss, dup, corrupt, reorder, delay or jitter
@@ -270,3 +270,45 @@ def test_the_air_is_never_double_booked_never_idle_while_packets_wait_and_buffer
     counts = link.counts
     assert counts[UP].packets + counts[DOWN].packets == len(sent)
     assert sum(c.packets + c.dropped for c in counts) == len(packets)
+
+
+def test_a_capacity_change_times_the_packets_that_start_after_it_at_the_new_capacity() -> None:
+    """100-byte packets at 80 kbit/s, 8 bits a byte: 10 ms each; from 25 ms on 40 kbit/s: 20 ms each. Five
+    queued at t = 0 start at 0, 10, 20 ms (the third still at 80 kbit/s: it started before the change) and
+    end at 10, 20, 30; the fourth starts at 30 and ends at 50, the fifth at 70. The buffer keeps its size."""
+    spec = RadioSpec(80_000.0, buffer_bytes=10_000)
+    medium = Medium(spec, [CapacityChange(0.025, 40_000.0)])
+    channel = _channel(spec, radio=RadioLink(medium, TxBuffer(spec.buffer_limit)))
+    for k in range(5):
+        channel.push(DOWN, _packet(k, 100), None, 0, CLEAN)
+    assert [t for t, _ in _deliveries(channel, DOWN, 80)] == [10, 20, 30, 50, 70]
+    # every vehicle's medium changes the same way (one pair of radios each here)
+    radios = fleet_radios(spec, 2, [CapacityChange(0.025, 40_000.0)])
+    assert all(
+        r is not None and r.medium.send(DOWN, 100, 30, r.buffers[DOWN], r.counts[DOWN]) == 50 * NS_PER_MS
+        for r in radios
+    )
+
+
+def test_the_capacity_change_option() -> None:
+    parser = build_parser()
+    argv = ["--vehicles", "1", "--link-radio", "sik64", "--link-capacity-change", "20:32000"]
+    argv += ["--link-capacity-change", "40.5:16000"]
+    link = build_config(parser, parser.parse_args(argv)).link
+    assert link.capacity_changes == (CapacityChange(20.0, 32000.0), CapacityChange(40.5, 16000.0))
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["--link-capacity-change", "20:32000"], "--link-capacity-change needs a radio"),
+        (["--link-radio", "sik64", "--link-capacity-change", "20"], "must be START:BPS (s, bit/s), not '20'"),
+        (["--link-radio", "sik64", "--link-capacity-change=-1:100"], "start must be >= 0 s, not '-1'"),
+        (["--link-radio", "sik64", "--link-capacity-change", "5:0"], "capacity must be > 0 bit/s, not '0'"),
+    ],
+)
+def test_bad_capacity_changes_give_one_line_and_status_2(argv, fragment, capsys) -> None:
+    with pytest.raises(SystemExit) as stop:
+        _radio_of(["--vehicles", "1", *argv])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and fragment in err and err.count("\n") == 1
