@@ -7,9 +7,7 @@ assertion is about time."""
 from __future__ import annotations
 
 import json
-import os
 import queue
-import shutil
 import subprocess
 import sys
 import threading
@@ -20,18 +18,11 @@ from typing import Any
 import pytest
 
 from tests.e2e.flights import MISSIONS, ROOT, fly
+from tests.gcs_swarm.web.browser import WAIT_S, chromium, needs_chromium
+from tests.gcs_swarm.web.browser import page_state as _state
+from tests.gcs_swarm.web.browser import wait_for as _wait
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-CHROMEDRIVER = Path("/usr/bin/chromedriver")
-WAIT_S = 120.0  # s: a hang guard only
-
-pytestmark = [
-    pytest.mark.e2e,
-    pytest.mark.skipif(
-        (CHROMIUM is None or not CHROMEDRIVER.exists()) and not os.environ.get("CI"),
-        reason="no Debian chromium/chromium-driver (apt-get install chromium chromium-driver); CI runs it",
-    ),
-]
+pytestmark = [pytest.mark.e2e, needs_chromium]
 
 
 @pytest.fixture(scope="module")
@@ -78,43 +69,8 @@ def page_url(flown: Path) -> Iterator[str]:
 
 @pytest.fixture
 def browser(tmp_path: Path) -> Iterator[Any]:
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    if CHROMIUM:
-        options.binary_location = CHROMIUM
-    for flag in (
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
-        f"--user-data-dir={tmp_path / 'chromium-profile'}",
-        "--window-size=1400,900",
-    ):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(executable_path=str(CHROMEDRIVER)), options=options)
-    driver.set_script_timeout(WAIT_S)
-    try:
+    with chromium(tmp_path / "chromium-profile") as driver:
         yield driver
-    finally:
-        driver.quit()
-
-
-def _state(driver: Any) -> Any:
-    return driver.execute_script("return window.swarmState;")
-
-
-def _wait(driver: Any, script: str) -> Any:
-    """Wait until the JS expression `script` (over `s`, window.swarmState) is truthy; its value."""
-    from selenium.webdriver.support.ui import WebDriverWait
-
-    return WebDriverWait(driver, WAIT_S, poll_frequency=0.1).until(
-        lambda d: d.execute_script(f"const s = window.swarmState; return ({script});")
-    )
 
 
 def _seek(driver: Any, t: float) -> None:
