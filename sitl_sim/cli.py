@@ -39,6 +39,7 @@ from sitl_sim.network.radio import parse_capacity_change
 from sitl_sim.orphan import ParentWatch, detach_output
 from sitl_sim.simulator import SimConfig, Simulator
 from sitl_sim.world import Obstacles
+from swarm_common.obstacle_shapes import pack_shapes
 from swarm_common.radio_presets import RADIO_OVERRIDES, RADIO_PRESETS, RadioError, RadioSpec, radio_spec
 from swarm_common.signing_keys import SigningKeyError, read_key
 
@@ -337,11 +338,15 @@ def build_config(parser: OneLineParser, args: argparse.Namespace) -> SimConfig:
         start_pos = np.array([s.position for s in world.starts], dtype=float)
         start_vel = np.array([s.velocity for s in world.starts], dtype=float)
         start_yaw = np.radians([s.yaw_deg for s in world.starts])
-        if world.obstacles:
+        if world.obstacles or world.prisms or world.cylinders:
             obstacles = Obstacles(
-                np.array([o.center for o in world.obstacles]),
+                np.array([o.center for o in world.obstacles]).reshape(-1, 3),
                 np.array([o.radius for o in world.obstacles]),
-                np.array([o.velocity for o in world.obstacles]),
+                np.array([o.velocity for o in world.obstacles]).reshape(-1, 3),
+                pack_shapes(
+                    cylinders=[(c.center, c.radius, c.bottom, c.top) for c in world.cylinders],
+                    prisms=[(p.footprint, p.bottom, p.top) for p in world.prisms],
+                ),
             )
         wind = (world.wind.speed, world.wind.direction_deg, world.wind.turbulence)
         lat, lon, alt = world.origin

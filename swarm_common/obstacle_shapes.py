@@ -42,7 +42,7 @@ class ShapeArrays(NamedTuple):
     vertices: np.ndarray
 
     @property
-    def count(self) -> int:
+    def number(self) -> int:
         """S, the number of shapes."""
         return int(self.kinds.shape[0])
 

@@ -19,6 +19,7 @@ import numpy as np
 from gcs_swarm.evaluation import metrics
 from gcs_swarm.evaluation.run_data import load_truth
 from gcs_swarm.guidance.failsafe_speed import distance_along_course
+from swarm_common.obstacle_shapes import NO_SHAPES
 
 HOLDING_SPEED = 0.3  # m/s: a vehicle slower than this in the air, at the end, holds (BRAKE, PX4's Hold, ...)
 EXIT_WALL_S = 120.0  # wall s the orphaned simulator may take to land or hold its vehicles and exit
@@ -58,7 +59,7 @@ def kill_moments(run_dir: Path, t_formation: float, t_end: float) -> dict[str, f
     for k in np.flatnonzero(flying):
         if len(radii) == 0:
             break
-        d = distance_along_course(pos[k], vel[k], traj.obstacle_centres[k], radii, 0.0)
+        d = distance_along_course(pos[k], vel[k], traj.obstacle_centres[k], radii, 0.0, *NO_SHAPES, np.inf)
         speed = np.hypot(vel[k, :, 0], vel[k, :, 1])
         urgency[k] = np.max(np.where((speed > 5.0) & np.isfinite(d), speed / np.maximum(d, 0.1), 0.0))
         closest[k] = (np.linalg.norm(pos[k, 0] - traj.obstacle_centres[k], axis=1) - radii).min()

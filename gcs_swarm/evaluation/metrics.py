@@ -12,6 +12,7 @@ import numpy as np
 from scipy.spatial.distance import pdist, squareform
 
 from gcs_swarm.guidance.formation import slot_positions
+from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, surface_distances
 
 
 def reach_time(t: np.ndarray, distance: np.ndarray, r_goal: float, hold_s: float = 2.0) -> float | None:
@@ -111,24 +112,33 @@ def min_separation(p: np.ndarray, closest: np.ndarray | None = None) -> float:
 
 
 def min_obstacle_clearance(
-    p: np.ndarray, centres: np.ndarray, radii: np.ndarray, l_arm: float = 0.175
+    p: np.ndarray,
+    centres: np.ndarray,
+    radii: np.ndarray,
+    l_arm: float = 0.175,
+    shapes: ShapeArrays = NO_SHAPES,
 ) -> tuple[float, bool]:
-    """c_min = min over t, i, k of |p_i - c_k(t)| - r_k and the collision flag c_min <= l_arm (spec 10).
+    """c_min = min over t, i, k of |p_i - c_k(t)| - r_k and the collision flag c_min <= l_arm (spec 10); with
+    `shapes` (cylinders and prisms, 3-D p only) also of their surface distances (spec 2.2).
 
     p (T, N, D); centres (K, D) static or (T, K, D) moving; radii (K,). Without obstacles or without a finite
     position: (inf, False).
     """
     p = np.asarray(p, dtype=float)
     radii = np.asarray(radii, dtype=float)
-    if radii.size == 0:
-        return math.inf, False
-    c = np.asarray(centres, dtype=float)
-    c = np.broadcast_to(c, (p.shape[0],) + c.shape) if c.ndim == 2 else c
-    d = np.linalg.norm(p[:, :, None, :] - c[:, None, :, :], axis=-1) - radii
-    d = d[np.isfinite(d)]  # a vehicle with no position (no sample, silent) has no clearance
-    if d.size == 0:
-        return math.inf, False
-    c_min = float(d.min())
+    c_min = math.inf
+    if radii.size:
+        c = np.asarray(centres, dtype=float)
+        c = np.broadcast_to(c, (p.shape[0],) + c.shape) if c.ndim == 2 else c
+        d = np.linalg.norm(p[:, :, None, :] - c[:, None, :, :], axis=-1) - radii
+        d = d[np.isfinite(d)]  # a vehicle with no position (no sample, silent) has no clearance
+        if d.size:
+            c_min = float(d.min())
+    if shapes.number:
+        points = p.reshape(-1, 3)
+        points = np.ascontiguousarray(points[np.isfinite(points).all(axis=1)])
+        if len(points):
+            c_min = min(c_min, float(surface_distances(points, *shapes).min()))
     return c_min, c_min <= l_arm
 
 

@@ -19,6 +19,7 @@ from gcs_swarm.evaluation import figures, flight_quality, metrics, signals
 from gcs_swarm.evaluation.fence_figures import fence_figures
 from gcs_swarm.evaluation.metrics import rounded
 from gcs_swarm.evaluation.run_data import CommandLog, Trajectories, load_commands, load_trajectories
+from gcs_swarm.flight.formation_plan import site_shapes
 from gcs_swarm.flight.run_folder import FLIGHT_FILE, RECORD_FILE
 from gcs_swarm.guidance.formation import slot_positions
 
@@ -94,7 +95,10 @@ def _report_from(
     crashed_any = cast(NDArray[np.bool_], traj.crashed.any(axis=0))  # (N,)
     reached = all(r is not None for r in reach) and not crashed_any.any() and arrived
     min_sep = metrics.min_separation(traj.pos, traj.closest_pair)
-    clearance, _ = metrics.min_obstacle_clearance(traj.pos, traj.obstacle_centres, traj.obstacle_radii)
+    shapes = site_shapes(mission)  # the still cylinders and prisms (spec 2.2)
+    clearance, _ = metrics.min_obstacle_clearance(
+        traj.pos, traj.obstacle_centres, traj.obstacle_radii, shapes=shapes
+    )
     cruise = None
     slot_error = None
     formation_rms: float | None
@@ -119,7 +123,7 @@ def _report_from(
     nearest = traj.nearest_neighbour  # (T, N) m
     for i, name in enumerate(names):
         clear_i, _ = metrics.min_obstacle_clearance(
-            traj.pos[:, i : i + 1], traj.obstacle_centres, traj.obstacle_radii
+            traj.pos[:, i : i + 1], traj.obstacle_centres, traj.obstacle_radii, shapes=shapes
         )
         final_angle = signals.near(angles[last, i], desired_angles[i] if i != leader else 0.0)
         per_vehicle.append(

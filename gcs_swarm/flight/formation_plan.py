@@ -13,6 +13,7 @@ from gcs_swarm.guidance.slot_assignment import AssignmentRule
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.mission import Mission
 from gcs_swarm.mission.geometry import follower_targets, mission_offsets
+from swarm_common.obstacle_shapes import ShapeArrays, pack_shapes
 
 ASSIGNMENT_GAP_M = 1.0  # m beyond D_Emg kept between followers moving to their slots
 
@@ -62,6 +63,16 @@ def build_controller(
         reshape=mission.reshape,
         pace=mission.pace,
         names=tuple(v.name for v in mission.vehicles),
+        shapes=site_shapes(mission),
+    )
+
+
+def site_shapes(mission: Mission) -> ShapeArrays:
+    """The mission's cylinders (world.cylinders) and prisms (world.prisms), packed for the guidance and the
+    report (swarm_common.obstacle_shapes, spec 2.2), in that order."""
+    return pack_shapes(
+        cylinders=[(c.center, c.radius, c.bottom, c.top) for c in mission.cylinders],
+        prisms=[(p.footprint, p.bottom, p.top) for p in mission.prisms],
     )
 
 

@@ -15,7 +15,8 @@ at j and then, below a^2 / j = 11.25 m/s, follows k v with k = j / a, an exponen
 10.1 m/s in 20.4 m; the sitl-sim vehicle follows the same shaping: sitl_sim.vehicle_model.position_control
 .brake_shaping_step).
 
-Shapes: pos, vel (N, 3) ENU m, m/s; centres (K, 3), radii (K,) m.
+Shapes: pos, vel (N, 3) ENU m, m/s; centres (K, 3), radii (K,) m; cylinders and prisms packed as
+swarm_common.obstacle_shapes.ShapeArrays (kinds, params, vertices).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import numpy as np
 from gcs_swarm.guidance.shaping import shape_vel_accel
 from swarm_common.jit import kernel
 from swarm_common.numpy_rules import maximum, minimum
+from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, course_entry
 
 SPEED_TABLE_MAX = 60.0  # m/s, the largest speed of the stopping-distance table (beyond: extrapolated)
 TABLE_DT = 0.002  # s, the integration step of the stopping-distance table
@@ -70,12 +72,14 @@ def stopping_table(reaction_s: float, accel: float, jerk: float) -> tuple[np.nda
 
 @kernel
 def distance_along_course(
-    pos: np.ndarray, vel: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float
-) -> np.ndarray:
+    pos: np.ndarray, vel: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float,
+    kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, horizon: float,
+) -> np.ndarray:  # fmt: skip
     """(N,) m: how far each vehicle can go along its horizontal course (the direction of vel's x, y; at its
     altitude) before it enters an obstacle's sphere grown by `clearance` m (at its altitude: the circle of
-    that sphere's cross-section); 0 if already inside one; inf if the course meets none or the vehicle
-    hovers (horizontal speed <= 1e-6 m/s)."""
+    that sphere's cross-section), or comes within `clearance` m of a packed cylinder or prism (spec 2.2,
+    obstacle_shapes.course_entry, which does not look past `horizon` m); 0 if already inside one; inf if the
+    course meets none or the vehicle hovers (horizontal speed <= 1e-6 m/s)."""
     n, k_obs = pos.shape[0], radii.shape[0]
     out = np.full(n, np.inf)
     for i in range(n):
@@ -98,6 +102,11 @@ def distance_along_course(
                 entry = along - math.sqrt(maximum(half_chord_sq, 0.0))
             else:
                 entry = np.inf
+            entry_min = minimum(entry_min, entry)
+        for k in range(kinds.shape[0]):
+            entry = course_entry(
+                pos[i, 0], pos[i, 1], pos[i, 2], u0, u1, clearance, horizon, k, kinds, params, vertices
+            )
             entry_min = minimum(entry_min, entry)
         out[i] = entry_min
     return out
@@ -137,11 +146,12 @@ def interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
 @kernel
 def speed_caps_from_table(
     pos: np.ndarray, vel: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float,
-    total: np.ndarray, speeds: np.ndarray,
+    total: np.ndarray, speeds: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
     """(N,) m/s: the speed whose stopping distance `total` (S,) (stopping_table) equals each vehicle's
-    distance along its course (clearance m), inf where the course is clear."""
-    caps = distance_along_course(pos, vel, centres, radii, clearance)
+    distance along its course (clearance m; spheres and the packed shapes, the latter looked for as far as
+    the table's last distance), inf where the course is clear."""
+    caps = distance_along_course(pos, vel, centres, radii, clearance, kinds, params, vertices, total[-1])
     for i in range(caps.shape[0]):
         if np.isfinite(caps[i]):
             caps[i] = interp(caps[i], total, speeds)
@@ -157,8 +167,10 @@ def failsafe_speed_caps(
     brake_accel: float,
     clearance: float,
     brake_jerk: float = 5.0,
+    shapes: ShapeArrays = NO_SHAPES,
 ) -> np.ndarray:
     """(N,) m/s horizontal speed caps (module docstring); inf where the course is clear. `reaction_s` T s
-    (FS_GCS_TIMEOUT), `brake_accel` m/s^2 and `brake_jerk` m/s^3 the BRAKE shaping's limits, `clearance` m."""
+    (FS_GCS_TIMEOUT), `brake_accel` m/s^2 and `brake_jerk` m/s^3 the BRAKE shaping's limits, `clearance` m,
+    `shapes` the cylinders and prisms beside the spheres."""
     total, speeds = stopping_table(float(reaction_s), float(brake_accel), float(brake_jerk))
-    return speed_caps_from_table(pos, vel, centres, radii, float(clearance), total, speeds)
+    return speed_caps_from_table(pos, vel, centres, radii, float(clearance), total, speeds, *shapes)

@@ -4,7 +4,8 @@ iaapf.py.
 
 Obstacle terms are evaluated for the (vehicle, obstacle) pairs whose evaluation point lies within l0 of the
 obstacle's surface. With `ahead` [add], the evaluation point of obstacle k for vehicle i is the point of the
-segment q[i] -> ahead[i] (the reference's braking path, gcs_swarm.guidance.reference) nearest to k's centre:
+segment q[i] -> ahead[i] (the reference's braking path, gcs_swarm.guidance.reference) nearest to k's surface
+(a sphere's: nearest its centre; a cylinder's or prism's: swarm_common.obstacle_shapes.segment_nearest):
 an obstacle ahead is felt as soon as the vehicle could no longer stop short of it, one alongside or behind
 exactly as at q.
 
@@ -22,6 +23,7 @@ import numpy as np
 from gcs_swarm.guidance.params import FieldMethod, FieldParams
 from swarm_common.jit import kernel
 from swarm_common.numpy_rules import clip_to_scalars, dot3, maximum, norm3
+from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, segment_nearest, sphere_surface, surface
 
 HEAD_ON_BIAS = 0.05  # share of the right-hand side mixed into the way round, so a dead-ahead obstacle has one
 
@@ -48,14 +50,17 @@ def attraction_force(
 @kernel
 def obstacle_pairs(
     q: np.ndarray, ahead: np.ndarray, dest: np.ndarray, centres: np.ndarray, radii: np.ndarray, l0: float,
-    l_min: float,
+    l_min: float, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The (vehicle, obstacle) pairs whose evaluation point (module docstring; ahead = q: q itself) is within
-    l0 m of the surface, in (i, k) order: the vehicle index i (P,), l = max(surface distance, l_min) (P,),
-    the unit vectors n_o centre -> point (P, 3) (+z on the centre, spec 2.1) and n_g point -> dest[i]
-    (P, 3) (zero at dest), and rho (P,) the point's distance to dest[i] (spec 3.2)."""
+    l0 m of the surface, in (i, k) order, the spheres centres (K, 3), radii (K,) first, then the packed shapes
+    kinds, params, vertices (swarm_common.obstacle_shapes, spec 2.2): the vehicle index i (P,),
+    l = max(surface distance, l_min) (P,), the unit vectors n_o (P, 3) (a sphere's centre -> point, +z on the
+    centre, spec 2.1; a shape's outward normal at its point nearest the evaluation point) and n_g point ->
+    dest[i] (P, 3) (zero at dest), and rho (P,) the point's distance to dest[i] (spec 3.2)."""
     n, k_obs = q.shape[0], radii.shape[0]
-    size = n * k_obs
+    k_all = k_obs + kinds.shape[0]
+    size = n * k_all
     vehicle = np.empty(size, dtype=np.intp)
     l_out = np.empty(size)
     rho_out = np.empty(size)
@@ -66,22 +71,26 @@ def obstacle_pairs(
         s0, s1, s2 = q[i, 0], q[i, 1], q[i, 2]
         g0, g1, g2 = ahead[i, 0] - s0, ahead[i, 1] - s1, ahead[i, 2] - s2
         length_sq = dot3(g0, g1, g2, g0, g1, g2)
-        for k in range(k_obs):
-            c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
-            along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
-            frac = clip_to_scalars(along / length_sq if length_sq > 0.0 else 0.0, 0.0, 1.0)
-            a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
-            d0, d1, d2 = a0 - c0, a1 - c1, a2 - c2
-            d = math.sqrt(dot3(d0, d1, d2, d0, d1, d2))
-            raw = d - radii[k]
+        for k in range(k_all):
+            if k < k_obs:
+                c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
+                along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
+                frac = clip_to_scalars(along / length_sq if length_sq > 0.0 else 0.0, 0.0, 1.0)
+                a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
+                raw, o0, o1, o2 = sphere_surface(a0, a1, a2, c0, c1, c2, radii[k])
+            else:
+                shape = k - k_obs
+                # the surface distance is 1-Lipschitz: no point of the segment is nearer than this
+                if surface(s0, s1, s2, shape, kinds, params, vertices)[0] - math.sqrt(length_sq) > l0:
+                    continue
+                frac = segment_nearest(s0, s1, s2, s0 + g0, s1 + g1, s2 + g2, shape, kinds, params, vertices)
+                a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
+                raw, o0, o1, o2 = surface(a0, a1, a2, shape, kinds, params, vertices)
             if not raw <= l0:
                 continue
             vehicle[p] = i
             l_out[p] = maximum(raw, l_min)
-            safe = 1.0 if d == 0.0 else d
-            n_o[p, 0], n_o[p, 1], n_o[p, 2] = d0 / safe, d1 / safe, d2 / safe
-            if d == 0.0:
-                n_o[p, 2] = 1.0
+            n_o[p, 0], n_o[p, 1], n_o[p, 2] = o0, o1, o2
             e0, e1, e2 = dest[i, 0] - a0, dest[i, 1] - a1, dest[i, 2] - a2
             rho = norm3(e0, e1, e2)
             div = rho if rho > 0.0 else 1.0
@@ -155,12 +164,16 @@ def obstacle_repulsion(
     radii: np.ndarray,
     fp: FieldParams,
     circulation: float | None = None,
+    shapes: ShapeArrays = NO_SHAPES,
 ) -> np.ndarray:
     """Summed obstacle repulsion (N, 3) at the points q (N, 3) of the method fp.law, evaluated along the
     segments to `ahead` (N, 3) (q itself: at q), with the adaptive factor's destinations dest (N, 3); K
-    obstacles centres (K, 3), radii (K,). `circulation` overrides fp.circulation (the 2-D planner: 0)."""
+    spheres centres (K, 3), radii (K,) and the cylinders and prisms `shapes` (spec 2.2). `circulation`
+    overrides fp.circulation (the 2-D planner: 0)."""
     adaptive = fp.law is FieldMethod.IAAPF
-    vehicle, l, n_o, n_g, rho = obstacle_pairs(q, ahead, dest, centres, radii, float(fp.l0), float(fp.l_min))
+    vehicle, l, n_o, n_g, rho = obstacle_pairs(
+        q, ahead, dest, centres, radii, float(fp.l0), float(fp.l_min), *shapes
+    )  # fmt: skip
     if not len(vehicle):
         return np.zeros((len(q), 3))
     rho_n = rho**fp.n if adaptive else rho

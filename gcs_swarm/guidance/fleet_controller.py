@@ -52,6 +52,7 @@ from gcs_swarm.guidance.separation import (
 )
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
+from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
 
 NO_ROWS = np.zeros((0, 3))
 RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in a reshape
@@ -96,7 +97,7 @@ def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
     )  # reshape
     table = np.array([0.0, 1.0])  # the failsafe speed scheduling's kernels, on a small table
     brake_distances(table, 7.5, 5.0, 0.002, 2)
-    speed_caps_from_table(pos, np.ones((3, 3)), obstacle_c, obstacle_r, 1.0, table, table)
+    speed_caps_from_table(pos, np.ones((3, 3)), obstacle_c, obstacle_r, 1.0, table, table, *NO_SHAPES)
     alive = np.ones(3, dtype=bool)  # the stale-telemetry rule (degradation.StaleTelemetryMonitor.assess)
     stale_verdict(np.zeros(3), alive, ~alive, pos, np.ones((3, 3)), 0, 1.0, 0.3)
 
@@ -163,6 +164,7 @@ class FleetController:
         reshape: ReshapeParams | None = None,
         pace: CapabilityParams | None = None,
         names: tuple[str, ...] = (),
+        shapes: ShapeArrays = NO_SHAPES,
     ) -> None:
         """`n` vehicles, `leader` its index; `offsets` (N, 3) leader-frame slots (leader row zero),
         `goal_waypoints` (W, 3) the leader's goals in order, `follower_targets` (N, 3) final destinations g_i
@@ -175,7 +177,8 @@ class FleetController:
         the deliberate reshaping around obstacles (None or not enabled: the paper's fixed formation,
         gcs_swarm.guidance.reshape), `pace` the leader's cap from its followers' measured drag (None or not
         enabled: v_xy_leader alone, gcs_swarm.guidance.capability), `names` the vehicles' names for events
-        (default "vehicle <i+1>").
+        (default "vehicle <i+1>"), `shapes` the still cylinders and prisms (spec 2.2) the field, the slots and
+        the failsafe speed caps avoid beside the spheres each tick is given.
         """
         if n < 1 or not 0 <= leader < n:
             raise ValueError(f"leader index {leader} is not a vehicle of a fleet of {n}")
@@ -198,6 +201,7 @@ class FleetController:
         self.flown_offsets = self.offsets  # (N, 3) the offsets of the latest tick (reshaped or not)
         self.set_goal_waypoints(goal_waypoints)
         self.follower_targets = None if follower_targets is None else self._checked_targets(follower_targets)
+        self.shapes = shapes
         self.d_g = default_d_g(self.field, self.limits.v_xy, self.reference.k_v)
         self.d_max = repulsion_range(self.separation, self.limits.v_xy, self.limits.a_xy)
         self.closing_accel = closing_deceleration(self.separation, self.limits.tilt_max, g)  # m/s^2, 0: off
@@ -485,7 +489,7 @@ class FleetController:
         cos_l, sin_l = np.cos(psi_l), np.sin(psi_l)
         targets, v_ff, a_ff, dest = formation_targets(
             heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
-            int(lead), goal, destinations,
+            int(lead), goal, destinations, *self.shapes,
         )  # fmt: skip
         if offset_rate is not None and offset_rate.any():  # the slots' own motion in the leader frame
             rate = offset_rate * self.spacing_scale
@@ -501,7 +505,7 @@ class FleetController:
         # the other vehicles repel from where they are (or were).
         ahead = gen.leash_and_lookahead(pos, active)
         p_r = gen.p
-        f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, self.field)
+        f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, self.field, shapes=self.shapes)
         wide = self.spacing_scale
         sep = self.separation
         d_emg, s_s = (sep.d_emg, sep.s_s) if wide == 1.0 else (sep.d_emg * wide, sep.s_s * wide)
@@ -530,7 +534,7 @@ class FleetController:
             fs = self.dead_gcs
             caps = failsafe_speed_caps(
                 pos, vel, centres, radii, float(fs.failsafe_timeout_s or 0.0), float(fs.brake_accel or 0.0),
-                fs.clearance, float(fs.brake_jerk or 0.0),
+                fs.clearance, float(fs.brake_jerk or 0.0), self.shapes,
             )  # fmt: skip
             speed_cap = np.minimum(speed_cap, caps)
         x_d, xd_dot, xd_ddot = gen.step(force, v_ff, speed_cap, dt, active, a_ff, targets, emergency)

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from gcs_swarm.guidance.obstacles import push_out_horizontally
+from gcs_swarm.guidance.obstacles import push_out_horizontally, push_out_of_shapes
 from gcs_swarm.guidance.slot_assignment import AssignmentRule, assign_moves
 from swarm_common.jit import kernel
 from swarm_common.rotations import wrap_pi, wrap_pi_float
@@ -87,14 +87,15 @@ def slot_positions(p_leader: np.ndarray, psi_leader: np.ndarray | float, offsets
 def formation_targets(
     heard: np.ndarray, cos_psi: np.ndarray, sin_psi: np.ndarray, offsets: np.ndarray, spacing: float,
     centres: np.ndarray, radii: np.ndarray, slot_margin: float, lead: int, goal: np.ndarray,
-    follower_targets: np.ndarray,
+    follower_targets: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Spec 8 step 1 for every vehicle from the leader state it heard (N, 11) (p (3), v (3), psi, psi rate,
     a (3)) and cos, sin of that psi (N,); offsets (N, 3) in the leader frame, scaled by `spacing`:
 
     - the slot X_i^s = p_L + R(psi_L) delta_i (N, 3) (spec 6, Eqs 26-28); [add] with slot_margin > 0 moved
-      horizontally out of the obstacles (obstacles.push_out_horizontally), so a follower is not torn between
-      its slot's attraction and an obstacle's repulsion; the leader's row is its goal (3,);
+      horizontally out of the spheres (obstacles.push_out_horizontally), then out of the cylinders and prisms
+      packed as kinds, params, vertices (obstacles.push_out_of_shapes), so a follower is not torn between its
+      slot's attraction and an obstacle's repulsion; the leader's row is its goal (3,);
     - the velocity feed-forward v_L + psi_L_dot z x R(psi_L) delta_i (N, 3);
     - [add] the acceleration feed-forward a_L minus the centripetal psi_L_dot^2 R(psi_L) delta_i (horizontal)
       (N, 3): followers accelerate with the leader; both feed-forwards zero in the leader's row;
@@ -129,6 +130,9 @@ def formation_targets(
         if slot_margin > 0.0:
             targets[i, 0], targets[i, 1] = push_out_horizontally(
                 targets[i, 0], targets[i, 1], targets[i, 2], centres, radii, slot_margin
+            )
+            targets[i, 0], targets[i, 1] = push_out_of_shapes(
+                targets[i, 0], targets[i, 1], targets[i, 2], kinds, params, vertices, slot_margin
             )
     for d in range(3):
         targets[lead, d] = goal[d]

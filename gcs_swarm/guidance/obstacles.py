@@ -1,7 +1,8 @@
 """Spherical obstacles: moving centres and surface distance (spec 2.1), and the push of a formation slot out
-of an obstacle (compiled, for the tick's formation kernel).
+of an obstacle, sphere, cylinder or prism (compiled, for the tick's formation kernel).
 
-Shapes: `q` (N, D) query points, `centres` (K, D), `radii` (K,), D = 2 (circles) or 3 (spheres).
+Shapes: `q` (N, D) query points, `centres` (K, D), `radii` (K,), D = 2 (circles) or 3 (spheres); cylinders
+and prisms packed as swarm_common.obstacle_shapes.ShapeArrays (kinds, params, vertices).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 
 from swarm_common.jit import kernel
 from swarm_common.numpy_rules import maximum
+from swarm_common.obstacle_shapes import footprint_distance
 
 
 def centres_at(centres0: np.ndarray, velocities: np.ndarray | None, t: float | np.ndarray) -> np.ndarray:
@@ -50,4 +52,26 @@ def push_out_horizontally(
             else:
                 d0, d1 = 1.0, 0.0
             x, y = centres[k, 0] + d0 * ring, centres[k, 1] + d1 * ring
+    return x, y
+
+
+@kernel
+def push_out_of_shapes(
+    x: float, y: float, z: float, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, margin: float
+) -> tuple[float, float]:
+    """The point (x, y, z) moved horizontally out of every cylinder and prism (packed, spec 2.2) grown by
+    `margin` m, as push_out_horizontally does for spheres: the grown shape's cross-section at height z is
+    the footprint grown by margin beside the walls, by sqrt(margin^2 - v^2) at v m above the roof or below the
+    floor; a point with footprint distance h (obstacle_shapes.footprint_distance, < 0 inside) short of that
+    goes along the footprint's outward normal at its nearest point by the difference (one pass over the
+    shapes in order; a point on a cylinder's axis goes out along +x). Returns the new (x, y)."""
+    for k in range(kinds.shape[0]):
+        row = params[k]
+        v = maximum(row[4] - z, z - row[5])  # m beyond the roof or floor, <= 0 between them
+        if v >= margin:
+            continue
+        ring = margin if v <= 0.0 else math.sqrt(margin * margin - v * v)
+        h, nx, ny = footprint_distance(x, y, kinds[k], row, vertices)
+        if h < ring:
+            x, y = x + (ring - h) * nx, y + (ring - h) * ny
     return x, y

@@ -402,23 +402,16 @@ def _fenced_legs(mission: Mission, root: Node) -> MissionError | None:
 
 
 # what a mission may carry that the flight cannot yet honour, and who is to make it so (issue 37); the site
-# fence (safety.geofence.polygon, .exclusions) is flown: enforced by the command guard, kept clear by the legs
-NOT_YET_FLOWN = (
-    (("world", "prisms"), "prisms are read and checked but not yet avoided by the guidance"),
-    (("world", "cylinders"), "cylinders are read and checked but not yet avoided by the guidance"),
-    (("safety", "rally"), "rally points are read but not yet used by the failsafes"),
-)
+# fence (safety.geofence.polygon, .exclusions) is flown: enforced by the command guard, kept clear by the
+# legs; prisms and cylinders are flown: avoided with their true distance and normal (spec 2.2)
+NOT_YET_FLOWN = ((("safety", "rally"), "rally points are read but not yet used by the failsafes"),)
 
 
 def not_yet_flown(mission: Mission, root: Node) -> MissionError | None:
     """The refusal to fly a mission with a site part the flight cannot yet honour (NOT_YET_FLOWN), or whose
     leader's legs bring the formation too near the site fence (_fenced_legs), or None: nothing is silently
     left out of a flight."""
-    given = {
-        ("world", "prisms"): bool(mission.prisms),
-        ("world", "cylinders"): bool(mission.cylinders),
-        ("safety", "rally"): bool(mission.rally),
-    }
+    given = {("safety", "rally"): bool(mission.rally)}
     for loc, sentence in NOT_YET_FLOWN:
         if given[loc]:
             return root.at(loc).error(

@@ -170,6 +170,8 @@ class World(_ValueEquality):
     # in vehicle order, the autopilot each simulated vehicle behaves as: "ardupilot" | "px4" (empty: all
     # "ardupilot")
     autopilots: tuple[str, ...] = ()
+    prisms: tuple[Prism, ...] = ()  # still buildings the simulator's collision check sees (world.prisms)
+    cylinders: tuple[Cylinder, ...] = ()  # still trees and masts (world.cylinders)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -279,7 +281,7 @@ class Mission(_ValueEquality):
     planner: PlannerSpec
     # [add] the leader's pace from what its followers can fly (guidance.pace)
     pace: CapabilityParams = dataclasses.field(default_factory=CapabilityParams)
-    # [add] the site (issue 37): carried and checked, not yet flown (checks.not_yet_flown refuses to fly them)
+    # [add] the site (issue 37): the fence, buildings and trees (avoided: spec 2.2); rally points carried
     fence: Fence = dataclasses.field(default_factory=Fence)
     prisms: tuple[Prism, ...] = ()
     cylinders: tuple[Cylinder, ...] = ()
@@ -301,4 +303,6 @@ class Mission(_ValueEquality):
             autopilots=tuple(
                 self.run.simulator.autopilot if v.autopilot == "auto" else v.autopilot for v in self.vehicles
             ),
+            prisms=self.prisms,
+            cylinders=self.cylinders,
         )

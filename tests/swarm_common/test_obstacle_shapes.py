@@ -127,7 +127,7 @@ def test_the_distance_is_1_lipschitz(
 ) -> None:
     # |l(p) - l(q)| <= |p - q| for a true distance to a surface: what sphere tracing relies on
     gap = math.dist((x0, y0, z0), (x1, y1, z1))
-    for k in range(SHAPES.count):
+    for k in range(SHAPES.number):
         assert abs(at(x0, y0, z0, k)[0] - at(x1, y1, z1, k)[0]) <= gap + 1e-9
 
 
@@ -153,7 +153,7 @@ def test_segment_nearest_is_no_farther_than_a_dense_sampling(
     points = np.array([x0, y0, z0]) + fs[:, None] * np.array([x1 - x0, y1 - y0, z1 - z0])
     brute = surface_distances(points, *SHAPES).min(axis=0)
     spacing = math.dist((x0, y0, z0), (x1, y1, z1)) / 2000
-    for k in range(SHAPES.count):
+    for k in range(SHAPES.number):
         f = segment_nearest(x0, y0, z0, x1, y1, z1, k, *SHAPES)
         found = at(x0 + f * (x1 - x0), y0 + f * (y1 - y0), z0 + f * (z1 - z0), k)[0]
         assert found <= brute[k] + spacing + 1e-9

@@ -25,6 +25,7 @@ from gcs_swarm.guidance.separation import (
     closing_range,
     closing_speed_caps,
 )
+from swarm_common.obstacle_shapes import NO_SHAPES
 
 A, J = 7.5, 5.0  # BRAKE_MODE_DECEL_RATE m/s^2, PSC_JERK_XY m/s^3
 
@@ -87,7 +88,7 @@ def test_no_cap_when_the_course_misses_every_obstacle() -> None:
     centres, radii = np.array([[80.0, 0.0, 10.0]]), np.array([5.0])
     caps = failsafe_speed_caps(pos, vel, centres, radii, 3.0, A, 3.0, J)
     assert np.isinf(caps).all()
-    assert np.isinf(distance_along_course(pos, vel, centres, radii, 3.0)).all()
+    assert np.isinf(distance_along_course(pos, vel, centres, radii, 3.0, *NO_SHAPES, np.inf)).all()
 
 
 def test_inside_the_grown_sphere_the_cap_is_zero() -> None:

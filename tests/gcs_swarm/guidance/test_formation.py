@@ -24,6 +24,7 @@ from gcs_swarm.guidance.topology import (
     laplacian,
     star_adjacency,
 )
+from swarm_common.obstacle_shapes import NO_SHAPES
 
 TABLE3_OFFSETS = np.array(
     [[0, 0, 0], [-30, -30, 0], [30, -30, 0], [-60, -60, 0], [0, -60, 0], [60, -60, 0]], float
@@ -75,7 +76,7 @@ def targets_at(t, p0, v, psi0, rate, offsets, lead=0, margin=0.0, centres=None, 
     centres = np.zeros((0, 3)) if centres is None else centres
     radii = np.zeros(0) if radii is None else radii
     return formation_targets(
-        heard, cos, sin, offsets, 1.0, centres, radii, margin, lead, np.zeros(3), np.zeros((0, 3))
+        heard, cos, sin, offsets, 1.0, centres, radii, margin, lead, np.zeros(3), np.zeros((0, 3)), *NO_SHAPES
     )
 
 

@@ -157,7 +157,7 @@ world:
 """
 
 
-def test_fences_prisms_and_cylinders_are_carried_in_enu_and_refused_for_flight() -> None:
+def test_fences_prisms_and_cylinders_are_carried_in_enu() -> None:
     mission = parse_mission(SITE, to_fly=False)
     np.testing.assert_array_equal(mission.fence.polygon, [[-20, -20], [60, -20], [60, 20], [-20, 20]])
     pond, triangle = mission.fence.exclusions
@@ -168,8 +168,9 @@ def test_fences_prisms_and_cylinders_are_carried_in_enu_and_refused_for_flight()
     assert (hangar.name, hangar.bottom, hangar.top) == ("hangar", 0.0, 8.0)
     (mast,) = mission.cylinders
     assert (mast.name, mast.radius, mast.top) == ("mast", 0.5, 20.0)
-    # loading it to fly names the first part the flight cannot honour, at its line
-    with pytest.raises(MissionError, match=r"<string>:13: world.prisms: .*not yet avoided by the guidance"):
+    # prisms and cylinders are flown (spec 2.2): loading it to fly stops at the pond (too near the goal's leg,
+    # line 5 of SITE, whose line 1 is empty)
+    with pytest.raises(MissionError, match=r"<string>:5: goal: .*exclusion zone 'pond'"):
         parse_mission(SITE)
 
 

@@ -14,7 +14,7 @@ import pymap3d
 import pytest
 
 from gcs_swarm.cli import main
-from gcs_swarm.mission import MissionError, load_mission
+from gcs_swarm.mission import load_mission
 from gcs_swarm.site import SiteError, merge_sites, read_site
 from gcs_swarm.site.geojson import read_geojson
 from gcs_swarm.site.qgc_plan import read_plan
@@ -106,22 +106,19 @@ def test_gcs_swarm_import_writes_a_mission_that_loads(
     assert mission.origin == (47.397742, 8.545594, 488.0)
 
 
-def test_gcs_swarm_import_of_buildings_says_the_mission_cannot_fly_yet(
+def test_gcs_swarm_import_of_buildings_gives_a_mission_that_flies(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "cmac.yaml"
     files = [str(DATA / "cmac_buildings.geojson")]
     assert main(["import", *files, "--out", str(out), "--vehicles", "1"]) == 0
     printed = capsys.readouterr().out
-    assert "1 prisms, 2 cylinders" in printed and "cannot be flown yet" in printed
-    mission = load_mission(out, to_fly=False)
+    assert "1 prisms, 2 cylinders" in printed and "cannot be flown yet" not in printed
+    mission = load_mission(out)  # prisms and cylinders are flown (spec 2.2)
     assert len(mission.prisms) == 1 and len(mission.cylinders) == 2
-    with pytest.raises(MissionError, match="world.prisms: prisms are read and checked but not yet avoided"):
-        load_mission(out)
-    # `gcs-swarm check` validates it and says why it cannot fly
     assert main(["check", str(out)]) == 0
     checked = capsys.readouterr().out
-    assert ": ok: mission 'cmac'" in checked and "note: valid, but it cannot be flown yet" in checked
+    assert ": ok: mission 'cmac'" in checked and "cannot be flown yet" not in checked
 
 
 def test_gcs_swarm_import_of_a_bad_file_is_one_error(
