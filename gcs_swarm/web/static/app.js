@@ -59,6 +59,7 @@ function onScene(scene) {
   el("events").replaceChildren(...scene.events.map(eventItem));
   el("actions").hidden = scene.replay;
   document.body.classList.toggle("replay", scene.replay);
+  if (!scene.replay && !scene.actions) el("reply").textContent = "read-only: actions need --web-token (console)";
   el("progress").hidden = scene.replay;
   el("target").replaceChildren(...["all", ...scene.vehicles].map((name) => {
     const option = document.createElement("option");

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+from pathlib import Path
 from typing import Any
 
 import aiohttp
@@ -198,3 +199,30 @@ def test_without_a_token_the_page_is_read_only() -> None:
     seen = _serve(None, operator, [{"cmd": "action", "line": "hold", "token": ""}])
     assert seen["scene"]["actions"] is False
     assert "read-only" in seen["replies"][0]["text"] and operator.lines == []
+
+
+def test_a_busy_or_bad_address_and_a_token_without_the_page_are_one_error_before_flying(
+    tmp_path: Path, capsys: Any
+) -> None:
+    import socket
+
+    from gcs_swarm.cli import main
+
+    mission = str(ROOT / "missions" / "quickstart.yaml")
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["run", mission, "--out", str(tmp_path / "a"), "--web", f"127.0.0.1:{port}"]) == 2
+    assert (
+        capsys.readouterr()
+        .out.splitlines()[-1]
+        .startswith(f"error: cannot serve the live page on 127.0.0.1:{port}")
+    )
+    assert not (tmp_path / "a").exists()  # nothing flew: no run folder
+    assert main(["run", mission, "--web", "127.0.0.1:http"]) == 2
+    assert "error: --web '127.0.0.1:http': the port must be a number" in capsys.readouterr().out
+    assert main(["console", mission, "--web-token", "x"]) == 2
+    assert capsys.readouterr().out.strip() == "error: --web-token needs --web (the page it allows actions on)"
+    assert main(["console", mission, "--out", str(tmp_path / "b"), "--web", "--web-token", " "]) == 2
+    assert capsys.readouterr().out.strip() == "error: --web-token must not be empty"
