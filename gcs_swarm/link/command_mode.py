@@ -16,6 +16,11 @@ parameter exchanges already run over the slowed link):
 
 `world.link.command_mode` may force either mode.
 
+In flight (`CommandModeWatch`, once per link_use window) the chosen mode steps down when the measured
+downlink degrades: from ATTITUDE to POSITION, and from one POSITION rate to the next slower one, never back
+up (no mode fight; docs/command-modes.md "In flight" says why), each step an event "command mode: ...
+because ...".
+
 Bytes are counted as on the wire: MAVLink 2 framing (10 header + 2 checksum bytes, + 13 signed) around each
 message's full payload (pymavlink's struct size: the longest it can be; MAVLink 2 trims trailing zeros), and
 per packet the radio's own overhead (its bytes, and its fixed air time as bytes at the radio's byte rate).
@@ -23,12 +28,20 @@ per packet the radio's own overhead (its bytes, and its fixed air time as bytes 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
+import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs_swarm.link.link_use import TXBUF_LOW, LinkUse
 from gcs_swarm.link.streams import telemetry_rates
 from swarm_common.radio_presets import RADIO_OVERRIDES, radio_spec
+
+if TYPE_CHECKING:
+    from gcs_swarm.link.vehicle import VehicleLink
 
 ATTITUDE, POSITION = "attitude", "position"  # command modes (flight.json `command_mode.mode`)
 MARGIN = 0.5  # share of the budget the planned streams may use: the rest is for parameter and command
@@ -47,6 +60,14 @@ UNREAD_STREAMS = ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED")
 MAVLINK2_FRAMING = 12  # bytes around a MAVLink 2 payload: 10 header + 2 checksum
 SIGNATURE = 13  # bytes a MAVLink 2 signature adds
 SETPOINT_MESSAGE = {ATTITUDE: "SET_ATTITUDE_TARGET", POSITION: "SET_POSITION_TARGET_GLOBAL_INT"}
+# the in-flight watch (CommandModeWatch), per link_use window (1 s of vehicle time):
+AGE_MAX_S = 0.15  # s of queueing: telemetry older at a window's end than this plus one report period is
+# waiting on the air (a SiK buffer full at 64 kbit/s holds 1850 B * 10.2 / 64000 = 0.29 s); the lockstep radio
+# adds 1-2 frames (20-40 ms), quickstart_faulty's jitter at most 100 ms
+DEGRADED_WINDOWS = 2  # consecutive degraded windows of one vehicle before the mode steps down (the dwell:
+# one bad window is a burst; the stale-telemetry watch holds vehicles whose telemetry is 1 s old)
+SETTLE_WINDOWS = 2  # windows after a step that are not judged: the new rates take effect, the queues drain
+REASK_RATIO = 1.5  # positions still arriving above this times the rate asked after a step: ask again
 
 
 class CommandModeError(Exception):
@@ -109,6 +130,7 @@ class CommandPlan:
     attitude_B_s: float
     budget: LinkBudget | None
     forced: bool = False  # chosen by world.link.command_mode, not from the budget
+    signed: bool = False  # the bytes counted with MAVLink 2 signatures
 
     @property
     def telemetry(self) -> dict[str, float]:
@@ -174,31 +196,146 @@ def command_plan(
 ) -> CommandPlan:
     """The command mode and telemetry rates for a link of `budget` at the control rate control_hz Hz, packets
     signed or not (see the module doc). `mode` (world.link.command_mode): "auto" chooses ATTITUDE when it
-    fits within MARGIN of the budget, else POSITION at the fastest of POSITION_RATES_HZ that fits within
-    MARGIN, else at the slowest if that fits the budget at all; "attitude" or "position" force the mode (at
-    that rate rule). CommandModeError (one sentence) when POSITION is to be flown and not even its slowest
-    rate fits the budget."""
+    fits within MARGIN of the budget, else POSITION (position_plan); "attitude" or "position" force the mode.
+    CommandModeError (one sentence) when POSITION is to be flown and not even its slowest rate fits the
+    budget."""
     packet = 0.0 if budget is None else budget.packet_bytes
     attitude = stream_bytes(ATTITUDE, control_hz, control_hz, STATUS_HZ, packet, signed)
     fits = budget is None or sum(attitude) <= MARGIN * budget.bytes_per_s
+    forced = mode != "auto"
     if mode == ATTITUDE or (mode == "auto" and fits):
         return CommandPlan(
-            ATTITUDE, control_hz, control_hz, STATUS_HZ, *attitude, sum(attitude), budget, mode != "auto"
+            ATTITUDE, control_hz, control_hz, STATUS_HZ, *attitude, sum(attitude), budget, forced, signed
         )
-    rates = [min(hz, control_hz) for hz in POSITION_RATES_HZ]
+    plan = position_plan(budget, control_hz, signed, sum(attitude), forced)
+    assert plan is not None  # no rate is excluded here
+    need = plan.up_B_s + plan.down_B_s
+    if budget is not None and need > budget.bytes_per_s:
+        raise CommandModeError(
+            f"the link budget of {budget.bytes_per_s:.0f} B/s per vehicle ({budget.source}) cannot carry "
+            f"position targets at {plan.setpoint_hz:g} Hz with their telemetry ({need:.0f} B/s): "
+            "raise world.link.budget_bps or choose a faster radio"
+        )
+    return plan
+
+
+def position_plan(
+    budget: LinkBudget | None,
+    control_hz: float,
+    signed: bool,
+    attitude_B_s: float,
+    forced: bool = False,
+    below_hz: float = math.inf,
+) -> CommandPlan | None:
+    """POSITION at the fastest of POSITION_RATES_HZ (each capped at control_hz Hz, only those below below_hz)
+    whose streams need at most MARGIN of the budget, else at the slowest of them (which may not fit: the
+    caller decides); the fastest without a budget; None when no rate is below below_hz. attitude_B_s: what
+    ATTITUDE would need (for the event)."""
+    rates = [r for r in dict.fromkeys(min(hz, control_hz) for hz in POSITION_RATES_HZ) if r < below_hz]
+    if not rates:
+        return None
+    packet = 0.0 if budget is None else budget.packet_bytes
     needs = [stream_bytes(POSITION, hz, hz, STATUS_HZ_SLOW, packet, signed) for hz in rates]
-    if budget is None:
-        choice = 0
-    else:
-        within = [k for k, need in enumerate(needs) if sum(need) <= MARGIN * budget.bytes_per_s]
-        choice = within[0] if within else len(rates) - 1
-        if sum(needs[choice]) > budget.bytes_per_s:
-            raise CommandModeError(
-                f"the link budget of {budget.bytes_per_s:.0f} B/s per vehicle ({budget.source}) cannot carry "
-                f"position targets at {rates[-1]:g} Hz with their telemetry ({sum(needs[-1]):.0f} B/s): "
-                "raise world.link.budget_bps or choose a faster radio"
-            )
+    within = [k for k, need in enumerate(needs) if budget is None or sum(need) <= MARGIN * budget.bytes_per_s]
+    choice = within[0] if within else len(rates) - 1
     hz = rates[choice]
-    return CommandPlan(
-        POSITION, hz, hz, STATUS_HZ_SLOW, *needs[choice], sum(attitude), budget, mode != "auto"
-    )
+    return CommandPlan(POSITION, hz, hz, STATUS_HZ_SLOW, *needs[choice], attitude_B_s, budget, forced, signed)
+
+
+class CommandModeWatch:
+    """Steps the command mode down in flight when a vehicle's downlink stays degraded (module doc).
+
+    After each link_use window (`sample`), a vehicle that delivered positions in it is degraded when its
+    telemetry queues (older than AGE_MAX_S plus one report period, 1 / state_hz, at the window's end) or its
+    radio's RADIO_STATUS txbuf (where one reports) is below link_use.TXBUF_LOW. The positions' arrival rate
+    is not a trigger by itself: random loss and reordering lower it as much as congestion does
+    (quickstart_faulty's 100 ms of jitter makes many positions late, which the intake drops), while only
+    congestion makes the telemetry wait. A window without any position (an outage, a reboot, a lost
+    vehicle: the stale-telemetry and loss watches' business, which a slower mode would not help) clears the
+    vehicle's count. DEGRADED_WINDOWS in a row of any vehicle step the whole fleet down one step: ATTITUDE ->
+    POSITION, or POSITION -> its next slower rate, the rate chosen by position_plan against what the
+    degraded link carried in its last window, up and down (its capacity, when full); never back up. A mode
+    the mission forced is kept. After a step the telemetry of the new plan is asked for without waiting
+    (Streams.ask), asked again each window a vehicle still sends positions above REASK_RATIO times the new
+    rate, and SETTLE_WINDOWS windows are not judged."""
+
+    def __init__(self, links: Sequence[VehicleLink], use: LinkUse) -> None:
+        self.links = links
+        self.use = use
+        self.degraded = np.zeros(len(links), dtype=np.int64)  # (N,) consecutive degraded windows
+        self.settle = 0  # windows still not judged after a step
+        self.windows = 0  # use.windows at the last sample
+        self.steps = 0  # steps down taken
+        self.exhausted = False  # at the slowest rate and degraded again: said once, nothing more to do
+
+    def sample(self, plan: CommandPlan | None) -> CommandPlan | None:
+        """The plan to fly after the latest link_use window (`plan` itself, or the next step down, whose
+        telemetry is then asked for and whose event is out)."""
+        use = self.use
+        if plan is None or plan.forced or use.windows == self.windows:
+            return plan
+        self.windows = use.windows
+        if plan.mode == POSITION and self.steps:
+            self._reask(plan)
+        if self.settle > 0:
+            self.settle -= 1
+            self.degraded[:] = 0
+            return plan
+        reasons = self._judge(plan)
+        worst = int(np.argmax(self.degraded))
+        if self.degraded[worst] < DEGRADED_WINDOWS or self.exhausted:
+            return plan
+        carried = float(np.nansum(use.rate[worst]))
+        budget = LinkBudget(
+            carried,
+            0.0 if plan.budget is None else plan.budget.packet_bytes,
+            f"{self.links[worst].name}'s link carried {carried:.0f} B/s",
+        )
+        below = plan.setpoint_hz if plan.mode == POSITION else math.inf
+        step = position_plan(budget, plan.setpoint_hz, plan.signed, plan.attitude_B_s, below_hz=below)
+        because = f"because {self.links[worst].name}'s {reasons[worst]} for {DEGRADED_WINDOWS} s"
+        if step is None:
+            self.exhausted = True
+            use.fleet_event(
+                f"command mode: position targets at {plan.setpoint_hz:g} Hz are the slowest, kept {because}"
+            )
+            return plan
+        step = replace(
+            step, budget=plan.budget
+        )  # the budget the link use is held against stays the mission's
+        self.steps += 1
+        self.settle = SETTLE_WINDOWS
+        self.degraded[:] = 0
+        for link in self.links:
+            if link.sysid is not None:
+                link.streams.ask(step.telemetry)
+        was = "attitude targets" if plan.mode == ATTITUDE else "position targets"
+        need = step.up_B_s + step.down_B_s
+        use.fleet_event(
+            f"command mode: position targets at {step.setpoint_hz:g} Hz ({need:.0f} B/s), telemetry at "
+            f"{step.state_hz:g} Hz, instead of {was} at {plan.setpoint_hz:g} Hz {because}"
+        )
+        return step
+
+    def _judge(self, plan: CommandPlan) -> list[str]:
+        """Count each vehicle's degraded windows (class doc) after the latest; what was wrong, per vehicle."""
+        use = self.use
+        reasons = []
+        for i, link in enumerate(self.links):
+            hz, age, txbuf = float(use.position_hz[i]), float(use.age_s[i]), link.radio.txbuf
+            wrong = []
+            if age > AGE_MAX_S + 1.0 / plan.state_hz:
+                wrong.append(f"telemetry was {age:.2f} s old (positions at {hz:.0f} of {plan.state_hz:g} Hz)")
+            if txbuf is not None and txbuf < TXBUF_LOW:
+                wrong.append(f"radio buffer was {txbuf}% free")
+            silent = not hz > 0
+            self.degraded[i] = 0 if silent or not wrong else self.degraded[i] + 1
+            reasons.append(", ".join(wrong))
+        return reasons
+
+    def _reask(self, plan: CommandPlan) -> None:
+        """Ask again for the plan's telemetry where positions still come faster than REASK_RATIO times its
+        rate (the request after a step was lost on the congested link)."""
+        for i, link in enumerate(self.links):
+            if link.sysid is not None and self.use.position_hz[i] > REASK_RATIO * plan.state_hz:
+                link.streams.ask(plan.telemetry)

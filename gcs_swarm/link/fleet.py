@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm.link import attitude_commands, frames, intake_kernel
 from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
-from gcs_swarm.link.command_mode import POSITION, CommandPlan
+from gcs_swarm.link.command_mode import POSITION, CommandModeWatch, CommandPlan
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.housekeeping import Housekeeping
@@ -122,6 +122,7 @@ class Fleet:
         self.network = Network(self.links, signing_key, forwards, spin_s=spin_s)
         self.housekeeping = Housekeeping(self.links, self.state)  # heartbeats, loss checks, stream watchdog
         self.link_use = LinkUse(self.links, link_budget_bps)  # bytes/s each way per vehicle, the budget
+        self.command_watch = CommandModeWatch(self.links, self.link_use)  # steps command_plan down in flight
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
         # wall s every pump so far spent blocked in select for packets, and the rest of its time (decoding
         # what arrived, heartbeats, loss checks, on_pump): read as differences (flight.tick_timing)
@@ -280,6 +281,7 @@ class Fleet:
         self.housekeeping.run(now, self.loss_timeout_s, self.loss_wall_timeout_s)
         if self.state.clock_ms >= self.link_use.next_ms:
             self.link_use.sample(self.state.clock_ms)
+            self.command_plan = self.command_watch.sample(self.command_plan)
         if self.on_pump is not None:
             self.on_pump()
         self.pump_wait_s += now - start

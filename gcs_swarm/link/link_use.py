@@ -14,6 +14,12 @@ rxerrors, fixed, txbuf) carries no capacity: the budget cannot be read from it. 
 the reporting radio's transmit buffer, shows overload instead: ArduPilot slows its streams when it falls below
 TXBUF_LOW and speeds them up again above TXBUF_RECOVERED (GCS_Common.cpp GCS_MAVLINK::handle_radio_status);
 the same thresholds make events here.
+
+Each window also measures the downlink, which is what overflows on a slow radio (docs/command-modes.md):
+the rate at which GLOBAL_POSITION_INT arrived (`position_hz`, against the rate asked for) and the telemetry's
+age at the window's end (`age_s`: the vehicle's newest time_boot_ms minus its latest position's; in lockstep
+the simulator's clock ticks bypass the radio, so queueing on the air shows as age). command_mode's
+CommandModeWatch reads them.
 """
 
 from __future__ import annotations
@@ -53,6 +59,10 @@ class LinkUse:
         self._last: tuple[int, np.ndarray] | None = None
         self._over = np.zeros(n, dtype=bool)
         self._txbuf_low = np.zeros(n, dtype=bool)
+        self.windows = 0  # windows closed (rates measured) so far
+        self.position_hz = np.full(n, math.nan)  # (N,) GLOBAL_POSITION_INT received per s, latest window
+        self.age_s = np.full(n, math.nan)  # (N,) s, telemetry age at the latest window's end (NaN: none)
+        self._positions = np.zeros(n, dtype=np.int64)  # position_count at the last sample
 
     @property
     def budget_B_s(self) -> float | None:
@@ -69,9 +79,13 @@ class LinkUse:
         """Close the window ending at fleet clock `clock_ms` (Fleet.pump calls it once clock_ms >= next_ms):
         its rates, the peaks, the budget and radio events."""
         counts = self._counters()
+        st = self.links[0].state if self.links else None
+        rows = [link.index for link in self.links]
+        positions = np.zeros(0, dtype=np.int64) if st is None else st.position_count[rows].astype(np.int64)
         self.next_ms = clock_ms + WINDOW_MS
         if self._last is None:
             self._first = self._last = (clock_ms, counts)
+            self._positions = positions
             return
         t_last, last = self._last
         span_s = (clock_ms - t_last) / 1000.0
@@ -79,6 +93,12 @@ class LinkUse:
         if span_s <= 0:
             return
         self.rate = (counts - last) / span_s
+        self.windows += 1
+        self.position_hz = (positions - self._positions) / span_s
+        self._positions = positions
+        if st is not None:
+            heard = st.position_ms[rows] >= 0
+            self.age_s = np.where(heard, (st.time_ms[rows] - st.position_ms[rows]) / 1000.0, math.nan)
         np.maximum(self.peak, self.rate, out=self.peak)
         budget = self.budget_B_s
         if budget is not None:
@@ -104,6 +124,14 @@ class LinkUse:
             elif self._txbuf_low[i] and txbuf > TXBUF_RECOVERED:
                 self._txbuf_low[i] = False
                 self._event(i, f"radio transmit buffer {txbuf}% free again")
+
+    def fleet_event(self, text: str) -> None:
+        """An event of the whole fleet (e.g. a change of command mode): every link's events (the console)
+        and `events` ("t=T s text", T the newest vehicle time)."""
+        for link in self.links:
+            link.add_event(text)
+        t_s = max(max((int(link.state.time_ms[link.index]) for link in self.links), default=0), 0) / 1000.0
+        self.events.append(f"t={t_s:.2f} s {text}")
 
     def _event(self, i: int, text: str) -> None:
         link = self.links[i]

@@ -1,6 +1,14 @@
 """Guided-mode targets for one vehicle: SET_ATTITUDE_TARGET and SET_POSITION_TARGET_* from mission-frame
 (ENU/FLU) values, converted to the wire's NED/FRD once (spec 1.1). Each target echoes the vehicle's latest
-time_boot_ms and so answers its lockstep frame (gcs_swarm.link.lockstep)."""
+time_boot_ms and so answers its lockstep frame (gcs_swarm.link.lockstep).
+
+Holds (position or velocity targets: `send_position_target`, `send_velocity_target`, `hold`) are sent when
+they change and otherwise repeated only every HOLD_RESEND_S of the vehicle's time, as a keep-alive: a held
+vehicle's target would otherwise go every tick (50 Hz, 63-65 bytes: a SiK radio's whole uplink for three
+vehicles). "Unchanged" is judged on the wire: the same type mask, the same position (1e-7 deg, the same
+altitude to the cm) or velocity, and a yaw within HOLD_YAW_RAD (the callers pass the measured heading, which
+jitters). A frame a repeat is not sent on is answered by the fleet's SYSTEM_TIME (Fleet.answer_frame).
+"""
 
 from __future__ import annotations
 
@@ -19,6 +27,12 @@ from swarm_common.rotations import yaw_ned_enu
 
 ATTITUDE_TARGET_IGNORE_RATES = 0b00000111  # SET_ATTITUDE_TARGET.type_mask: use quaternion + thrust only
 _SET_ATTITUDE_TARGET = Packer(mavlink2.MAVLink_set_attitude_target_message)
+
+HOLD_RESEND_S = 0.25  # s of vehicle time between repeats of an unchanged hold: 4 Hz, twice the 2 Hz "proof of
+# life" PX4 OFFBOARD asks (offboardCheck.cpp: setpoints older than COM_OF_LOSS_T, default 1 s, are lost);
+# ArduCopter GUIDED keeps a position target for good and zeroes a velocity target after GUID_TIMEOUT
+# (mode_guided.cpp get_timeout_ms, default 3 s): a zero-velocity hold then stays what it was
+HOLD_YAW_RAD = 0.02  # rad: hold yaws closer than this are the same target
 
 _IGNORE_ACCEL = (
     mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
@@ -56,12 +70,33 @@ class Setpoints:
         self.channel = channel
         self.lockstep = lockstep
         self.name = channel.name
+        # the last hold sent: (its wire fields but yaw, its NED yaw rad, vehicle ms); None after other targets
+        self._hold: tuple[tuple[object, ...], float, int] | None = None
+        self.holds_repeated = 0  # unchanged holds not sent (within HOLD_RESEND_S of the last)
+
+    def _unchanged_hold(self, fields: tuple[object, ...], yaw_ned: float) -> bool:
+        """Whether the hold with wire `fields` and yaw_ned is the last one sent, less than HOLD_RESEND_S of
+        vehicle time ago (then it is not sent: counted in holds_repeated); else it becomes the last."""
+        st, i = self.lockstep.state, self.lockstep.index
+        now_ms = int(st.time_ms[i])
+        last = self._hold
+        if (
+            last is not None
+            and last[0] == fields
+            and abs(math.remainder(yaw_ned - last[1], 2 * math.pi)) < HOLD_YAW_RAD
+            and 0 <= now_ms - last[2] < HOLD_RESEND_S * 1000
+        ):
+            self.holds_repeated += 1
+            return True
+        self._hold = (fields, yaw_ned, now_ms)
+        return False
 
     def send_attitude_quaternion(self, q_ned_frd: ArrayLike, thrust: float) -> None:
         """SET_ATTITUDE_TARGET with a LOCAL_NED->BODY_FRD quaternion (w,x,y,z), thrust clipped to [0,1]."""
         # Fleet.send_attitude_targets passes lists of floats: no numpy round trip for them
         q = q_ned_frd if type(q_ned_frd) is list else np.asarray(q_ned_frd, dtype=float).tolist()
         thrust = min(max(float(thrust), 0.0), 1.0)
+        self._hold = None
         ch = self.channel
         ch.send_packed(  # wire order: time_boot_ms, q, body rates, thrust, target, type_mask
             _SET_ATTITUDE_TARGET,
@@ -80,8 +115,10 @@ class Setpoints:
         """SET_POSITION_TARGET_LOCAL_NED velocity (ENU m/s) and optional ENU yaw (rad); GUIDED mode."""
         v = np.asarray(vel_enu, dtype=float)
         _require_finite(self.name, "velocity target", v, yaw)
-        vn = frames.enu_to_ned(v)
+        vn = frames.enu_to_ned(v) + 0.0  # + 0.0: no -0.0 on the wire
         mask, yaw_ned = _with_yaw(_IGNORE_POSITION | _IGNORE_ACCEL, yaw)
+        if self._unchanged_hold(("velocity", mask, *vn.tolist()), yaw_ned):
+            return
         ch = self.channel
         ch.send(
             ch.mav.set_position_target_local_ned_encode(
@@ -112,7 +149,7 @@ class Setpoints:
         p = np.asarray(pos_enu, dtype=float)
         _require_finite(self.name, "position target", p, yaw)
         mask, yaw_ned = _with_yaw(_IGNORE_VELOCITY | _IGNORE_ACCEL, yaw)
-        self._send_global_target(p, np.zeros(3), np.zeros(3), mask, yaw_ned)
+        self._send_global_target(p, np.zeros(3), np.zeros(3), mask, yaw_ned, hold=True)
 
     def send_trajectory_target(
         self, pos_enu: ArrayLike, vel_enu: ArrayLike, acc_enu: ArrayLike, yaw: float
@@ -126,15 +163,19 @@ class Setpoints:
         for what, values in (("position", p), ("velocity", v), ("acceleration", a)):
             _require_finite(self.name, f"trajectory target {what}", values, yaw)
         mask = mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+        self._hold = None
         self._send_global_target(p, v, a, mask, float(yaw_ned_enu(yaw)))
 
     def _send_global_target(
-        self, p: np.ndarray, v: np.ndarray, a: np.ndarray, mask: int, yaw_ned: float
+        self, p: np.ndarray, v: np.ndarray, a: np.ndarray, mask: int, yaw_ned: float, hold: bool = False
     ) -> None:
         """One SET_POSITION_TARGET_GLOBAL_INT: ENU position p (3,) m about the mission origin, velocity v (3,)
         m/s and acceleration a (3,) m/s^2 turned to the wire's lat/lon/alt and NED here, `mask` its type mask,
-        yaw_ned rad."""
+        yaw_ned rad; a `hold` unchanged since the last one is only repeated as the module doc says."""
         lat, lon, alt = frames.enu_to_geodetic(p, self.lockstep.state.origin)
+        lat_e7, lon_e7 = int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7))
+        if hold and self._unchanged_hold(("position", mask, lat_e7, lon_e7, round(float(alt), 2)), yaw_ned):
+            return
         vn, an = frames.enu_to_ned(v) + 0.0, frames.enu_to_ned(a) + 0.0  # + 0.0: no -0.0 on the wire
         ch = self.channel
         ch.send(
@@ -144,8 +185,8 @@ class Setpoints:
                 ch.compid,
                 mavlink2.MAV_FRAME_GLOBAL_INT,
                 mask,
-                int(round(float(lat) * 1e7)),
-                int(round(float(lon) * 1e7)),
+                lat_e7,
+                lon_e7,
                 float(alt),
                 float(vn[0]),
                 float(vn[1]),

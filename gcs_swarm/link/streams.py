@@ -106,6 +106,19 @@ class Streams:
             return
         self.asked_ms = now_ms
         self.channel.stats.stream_requests += 1
+        self._send_requests()
+
+    def ask(self, rates: Mapping[MessageT, float]) -> None:
+        """Ask for each message at its rate (Hz; <= 0 stops it) in flight, without waiting for ACKs (the
+        caller asks again if the telemetry does not change, as command_mode.CommandModeWatch does): each by
+        SET_MESSAGE_INTERVAL, and those to go by REQUEST_DATA_STREAM too. Messages the autopilot does not
+        have are left out, as in op_request_streams; the rates are remembered for `check`."""
+        missing = self.channel.autopilot.unsupported_streams
+        self.rates = {message: float(hz) for message, hz in rates.items() if message not in missing}
+        self._send_requests()
+
+    def _send_requests(self) -> None:
+        """SET_MESSAGE_INTERVAL (and REQUEST_DATA_STREAM for a rate > 0) of every remembered rate, unACKed."""
         for message, hz in self.rates.items():
             try:
                 msg_id = message_id(message)

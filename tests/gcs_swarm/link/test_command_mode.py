@@ -26,6 +26,7 @@ from gcs_swarm.link.command_mode import (
     link_budget,
     wire_bytes,
 )
+from gcs_swarm.link.setpoints import HOLD_RESEND_S, HOLD_YAW_RAD
 from gcs_swarm.mission.model import LinkSpec
 from tests.gcs_swarm.link.simulated_vehicles import ORIGIN
 
@@ -171,3 +172,47 @@ def test_position_targets_go_once_per_position_report_with_position_velocity_acc
     # 5 m east, 3 m south of the origin at 4 m above it: 1 deg of latitude is ~111.2 km
     assert (last.lat_int / 1e7 - ORIGIN[0]) * 111_200 == pytest.approx(-3.0, abs=0.05)
     assert last.alt == pytest.approx(ORIGIN[2] + 4.0, abs=0.01)
+
+
+def test_an_unchanged_hold_is_repeated_only_as_a_keep_alive(simulator, fleet_of) -> None:
+    """Holds (setpoints module doc) told every 20 ms frame: the first goes, then an unchanged one only once
+    HOLD_RESEND_S = 0.25 s of vehicle time has passed, i.e. at the 13th frame after (12 x 20 = 240 ms is
+    too soon, 260 ms is not): over 60 frames (0..1180 ms) at 0, 260, 520, 780, 1040 ms, five. A yaw jitter
+    below HOLD_YAW_RAD is no change; a new velocity, a new yaw or any other target in between sends the
+    next hold at once. The frames no hold answered are answered by SYSTEM_TIME: the clock goes on."""
+    assert HOLD_RESEND_S == 0.25 and HOLD_YAW_RAD == 0.02
+    vehicles = simulator(1)
+    tap = vehicles.tap(0)
+    fleet = fleet_of(tap)
+    fleet.connect(timeout_s=10.0)
+    setpoints = fleet.vehicle(0).setpoints
+
+    def frames(n: int, action) -> list[int]:
+        before = len(tap.sent("SET_POSITION_TARGET_LOCAL_NED"))
+        start = None
+        for k in range(n):
+            assert fleet.wait_tick(timeout_s=2.0)
+            start = int(fleet.state.time_ms[0]) if start is None else start
+            action(k)
+            fleet.answer_frame()
+        fleet.pump(0.2)
+        return [m.time_boot_ms - start for m in tap.sent("SET_POSITION_TARGET_LOCAL_NED")[before:]]
+
+    # the yaw jitters by 0.01 rad every other frame: the same hold
+    hold = lambda k: setpoints.send_velocity_target(np.zeros(3), yaw=0.3 + 0.01 * (k % 2))  # noqa: E731
+    assert frames(60, hold) == [0, 260, 520, 780, 1040]
+    assert frames(3, lambda k: setpoints.send_velocity_target(np.zeros(3), yaw=0.35 + 0.05 * k)) == [
+        0,
+        20,
+        40,
+    ]
+    moving = lambda k: setpoints.send_velocity_target(np.array([0.0, 0.1 * (k > 1), 0.0]), yaw=0.4)  # noqa: E731
+    assert frames(4, moving) == [0, 40]  # (0, 0, 0) at once (the yaw changed), then (0, 0.1, 0) when it came
+
+    def after_attitude(k: int) -> None:
+        if k == 1:
+            setpoints.send_attitude_quaternion([1.0, 0.0, 0.0, 0.0], 0.5)
+        else:
+            setpoints.send_velocity_target(np.zeros(3), yaw=0.4)
+
+    assert frames(3, after_attitude) == [0, 40]
