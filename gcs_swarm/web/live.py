@@ -69,6 +69,10 @@ class LiveSnapshot:
     formation_s: float | None
     events: tuple[str, ...]
 
+    def __post_init__(self) -> None:
+        for name in ("pos", "yaw", "slots", "modes", "alive", "taken", "link", "goal"):
+            getattr(self, name).flags.writeable = False  # copies the server only reads
+
 
 def take_snapshot(runner: MissionRunner, events: tuple[str, ...]) -> LiveSnapshot:
     """The copy of `runner`'s state the page needs, now; `events`: the flight's event sentences as a tuple

@@ -226,3 +226,52 @@ def test_a_busy_or_bad_address_and_a_token_without_the_page_are_one_error_before
     assert capsys.readouterr().out.strip() == "error: --web-token needs --web (the page it allows actions on)"
     assert main(["console", mission, "--out", str(tmp_path / "b"), "--web", "--web-token", " "]) == 2
     assert capsys.readouterr().out.strip() == "error: --web-token must not be empty"
+
+
+class _Fleet:
+    def __init__(self) -> None:
+        self.on_pump: Any = None
+
+
+class _Runner:
+    """What LiveFeed touches of a MissionRunner: on_tick, fleet.on_pump, result.events."""
+
+    def __init__(self) -> None:
+        self.on_tick: Any = None
+        self.fleet = _Fleet()
+        self.result = type("Result", (), {"events": []})()
+
+
+def test_the_feed_copies_at_its_rate_after_ticks_and_in_waits_only_when_ticks_stop(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from gcs_swarm.web import live
+
+    clock = [100.0]
+    monkeypatch.setattr(live.time, "monotonic", lambda: clock[0])
+    taken: list[tuple[str, ...]] = []
+    made = snapshot(0.0)
+
+    def take(runner: object, events: tuple[str, ...]) -> LiveSnapshot:
+        taken.append(events)
+        return made
+
+    monkeypatch.setattr(live, "take_snapshot", take)
+    runner, handoff = _Runner(), Handoff()
+    pumped: list[int] = []
+    runner.fleet.on_pump = lambda: pumped.append(1)  # a hook already there (the console's) still runs
+    live.LiveFeed(runner, handoff, rate_hz=20.0).attach()  # type: ignore[arg-type]
+
+    runner.on_tick()  # t = 100 s: the first copy
+    clock[0] += 0.02
+    runner.on_tick()  # 20 ms later: within the 50 ms period, none
+    runner.fleet.on_pump()  # a pump between ticks: ticks are running, none
+    assert len(taken) == 1 and pumped == [1]
+    clock[0] += 0.04
+    runner.result.events.append("t=1.00 s formation narrows: column")
+    runner.on_tick()  # 60 ms after the first: a copy, with the new event
+    assert taken[-1] == ("t=1.00 s formation narrows: column",)
+    clock[0] += live.WAITING_S + 0.01  # no tick for longer than WAITING_S: a blocking wait
+    runner.fleet.on_pump()
+    assert len(taken) == 3 and pumped == [1, 1]
+    assert handoff.latest() is not None and not handoff.latest().pos.flags.writeable  # type: ignore[union-attr]
