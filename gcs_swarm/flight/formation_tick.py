@@ -2,8 +2,8 @@
 final command guard -> SET_ATTITUDE_TARGET to every active vehicle (and a zero-velocity target to every held
 one), then how far each vehicle is from where it should end. In the position command mode (a link too slow for
 attitude targets, link.command_mode) each active vehicle gets the guidance's reference position, velocity and
-acceleration instead, once per position report; the attitude commands are still made (record.csv keeps them)
-but not sent."""
+acceleration instead (through the final guard's guard_position_targets), once per position report; the
+attitude commands are still made (record.csv keeps them) but not sent."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from gcs_swarm.guidance.degradation import TelemetryAssessment
 from gcs_swarm.guidance.fleet_controller import Command, FleetController
 from gcs_swarm.guidance.params import G
 from gcs_swarm.link.attitude_commands import attitude_commands
-from gcs_swarm.link.command_limits import CommandLimits
+from gcs_swarm.link.command_limits import CommandLimits, guard_position_targets
 from gcs_swarm.link.command_mode import POSITION
 from gcs_swarm.link.fleet import Fleet
 
@@ -69,7 +69,9 @@ def send_formation_tick(
     )  # fmt: skip
     plan = fleet.command_plan
     if plan is not None and plan.mode == POSITION:  # the reference as a trajectory point (command_mode)
-        fleet.send_trajectory_targets(cmd.ref_pos, cmd.ref_vel, cmd.ref_acc, cmd.yaw_d, active)
+        ref = guard_position_targets(cmd.ref_pos, cmd.ref_vel, cmd.ref_acc, verdict.pos, limits, G)
+        fleet.send_trajectory_targets(ref.pos, ref.vel, ref.acc, cmd.yaw_d, active)
+        limited = ref.changed
     else:
         fleet.send_attitude_targets(roll, pitch, yaw, thrust, mask=active)
     for i in np.flatnonzero(verdict.held & flown):

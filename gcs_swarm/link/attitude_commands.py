@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gcs_swarm.link.autopilots import ARDUPILOT, PX4, AutopilotDialect
-from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands
+from gcs_swarm.link.command_limits import CommandLimits, guard_attitude_commands, guard_position_targets
 
 FloatArray = NDArray[np.float64]
 
@@ -74,3 +74,4 @@ def warm_up() -> None:
         attitude_commands(
             row, row, row, row, rows, rows, rows, row, np.ones(1, dtype=bool), 9.8, limits, [dialect]
         )
+    guard_position_targets(rows, rows, rows, rows, limits, 9.8)  # the position command mode's

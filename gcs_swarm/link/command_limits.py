@@ -1,5 +1,7 @@
-"""The last guard before attitude commands reach the vehicles: whatever the guidance computed, what goes out
-stays within the vehicles' limits (defence in depth; the guidance already limits tilt and thrust, spec 5).
+"""The last guard before commands reach the vehicles: whatever the guidance computed, what goes out stays
+within the vehicles' limits (defence in depth; the guidance already limits tilt and thrust, spec 5). Attitude
+commands (`guard_attitude_commands`, below) and the position command mode's trajectory targets
+(`guard_position_targets`, at the end) are each guarded by one compiled loop over the vehicles.
 
 Rules, per vehicle row (one compiled loop over the vehicles):
 - a non-finite row (roll, pitch, yaw or thrust) becomes level at the vehicle's measured yaw with hover thrust;
@@ -25,7 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -295,3 +297,147 @@ def _guard(
         r_out[i], p_out[i], y_out[i], t_out[i] = r, p, y, t
         changed[i] = bad or steep or outward or t != thrust[i]
     return r_out, p_out, y_out, t_out, changed
+
+
+class PositionTargets(NamedTuple):
+    """Trajectory targets as guarded: position (N, 3) ENU m, velocity (N, 3) m/s, acceleration (N, 3) m/s^2,
+    and whether the guard changed each row (N,)."""
+
+    pos: FloatArray
+    vel: FloatArray
+    acc: FloatArray
+    changed: NDArray[np.bool_]
+
+
+def guard_position_targets(
+    target_pos: FloatArray,
+    target_vel: FloatArray,
+    target_acc: FloatArray,
+    pos: FloatArray,
+    limits: CommandLimits,
+    g: float,
+) -> PositionTargets:
+    """The position command mode's targets (the guidance's reference: target_pos (N, 3) ENU m, target_vel
+    (N, 3) m/s, target_acc (N, 3) m/s^2) made safe for vehicles measured at pos (N, 3) ENU m, with gravity
+    g m/s^2. Per row (one compiled loop, `_guard_targets`):
+
+    - a non-finite row becomes a hold at the measured position (zero velocity and acceleration; a row whose
+      measured position is not finite either is left as it is: the fleet sends it nothing);
+    - the altitude: z in [min_altitude, geofence_max_alt], the vertical velocity and acceleration that lead
+      further out at a bound removed;
+    - the geofence radius: a target beyond it is moved in radially onto it, and the outward radial parts of
+      its velocity and acceleration removed;
+    - the site fence (`GuardFence`): a target on the forbidden side of a zone (signed depth s > 0 along the
+      normal n of the nearest edge, or of a circle, into the forbidden side: as the attitude guard's) is moved
+      back onto the edge, p - s n, and the parts of its velocity and acceleration along n removed, for each
+      zone in turn;
+    - the acceleration feed-forward within what the attitude limits allow: horizontal |a| <= g tan(tilt_max)
+      (scaled down), vertical in [-g, g (thrust_max_g - 1)].
+    """
+    p_d, v_d, a_d, x = (
+        np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)
+        for a in (target_pos, target_vel, target_acc, pos)
+    )
+    bounds = (
+        float(limits.tilt_max),
+        float(limits.thrust_max_g),
+        float(limits.min_altitude),
+        float(limits.geofence_radius),
+        float(limits.geofence_max_alt),
+    )
+    fence = limits.fence
+    out = _guard_targets(
+        p_d, v_d, a_d, x, bounds, float(g), fence.vertices, fence.rings, fence.kinds, fence.circles
+    )
+    return PositionTargets(*out)
+
+
+@kernel
+def _without_outward(v: np.ndarray, n_e: float, n_n: float, n_u: float) -> bool:
+    """Remove from v (3,) in place its part along the unit vector (n_e, n_n, n_u) when positive; whether it
+    had one."""
+    along = v[0] * n_e + v[1] * n_n + v[2] * n_u
+    if not along > 0.0:
+        return False
+    v[0] -= along * n_e
+    v[1] -= along * n_n
+    v[2] -= along * n_u
+    return True
+
+
+@kernel
+def _guard_targets(
+    target_pos: np.ndarray,
+    target_vel: np.ndarray,
+    target_acc: np.ndarray,
+    pos: np.ndarray,
+    limits: tuple[float, float, float, float, float],
+    g: float,
+    vertices: np.ndarray,
+    rings: np.ndarray,
+    kinds: np.ndarray,
+    circles: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """guard_position_targets, one loop over the N vehicles; `limits`: CommandLimits' scalar fields in order;
+    vertices .. circles: GuardFence's fields."""
+    tilt_max, thrust_max_g, min_altitude, geofence_radius, geofence_max_alt = limits
+    n = target_pos.shape[0]
+    p_out, v_out, a_out = target_pos.copy(), target_vel.copy(), target_acc.copy()
+    changed = np.zeros(n, dtype=np.bool_)
+    a_h_max = g * math.tan(tilt_max)
+    for i in range(n):
+        p, v, a = p_out[i], v_out[i], a_out[i]
+        finite = True
+        for k in range(3):
+            finite = finite and math.isfinite(p[k]) and math.isfinite(v[k]) and math.isfinite(a[k])
+        if not finite:
+            if not (math.isfinite(pos[i, 0]) and math.isfinite(pos[i, 1]) and math.isfinite(pos[i, 2])):
+                continue
+            for k in range(3):
+                p[k], v[k], a[k] = pos[i, k], 0.0, 0.0
+            changed[i] = True
+        if p[2] < min_altitude:
+            p[2] = min_altitude
+            changed[i] = True
+        if p[2] == min_altitude:  # at the floor: nothing further down
+            changed[i] |= _without_outward(v, 0.0, 0.0, -1.0) | _without_outward(a, 0.0, 0.0, -1.0)
+        if p[2] > geofence_max_alt:
+            p[2] = geofence_max_alt
+            changed[i] = True
+        if p[2] >= geofence_max_alt:  # at the ceiling: nothing further up
+            changed[i] |= _without_outward(v, 0.0, 0.0, 1.0) | _without_outward(a, 0.0, 0.0, 1.0)
+        r = math.hypot(p[0], p[1])
+        if r > geofence_radius:
+            p[0], p[1] = p[0] * geofence_radius / r, p[1] * geofence_radius / r
+            changed[i] = True
+        if r >= geofence_radius and r > 0.0:
+            u_e, u_n = p[0] / math.hypot(p[0], p[1]), p[1] / math.hypot(p[0], p[1])
+            changed[i] |= _without_outward(v, u_e, u_n, 0.0) | _without_outward(a, u_e, u_n, 0.0)
+        for z in range(kinds.shape[0]):
+            inside, d, n_e, n_n = ring_distance(p[0], p[1], vertices, rings[z], rings[z + 1])
+            if kinds[z] == EXCLUSION:
+                n_e, n_n = -n_e, -n_n
+            forbidden = inside if kinds[z] == EXCLUSION else not inside
+            if forbidden or d == 0.0:
+                if forbidden:
+                    p[0], p[1] = p[0] - d * n_e, p[1] - d * n_n
+                    changed[i] = True
+                changed[i] |= _without_outward(v, n_e, n_n, 0.0) | _without_outward(a, n_e, n_n, 0.0)
+        for c in range(circles.shape[0]):
+            o_e, o_n = circles[c, 0] - p[0], circles[c, 1] - p[1]
+            d = math.hypot(o_e, o_n)
+            depth = circles[c, 2] - d
+            if depth >= 0.0 and d > 0.0:  # inside or on the circle: out along the radius
+                n_e, n_n = o_e / d, o_n / d  # into the circle
+                p[0], p[1] = p[0] - depth * n_e, p[1] - depth * n_n
+                changed[i] |= depth > 0.0
+                changed[i] |= _without_outward(v, n_e, n_n, 0.0) | _without_outward(a, n_e, n_n, 0.0)
+        a_h = math.hypot(a[0], a[1])
+        if a_h > a_h_max:
+            a[0], a[1] = a[0] * a_h_max / a_h, a[1] * a_h_max / a_h
+            changed[i] = True
+        a_up = clip(a[2], -g, g * (thrust_max_g - 1.0))
+        if a_up != a[2]:
+            a[2] = a_up
+            changed[i] = True
+    return p_out, v_out, a_out, changed
