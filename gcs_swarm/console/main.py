@@ -107,6 +107,7 @@ def console_command(mission_path: str, options: ConsoleOptions) -> int:
                     from gcs_swarm.console.app import ConsoleApp
 
                     title = f"swarm-gcs console: {mission.name}, {len(mission.vehicles)} vehicles, {where}"
+                    title += "" if page is None else f", page {page.url}"  # the line printed is hidden
                     app = ConsoleApp(session, mission, title, run_dir / HISTORY_FILE, options.yes)
                     status = app.run()
                 else:
