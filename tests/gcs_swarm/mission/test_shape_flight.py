@@ -4,6 +4,7 @@ with no collision in ground truth, and the report's clearance is the one shapely
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,8 @@ import pytest
 from shapely.geometry import Point, Polygon
 
 from gcs_swarm.mission import load_mission
+from sitl_sim.cli import build_config, build_parser
+from swarm_common.obstacle_shapes import CYLINDER, PRISM, surface_distances
 from tests.e2e.flights import MISSIONS, SHORT_BOOT, fly
 
 MISSION = MISSIONS / "site_shapes_3.yaml"
@@ -20,6 +23,19 @@ def test_the_site_shapes_mission_loads_to_fly_with_its_building_and_tree() -> No
     mission = load_mission(MISSION)
     assert [p.name for p in mission.prisms] == ["hangar"] and [c.name for c in mission.cylinders] == ["oak"]
     assert mission.world().prisms == mission.prisms and mission.world().cylinders == mission.cylinders
+
+
+def test_the_simulator_gets_the_building_and_the_tree_from_the_mission() -> None:
+    parser = build_parser()
+    config = build_config(parser, parser.parse_args(["--mission", str(MISSION), "--vehicles", "3"]))
+    shapes = config.obstacles.shapes
+    assert list(shapes.kinds) == [CYLINDER, PRISM] and len(config.obstacles.radii) == 0
+    # at 10 m: 1 m east of the oak's bark (axis x = 102, r = 2), which is sqrt(50^2 + 8^2) = 50.636 m from the
+    # hangar's corner (55, -3); 1 m west of the hangar's west wall (x = 40), sqrt(63^2 + 11^2) - 2 = 61.953 m
+    # from the oak's bark
+    points = np.array([[105.0, -11.0, 10.0], [39.0, 0.0, 10.0]])
+    expected = [[1.0, math.hypot(50.0, 8.0)], [math.hypot(63.0, 11.0) - 2.0, 1.0]]
+    np.testing.assert_allclose(surface_distances(points, *shapes), expected, atol=1e-12)
 
 
 @pytest.mark.e2e
