@@ -17,8 +17,10 @@ from gcs_swarm.evaluation import metrics
 from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.obstacles import centres_at
 from gcs_swarm.guidance.params import FieldParams
+from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
 
 STEP_RULES = ("proportional", "constant")
+NO_ROWS, NO_RADII = np.zeros((0, 3)), np.zeros(0)
 
 
 @dataclass(frozen=True)
@@ -75,9 +77,11 @@ def plan_path(
     fp: FieldParams,
     d_g: float,
     settings: PlannerSettings,
+    shapes: ShapeArrays = NO_SHAPES,
 ) -> PlanResult:
     """Run the point mass from start (D,) to goal (D,) through obstacles (K, D), (K,), moving at velocities
-    (K, D) or static (None), under the field `fp` (its `method` selects APF or IAAPF), segment boundary d_g m.
+    (K, D) or static (None), and the still cylinders and prisms `shapes` (spec 2.2; a 2-D world is the plane
+    z = 0), under the field `fp` (its `method` selects APF or IAAPF), segment boundary d_g m.
 
     Stops after the goal has been held for `settings.hold_s` or at the time limit.
     """
@@ -102,7 +106,7 @@ def plan_path(
     last = steps
     for k in range(steps):
         centres_3d[:, :dim] = centres_at(centres, velocities, k * settings.dt)
-        repulsion = obstacle_repulsion(q, q, goal_3d, centres_3d, radii, fp, circulation)
+        repulsion = obstacle_repulsion(q, q, goal_3d, centres_3d, radii, fp, circulation, shapes)
         force = (attraction(q, goal_3d, fp, d_g) + repulsion)[:, :dim]
         size = float(np.linalg.norm(force))
         if size > 0.0:
@@ -127,6 +131,11 @@ def plan_path(
     else:
         track = centres_at(centres[None], np.reshape(velocities, (1, -1, dim)), times[:approach, None, None])
     clear, collided = metrics.min_obstacle_clearance(path[:approach, None, :], track, radii, l_arm=0.0)
+    if shapes.number:
+        path_3d = np.zeros((approach, 1, 3))
+        path_3d[:, 0, :dim] = path[:approach]
+        shape_clear, shape_hit = metrics.min_obstacle_clearance(path_3d, NO_ROWS, NO_RADII, 0.0, shapes)
+        clear, collided = min(clear, shape_clear), collided or shape_hit
     return PlanResult(
         method=fp.method,
         start=start,

@@ -2,8 +2,9 @@
 its JSON figures (spec 10 definitions) and an optional plot.
 
 `mission` is a `gcs_swarm.mission.Mission`; only these attributes are read: goal, obstacles (.center,
-.radius, .velocity), field (FieldParams), reference (ReferenceParams), planner (.start, .dimensions, .dt,
-.time_limit_s, .speed, .goal_radius, .step) and vehicles[leader_index].start.position.
+.radius, .velocity), cylinders and prisms (spec 2.2), field (FieldParams), reference (ReferenceParams),
+planner (.start, .dimensions, .dt, .time_limit_s, .speed, .goal_radius, .step) and
+vehicles[leader_index].start.position.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 from gcs_swarm.evaluation import figures
 from gcs_swarm.evaluation.planner import PlannerSettings, PlanResult, plan_path
 from gcs_swarm.guidance.params import FieldMethod
+from swarm_common.obstacle_shapes import pack_shapes
 
 METHODS = tuple(law.value for law in FieldMethod)
 JSON_KEYS = (
@@ -61,8 +63,15 @@ def plan_mission(mission: Any, method: str) -> PlanResult:
         k_v=mission.reference.k_v,
     )
     goal = np.asarray(mission.goal, dtype=float)[:dim]
+    # the cylinders and prisms (spec 2.2); a 2-D world is the plane z = 0, where they stand from -inf to
+    # inf (their footprints, as the spheres are their circles)
+    low, high = (-math.inf, math.inf) if dim == 2 else (None, None)
+    shapes = pack_shapes(
+        cylinders=[(c.center, c.radius, low or c.bottom, high or c.top) for c in mission.cylinders],
+        prisms=[(p.footprint, low or p.bottom, high or p.top) for p in mission.prisms],
+    )
     return plan_path(
-        np.asarray(start, dtype=float)[:dim], goal, centres, radii, velocities, fp, d_g, settings
+        np.asarray(start, dtype=float)[:dim], goal, centres, radii, velocities, fp, d_g, settings, shapes
     )
 
 

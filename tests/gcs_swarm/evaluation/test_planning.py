@@ -18,8 +18,11 @@ from gcs_swarm.mission import load_mission
 ROOT = Path(__file__).resolve().parents[3]
 
 
-def table1_mission(step: str = "proportional", start=None, velocity=None) -> SimpleNamespace:
-    """A stand-in with the attributes of gcs_swarm.mission.Mission that planning reads (Table 1, spec 9.1)."""
+def table1_mission(
+    step: str = "proportional", start=None, velocity=None, trees: bool = False
+) -> SimpleNamespace:
+    """A stand-in with the attributes of gcs_swarm.mission.Mission that planning reads (Table 1, spec 9.1);
+    `trees`: the circles given as cylinders 0..10 m high instead of spheres."""
     circles = [((25, 75, 0), 9), ((81, 30, 0), 8), ((70, 70, 0), 18), ((32, 27, 0), 14)]
     obstacles = [
         SimpleNamespace(
@@ -27,12 +30,18 @@ def table1_mission(step: str = "proportional", start=None, velocity=None) -> Sim
         )
         for c, r in circles
     ]
+    cylinders = [
+        SimpleNamespace(center=np.array(c[:2], float), radius=float(r), bottom=0.0, top=10.0)
+        for c, r in circles
+    ]
     leader = SimpleNamespace(start=SimpleNamespace(position=np.array([5.0, 5.0, 0.0])))
     return SimpleNamespace(
         vehicles=(leader,),
         leader_index=0,
         goal=np.array([95.0, 70.0, 0.0]),
-        obstacles=tuple(obstacles),
+        obstacles=() if trees else tuple(obstacles),
+        cylinders=tuple(cylinders) if trees else (),
+        prisms=(),
         field=FieldParams(k_att=100.0, k_rep=1e5, l0=20.0, n=0.8, d_g=None),
         limits=Limits(),
         reference=ReferenceParams(),
@@ -108,6 +117,17 @@ def test_plan_mission_through_table1_keeps_to_the_geometry_and_exact_json_keys()
     assert figures["path_length_m"] / 15.0 <= figures["time_s"] <= 60.0
     assert 0.0 < figures["min_clearance_m"] <= 7.5
     assert isinstance(figures["heading_reversals"], int)
+
+
+def test_a_2d_plan_sees_cylinders_as_their_circles():
+    """Spec 2.2: in the 2-D plane a cylinder is its footprint circle, whose distance |q - c| - r and normal
+    (q - c)/|q - c| are the sphere's of the same centre and radius in that plane (spec 2.1), so the plan
+    through Table 1 with trees instead of spheres is the same path, with the same clearance."""
+    spheres = plan_mission(table1_mission(), "iaapf")
+    trees = plan_mission(table1_mission(trees=True), "iaapf")
+    np.testing.assert_allclose(trees.path, spheres.path, atol=1e-9)
+    assert trees.min_clearance_m == pytest.approx(spheres.min_clearance_m, abs=1e-9)
+    assert trees.reached and not trees.collision
 
 
 def test_planner_start_overrides_the_leader_start():
