@@ -117,8 +117,11 @@ def _draw_slot_errors(
     for i, name in enumerate(names):
         if np.isfinite(err[:, i]).any():
             ax.plot(t[s] - t0, err[s, i], lw=0.9, label=name, color=f"C{i % 10}")  # as in the top view
-    for when, what in reshape_events(flight):  # the formation's changes of shape (guidance.reshape)
-        ax.axvline(when - t0, color="0.5", lw=0.8, ls="--")
+    # the formation's changes of shape (guidance.reshape), and the legs of the route (mission key `legs`)
+    marks = [(when, what, "0.5", "--") for when, what in reshape_events(flight)]
+    marks += [(when, what, "tab:blue", "-") for when, what in leg_events(flight)]
+    for when, what, color, style in marks:
+        ax.axvline(when - t0, color=color, lw=0.8, ls=style)
         ax.text(
             when - t0,
             1.0,
@@ -127,6 +130,7 @@ def _draw_slot_errors(
             va="top",
             ha="right",
             fontsize=6,
+            color=color,
             transform=ax.get_xaxis_transform(),
         )
     if len(names) <= MAX_LEGEND:
@@ -140,6 +144,30 @@ def reshape_events(flight: dict[str, Any]) -> list[tuple[float, str]]:
         (float(r["t_s"]), "restored" if r["change"] == "restored" else f"{r['change']}: {r['shape']}")
         for r in flight.get("reshapes", [])
     ]
+
+
+def leg_events(flight: dict[str, Any]) -> list[tuple[float, str]]:
+    """(vehicle time s, what) of the start of each leg of the route, from flight.json's legs ("leg 2 (north):
+    line")."""
+    return [
+        (float(row["t_s"]), f"leg {int(row['index']) + 1} ({row['name']}): {row['shape']}")
+        for row in flight.get("legs", [])
+    ]
+
+
+def _draw_legs(ax: Any, traj: Trajectories, mission: Any, flight: dict[str, Any]) -> None:
+    """The leader's route (start, waypoints) as a dotted line on the top view, and where the leader truly was
+    when each leg of the route began (flight.json's legs), labelled with the leg and its formation."""
+    if len(mission.waypoints) < 2 or len(traj.t) == 0:
+        return
+    leader = int(flight.get("leader", mission.leader_index))
+    route = np.vstack([traj.pos[0, mission.leader_index, None, :2], [w[:2] for w in mission.waypoints]])
+    ax.plot(route[:, 0], route[:, 1], ":", color="0.3", lw=0.8)
+    for when, what in leg_events(flight):
+        k = int(np.clip(np.searchsorted(traj.t, when), 0, len(traj.t) - 1))
+        x, y = traj.pos[k, leader, 0], traj.pos[k, leader, 1]
+        ax.plot(x, y, "D", color="tab:blue", ms=5)
+        ax.annotate(what, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7, color="tab:blue")
 
 
 def _draw_formation_shapes(ax: Any, traj: Trajectories, leader: int, t0: float, t1: float) -> None:
@@ -305,6 +333,7 @@ def _write_run_figures(
     _draw_top_view(axes[0, 0], plt, traj, names, goal)
     t1 = float(flight.get("t_formation_end") or (traj.t[-1] if len(traj.t) else t0))
     _draw_formation_shapes(axes[0, 0], traj, int(flight.get("leader", mission.leader_index)), t0, t1)
+    _draw_legs(axes[0, 0], traj, mission, flight)
     _draw_distances(axes[0, 1], traj, names, mission, t0)
     _draw_slot_errors(axes[1, 0], traj, commands, flight, mission, names, t0)
     _draw_tilt_commands(axes[1, 1], commands, names, t0)

@@ -213,6 +213,8 @@ def _report_from(
         "events": list(flight.get("events", [])),
         # the formation's changes of shape (flight.json reshapes: t_s, change, shape, scale)
         "reshapes": list(flight.get("reshapes", [])),
+        # the legs of the route as the leader started them (flight.json legs: index, name, t_s, shape, ...)
+        "legs": list(flight.get("legs", [])),
         # bytes/s each way per vehicle and the link budget (flight.json link_use; None in older runs)
         "link_use": flight.get("link_use"),
         "source": traj.source,
@@ -337,6 +339,15 @@ def render_markdown(report: dict[str, Any]) -> str:
                 f"{_fmt(use.get('budget_B_s'))} | {_fmt(use.get('over_budget_s'))} | "
                 f"{_fmt(radio.get('txbuf_min_pct'))} |"
             )
+    legs = report.get("legs")
+    if legs:
+        lines += ["", "Legs of the route, as the leader started them:", ""]
+        lines += ["| leg | vehicle time s | formation | spacing m | leader speed cap m/s |", "|" + "---|" * 5]
+        lines += [
+            f"| {int(row['index']) + 1} ({row.get('name')}) | {_fmt(row.get('t_s'))} | {row.get('shape')} | "
+            f"{_fmt(row.get('spacing_m'))} | {_fmt(row.get('speed_m_s'))} |"
+            for row in legs
+        ]
     reshapes = report.get("reshapes")
     if reshapes:
         lines += ["", "Changes of the formation's shape (guidance.reshape):", ""]

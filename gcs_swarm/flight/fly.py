@@ -148,6 +148,7 @@ def write_flight(
         "left_to_operator": result.left_to_operator,
         "autopilots": result.autopilots,
         "reshapes": result.reshapes,  # guidance.reshape.ShapeChange.as_json rows, oldest first
+        "legs": result.legs,  # each leg of the route as the leader started it (runner._start_leg)
         "formation_timeline": [
             {
                 "t": t,

@@ -25,6 +25,9 @@ class FlightResult:
     events: list[str] = field(default_factory=list)
     # the formation's changes of shape (guidance.reshape.ShapeChange.as_json: t_s, change, shape, scale)
     reshapes: list[dict[str, float | str]] = field(default_factory=list)
+    # each leg of the route as the leader started it (runner._start_leg: index, name, t_s, shape, spacing_m,
+    # speed_m_s, first_waypoint)
+    legs: list[dict[str, float | int | str]] = field(default_factory=list)
     ticks: int = 0
     final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
     leader: int | None = None  # the leading vehicle at the end (the lead passes on when a leader is lost)

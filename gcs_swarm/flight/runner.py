@@ -36,6 +36,7 @@ from gcs_swarm.flight.formation_tick import end_targets, formation_rms, send_for
 from gcs_swarm.flight.jit_watch import JitWatch
 from gcs_swarm.flight.landing import PositionHold, command_landing, land_and_wait, landed
 from gcs_swarm.flight.launch import command_launch, home_positions, launched
+from gcs_swarm.flight.legs import LegTracker
 from gcs_swarm.flight.lost_vehicles import LostVehicleTracks
 from gcs_swarm.flight.phase import Phase
 from gcs_swarm.flight.preflight import VehicleSetup, preflight_fleet
@@ -80,8 +81,9 @@ class MissionRunner:
         self.jit_watch = JitWatch()  # numba's work once the vehicles arm: flight.json jit_after_arming
         self.setup = VehicleSetup.assumed(n)  # hover thrust, angle boost, failsafe params: read in preflight
         self.controller = build_controller(mission)
-        # live reshape (console): shape and spacing; None: the mission's
+        # live reshape (console, a leg's formation): shape and spacing; None: the mission's
         self.shape: tuple[str | None, float | None] = (None, None)
+        self.legs = LegTracker(mission.legs)  # the route's legs (mission key `legs`)
         self.command_limits = CommandLimits(
             tilt_max=math.radians(mission.limits.tilt_max_deg),
             thrust_max_g=mission.limits.thrust_max_g,
@@ -395,6 +397,7 @@ class MissionRunner:
     def set_goal(self, goal: np.ndarray) -> None:
         """Move the leader's goal (3,) ENU m live."""
         self.controller.set_goal(np.asarray(goal, dtype=float))
+        self.legs.ended = True  # the route is the operator's now: the leg flown keeps its formation and speed
         self._hold_since = None
         self.result.events.append(f"goal moved to {np.round(goal, 2).tolist()}")
 
@@ -480,10 +483,14 @@ class MissionRunner:
         for event in [change.sentence for change in changes] + ctl.drain_events():  # and the leader's pace
             self.result.events.append(event)
             self.progress(event)
+        leg_index = self.legs.due(cmd.waypoint_index)
+        if leg_index is not None:
+            self._start_leg(t, leg_index)
         errors = np.linalg.norm(pos - targets, axis=1)
         self.formation_rms = formation_rms(errors, active, ctl.leader)
-        last_leg = cmd.waypoint_index == len(ctl.waypoints) - 1
-        if last_leg and active.any() and bool((errors[active] <= run.goal_tolerance_m).all()):
+        last_waypoint = cmd.waypoint_index == len(ctl.waypoints) - 1
+        at_goal = bool((errors[active] <= run.goal_tolerance_m).all()) and ctl.shape_settled(t)
+        if last_waypoint and active.any() and at_goal:
             self._hold_since = t if self._hold_since is None else self._hold_since
             if t - self._hold_since >= run.hold_s:
                 self.result.arrived = True
@@ -496,6 +503,30 @@ class MissionRunner:
         if t - (self.result.t_formation_start or t) > run.time_limit_s:
             self.result.events.append(f"time limit {run.time_limit_s:g} s reached before arrival")
             self._set_phase(Phase.LAND)
+
+    def _start_leg(self, t: float, k: int) -> None:
+        """The leader starts leg k of the mission's route (vehicle time t s): its formation (reached by a
+        smooth reshape, slots reassigned) and the leader's speed cap from now on; an event and a row of
+        flight.json's legs."""
+        leg, ctl, form = self.mission.legs[k], self.controller, self.mission.formation
+        shape, spacing = self.shape
+        if (leg.shape, leg.spacing) != (shape or form.shape, spacing or form.spacing):
+            self.shape = (leg.shape, leg.spacing)
+            flown = self.takeover.flown
+            ctl.set_offsets(live_offsets(self.mission, flown, ctl.leader, leg.shape, leg.spacing))
+            self._assign_slots()
+            self._hold_since = None
+        ctl.set_leader_speed(leg.speed)
+        row: dict[str, float | int | str] = {"index": k, "name": leg.name, "t_s": round(t, 3)}
+        row |= {"shape": leg.shape, "spacing_m": leg.spacing, "speed_m_s": leg.speed}
+        row["first_waypoint"] = leg.first
+        self.result.legs.append(row)
+        text = (
+            f"t={t:.2f} s leg {k + 1} of {len(self.mission.legs)} ({leg.name}): {leg.shape} "
+            f"{leg.spacing:g} m apart, leader at most {leg.speed:g} m/s"
+        )
+        self.result.events.append(text)
+        self.progress(text)
 
     def _assign_slots(self) -> None:
         """Give the current slots to the live followers by the shortest longest move from where they are."""
@@ -557,8 +588,11 @@ class MissionRunner:
         shape, spacing = self.shape
         offsets = live_offsets(self.mission, self.takeover.flown, leader, shape, spacing)
         remaining = ctl.waypoints[ctl.waypoint_index :]
+        self.legs.rebase(ctl.waypoint_index)
         self.controller = build_controller(self.mission, leader=leader, offsets=offsets)
         self.controller.set_goal_waypoints(remaining)
+        if self.legs.flown is not None:
+            self.controller.set_leader_speed(self.legs.flown.speed)
         self.controller.reset(fleet.pos, fleet.vel, fleet.att[:, 2], fleet.att)
         self._assign_slots()
         self._hold_since = None

@@ -271,6 +271,18 @@ class FleetController:
         else:
             self.flown_offsets = self.offsets
 
+    def shape_settled(self, t: float) -> bool:
+        """No change of the formation's shape is under way at vehicle time t s (the slots stand still in
+        the leader's frame): a formation still changing shape has not arrived."""
+        return self.shaper is None or t >= self.shaper.move.t0 + self.shaper.move.duration
+
+    def set_leader_speed(self, speed: float) -> None:
+        """The leader's horizontal speed cap (m/s, > 0, at most limits.v_xy_leader) from now on: a leg's."""
+        if not 0.0 < speed <= self.limits.v_xy_leader:
+            cap = self.limits.v_xy_leader
+            raise ValueError(f"need 0 < speed <= v_xy_leader ({cap:g} m/s), got {speed:g}")
+        self.v_xy_cap[self.leader] = speed
+
     def set_degraded(self, speed_scale: float, spacing_scale: float) -> None:
         """Degraded flight on stale telemetry (gcs_swarm.guidance.degradation): speed caps x speed_scale in
         (0, 1], formation spacing and separation ranges (D_max, D_Emg) x spacing_scale >= 1; 1, 1 = normal."""

@@ -19,9 +19,9 @@ from scipy.sparse.csgraph import breadth_first_order
 from gcs_swarm.guidance.params import G
 from gcs_swarm.link.autopilots import DIALECTS
 from gcs_swarm.mission.geometry import mission_offsets
-from gcs_swarm.mission.model import Mission
+from gcs_swarm.mission.model import Mission, leg_at
 from gcs_swarm.mission.schema import MissionFile, Range, SafetySection, describe
-from gcs_swarm.mission.yaml_tree import MissionError, Node
+from gcs_swarm.mission.yaml_tree import MissionError, Node, loc_path
 from swarm_common.radio_presets import RADIO_OVERRIDES, RadioError, radio_spec
 
 # pymavlink connection strings: network forms "kind:host:port", serial "/dev/ttyX[,baud]" or "COMn[,baud]"
@@ -33,6 +33,8 @@ _CONNECTION_HINT = (
     "'tcp:192.168.1.10:5760' or '/dev/ttyUSB0,57600'"
 )
 # safety.dead_gcs key -> the FailsafeSettings timing it becomes (gcs_swarm.flight.preflight)
+ALTITUDE_TOLERANCE_M = 0.01  # m a leg waypoint's own height may differ from its leg's altitude
+
 FAILSAFE_TIMINGS = {
     "failsafe_timeout_s": "gcs_loss_s",
     "guided_timeout_s": "guided_timeout_s",
@@ -109,17 +111,36 @@ def _safety(safety: SafetySection, root: Node) -> None:
 
 
 def _route(file: MissionFile, root: Node) -> None:
-    given = file.model_fields_set
-    if "goal" in given and "waypoints" in given:
-        raise root.at(("waypoints",)).error(
-            "give either 'goal' or 'waypoints' (whose last point is the goal), not both"
+    """The route is given once: as `goal`, `waypoints` or `legs`, none of them empty; a leg with an
+    `altitude` has no waypoint at another height."""
+    given = [key for key in ("goal", "waypoints", "legs") if key in file.model_fields_set]
+    if len(given) > 1:
+        raise root.at((given[1],)).error(
+            f"give the route once: 'goal', 'waypoints' (whose last point is the goal) or 'legs', not both "
+            f"'{given[0]}' and '{given[1]}'"
         )
-    if "goal" not in given and "waypoints" not in given:
+    if not given:
         raise root.at(("goal",)).error(
-            "required key is missing (give the leader's 'goal' or a list of 'waypoints')"
+            "required key is missing (give the leader's 'goal', a list of 'waypoints' or of 'legs')"
         )
     if "waypoints" in given and not file.waypoints:
         raise root.at(("waypoints",)).error("the list is empty; give at least the goal")
+    if "legs" in given and not file.legs:
+        raise root.at(("legs",)).error("the list is empty; give at least one leg")
+    for j, leg in enumerate(file.legs):
+        if not leg.waypoints:
+            raise root.at(("legs", j, "waypoints")).error("the list is empty; give at least the leg's end")
+        if leg.altitude is None:
+            continue
+        for k, point in enumerate(leg.waypoints):
+            height = point[2] if isinstance(point, list) else point.alt
+            if (height is not None and abs(height - leg.altitude) > ALTITUDE_TOLERANCE_M) or (
+                not isinstance(point, list) and point.amsl is not None
+            ):
+                raise root.at(("legs", j, "waypoints", k)).error(
+                    f"the leg's altitude ({leg.altitude:g} m) sets every waypoint's height; this one gives "
+                    "another (leave alt/amsl out of {lat, lon} waypoints, or give the same z)"
+                )
 
 
 def _adjacency(file: MissionFile, root: Node) -> None:
@@ -191,11 +212,10 @@ def check_mission(mission: Mission, root: Node) -> None:
             _place(mission, root, vehicle.target, ("vehicles", i, "target"), "this target")
     _slots(mission, root)
     _relay(mission, root)
-    if len(mission.waypoints) == 1 and root.at(("waypoints",)).value is None:  # written as `goal`
-        _place(mission, root, mission.goal, ("goal",), "the goal")
-    else:
-        for k, point in enumerate(mission.waypoints):
-            _place(mission, root, point, ("waypoints", k), "this waypoint")
+    for k, point in enumerate(mission.waypoints):
+        key = waypoint_key(mission, root, k)
+        _place(mission, root, point, key, "the goal" if key == ("goal",) else "this waypoint")
+    _leg_speeds(mission, root)
     if mission.planner.start is not None:
         start = mission.planner.start
         _place(mission, root, start, ("planner", "start"), "the planner start", fenced=False, floor=False)
@@ -345,16 +365,39 @@ def _in_fence(mission: Mission, root: Node, point: np.ndarray, node: Node, what:
 
 def fence_reach(mission: Mission) -> tuple[float, str]:
     """(m, how it is made up): how far from the leader's straight legs the formation may be, which the site
-    fence must leave free: the widest slot's horizontal distance from the leader + the vehicle's collision
+    fence must leave free: the widest slot's horizontal distance from the leader (in the widest formation
+    of the mission's legs) + the vehicle's collision
     radius + the command guard's braking margin at the leader's speed cap, v^2 / (2 g tan(tilt_max)) (the
     guard levels tilts towards a fence edge within that margin, gcs_swarm.link.command_limits)."""
-    offsets = mission_offsets(mission)
-    slots = float(np.hypot(offsets[:, 0], offsets[:, 1]).max())
+    shapes = [mission_offsets(mission)]
+    shapes += [mission_offsets(mission, leg.shape, leg.spacing) for leg in mission.legs]
+    slots = max(float(np.hypot(offsets[:, 0], offsets[:, 1]).max()) for offsets in shapes)
     body = float(mission.safety.collision_radius)
     limits = mission.limits
     braking = limits.v_xy_leader**2 / (2.0 * G * math.tan(math.radians(limits.tilt_max_deg)))
     how = f"widest slot {slots:.2f} m + vehicle radius {body:g} m + braking margin {braking:.2f} m"
     return slots + body + braking, how
+
+
+def waypoint_key(mission: Mission, root: Node, k: int) -> tuple[str | int, ...]:
+    """Where the file gives Mission.waypoints[k]: ("goal",), ("waypoints", k) or ("legs", j, "waypoints",
+    m)."""
+    if mission.legs:
+        j = leg_at(mission.legs, k)
+        return ("legs", j, "waypoints", k - mission.legs[j].first)
+    if len(mission.waypoints) == 1 and root.at(("waypoints",)).value is None:
+        return ("goal",)
+    return ("waypoints", k)
+
+
+def _leg_speeds(mission: Mission, root: Node) -> None:
+    """No leg asks the leader for more than limits.v_xy_leader."""
+    cap = mission.limits.v_xy_leader
+    for j, leg in enumerate(mission.legs):
+        if leg.speed > cap:
+            raise root.at(("legs", j, "speed")).error(
+                f"{leg.speed:g} m/s is above the leader's cap limits.v_xy_leader ({cap:g} m/s)"
+            )
 
 
 def _fenced_legs(mission: Mission, root: Node) -> MissionError | None:
@@ -371,14 +414,14 @@ def _fenced_legs(mission: Mission, root: Node) -> MissionError | None:
     leader = mission.vehicles[mission.leader_index]
     points = [np.asarray(leader.start.position[:2], dtype=float)]
     points += [np.asarray(w[:2], dtype=float) for w in mission.waypoints]
-    written_as_goal = len(mission.waypoints) == 1 and root.at(("waypoints",)).value is None
+    keys = [loc_path(waypoint_key(mission, root, k)) for k in range(len(mission.waypoints))]
     for k in range(1, len(points)):
         a, b = points[k - 1], points[k]
         leg = LineString([a, b]) if np.any(a != b) else Point(a)
         swept = leg.buffer(reach)
-        node = root.at(("goal",) if written_as_goal else ("waypoints", k - 1))
-        came = "the leader's start" if k == 1 else f"waypoints[{k - 2}]"
-        what = f"the leg from {came} to {'the goal' if written_as_goal else f'waypoints[{k - 1}]'}"
+        node = root.at(waypoint_key(mission, root, k - 1))
+        came = "the leader's start" if k == 1 else keys[k - 2]
+        what = f"the leg from {came} to {'the goal' if keys[k - 1] == 'goal' else keys[k - 1]}"
         if fence.polygon is not None:
             polygon = Polygon(fence.polygon)
             if not polygon.contains(swept):

@@ -22,6 +22,7 @@ from gcs_swarm.mission.model import (
     Cylinder,
     Fence,
     FormationSpec,
+    Leg,
     LinkSpec,
     Mission,
     Obstacle,
@@ -151,10 +152,16 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
     run = _run(file.run, source)
     names = [vehicle.name or f"uav{i + 1}" for i, vehicle in enumerate(file.vehicles)]
     link = file.world.link
-    if "waypoints" in file.model_fields_set:
+    legs = _legs(file, enu)
+    if legs:
+        route = tuple(point for leg in legs for point in leg[1])
+    elif "waypoints" in file.model_fields_set:
         route = tuple(enu(point, ("waypoints", k)) for k, point in enumerate(file.waypoints))
     else:
         route = (enu(file.goal, ("goal",)),)
+    formation = file.formation.model_dump(exclude={"adjacency"})
+    if legs:  # the first leg's formation is flown from the start
+        formation.update(shape=legs[0][0].shape, spacing=legs[0][0].spacing)
     adjacency = None
     if file.formation.adjacency is not None:
         adjacency = np.array(file.formation.adjacency, dtype=int)
@@ -167,7 +174,7 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
         vehicles=tuple(
             _vehicle(vehicle, names[i], i, run, origin, enu) for i, vehicle in enumerate(file.vehicles)
         ),
-        formation=FormationSpec(**file.formation.model_dump(exclude={"adjacency"}), adjacency=adjacency),
+        formation=FormationSpec(**formation, adjacency=adjacency),
         goal=route[-1],
         waypoints=route,
         obstacles=tuple(
@@ -229,7 +236,33 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
             for k, c in enumerate(file.world.cylinders or ())
         ),
         rally=tuple(enu(point, ("safety", "rally", k)) for k, point in enumerate(file.safety.rally or ())),
+        legs=tuple(leg for leg, _ in legs),
     )
+
+
+def _legs(
+    file: MissionFile, enu: Callable[[list[float] | GeoPoint, tuple[str | int, ...]], np.ndarray]
+) -> list[tuple[Leg, tuple[np.ndarray, ...]]]:
+    """The file's legs, each resolved (a field not set is the leg before's; the first leg's defaults are the
+    mission's formation and leader speed cap), with its waypoints in ENU m (at the leg's altitude where it
+    sets one). Empty when the route is not written as legs."""
+    out: list[tuple[Leg, tuple[np.ndarray, ...]]] = []
+    shape, spacing, speed = file.formation.shape, file.formation.spacing, file.limits.v_xy_leader
+    first = 0
+    for j, entry in enumerate(file.legs):
+        shape = entry.formation.shape or shape
+        spacing = entry.formation.spacing or spacing
+        speed = entry.speed or speed
+        points = []
+        for k, point in enumerate(entry.waypoints):
+            loc = ("legs", j, "waypoints", k)
+            if entry.altitude is not None and not isinstance(point, list):
+                point = point.model_copy(update={"alt": entry.altitude})
+            points.append(enu(point, loc))
+        leg = Leg(entry.name or f"legs[{j}]", first, shape, spacing, speed, entry.altitude)
+        out.append((leg, tuple(points)))
+        first += len(points)
+    return out
 
 
 def _stem_name(source: str) -> str:

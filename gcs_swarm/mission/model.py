@@ -111,6 +111,26 @@ class Cylinder(_ValueEquality):
     top: float  # m above the origin, > bottom
 
 
+@dataclasses.dataclass(frozen=True)
+class Leg:
+    """One leg of the leader's route [add] (issue 37, mission key `legs`): from where the leg before ended
+    (the leader's start, for the first) through Mission.waypoints[first:] up to the next leg's `first`,
+    flown in its own formation at its own speed. Every field is resolved at load: a leg that does not set one
+    keeps the leg before's (the first: the mission's `formation` and `limits.v_xy_leader`)."""
+
+    name: str  # as the mission names it, or its key path ("legs[1]")
+    first: int  # index into Mission.waypoints of the leg's first waypoint
+    shape: str  # formation shape flown on the leg: "v" | "line" | "column" | "grid" | "offsets"
+    spacing: float  # m between neighbouring slots
+    speed: float  # m/s, the leader's horizontal speed cap on the leg
+    altitude: float | None  # m above the origin every waypoint of the leg is at; None: their own heights
+
+
+def leg_at(legs: tuple[Leg, ...], waypoint_index: int) -> int:
+    """Index of the leg whose waypoints include Mission.waypoints[waypoint_index] (0 without legs)."""
+    return max((k for k, leg in enumerate(legs) if leg.first <= waypoint_index), default=0)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class StartState(_ValueEquality):
     """Where the simulator spawns a vehicle (ENU m, m/s); yaw_deg counter-clockwise from East (spec 1.1)."""
@@ -286,6 +306,9 @@ class Mission(_ValueEquality):
     prisms: tuple[Prism, ...] = ()
     cylinders: tuple[Cylinder, ...] = ()
     rally: tuple[np.ndarray, ...] = ()  # (3,) m ENU each, rally points
+    # [add] the route as legs, each in its own formation and speed (issue 37); () when written as `goal` or
+    # `waypoints` (one leg in the mission's formation)
+    legs: tuple[Leg, ...] = ()
 
     @property
     def leader_index(self) -> int:

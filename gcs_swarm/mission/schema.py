@@ -381,6 +381,23 @@ class FormationSection(Section):
     assign_slots: bool = True
 
 
+class LegFormation(Section):
+    """What a leg changes of the formation (the rest as the mission's `formation`)."""
+
+    shape: Annotated[str, one_of("v", "line", "column", "grid")] | None = None  # None: the leg before's
+    spacing: Annotated[float, Range(gt=0, unit="m")] | None = None  # None: the leg before's
+
+
+class LegEntry(Entry):
+    """One leg of the route (model.Leg): its waypoints and what it flies differently from the leg before."""
+
+    name: Annotated[str, text()] = ""  # names it in events and the report ("": legs[<i>])
+    waypoints: list[Position]
+    formation: LegFormation = LegFormation()
+    altitude: Annotated[float, Range(gt=0, unit="m")] | None = None  # every waypoint's height; None: theirs
+    speed: Annotated[float, Range(gt=0, unit="m/s")] | None = None  # the leader's cap; None: the leg before's
+
+
 class ObstacleEntry(Entry):
     center: Position
     radius: Annotated[float, Range(gt=0, unit="m")]
@@ -576,7 +593,7 @@ class PlannerSection(Section):
 
 
 class MissionFile(Section):
-    """The whole file. `goal` and `waypoints` count as given when in `model_fields_set` (checks.py)."""
+    """The whole file. `goal`, `waypoints`, `legs` count as given when in `model_fields_set` (checks.py)."""
 
     moved_keys: ClassVar[dict[str, str]] = {
         "obstacles": "world",
@@ -591,6 +608,7 @@ class MissionFile(Section):
     formation: FormationSection = FormationSection()
     goal: Position = ZERO
     waypoints: list[Position] = []
+    legs: list[LegEntry] = []  # [add] the route as legs (model.Leg); instead of goal or waypoints
     world: WorldSection = WorldSection()
     guidance: Annotated[FieldParams, Params(skip=("reference", "reshape", "pace"))] = FieldParams()
     reference: Annotated[ReferenceParams, Params()] = Field(
