@@ -32,6 +32,7 @@ SEGMENT_SAMPLES = 8  # intervals a segment is sampled in before its nearest poin
 GOLDEN_STEPS = 40  # golden-section steps of that refinement: the bracket shrinks to 0.618^40 ~ 4e-9 of it
 TRACE_STEPS = 200  # sphere-tracing steps of a ray before it stops where it got to (course_entry)
 TRACE_TOLERANCE = 1e-4  # m, a ray is at the grown surface once this close to it
+VERTEX_TOLERANCE = 1e-9  # m, nearer a footprint's vertex than this the normal is its edge's (no direction)
 
 
 class ShapeArrays(NamedTuple):
@@ -119,7 +120,9 @@ def footprint_distance(
 ) -> tuple[float, float, float]:
     """The signed horizontal distance h (m, < 0 inside) from (x, y) to a cylinder's circle or a prism's
     footprint polygon (`row` its params (6,)) and the outward horizontal unit normal (nx, ny) at the nearest
-    boundary point: on a cylinder's axis +x; on a polygon's edge that edge's outward normal."""
+    boundary point: the edge's outward normal where that point lies inside an edge (exact, and well defined on
+    the edge itself), the direction from or to the vertex where it is a vertex (the edge's normal within
+    VERTEX_TOLERANCE of it); on a cylinder's axis +x."""
     if kind == CYLINDER:
         h0, h1 = x - row[0], y - row[1]
         rho = math.sqrt(h0 * h0 + h1 * h1)
@@ -129,6 +132,7 @@ def footprint_distance(
     first, count = int(row[0]), int(row[1])
     best, bx, by = np.inf, 0.0, 0.0  # squared distance to the nearest boundary point, that point
     ex, ey = 1.0, 0.0  # the outward normal of the nearest edge (counter-clockwise ring: (dy, -dx) / length)
+    at_vertex = False  # the nearest point is an end of its edge (else inside it: the normal is the edge's)
     inside = False
     for j in range(count):
         ax, ay = vertices[first + j, 0], vertices[first + j, 1]
@@ -137,20 +141,21 @@ def footprint_distance(
         sx, sy = cx - ax, cy - ay
         length_sq = sx * sx + sy * sy
         s = ((x - ax) * sx + (y - ay) * sy) / length_sq if length_sq > 0.0 else 0.0
+        clamped = not 0.0 < s < 1.0
         s = 0.0 if s < 0.0 else (1.0 if s > 1.0 else s)
         px, py = ax + s * sx, ay + s * sy
         dist_sq = (x - px) * (x - px) + (y - py) * (y - py)
         if dist_sq < best:
-            best, bx, by = dist_sq, px, py
+            best, bx, by, at_vertex = dist_sq, px, py, clamped
             length = math.sqrt(length_sq)
             ex, ey = (sy / length, -sx / length) if length > 0.0 else (1.0, 0.0)
         if (ay > y) != (cy > y) and x < ax + (y - ay) * sx / sy:  # crossing number (a ray toward +x)
             inside = not inside
     h = math.sqrt(best)
-    if h == 0.0:
-        return 0.0, ex, ey
     if inside:
-        return -h, (bx - x) / h, (by - y) / h
+        h = -h
+    if not at_vertex or h * h <= VERTEX_TOLERANCE * VERTEX_TOLERANCE:
+        return h, ex, ey
     return h, (x - bx) / h, (y - by) / h
 
 

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from gcs_swarm.evaluation.metrics import min_obstacle_clearance
 from gcs_swarm.guidance.failsafe_speed import distance_along_course
@@ -14,7 +16,7 @@ from gcs_swarm.guidance.field import obstacle_repulsion
 from gcs_swarm.guidance.obstacles import push_out_of_shapes
 from gcs_swarm.guidance.params import FieldParams
 from sitl_sim.world import FUSELAGE_RADIUS, Obstacles, find_collisions
-from swarm_common.obstacle_shapes import pack_shapes
+from swarm_common.obstacle_shapes import pack_shapes, surface
 
 # a building x 0..10, y 0..20, 0..15 m high, and a tree at (-20, 0), radius 2 m, 0..12 m
 BUILDING = ([(0.0, 0.0), (10.0, 0.0), (10.0, 20.0), (0.0, 20.0)], 0.0, 15.0)
@@ -114,3 +116,17 @@ def test_the_reports_clearance_includes_the_shapes() -> None:
     )
     assert clearance == pytest.approx(1.5)
     assert not collided
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-30.0, 20.0), st.floats(-10.0, 30.0), st.floats(-5.0, 20.0), st.floats(0.5, 5.0))
+@example(0.0, 1.0255655139018618, 0.0, 1.0)  # on the west wall: its nearest point differs from it by rounding
+def test_a_pushed_slot_is_outside_the_grown_shapes(x: float, y: float, z: float, margin: float) -> None:
+    # the building and the tree are convex and 10 m apart, so one pass leaves the point outside both grown
+    # shapes: its 3-D distance to each is at least the margin (within rounding)
+    px, py = push_out_of_shapes(x, y, z, *SHAPES, margin)
+    for k in range(SHAPES.number):
+        assert surface(px, py, z, k, *SHAPES)[0] >= margin - 1e-9
+    # and a point already outside both is not moved
+    if all(surface(x, y, z, k, *SHAPES)[0] >= margin for k in range(SHAPES.number)):
+        assert (px, py) == (x, y)
