@@ -37,6 +37,7 @@ DOCUMENTED = {
     "mixed_fleet": (4, 0, "v"),
     "px4_sitl_3": (3, 0, "v"),
     "site_shapes_3": (3, 0, "v"),
+    "cmac_site": (3, 0, "v"),
 }
 # flown against running vehicles (udpin), not the embedded simulator: the port vehicle 0 sends to (ArduCopter
 # SITL --serial0 udpclient:127.0.0.1:14550+K, docs/ardupilot-sitl.md; PX4 SITL's API link 14540+K)
