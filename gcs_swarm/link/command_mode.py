@@ -300,9 +300,8 @@ class CommandModeWatch:
                 f"command mode: position targets at {plan.setpoint_hz:g} Hz are the slowest, kept {because}"
             )
             return plan
-        step = replace(
-            step, budget=plan.budget
-        )  # the budget the link use is held against stays the mission's
+        # the measured budget chose the rate; the budget the link use is held against stays the mission's
+        step = replace(step, budget=plan.budget)
         self.steps += 1
         self.settle = SETTLE_WINDOWS
         self.degraded[:] = 0
