@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from gcs_swarm.evaluation import flight_quality, metrics, signals
+from gcs_swarm.evaluation.site_drawing import draw_site, has_site
 
 if TYPE_CHECKING:
     from gcs_swarm.evaluation.run_data import CommandLog, Trajectories
@@ -234,6 +235,27 @@ def _trajectories_figure(plt: ModuleType, traj: Trajectories, names: list[str], 
     return _save(plt, fig, path)
 
 
+def _site_figure(
+    plt: ModuleType,
+    traj: Trajectories,
+    mission: Any,
+    flight: dict[str, Any],
+    names: list[str],
+    window: tuple[float, float],
+    path: Path,
+) -> Path:
+    """The flight over its site, large: the trajectories and the formation's shape at moments of the
+    formation flight (window (t0, t1) s) over the fence, zones, buildings and trees, the route and where each
+    leg began."""
+    fig, ax = plt.subplots(figsize=(11, 9))
+    _draw_top_view(ax, plt, traj, names, np.asarray(mission.goal, dtype=float))
+    _draw_formation_shapes(ax, traj, int(flight.get("leader", mission.leader_index)), *window)
+    _draw_legs(ax, traj, mission, flight)
+    draw_site(ax, mission)
+    ax.set_title(f"{mission.name}: the flight over its site")
+    return _save(plt, fig, path)
+
+
 def _velocity_figure(plt: ModuleType, traj: Trajectories, names: list[str], t0: float, path: Path) -> Path:
     acc = signals.accelerations(traj.t, traj.vel)
     fig, axes = plt.subplots(3, 2, figsize=(13, 10), sharex=True)
@@ -334,10 +356,13 @@ def _write_run_figures(
     t1 = float(flight.get("t_formation_end") or (traj.t[-1] if len(traj.t) else t0))
     _draw_formation_shapes(axes[0, 0], traj, int(flight.get("leader", mission.leader_index)), t0, t1)
     _draw_legs(axes[0, 0], traj, mission, flight)
+    draw_site(axes[0, 0], mission)
     _draw_distances(axes[0, 1], traj, names, mission, t0)
     _draw_slot_errors(axes[1, 0], traj, commands, flight, mission, names, t0)
     _draw_tilt_commands(axes[1, 1], commands, names, t0)
     written.append(_save(plt, fig, run_dir / "report.png"))
+    if has_site(mission):
+        written.append(_site_figure(plt, traj, mission, flight, names, (t0, t1), run_dir / "fig_site.png"))
     written.append(_trajectories_figure(plt, traj, names, goal, run_dir / "fig_trajectories.png"))
     written.append(_velocity_figure(plt, traj, names, t0, run_dir / "fig_velocity_acceleration.png"))
     fig, ax = plt.subplots(figsize=(10, 5))

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from gcs_swarm.evaluation.site_drawing import FENCE_COLOUR, draw_site
+from gcs_swarm.mission import Mission
 from gcs_swarm.web.replay import Replay
 
 TRAIL_S = 30.0  # s of track behind each vehicle, as the page (static/app.js)
@@ -26,26 +28,13 @@ def export_times(replay: Replay, speed: float, fps: float) -> np.ndarray:
     return np.append(times, t1) if len(times) == 0 or times[-1] < t1 else times
 
 
-def _site(ax: Any, scene: dict[str, Any]) -> None:
-    """The static site: fence, zones, prisms, cylinders, obstacles (their start), waypoints, goal."""
-    from matplotlib.patches import Circle, Polygon
+def _site(ax: Any, scene: dict[str, Any], mission: Mission) -> None:
+    """The static site: the geofence circle, the mission's fence, zones, buildings and trees
+    (evaluation.site_drawing, as on report.png), waypoints, goal."""
+    from matplotlib.patches import Circle
 
-    fence = scene["fence"]
-    ax.add_patch(Circle((0, 0), fence["radius"], fill=False, ls="--", ec="#c0392b"))
-    if fence["polygon"]:
-        ax.add_patch(Polygon(fence["polygon"], closed=True, fill=False, ec="#c0392b", lw=2))
-    for zone in fence["exclusions"]:
-        patch = (
-            Polygon(zone["polygon"], closed=True)
-            if "polygon" in zone
-            else Circle((zone["x"], zone["y"]), zone["r"])
-        )
-        patch.set(fc=(0.75, 0.22, 0.17, 0.15), ec="#c0392b")
-        ax.add_patch(patch)
-    for prism in scene["prisms"]:
-        ax.add_patch(Polygon(prism["footprint"], closed=True, fc=(0.47, 0.33, 0.2, 0.45), ec="#6b4c2a"))
-    for cyl in scene["cylinders"]:
-        ax.add_patch(Circle((cyl["x"], cyl["y"]), cyl["r"], fc=(0.47, 0.33, 0.2, 0.45), ec="#6b4c2a"))
+    ax.add_patch(Circle((0, 0), scene["fence"]["radius"], fill=False, ls="--", ec=FENCE_COLOUR))
+    draw_site(ax, mission)
     waypoints = np.array(scene["waypoints"])
     ax.plot(waypoints[:, 0], waypoints[:, 1], ":o", color="#2c7", ms=3)
     ax.plot(*scene["goal"], marker="P", color="#1a7f37", ms=12)
@@ -78,7 +67,7 @@ def write_animation(replay: Replay, out: Path, speed: float, fps: int = 10) -> i
     ax = fig.add_subplot()
     ax.set(xlim=(x0, x1), ylim=(y0, y1), aspect="equal", xlabel="x east (m)", ylabel="y north (m)")
     ax.grid(True, color="#eee")
-    _site(ax, scene)
+    _site(ax, scene, replay.mission)
     obstacles = [
         Circle((o["x"], o["y"]), o["r"], fc=(0.35, 0.35, 0.35, 0.45), ec="#444") for o in scene["obstacles"]
     ]

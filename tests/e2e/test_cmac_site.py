@@ -88,6 +88,7 @@ def test_the_site_mission_flies_against_sitl_sim(tmp_path: Path) -> None:
     # middle line y = 150, 11 m from either wall
     between = airborne[(airborne["x"] > 80) & (airborne["x"] < 112)]
     assert len(between) and np.abs(between["y"] - 150.0).max() < 3.0
+    assert "fig_site.png" in flight.report["figures"]  # the flight drawn over its site
 
 
 @pytest.mark.ardupilot
@@ -101,7 +102,10 @@ def test_the_site_mission_flies_three_stock_arducopters(tmp_path: Path) -> None:
     for k, vehicle in enumerate(data["vehicles"]):
         vehicle["connection"] = f"udpin:127.0.0.1:{base + k}"
     data["world"]["import"] = [str(MISSIONS / name) for name in data["world"]["import"]]
-    data["run"]["time_limit_s"] = 300
+    # fly the vehicles that are running; a real SITL needs 60-70 s from boot to pass pre-arm
+    data["run"].update(
+        time_limit_s=300, preflight_timeout_s=180, takeoff_timeout_s=60, simulator={"embedded": False}
+    )
     path = tmp_path / "cmac_site.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     mission = load_mission(path)
