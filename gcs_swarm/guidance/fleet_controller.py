@@ -94,6 +94,7 @@ def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
         np.zeros(3),
         obstacle_c,
         obstacle_r,
+        *NO_SHAPES,
     )  # reshape
     table = np.array([0.0, 1.0])  # the failsafe speed scheduling's kernels, on a small table
     brake_distances(table, 7.5, 5.0, 0.002, 2)
@@ -482,7 +483,7 @@ class FleetController:
             self.shaper.decide(
                 t, p_lead, self.heading.psi, self.waypoints[self.waypoint_index :],
                 float(self.v_xy_cap[lead] * self.speed_scale), float(np.hypot(*self.last_vel[lead, :2])),
-                centres, radii,
+                centres, radii, self.shapes,
             )  # fmt: skip
             offsets, offset_rate = self.shaper.flown(t)
             shrink = self.shaper.scale(t)

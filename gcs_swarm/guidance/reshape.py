@@ -45,6 +45,7 @@ from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import ReshapeParams
 from gcs_swarm.guidance.slot_assignment import assign_moves, closest_approach
 from swarm_common.jit import kernel
+from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, surface
 
 SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
 # m/s: the leader keeps above the peak speed (1.875 speed_m_s) at which a slot falls back in the formation,
@@ -153,12 +154,14 @@ def route_samples(
 @kernel
 def shape_clearance(
     offsets: np.ndarray, which: np.ndarray, followers: np.ndarray, points: np.ndarray, headings: np.ndarray,
-    centres: np.ndarray, radii: np.ndarray,
+    centres: np.ndarray, radii: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
-    """Smallest distance (P,) m from a follower slot to an obstacle surface ((K, 3) centres, (K,) radii) with
-    the leader at each of points (P, 3) ENU m, heading (P,) rad, flying offsets[which[p]] there: offsets
-    (S, N, 3) leader-frame m (one shape along the route: S = 1 and `which` zeros; a move: one row per
-    moment), `followers` (F,) int the rows of the slots checked; inf without obstacles or followers."""
+    """Smallest distance (P,) m from a follower slot to an obstacle surface (spheres: (K, 3) centres, (K,)
+    radii; cylinders and prisms: the packed shapes kinds, params, vertices of swarm_common.obstacle_shapes,
+    their true distance, spec 2.2) with the leader at each of points (P, 3) ENU m, heading (P,) rad, flying
+    offsets[which[p]] there: offsets (S, N, 3) leader-frame m (one shape along the route: S = 1 and `which`
+    zeros; a move: one row per moment), `followers` (F,) int the rows of the slots checked; inf without
+    obstacles or followers."""
     out = np.full(points.shape[0], np.inf)
     for p in range(points.shape[0]):
         c, s = math.cos(headings[p]), math.sin(headings[p])
@@ -172,17 +175,22 @@ def shape_clearance(
                 gap = math.sqrt(dx * dx + dy * dy + dz * dz) - radii[k]
                 if gap < out[p]:
                     out[p] = gap
+            for k in range(kinds.shape[0]):
+                gap = surface(x, y, z, k, kinds, params, vertices)[0]
+                if gap < out[p]:
+                    out[p] = gap
     return out
 
 
 def clearance_along(
-    offsets: np.ndarray, points: np.ndarray, headings: np.ndarray, centres: np.ndarray, radii: np.ndarray
-) -> np.ndarray:
+    offsets: np.ndarray, points: np.ndarray, headings: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+    shapes: ShapeArrays = NO_SHAPES,
+) -> np.ndarray:  # fmt: skip
     """shape_clearance (P,) m of one shape's offsets (N, 3), its follower rows (non-zero offsets) checked,
-    with the leader at each of points (P, 3), heading (P,) rad."""
+    with the leader at each of points (P, 3), heading (P,) rad, among spheres and `shapes`."""
     followers = np.flatnonzero(np.any(offsets != 0.0, axis=1))
     which = np.zeros(len(points), dtype=np.int64)
-    return shape_clearance(offsets[None], which, followers, points, headings, centres, radii)
+    return shape_clearance(offsets[None], which, followers, points, headings, centres, radii, *shapes)
 
 
 def min_jerk(tau: float) -> tuple[float, float]:
@@ -360,7 +368,7 @@ class FormationShaper:
 
     def move_clearance(
         self, move: SlotMove, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed: float,
-        centres: np.ndarray, radii: np.ndarray,
+        centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
     ) -> float:  # fmt: skip
         """Smallest distance m from a moving slot to an obstacle surface while `move` runs, the leader going
         on along its route from p_leader (3,) ENU m, heading psi_leader rad, through `waypoints` (W, 3) at
@@ -373,16 +381,16 @@ class FormationShaper:
         offsets = np.stack([move.at(move.t0 + m)[0] for m in moments])
         rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
         which = np.arange(len(moments), dtype=np.int64)
-        gaps = shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii)
+        gaps = shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii, *shapes)
         return float(gaps.min(initial=math.inf))
 
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
-        speed: float, centres: np.ndarray, radii: np.ndarray,
+        speed: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
         psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
-        obstacles (K, 3), (K,) m."""
+        spherical obstacles (K, 3), (K,) m and the still cylinders and prisms `shapes` (spec 2.2)."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
@@ -394,7 +402,7 @@ class FormationShaper:
         centres, radii = centres[near], radii[near]  # only obstacles a slot can come near in the look-ahead
         best, best_gap, gaps = 0, -math.inf, {}
         for k, shape in enumerate(self.shapes):
-            gaps[k] = float(clearance_along(shape.offsets, points, headings, centres, radii).min())
+            gaps[k] = float(clearance_along(shape.offsets, points, headings, centres, radii, shapes).min())
             if gaps[k] >= self.params.clearance_m + (WIDEN_MARGIN_M if k < self.current else 0.0):
                 best = k
                 break
@@ -411,18 +419,18 @@ class FormationShaper:
                 self.wider_since = t
             if t - self.wider_since >= self.params.restore_after_s:
                 move = self._widening(best, t)
-                if self.move_clearance(move, p_leader, psi_leader, waypoints, speed, *every) >= (
+                if self.move_clearance(move, p_leader, psi_leader, waypoints, speed, *every, shapes) >= (
                     self.params.clearance_m
                 ):  # the way there is clear too
                     self.wider_since = None
                     self._change_to(best, move.start, t, move=move)
         else:
             self.wider_since = None
-        self._pace(t, points, headings, along, centres, radii)
+        self._pace(t, points, headings, along, centres, radii, shapes)
 
     def _pace(
         self, t: float, points: np.ndarray, headings: np.ndarray, along: np.ndarray, centres: np.ndarray,
-        radii: np.ndarray,
+        radii: np.ndarray, shapes: ShapeArrays,
     ) -> None:  # fmt: skip
         """The leader's speed cap while the slots move (`pace_cap`): the shape flown now must not reach the
         first place along the route where it does not fit before the change is done, so the leader covers at
@@ -431,7 +439,7 @@ class FormationShaper:
         self.pace_cap = math.inf
         if left <= 0.0 or self.current == 0:
             return
-        gap = clearance_along(self.flown(t)[0], points, headings, centres, radii)
+        gap = clearance_along(self.flown(t)[0], points, headings, centres, radii, shapes)
         tight = np.flatnonzero(gap < self.params.clearance_m)
         if len(tight):
             self.pace_cap = max(self.pace_floor, float(along[tight[0]]) / left)

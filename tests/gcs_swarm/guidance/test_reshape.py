@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from shapely.geometry import Point, Polygon
 
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
@@ -19,6 +20,7 @@ from gcs_swarm.guidance.reshape import (
     route_samples,
     shape_clearance,
 )
+from swarm_common.obstacle_shapes import NO_SHAPES, pack_shapes
 
 PARAMS = ReshapeParams()
 
@@ -77,13 +79,30 @@ def test_clearance_of_a_slot_is_its_distance_to_the_surface():
     points = np.zeros((2, 3))
     which = np.zeros(2, dtype=np.int64)  # one shape, flown at both points
     gaps = shape_clearance(
-        offsets[None], which, np.array([1]), points, np.array([0.0, math.pi / 2]), centre, radius
+        offsets[None], which, np.array([1]), points, np.array([0.0, math.pi / 2]), centre, radius, *NO_SHAPES
     )
     np.testing.assert_allclose(gaps, [3.0, 15.0 - 2.0])
     # a move: the follower's offset (-5, 5) at the first point, (-5, 9) at the second (heading east, 1 m off)
     moving = np.stack([offsets, np.array([[0.0, 0.0, 0.0], [-5.0, 9.0, 0.0]])])
-    gaps = shape_clearance(moving, np.arange(2), np.array([1]), points, np.zeros(2), centre, radius)
+    gaps = shape_clearance(
+        moving, np.arange(2), np.array([1]), points, np.zeros(2), centre, radius, *NO_SHAPES
+    )
     np.testing.assert_allclose(gaps, [3.0, -1.0])
+
+
+def test_clearance_of_a_slot_beside_a_building_is_its_distance_to_the_wall():
+    """The same follower slot (-5, 5, 10) heading east, beside a building whose south wall is y = 8 (footprint
+    x -8..-2, y 8..12, 0..20 m high: the slot is level with the wall, 3 m from it) and 2 m above the roof of
+    a second one under it (round the slot, 0..8 m): the nearest surface is then that roof, 2 m off."""
+    offsets = np.array([[0.0, 0.0, 0.0], [-5.0, 5.0, 0.0]])
+    points, headings, which = np.array([[0.0, 0.0, 10.0]]), np.zeros(1), np.zeros(1, dtype=np.int64)
+    wall = np.array([[-8.0, 8.0], [-2.0, 8.0], [-2.0, 12.0], [-8.0, 12.0]])
+    under = np.array([[-6.0, 4.0], [-4.0, 4.0], [-4.0, 6.0], [-6.0, 6.0]])
+    no_spheres = np.zeros((0, 3)), np.zeros(0)
+    for prisms, expected in (([(wall, 0.0, 20.0)], 3.0), ([(wall, 0.0, 20.0), (under, 0.0, 8.0)], 2.0)):
+        shapes = pack_shapes(prisms=prisms)
+        gap = shape_clearance(offsets[None], which, np.array([1]), points, headings, *no_spheres, *shapes)
+        np.testing.assert_allclose(gap, [expected])
 
 
 def test_min_jerk_profile_starts_and_ends_at_rest():
@@ -93,14 +112,16 @@ def test_min_jerk_profile_starts_and_ends_at_rest():
     assert min_jerk(0.5)[1] == pytest.approx(1.875)  # the peak rate: 1.875 x the move per unit time
 
 
-def _fly_shaper(shaper: FormationShaper, centres, radii, x0: float, x1: float, speed: float = 10.0):
-    """Move the leader east from x0 to x1 at `speed` (or the shaper's pace cap), deciding every 0.02 s; the
-    flown offsets per step."""
+def _fly_shaper(
+    shaper: FormationShaper, centres, radii, x0: float, x1: float, speed: float = 10.0, shapes=NO_SHAPES
+):
+    """Move the leader east from x0 to x1 at `speed` (or the shaper's pace cap), deciding every 0.02 s, among
+    spheres and the packed `shapes`; the flown offsets per step."""
     flown, t, x = [], 0.0, x0
     wp = np.array([[400.0, 0.0, 10.0]])
     while x < x1:
         shaper.decide(
-            t, np.array([x, 0.0, 10.0]), 0.0, wp, speed, min(speed, shaper.pace_cap), centres, radii
+            t, np.array([x, 0.0, 10.0]), 0.0, wp, speed, min(speed, shaper.pace_cap), centres, radii, shapes
         )
         flown.append((t, x, *shaper.flown(t), shaper.shape_name))
         t += 0.02
@@ -132,6 +153,28 @@ def test_a_v_wider_than_a_gap_narrows_or_falls_into_a_column_before_it_and_is_re
     assert changes[-1] == ("restored", "formation")
     assert any(change == "narrows" for change, _ in changes)
     assert shaper.changes[-1].sentence.endswith("s formation restored")
+
+
+def test_a_v_wider_than_a_gap_between_two_buildings_narrows_before_it():
+    """The same V and the same 12 m gap at x = 60, between two buildings instead of two spheres (footprints x
+    52..68, |y| 6..22, 0..30 m high): the shaper sees the walls (spec 2.2) and, between x = 40 and 65, flies a
+    narrower shape whose every slot keeps clearance_m from both, measured by shapely (the slots fly at 10 m,
+    below the roofs, so the distance is the footprint's); and it is restored after."""
+    walls = [
+        np.array([[52.0, y0], [68.0, y0], [68.0, y1], [52.0, y1]]) for y0, y1 in ((6.0, 22.0), (-22.0, -6.0))
+    ]
+    shapes = pack_shapes(prisms=[(footprint, 0.0, 30.0) for footprint in walls])
+    shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
+    steps = _fly_shaper(shaper, np.zeros((0, 3)), np.zeros(0), -100.0, 160.0, shapes=shapes)
+    footprints = [Polygon(footprint) for footprint in walls]
+    checked = 0
+    for _, x, offsets, _, name in steps:
+        if 40.0 <= x <= 65.0:
+            assert name != "formation", x
+            slots = [Point(x + o[0], o[1]) for o in offsets[1:]]
+            assert min(f.distance(p) for f in footprints for p in slots) >= PARAMS.clearance_m - 1e-6, x
+            checked += 1
+    assert checked > 0 and steps[-1][4] == "formation"
 
 
 def test_a_column_whose_tail_is_short_of_a_gap_waits_to_open_until_the_way_is_clear():
