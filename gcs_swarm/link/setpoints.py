@@ -141,15 +141,19 @@ class Setpoints:
             )
         )
 
-    def send_position_target(self, pos_enu: ArrayLike, yaw: float | None = None) -> None:
-        """SET_POSITION_TARGET_GLOBAL_INT at a mission-frame ENU position (m); GUIDED mode.
+    def send_position_target(
+        self, pos_enu: ArrayLike, yaw: float | None = None, stream: bool = False
+    ) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT at a mission-frame ENU position (m); GUIDED mode. A hold (module
+        doc: an unchanged one is only repeated as a keep-alive), unless `stream`: a stream whose rate the
+        caller keeps (PX4's proof of life before OFFBOARD, VehicleLink.op_take_control), sent every call.
 
         Global coordinates, because each vehicle's LOCAL_NED frame has its own (EKF) origin.
         """
         p = np.asarray(pos_enu, dtype=float)
         _require_finite(self.name, "position target", p, yaw)
         mask, yaw_ned = _with_yaw(_IGNORE_VELOCITY | _IGNORE_ACCEL, yaw)
-        self._send_global_target(p, np.zeros(3), np.zeros(3), mask, yaw_ned, hold=True)
+        self._send_global_target(p, np.zeros(3), np.zeros(3), mask, yaw_ned, hold=not stream)
 
     def send_trajectory_target(
         self, pos_enu: ArrayLike, vel_enu: ArrayLike, acc_enu: ArrayLike, yaw: float
@@ -163,7 +167,6 @@ class Setpoints:
         for what, values in (("position", p), ("velocity", v), ("acceleration", a)):
             _require_finite(self.name, f"trajectory target {what}", values, yaw)
         mask = mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-        self._hold = None
         self._send_global_target(p, v, a, mask, float(yaw_ned_enu(yaw)))
 
     def _send_global_target(
@@ -174,7 +177,9 @@ class Setpoints:
         yaw_ned rad; a `hold` unchanged since the last one is only repeated as the module doc says."""
         lat, lon, alt = frames.enu_to_geodetic(p, self.lockstep.state.origin)
         lat_e7, lon_e7 = int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7))
-        if hold and self._unchanged_hold(("position", mask, lat_e7, lon_e7, round(float(alt), 2)), yaw_ned):
+        if not hold:
+            self._hold = None
+        elif self._unchanged_hold(("position", mask, lat_e7, lon_e7, round(float(alt), 2)), yaw_ned):
             return
         vn, an = frames.enu_to_ned(v) + 0.0, frames.enu_to_ned(a) + 0.0  # + 0.0: no -0.0 on the wire
         ch = self.channel

@@ -144,7 +144,7 @@ class VehicleLink:
             nonlocal sent_ms
             if st.time_ms[i] != sent_ms and (sent_ms < 0 or st.time_ms[i] - sent_ms >= period_ms):
                 sent_ms = int(st.time_ms[i])
-                self.setpoints.send_position_target(point, yaw)
+                self.setpoints.send_position_target(point, yaw, stream=True)
 
         proof = Timeout(dialect.setpoint_proof_s, self.telemetry.vehicle_clock)
         while not proof.expired():
