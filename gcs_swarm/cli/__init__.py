@@ -135,9 +135,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
     if mission is None:
         return EXIT_USER_ERROR
     leader = mission.vehicles[mission.leader_index].name
+    site = [(len(mission.prisms), "buildings"), (len(mission.cylinders), "trees or masts")]
+    site += [(len(mission.fence.exclusions), "exclusion zones"), (len(mission.legs), "legs")]
+    fence = ", a fence polygon" if mission.fence.polygon is not None else ""
     print(
         f"{args.mission}: ok: mission '{mission.name}', {len(mission.vehicles)} vehicles (leader {leader}), "
-        f"{len(mission.obstacles)} obstacles, goal {[round(float(x), 2) for x in mission.goal]}"
+        f"{len(mission.obstacles)} obstacles{''.join(f', {n} {what}' for n, what in site if n)}{fence}, "
+        f"goal {[round(float(x), 2) + 0.0 for x in mission.goal]}"  # + 0.0: no -0.0
     )
     try:
         load_mission(args.mission)

@@ -17,6 +17,7 @@ import shapely
 import yaml
 from shapely.geometry import Point, Polygon
 
+from gcs_swarm.cli import main
 from gcs_swarm.mission import Mission, load_mission
 from swarm_common.ports import free_udp_base
 from tests.e2e.ardupilot_sitl import SitlBuild, start_vehicles, stop_vehicles
@@ -41,6 +42,13 @@ def test_the_site_mission_carries_its_fence_zones_buildings_trees_and_legs() -> 
     np.testing.assert_allclose(
         np.array(mission.waypoints), [[0, 150, 10], [200, 150, 10], [200, 0, 15]], atol=0.05
     )
+
+
+def test_check_names_the_site_it_found(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", str(MISSION)]) == 0
+    printed = capsys.readouterr().out
+    assert "0 obstacles, 3 buildings, 4 trees or masts, 2 exclusion zones, 3 legs, a fence polygon" in printed
+    assert "goal [200.0, 0.0, 15.0]" in printed and "cannot be flown yet" not in printed
 
 
 def _clearances(mission: Mission, xyz: np.ndarray) -> tuple[float, float]:
