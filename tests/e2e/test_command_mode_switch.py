@@ -14,6 +14,8 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
+import yaml
 
 from tests.e2e.flights import SHORT_BOOT, derived_mission, fly
 
@@ -23,10 +25,16 @@ JUMP_M = 0.5  # m in one 20 ms tick: 25 m/s, faster than the quickstart's refere
 # while a reference set elsewhere moves metres at once
 
 
+@pytest.mark.parametrize("persona", ["ardupilot", "px4"])
 def test_a_capacity_drop_in_flight_switches_to_position_targets_once_and_the_formation_reaches(
-    tmp_path: Path,
+    tmp_path: Path, persona: str
 ) -> None:
+    """Both simulated autopilots: ArduCopter in GUIDED, PX4 in OFFBOARD (which takes both setpoint types; its
+    unasked default streams are stopped with the step)."""
     mission = derived_mission(tmp_path, "quickstart.yaml", "drop", world={"link": {"radio": "sik250"}})
+    data = yaml.safe_load(mission.read_text())
+    data["run"]["simulator"]["autopilot"] = persona
+    mission.write_text(yaml.safe_dump(data, sort_keys=False))
     extra = ["--time-mode", "lockstep", SHORT_BOOT, f"--sim-arg=--link-capacity-change={DROP_S:g}:80000"]
     run = fly(mission, tmp_path / "run", timeout_s=600, extra=extra)
     assert "Traceback" not in run.output, run.output[-3000:]
