@@ -42,13 +42,24 @@ keeps the vehicles inside anyway (gcs_swarm.link.command_limits); the autopilot'
 ground station is gone.
 
 `install_fence` (called from MissionRunner.preflight) reads each vehicle's fence, uploads the items, reads
-them back and compares (verify by download), then sets FENCE_TYPE = 4 (exactly: the max-altitude and
-home-circle fences, FENCE_TYPE's default 7, would stop the paper missions flying at 200 m, 6 km out),
-FENCE_ACTION and FENCE_ENABLE = 1 through FlightParams. At the end of the run (FlightParams.restore, on
-disarmed vehicles only, like the parameters) the parameters go back and the vehicle's own fence is put back:
-cleared when it had none, its old items uploaded again otherwise (a `params_changed` row named "fence items",
-original and flown = the item counts). FENCE_MARGIN is left alone: ArduCopter uses it for AC_Avoid's stand-off
-and the pre-arm check of inclusion circles, not to decide a breach; this margin is in the circles' radius.
+them back and compares (verify by download), then sets each autopilot's own parameters through FlightParams
+(AutopilotDialect.fence_params): on ArduPilot FENCE_TYPE = 4 (exactly: the max-altitude and home-circle
+fences, FENCE_TYPE's default 7, would stop the paper missions flying at 200 m, 6 km out), FENCE_ACTION and
+FENCE_ENABLE = 1; on PX4 GF_ACTION alone. At the end of the run (FlightParams.restore, on disarmed vehicles
+only, like the parameters) the parameters go back and the vehicle's own fence is put back: cleared when it had
+none, its old items uploaded again otherwise (a `params_changed` row named "fence items", original and flown =
+the item counts). FENCE_MARGIN is left alone: ArduCopter uses it for AC_Avoid's stand-off and the pre-arm
+check of inclusion circles, not to decide a breach; this margin is in the circles' radius.
+
+PX4 (src/modules/mavlink/mavlink_mission.cpp, navigator/geofence.cpp) takes the same items over the same
+protocol: MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION/EXCLUSION (param1 the vertex count, at least 3) and
+..._CIRCLE_INCLUSION/EXCLUSION (param1 the radius) in a global frame (parse_mavlink_mission_item), asks for
+them with MISSION_REQUEST_INT once the ground station has used the _INT messages (else MISSION_REQUEST; both
+are answered here), silently ignores an item of the wrong seq (no INVALID_SEQUENCE: the upload goes on when
+it re-asks) and answers MISSION_ACK ACCEPTED after the last item, or ERROR (for instance a polygon of fewer
+than 3 vertices), or NO_SPACE. It checks every stored zone whenever it has some (Geofence::checkAll: outside
+every inclusion zone or inside an exclusion zone is a breach), says "Geofence violation", and its failsafe
+acts as GF_ACTION says (commander failsafe.cpp fromGfActParam).
 """
 
 from __future__ import annotations
@@ -75,8 +86,6 @@ CIRCLE_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 CIRCLE_INCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
 POLYGON_INCLUSION = mavlink2.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
 POLYGON_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION
-FENCE_TYPE_POLYGON = 4  # FENCE_TYPE bit 2: inclusion/exclusion circles and polygons (AC_Fence.h)
-FENCE_ACTION = {"report": 0, "rtl": 1, "land": 2, "brake": 4}  # Copter FENCE_ACTION values (AC_Fence.cpp)
 FENCE_ITEMS = "fence items"  # the FlightParams change row of a vehicle's fence
 BAND_TOLERANCE_M = 3.0  # m above and below the formation's altitudes that count as "met" (altitude error,
 # vertical separation manoeuvres)
@@ -415,9 +424,10 @@ class FenceInstall:
         return op_put_fence(link, self.before.get(link.name, []))
 
     def report(self, link: VehicleLink, text: str) -> None:
-        """A STATUSTEXT "<fences> breached" (ArduCopter/fence.cpp): the autopilot switches mode by itself
-        (BRAKE for FENCE_ACTION 4) and ignores the ground station's attitude targets: say so."""
-        if "fence" in text and text.endswith("breached"):
+        """A STATUSTEXT "<fences> breached" (ArduCopter/fence.cpp) or "Geofence violation" (PX4 navigator
+        geofence_breach_check): the autopilot switches mode by itself (BRAKE for FENCE_ACTION 4, Hold for
+        GF_ACTION 2) and ignores the ground station's attitude targets: say so."""
+        if ("fence" in text and text.endswith("breached")) or text.startswith("Geofence violation"):
             t = max(int(link.state.time_ms[link.index]), 0) / 1000.0
             said = f"t={t:.2f} s {link.name}: {text}: its autopilot takes over (fence action {self.action})"
             self.events.append(said)
@@ -456,7 +466,6 @@ def install_fence(
         progress(f"fence: {note}")
     if not links:
         return None
-    rows = [link.index for link in links]
     old = fleet.run(op_download_fence(link) for link in links)
     before = {link.name: items_before for link, items_before in zip(links, old, strict=True)}
     fleet.run(op_put_fence(link, items) for link in links)
@@ -467,9 +476,11 @@ def install_fence(
             flight.changes.append(
                 ParamChange(link.name, FENCE_ITEMS, float(len(before[link.name])), float(len(items)))
             )
-    flight.set_all("FENCE_TYPE", FENCE_TYPE_POLYGON, rows)
-    flight.set_all("FENCE_ACTION", FENCE_ACTION[params.action], rows)
-    flight.set_all("FENCE_ENABLE", 1, rows)
+    dialects = {link.channel.autopilot.key: link.channel.autopilot for link in links}
+    for key, dialect in dialects.items():  # each autopilot's own parameters (AutopilotDialect.fence_params)
+        rows = [link.index for link in links if link.channel.autopilot.key == key]
+        for name, value in dialect.fence_params(params.action):
+            flight.set_all(name, value, rows)
     for link in (link for link in fleet.links if link.channel.autopilot.geofence):  # one reporter each,
         # even if preflight runs again
         link.statustext_hooks[:] = [

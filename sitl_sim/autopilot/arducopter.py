@@ -49,6 +49,8 @@ class ArduCopter(Persona):
     ready_delay_s: ClassVar[float] = 40.0
     default_rates_hz = DEFAULT_RATES_HZ
     reports_ekf_status: ClassVar[bool] = True
+    legacy_fence_total: ClassVar[bool] = True  # SITL builds keep AC_POLYFENCE_FENCE_POINT_PROTOCOL_SUPPORT
+    guided_fence_check: ClassVar[bool] = True
 
     def heartbeat(self, i: int) -> tuple[int, int, int, int]:
         """ArduCopter's HEARTBEAT: base_mode as GCS_MAVLINK_Copter::base_mode computes it, custom_mode the
@@ -99,3 +101,11 @@ class ArduCopter(Persona):
                 ap.enter_mode(i, action)
                 if changed:
                     ap.mode_changed(i)
+
+    def fence_breached(self, i: int, new: int, t: float) -> None:
+        """ArduCopter/fence.cpp: "<fences> breached" and FENCE_ACTION (copter.Autopilot.fence_action)."""
+        self.ap.fence_action(i, new, t)
+
+    def fence_cleared(self, i: int) -> None:
+        """ArduCopter/fence.cpp fence_check: "Fence breach cleared"."""
+        self.ap.say(i, M.MAV_SEVERITY_NOTICE, "Fence breach cleared")

@@ -366,13 +366,17 @@ class Autopilot:
         """
         if self.mode[i] != GUIDED:
             return False
-        if pos is not None and not self.fence.destination_ok(
-            i,
-            pos[:2],
-            self.home[i, :2],
-            float(pos[2] - self.home[i, 2]),
-            self.params.value(i, "FENCE_ALT_MAX"),
-            self.params.value(i, "FENCE_RADIUS"),
+        if (
+            pos is not None
+            and self.persona(i).guided_fence_check
+            and not self.fence.destination_ok(
+                i,
+                pos[:2],
+                self.home[i, :2],
+                float(pos[2] - self.home[i, 2]),
+                self.params.value(i, "FENCE_ALT_MAX"),
+                self.params.value(i, "FENCE_RADIUS"),
+            )
         ):
             return False  # ModeGuided::set_destination: a destination outside the fence is refused
         if pos is not None and vel is not None:
@@ -480,7 +484,8 @@ class Autopilot:
         5 SmartRTL (RTL here) else LAND; landed it disarms, more than 100 m outside it lands."""
         p, fence, s = self.params, self.fence, self.state
         for k in fence.legacy_clears(p.column("FENCE_TOTAL")):
-            fence.store(k, [], np.zeros((0, 2)))
+            if self.persona(k).legacy_fence_total:
+                fence.store(k, [], np.zeros((0, 2)))
         if not fence.active(p.column("FENCE_ENABLE")):  # AC_Fence::check returns at once when disabled
             fence.last_check = t
             return
@@ -497,12 +502,14 @@ class Autopilot:
         )
         cleared = (new == 0) & (before != 0) & (fence.breaches == 0) & ~self.land_complete
         for i in np.flatnonzero(cleared):
-            self.say(int(i), mavlink2.MAV_SEVERITY_NOTICE, "Fence breach cleared")
+            self.persona(int(i)).fence_cleared(int(i))
             self.fence_log.append(f"vehicle {i}: fence breach cleared at t={t:.2f} s")
         for i in np.flatnonzero((new != 0) & self.armed):
-            self._fence_action(int(i), int(new[i]), t)
+            self.persona(int(i)).fence_breached(int(i), int(new[i]), t)
 
-    def _fence_action(self, i: int, new: int, t: float) -> None:
+    def fence_action(self, i: int, new: int, t: float) -> None:
+        """ArduCopter/fence.cpp: vehicle i has newly breached the fences `new` (FENCE_TYPE bits) at simulated
+        time t: "<fences> breached", then FENCE_ACTION (see _fence_check); logged for the simulator."""
         names = fences.fence_names(new)
         if not self.land_complete[i]:
             self.say(i, mavlink2.MAV_SEVERITY_NOTICE, f"{names} breached")

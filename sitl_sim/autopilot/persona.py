@@ -46,6 +46,14 @@ class Persona:
     descent_accel_down: ClassVar[float] = 0.0  # m/s^2
     descent_range_max: ClassVar[float] = 0.0  # m, the height a range finder measures up to
     # own parameter -> (the shared loop's column it drives, scale); shared columns hidden and held fixed
+    # FENCE_TOTAL going to 0 erases the stored fence (ArduPilot SITL's old fence-point protocol, fence.Fences.
+    # legacy_clears)
+    legacy_fence_total: ClassVar[bool] = False
+    # a guided position target outside an enabled fence is refused (ArduCopter ModeGuided::set_destination)
+    guided_fence_check: ClassVar[bool] = False
+    # whose mission protocol it speaks where they differ (sitl_sim.network.mission_protocol): "ardupilot" or
+    # "px4"
+    mission_protocol: ClassVar[str] = "ardupilot"
     mirrors: ClassVar[Mapping[str, tuple[str, float]]] = {}
     hidden_fixed: ClassVar[Mapping[str, float]] = {}
 
@@ -110,3 +118,10 @@ class Persona:
 
     def after_loop(self, t: float, events: np.ndarray) -> None:
         """Its rules after the shared loop's tick; events (N,): the loop's outer_loop.EVENT_* per vehicle."""
+
+    def fence_breached(self, i: int, new: int, t: float) -> None:
+        """Armed vehicle i newly breached its fences `new` (sitl_sim.autopilot.fence bits) at simulated
+        time t: its autopilot's answer."""
+
+    def fence_cleared(self, i: int) -> None:
+        """Flying vehicle i is back inside every fence it breached."""

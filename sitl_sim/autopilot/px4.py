@@ -65,6 +65,10 @@ MISSIONPLANNER_COMPID = 190  # Commander.cpp: printRejectMode only for MAV_COMP_
 FALLBACK_TO_RTL = (0, 1, 2)  # failsafe.cpp fromOffboardLossActParam: Position/Altitude/Stabilized need sticks
 OFFBOARD_LOSS_MODES = {3: MODE_RTL, 4: MODE_LAND, 5: MODE_LOITER}  # COM_OBL_RC_ACT; 6 Terminate, 7 Disarm
 GCS_LOSS_MODES = {1: MODE_LOITER, 2: MODE_RTL, 3: MODE_LAND}  # NAV_DLL_ACT; 5 Terminate, 6 Disarm
+# GF_ACTION (navigator geofence_params.c: 0 None, 1 Warning, 2 Hold, 3 Return, 4 Terminate, 5 Land) -> the
+# failsafe action as NAV_DLL_ACT numbers it (_act); failsafe.cpp fromGfActParam. None and Warning: no action.
+GF_HOLD = 2
+GEOFENCE_FAILSAFE = {GF_HOLD: 1, 3: 2, 4: 5, 5: 3}
 # default ready delay of a PX4 vehicle (`sitl-sim --ready-delay` not given): simulated s from boot to the
 # position estimate and pre-arm OK. Real PX4 SITL (SIH
 # quadx, flown on this project's machine) said "Ready for takeoff!" 4.4-4.6 s after boot; 5 s is not earlier.
@@ -110,6 +114,8 @@ def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
         ParamSpec("COM_OBL_RC_ACT", INT32, 0, 0, 7, "", "offboard loss: 0 Pos 1 Alt 2 Stab 3 RTL 4 Land"),
         ParamSpec("COM_OF_LOSS_T", REAL32, 1.0, 0.0, 60.0, "s", "offboard setpoint loss timeout"),
         ParamSpec("COM_SPOOLUP_TIME", REAL32, 1.0, 0.0, 30.0, "s", "motor spool-up after arming (takeoff)"),
+        # src/modules/navigator/geofence_params.c: the action on a breach of the uploaded fence
+        ParamSpec("GF_ACTION", INT32, 2, 0, 5, "", "geofence: 0 none 1 warn 2 Hold 3 RTL 4 Term 5 Land"),
         ParamSpec("NAV_DLL_ACT", INT32, 0, 0, 6, "", "GCS loss: 0 off 1 Hold 2 RTL 3 Land 5 Term 6 Disarm"),
         # src/modules/mavlink/mavlink_params.yaml (MAV_SYS_ID), navigator/mission_params (MIS_TAKEOFF_ALT),
         # mc_pos_control/multicopter_*_params (MPC_*), navigator/navigator_params (NAV_ACC_RAD),
@@ -177,6 +183,12 @@ HIDDEN_FIXED = {
     "GUID_OPTIONS": 8.0,  # SET_ATTITUDE_TARGET thrust is collective thrust (fill_thrust: thrust_body[2])
     "ATC_ANGLE_BOOST": 0.0,  # mc_att_control flies thrust_body as given: no tilt compensation
     "GUID_TIMEOUT": 1e9,  # PX4 has no guided timeout: offboard loss is COM_OF_LOSS_T (below)
+    # navigator Geofence::checkAll checks every uploaded zone whenever some are stored (no enable or type
+    # parameter; GF_MAX_HOR_DIST / GF_MAX_VER_DIST, off by default, are not simulated): the shared fence
+    # check runs on polygons and circles only, and the breach is acted on by GF_ACTION (Px4.fence_breached)
+    "FENCE_TYPE": 4.0,
+    "FENCE_ENABLE": 1.0,
+    "FENCE_ACTION": 0.0,
 }
 
 
@@ -194,6 +206,7 @@ class Px4(Persona):
     descent_range_max: ClassVar[float] = RANGE_MAX_M
     mirrors = MIRRORS
     hidden_fixed = HIDDEN_FIXED
+    mission_protocol: ClassVar[str] = "px4"  # src/modules/mavlink/mavlink_mission.cpp
 
     param_specs = staticmethod(param_specs)  # PX4's own parameters
 
@@ -500,6 +513,29 @@ class Px4(Persona):
                 self.failsafe_action_at[i] = math.inf
                 self._act(i, int(self.pending_action[i]))
             self._auto_disarm(i, t)
+
+    def fence_breached(self, i: int, new: int, t: float) -> None:
+        """Navigator geofence_breach_check: "Geofence violation" (once until back inside); Commander's
+        geofence_breached failsafe then acts as GF_ACTION says (failsafe.cpp fromGfActParam): Hold at once
+        (AlwaysModeSwitchOnly), Return and Land after COM_FAIL_ACT_T in Hold (user takeover Auto), Terminate
+        at once. A vehicle already in a failsafe keeps that one's action (PX4 would take the more severe)."""
+        ap = self.ap
+        ap.say(i, M.MAV_SEVERITY_CRITICAL, "Geofence violation")
+        action = int(ap.params.value(i, "GF_ACTION"))
+        failsafe = GEOFENCE_FAILSAFE.get(action)
+        if failsafe is not None and not self.failsafe[i]:
+            if action == GF_HOLD:
+                self.failsafe[i] = True
+                ap.say(i, M.MAV_SEVERITY_CRITICAL, "Failsafe activated")
+                self._enter(i, MODE_LOITER)
+            else:
+                self._start_failsafe(i, failsafe, t)
+        x, y, z = ap.state.pos[i]
+        ap.fence_log.append(
+            f"vehicle {i}: geofence violation at t={t:.2f} s at ({x:.1f}, {y:.1f}, {z:.1f}) m: GF_ACTION "
+            f"{action}, mode {MODE_NAMES.get(int(self.nav[i]), self.nav[i])}"
+            + (", disarmed" if not ap.armed[i] else "")
+        )
 
     def _offboard_lost(self, i: int) -> None:
         """failsafe.cpp checkModeFallback + getSelectedAction: COM_OBL_RC_ACT; the stick modes it names

@@ -18,6 +18,11 @@ GCS_Common.cpp):
   MISSION_ACK INVALID_SEQUENCE; the deprecated MISSION_REQUEST -> MISSION_ITEM (once "got MISSION_REQUEST;
   use MISSION_REQUEST_INT!"). While an upload runs both are DENIED.
 - MISSION_CLEAR_ALL(FENCE): cancels an own upload, stores an empty fence, MISSION_ACK ACCEPTED.
+- a PX4 vehicle (persona mission_protocol "px4", src/modules/mavlink/mavlink_mission.cpp) differs in two
+  ways: it asks with MISSION_REQUEST_INT once the peer has used MISSION_REQUEST_INT or MISSION_ITEM_INT
+  (_int_mode; the float forms switch it back), and it ignores an item of the wrong seq without an answer
+  (handle_mission_item_both). Its fence is validated as ArduPilot's (PX4 refuses a polygon of fewer than 3
+  vertices with ERROR as well; its dataman limits are not simulated).
 - other mission types: this simulator keeps no mission (AUTO) nor rally points, so MISSION_COUNT,
   MISSION_REQUEST_LIST, MISSION_CLEAR_ALL, MISSION_WRITE_PARTIAL_LIST and items of those types are answered
   MISSION_ACK UNSUPPORTED (what ArduPilot answers for a type it has no protocol for, MAV_MISSION_TYPE_ALL
@@ -76,6 +81,7 @@ class FenceProtocol:
         self.new_items: list[FenceItem | None] = []
         self.last_receive = 0.0
         self.last_request = 0.0
+        self.int_mode = False  # the peer last used MISSION_REQUEST_INT / MISSION_ITEM_INT (PX4's _int_mode)
         self._item_warned = False
         self._request_warned = False
         self.handlers = {
@@ -104,8 +110,19 @@ class FenceProtocol:
     def _say(self, severity: int, text: str) -> None:
         self.sim.autopilot.say(self.index, severity, text)
 
+    def _px4(self) -> bool:
+        """Whether this vehicle answers as PX4's MavlinkMissionManager where it differs from ArduPilot."""
+        return bool(self.sim.autopilot.persona(self.index).mission_protocol == "px4")
+
     def _send_request(self) -> None:
-        self.outbox.send(self.outbox.tx.mission_request_encode(*self.dest, self.request_i, FENCE))
+        """Ask the uploader for item request_i: MISSION_REQUEST, as ArduPilot; a PX4 vehicle asks with
+        MISSION_REQUEST_INT once the peer spoke the _INT messages (mavlink_mission.cpp send_mission_request:
+        _int_mode, set by MISSION_REQUEST_INT / MISSION_ITEM_INT, cleared by their float forms)."""
+        if self.int_mode and self._px4():
+            request = self.outbox.tx.mission_request_int_encode(*self.dest, self.request_i, FENCE)
+        else:
+            request = self.outbox.tx.mission_request_encode(*self.dest, self.request_i, FENCE)
+        self.outbox.send(request)
         self.last_request = self.sim.t
 
     # --- handlers -------------------------------------------------------------------------------------------
@@ -174,6 +191,7 @@ class FenceProtocol:
         if not self._fence(msg):
             return
         deprecated = msg.get_msgId() == mavlink2.MAVLINK_MSG_ID_MISSION_ITEM
+        self.int_mode = not deprecated
         if deprecated:
             # GCS_MAVLINK::handle_mission_item converts it first (AP_Mission::
             # convert_MISSION_ITEM_to_MISSION_ITEM_INT: fence commands carry lat/lon in degrees)
@@ -190,7 +208,8 @@ class FenceProtocol:
             self._ack(msg, mavlink2.MAV_MISSION_ERROR)
             return
         if msg.seq != self.request_i:
-            self._ack(msg, mavlink2.MAV_MISSION_INVALID_SEQUENCE)  # the upload goes on
+            if not self._px4():  # PX4 ignores it silently (handle_mission_item_both); both go on
+                self._ack(msg, mavlink2.MAV_MISSION_INVALID_SEQUENCE)
             return
         if (msg.get_srcSystem(), msg.get_srcComponent()) != self.dest:
             self._ack(msg, mavlink2.MAV_MISSION_DENIED)
@@ -264,6 +283,7 @@ class FenceProtocol:
         if not self._fence(msg):
             return
         deprecated = msg.get_msgId() == mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST
+        self.int_mode = not deprecated
         if self.receiving and not deprecated:
             self._ack(msg, mavlink2.MAV_MISSION_DENIED)
             return

@@ -48,7 +48,7 @@ class AutopilotDialect(Protocol):
     # without setpoints, where it is left after landing), so it is put in launch_mode before they are awaited
     prearm_bit_in_enabled: bool  # SYS_STATUS's PREARM_CHECK counts only when also in `enabled`
     needs_ekf_report: bool  # readiness needs EKF_STATUS_REPORT (else SYS_STATUS's pre-arm bit alone)
-    geofence: bool  # the ground station can install its obstacle fence (gcs_swarm.flight.geofence) on it
+    geofence: bool  # the ground station can install its fence (gcs_swarm.flight.geofence) on it
     typed_params: bool  # PARAM_SET must carry the parameter's own MAV_PARAM_TYPE (read it first)
     unsupported_streams: frozenset[str]  # telemetry messages this autopilot does not have
 
@@ -71,6 +71,11 @@ class AutopilotDialect(Protocol):
     def flight_params(self, failsafe: FailsafeSettings) -> list[tuple[str, float]]:
         """(name, value) the flight sets: what the vehicle does when the ground station goes silent, and
         whatever else flying its attitude targets needs."""
+        ...
+
+    def fence_params(self, action: str) -> list[tuple[str, float]]:
+        """(name, value) that make the uploaded fence items act (restored after the flight): a breach does
+        `action` ("report", "rtl", "land", "brake": safety.dead_gcs.fence.action)."""
         ...
 
     def is_angle_boost_on(self, value: float) -> bool:

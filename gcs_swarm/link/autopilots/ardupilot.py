@@ -86,6 +86,8 @@ _GPS_FIX_NAMES = {
 
 # FS_GCS_ENABLE values (ArduCopter/events.cpp failsafe_gcs_on_event): 1 RTL, 5 Land, 7 Brake or Land
 FS_GCS_ENABLE = {"off": 0, "rtl": 1, "land": 5, "brake": 7}
+FENCE_TYPE_POLYGON = 4  # FENCE_TYPE bit 2: inclusion/exclusion circles and polygons (AC_Fence.h)
+FENCE_ACTION = {"report": 0, "rtl": 1, "land": 2, "brake": 4}  # Copter FENCE_ACTION values (AC_Fence.cpp)
 GUID_OPTIONS_THRUST = 8  # bit 3: SET_ATTITUDE_TARGET thrust is normalised collective thrust (not climb rate)
 
 
@@ -150,6 +152,16 @@ class ArduPilotDialect:
             ("FS_GCS_ENABLE", float(FS_GCS_ENABLE[failsafe.action])),
             ("FS_GCS_TIMEOUT", float(failsafe.gcs_loss_s)),
             ("GUID_TIMEOUT", float(failsafe.guided_timeout_s)),
+        ]
+
+    def fence_params(self, action: str) -> list[tuple[str, float]]:
+        """FENCE_TYPE = 4 exactly (inclusion/exclusion circles and polygons, AC_Fence.h; the max-altitude and
+        home-circle fences of the default 7 would stop missions flying far or high), FENCE_ACTION (`action`
+        as Copter numbers it, AC_Fence.cpp), FENCE_ENABLE = 1 (AC_Fence::update)."""
+        return [
+            ("FENCE_TYPE", float(FENCE_TYPE_POLYGON)),
+            ("FENCE_ACTION", float(FENCE_ACTION[action])),
+            ("FENCE_ENABLE", 1.0),
         ]
 
     def is_angle_boost_on(self, value: float) -> bool:

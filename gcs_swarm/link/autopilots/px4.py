@@ -48,6 +48,12 @@ OFFBOARD_LOSS_ACTION = {"off": 5, "brake": 5, "rtl": 3, "land": 4}  # "off": Hol
 COM_OF_LOSS_T_RANGE = (0.0, 60.0)  # s (commander_params.c COM_OF_LOSS_T @min 0 @max 60)
 COM_DL_LOSS_T_RANGE = (5.0, 300.0)  # s (commander_params.c COM_DL_LOSS_T @min 5 @max 300)
 
+# GF_ACTION (src/modules/navigator/geofence_params.c): 0 None, 1 Warning, 2 Hold mode, 3 Return mode,
+# 4 Terminate, 5 Land mode; failsafe.cpp fromGfActParam makes it the geofence_breached failsafe's action.
+# The mission's safety.dead_gcs.fence.action -> GF_ACTION: "brake" is Hold (a multicopter in AUTO.LOITER
+# stops and holds where it is, as ArduCopter's BRAKE), "report" is Warning (a message, no mode change).
+GEOFENCE_ACTION = {"report": 1, "brake": 2, "rtl": 3, "land": 5}
+
 # OFFBOARD is refused until offboard setpoints have streamed for a while (Commander: offboard control mode
 # available once `offboard_control_signal_lost` is false; mavlink_receiver publishes offboard_control_mode
 # with every SET_ATTITUDE_TARGET / SET_POSITION_TARGET_*; the PX4 offboard docs: stream at > 2 Hz for > 1 s
@@ -114,7 +120,7 @@ class PX4Dialect:
     arm_checks_follow_mode = True
     prearm_bit_in_enabled = False
     needs_ekf_report = False  # PX4 sends no EKF_STATUS_REPORT: readiness is SYS_STATUS's pre-arm bit
-    geofence = False  # [add] not yet: PX4 takes fence items too, but its GF_* parameters differ
+    geofence = True  # fence items over the mission protocol (mavlink_mission.cpp), acted on by GF_ACTION
     typed_params = True  # PARAM_SET must carry the parameter's own MAV_PARAM_TYPE
     unsupported_streams: frozenset[str] = frozenset({"EKF_STATUS_REPORT"})
 
@@ -180,6 +186,13 @@ class PX4Dialect:
             # an INT32 parameter (commander_params.c): whole seconds, rounded up (the longer wait is safer)
             ("COM_DL_LOSS_T", float(math.ceil(np.clip(failsafe.gcs_loss_s, *COM_DL_LOSS_T_RANGE)))),
         ]
+
+    def fence_params(self, action: str) -> list[tuple[str, float]]:
+        """GF_ACTION (GEOFENCE_ACTION[action]). PX4 checks every uploaded inclusion/exclusion zone whenever
+        it has them (navigator Geofence::checkAll, isInsidePolygonOrCircle), so no enable or type parameter
+        exists; its home-distance and height fences GF_MAX_HOR_DIST / GF_MAX_VER_DIST are 0 (off) by default
+        and left as the vehicle has them, as is GF_PREDICT (0 by default: a breach is the crossing itself)."""
+        return [("GF_ACTION", float(GEOFENCE_ACTION[action]))]
 
     def is_angle_boost_on(self, value: float) -> bool:
         """PX4 has no angle boost on offboard thrust."""

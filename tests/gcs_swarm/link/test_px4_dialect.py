@@ -141,3 +141,9 @@ def test_px4_pre_arm_bit_is_read_from_health_alone(gated: bool, health: int, pre
     state.prearm_gated[0] = True  # ArduPilot's reading of the same words: not enabled, so never checked
     telemetry.handlers["SYS_STATUS"](_sys_status(0x0300402F, 0x0301402F, 0x0321C83F))
     assert state.prearm[0] == 1
+
+
+@pytest.mark.parametrize(("action", "expected"), [("report", 1), ("brake", 2), ("rtl", 3), ("land", 5)])
+def test_the_fence_action_is_gf_action(action: str, expected: int) -> None:
+    # src/modules/navigator/geofence_params.c: 1 Warning, 2 Hold mode, 3 Return mode, 5 Land mode
+    assert PX4.fence_params(action) == [("GF_ACTION", float(expected))]

@@ -21,8 +21,8 @@ LAT, LON = -350_000_000, 1_490_000_000  # the in-process simulator's home, degE7
 class Bench:
     """One in-process vehicle; `send` hands it a message from a ground station, `got` collects its answers."""
 
-    def __init__(self) -> None:
-        self.sim = Simulator(in_process_config([[0.0, 0.0, 0.0]]))
+    def __init__(self, autopilots: tuple[str, ...] = ()) -> None:
+        self.sim = Simulator(in_process_config([[0.0, 0.0, 0.0]], autopilots=autopilots))
         self.endpoint = self.sim.endpoints[0]
         self.gcs = M.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
         self.other = M.MAVLink(None, srcSystem=254, srcComponent=GCS_COMPID)
@@ -326,3 +326,41 @@ def test_a_small_fence_over_a_bigger_one_is_erased_as_by_arducopter_sitl():
         assert bench.download() == [CIRCLE]
     finally:
         bench.close()
+
+
+def _requests_of_an_upload(bench: Bench, items: list[tuple[int, float, int, int]]) -> list[str]:
+    """Upload `items` answering each request with MISSION_ITEM_INT; the request messages' types, in order."""
+    bench.send(bench.gcs.mission_count_encode(1, 1, len(items), FENCE))
+    kinds = []
+    for _ in range(len(items)):
+        (request,) = [m for m in bench.got if m.get_type().startswith("MISSION_REQUEST")]
+        bench.got.remove(request)
+        kinds.append(request.get_type())
+        command, param1, lat, lon = items[request.seq]
+        bench.send(bench.item(request.seq, command, param1, lat, lon))
+    assert bench.acks() == [M.MAV_MISSION_ACCEPTED]
+    return kinds
+
+
+def test_px4_asks_with_mission_request_int_once_the_peer_spoke_int():
+    # mavlink_mission.cpp: send_mission_request uses MISSION_REQUEST_INT when _int_mode, which
+    # MISSION_REQUEST_INT and MISSION_ITEM_INT set; ArduPilot always asks with MISSION_REQUEST
+    triangle = [
+        (f.POLYGON_INCLUSION, 3.0, LAT + dlat, LON + dlon) for dlat, dlon in ((0, 0), (900, 0), (0, 900))
+    ]
+    px4, apm = Bench(("px4",)), Bench()
+    try:
+        # a fresh PX4 vehicle: float mode until an _INT message; the items of this upload are _INT
+        assert _requests_of_an_upload(px4, triangle) == ["MISSION_REQUEST"] + ["MISSION_REQUEST_INT"] * 2
+        assert px4.download() == triangle  # stored as sent, read back with MISSION_REQUEST_INT
+        assert _requests_of_an_upload(px4, triangle) == ["MISSION_REQUEST_INT"] * 3
+        apm.download()
+        assert _requests_of_an_upload(apm, triangle) == ["MISSION_REQUEST"] * 3
+        # an item of the wrong seq: ArduPilot answers INVALID_SEQUENCE, PX4 nothing (handle_mission_item_both)
+        for bench in (px4, apm):
+            bench.send(bench.gcs.mission_count_encode(1, 1, 3, FENCE))
+            bench.send(bench.item(2, f.POLYGON_INCLUSION, 3.0))
+        assert px4.acks() == [] and apm.acks() == [M.MAV_MISSION_INVALID_SEQUENCE]
+    finally:
+        px4.sim.close()
+        apm.sim.close()
