@@ -109,3 +109,15 @@ class ArduCopter(Persona):
     def fence_cleared(self, i: int) -> None:
         """ArduCopter/fence.cpp fence_check: "Fence breach cleared"."""
         self.ap.say(i, M.MAV_SEVERITY_NOTICE, "Fence breach cleared")
+
+    def rtl_destination(self, i: int) -> np.ndarray:
+        """AP_Rally::calc_best_rally_or_home_location: the nearest rally point within RALLY_LIMIT_KM, unless
+        RALLY_INCL_HOME and home is nearer (sitl_sim.autopilot.rally)."""
+        ap = self.ap
+        return ap.rally.arducopter_destination(
+            i,
+            ap.state.pos[i],
+            ap.home[i],
+            ap.params.value(i, "RALLY_LIMIT_KM"),
+            bool(ap.params.value(i, "RALLY_INCL_HOME")),
+        )

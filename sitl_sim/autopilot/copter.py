@@ -67,6 +67,7 @@ from sitl_sim.autopilot.outer_loop import (
 )
 from sitl_sim.autopilot.params import ParamTable
 from sitl_sim.autopilot.persona import Persona
+from sitl_sim.autopilot.rally import RallyItem, RallyPoints
 from sitl_sim.autopilot.registry import fleet_personas
 from sitl_sim.vehicle_model.attitude_control import level_quat, yaw_from_quat
 from sitl_sim.vehicle_model.dynamics import FleetDynamics
@@ -144,6 +145,8 @@ class Autopilot:
         self.climb_cap = np.full(n, np.inf)
         self.texts: list[list[tuple[int, str]]] = [[] for _ in range(n)]
         self.fence = fences.Fences(n)  # geofences and their breach state (sitl_sim.autopilot.fence)
+        self.rally = RallyPoints(n)  # rally points (sitl_sim.autopilot.rally)
+        self.rtl_dest = self.home.copy()  # (N,3) ENU m where RTL returns: set as RTL starts (enter_mode)
         self.fence_log: list[str] = []  # breaches and their actions, for the simulator's log (stderr)
         self._rate_control = False  # some vehicle was under rate-only control at the last tick
         self._columns = np.array([params.column_index(name) for name in LOOP_PARAMS], dtype=np.int64)
@@ -153,7 +156,7 @@ class Autopilot:
             if kind.descent_profile == DESCENT_INTERPOLATED:
                 descent_columns[row] = [params.column_index(name) for name in kind.descent_params]
         s = self.state
-        self._vehicles = Vehicles(s.pos, s.vel, s.quat, s.landed, s.crashed, self.home)
+        self._vehicles = Vehicles(s.pos, s.vel, s.quat, s.landed, s.crashed, self.home, self.rtl_dest)
         self._modes = Modes(
             self.mode, self.armed, self.control, self.rtl_stage, self.takeoff_active, self.land_complete,
             self.land_timer, self.disarm_timer, self.target_time, self.last_gcs_heartbeat, self.failsafe_gcs,
@@ -507,6 +510,13 @@ class Autopilot:
         for i in np.flatnonzero((new != 0) & self.armed):
             self.persona(int(i)).fence_breached(int(i), int(new[i]), t)
 
+    def store_rally(self, i: int, items: list[RallyItem], xy: np.ndarray) -> None:
+        """Vehicle i's uploaded rally points, xy (K,2) their ENU horizontal positions m (each alt_m above
+        home); RALLY_TOTAL follows (AP_Rally::append: _rally_point_total_count.set_and_save)."""
+        z = self.home[i, 2] + np.array([item.alt_m for item in items], dtype=float)
+        self.rally.store(i, items, np.column_stack([np.asarray(xy, dtype=float).reshape(-1, 2), z]))
+        self.params.set(i, "RALLY_TOTAL", len(items))
+
     def fence_action(self, i: int, new: int, t: float) -> None:
         """ArduCopter/fence.cpp: vehicle i has newly breached the fences `new` (FENCE_TYPE bits) at simulated
         time t: "<fences> breached", then FENCE_ACTION (see _fence_check); logged for the simulator."""
@@ -576,6 +586,7 @@ class Autopilot:
             self.nav_vel[i] = (vel[0], vel[1], 0.0)
             self.nav_kind[i] = KIND_BRAKE
         elif mode == RTL:
+            self.rtl_dest[i] = self.persona(i).rtl_destination(i)
             rtl_alt = self.home[i, 2] + self.params.value(i, "RTL_ALT") / 100.0
             self.nav_pos[i] = (pos[0], pos[1], max(pos[2], rtl_alt))
         elif mode == LAND:  # ModeLand::init: loiter_nav's stop (shaped like BRAKE's, LOIT_BRK_*), descending

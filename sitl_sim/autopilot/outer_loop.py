@@ -69,7 +69,8 @@ D_ALT_FAST, D_ALT_SLOW, D_ALT_CRAWL, D_CRAWL_SPEED, D_SLOW_SPEED, D_FAST_SPEED, 
 
 class Vehicles(NamedTuple):
     """The physics' state the loop reads: pos, vel (N,3) ENU m, m/s; quat (N,4) body FLU -> world ENU; landed,
-    crashed (N,) bool; home (N,3) ENU m."""
+    crashed (N,) bool; home (N,3) ENU m; rtl_dest (N,3) ENU m, where RTL returns and lands (home or a rally
+    point, chosen by the persona as RTL starts)."""
 
     pos: np.ndarray
     vel: np.ndarray
@@ -77,6 +78,7 @@ class Vehicles(NamedTuple):
     landed: np.ndarray
     crashed: np.ndarray
     home: np.ndarray
+    rtl_dest: np.ndarray
 
 
 class Modes(NamedTuple):
@@ -224,7 +226,7 @@ def outer_loop(
     (len LOOP_PARAMS,) the column of each LOOP_PARAMS entry; g m/s^2. Updates the records in place and writes
     `out`.
     """
-    pos, vel, quat, landed, crashed, home = vehicles
+    pos, vel, quat, landed, crashed, home, rtl_dest = vehicles
     (
         mode, armed, control, rtl_stage, takeoff_active, land_complete,
         land_timer, disarm_timer, target_time, last_gcs_heartbeat, failsafe_gcs,
@@ -268,11 +270,11 @@ def outer_loop(
             takeoff_active[i] = False
         if m == RTL and armed[i]:
             if rtl_stage[i] == RTL_CLIMB and pos[i, 2] >= nav_pos[i, 2] - 0.5:
-                nav_pos[i, 0], nav_pos[i, 1] = home[i, 0], home[i, 1]
+                nav_pos[i, 0], nav_pos[i, 1] = rtl_dest[i, 0], rtl_dest[i, 1]
                 rtl_stage[i] = RTL_RETURN
             elif (
                 rtl_stage[i] == RTL_RETURN
-                and math.hypot(pos[i, 0] - home[i, 0], pos[i, 1] - home[i, 1]) < RTL_REACHED_M
+                and math.hypot(pos[i, 0] - rtl_dest[i, 0], pos[i, 1] - rtl_dest[i, 1]) < RTL_REACHED_M
             ):
                 nav_pos[i, 2] = math.nan
                 rtl_stage[i] = RTL_DESCEND

@@ -91,6 +91,10 @@ def param_specs(hover_fraction: float, names: str = "4.7") -> tuple[ParamSpec, .
         ParamSpec("PSC_VELXY_P", REAL32, 2.0, 0.1, 6.0, "1/s", "horizontal velocity P"),
         ParamSpec("PSC_VELZ_I", REAL32, 2.0, 0.0, 10.0, "1/s^2", "vertical velocity I"),
         ParamSpec("PSC_VELZ_P", REAL32, 5.0, 1.0, 8.0, "1/s", "vertical velocity P"),
+        # rally points (libraries/AP_Rally/AP_Rally.cpp var_info, Copter defaults; sitl_sim.autopilot.rally)
+        ParamSpec("RALLY_INCL_HOME", INT8, 1, 0, 1, "", "RTL goes home when nearer than any rally point"),
+        ParamSpec("RALLY_LIMIT_KM", REAL32, 0.3, 0.0, 50.0, "km", "rally points further than this: home"),
+        ParamSpec("RALLY_TOTAL", INT8, 0, 0, 100, "", "number of stored rally points"),
         ParamSpec("RTL_ALT", INT32, 1500, 200, 300000, "cm", "minimum return altitude above home"),
         ParamSpec("SIM_LINK_CORRUPT", REAL32, 0.0, 0.0, 1.0, "", "link: probability a packet is corrupted"),
         ParamSpec("SIM_LINK_DELAY", REAL32, 0.0, 0.0, 10000.0, "ms", "link: one-way delay (simulated ms)"),

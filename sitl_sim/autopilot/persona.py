@@ -119,6 +119,10 @@ class Persona:
     def after_loop(self, t: float, events: np.ndarray) -> None:
         """Its rules after the shared loop's tick; events (N,): the loop's outer_loop.EVENT_* per vehicle."""
 
+    def rtl_destination(self, i: int) -> np.ndarray:
+        """Where vehicle i's RTL, starting now, returns and lands (3,) ENU m: its home (no rally points)."""
+        return np.asarray(self.ap.home[i].copy())
+
     def fence_breached(self, i: int, new: int, t: float) -> None:
         """Armed vehicle i newly breached its fences `new` (sitl_sim.autopilot.fence bits) at simulated
         time t: its autopilot's answer."""

@@ -143,6 +143,7 @@ def param_specs(hover_fraction: float) -> tuple[ParamSpec, ...]:
         ParamSpec("RTL_CONE_ANG", INT32, 45, 0, 90, "deg", "RTL cone half angle (0: always return alt)"),
         ParamSpec("RTL_MIN_DIST", REAL32, 10.0, 0.5, 100.0, "m", "closer to home: the cone limits the climb"),
         ParamSpec("RTL_RETURN_ALT", REAL32, 60.0, 0.0, 150.0, "m", "return altitude above home"),
+        ParamSpec("RTL_TYPE", INT32, 0, 0, 5, "", "RTL: 0 closest of home/rally, 1 rally before home"),
     )
 
 
@@ -635,16 +636,22 @@ class Px4(Persona):
                 self.takeoff_vz[i], self.takeoff_az[i] = float(ap.state.vel[i, 2]), 0.0
             ap.climb_to(i, float(self.takeoff_z[i]))
 
+    def rtl_destination(self, i: int) -> np.ndarray:
+        """navigator rtl.cpp findRtlDestination by RTL_TYPE over home and the safe points
+        (sitl_sim.autopilot.rally)."""
+        ap = self.ap
+        return ap.rally.px4_destination(i, ap.state.pos[i], ap.home[i], int(ap.params.value(i, "RTL_TYPE")))
+
     def return_altitude(self, i: int) -> float:
         """World height (m) vehicle i returns at in AUTO.RTL: navigator rtl.cpp
-        RTL::calculate_return_alt_from_cone_half_angle for the home destination (RTL_TYPE 0, no rally points
-        or mission landing here), used for rotary wings when RTL_CONE_ANG > 0 (RTL::findRtlDestination; else
-        max(current, home + RTL_RETURN_ALT)): within NAV_ACC_RAD of home 2x the horizontal distance d; beyond
-        it RTL_RETURN_ALT, lowered within RTL_MIN_DIST to the cone's d / tan(RTL_CONE_ANG clamped to 1..89
-        deg), and at least 2 x NAV_ACC_RAD; never below the current altitude (RtlDirect climbs only if
-        lower)."""
+        RTL::calculate_return_alt_from_cone_half_angle for its destination (home or a safe point, the
+        Autopilot's rtl_dest, chosen first), used for rotary wings when RTL_CONE_ANG > 0
+        (RTL::findRtlDestination; else max(current, destination + RTL_RETURN_ALT)): within NAV_ACC_RAD of the
+        destination 2x the horizontal distance d; beyond it RTL_RETURN_ALT, lowered within RTL_MIN_DIST to the
+        cone's d / tan(RTL_CONE_ANG clamped to 1..89 deg), and at least 2 x NAV_ACC_RAD; never below the
+        current altitude (RtlDirect climbs only if lower)."""
         p = self.ap.params
-        pos, home = self.ap.state.pos[i], self.ap.home[i]
+        pos, home = self.ap.state.pos[i], self.ap.rtl_dest[i]
         cone_deg = p.value(i, "RTL_CONE_ANG")
         return_alt = home[2] + p.value(i, "RTL_RETURN_ALT")
         if cone_deg > 0:

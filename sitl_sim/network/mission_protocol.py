@@ -1,6 +1,6 @@
-"""The MAVLink mission protocol of one simulated vehicle, for geofence items (mission_type FENCE), as
-ArduPilot answers it (libraries/GCS_MAVLink/MissionItemProtocol.cpp, MissionItemProtocol_Fence.cpp,
-GCS_Common.cpp):
+"""The MAVLink mission protocol of one simulated vehicle, for geofence items (mission_type FENCE) and rally
+points (mission_type RALLY), as ArduPilot answers it (libraries/GCS_MAVLink/MissionItemProtocol.cpp,
+MissionItemProtocol_Fence.cpp, GCS_Common.cpp):
 
 - upload: MISSION_COUNT(count, FENCE) -> the vehicle asks MISSION_REQUEST(seq, FENCE) for seq 0.. (ArduPilot
   asks with MISSION_REQUEST, id 40, not MISSION_REQUEST_INT: MissionItemProtocol::queued_request_send),
@@ -23,7 +23,13 @@ GCS_Common.cpp):
   (_int_mode; the float forms switch it back), and it ignores an item of the wrong seq without an answer
   (handle_mission_item_both). Its fence is validated as ArduPilot's (PX4 refuses a polygon of fewer than 3
   vertices with ERROR as well; its dataman limits are not simulated).
-- other mission types: this simulator keeps no mission (AUTO) nor rally points, so MISSION_COUNT,
+- rally points (mission_type RALLY, MissionItemProtocol_Rally.cpp): the same transfers with
+  MAV_CMD_NAV_RALLY_POINT items (another command: UNSUPPORTED) in frame GLOBAL_RELATIVE_ALT(_INT) (another:
+  UNSUPPORTED_FRAME), z metres above home stored as a whole number (RallyLocation.alt, an int16; outside it
+  INVALID_PARAM7); downloaded in frame GLOBAL_RELATIVE_ALT. Stored on completion (AP_Rally, RALLY_TOTAL) and
+  used by RTL (sitl_sim.autopilot.rally). One transfer runs at a time, whatever its type (as PX4's single
+  MavlinkMissionManager; ArduPilot runs one per type). "Rally upload timeout" after 8 s.
+- other mission types: this simulator keeps no mission (AUTO), so MISSION_COUNT,
   MISSION_REQUEST_LIST, MISSION_CLEAR_ALL, MISSION_WRITE_PARTIAL_LIST and items of those types are answered
   MISSION_ACK UNSUPPORTED (what ArduPilot answers for a type it has no protocol for, MAV_MISSION_TYPE_ALL
   too); MISSION_REQUEST(_INT) of them get no answer (GCS_MAVLINK::handle_mission_request_int, no protocol).
@@ -48,11 +54,19 @@ from sitl_sim.autopilot.fence import (
     FenceItem,
     validate,
 )
+from sitl_sim.autopilot.rally import RallyItem
 from sitl_sim.network.counters import LinkCounters
 from sitl_sim.network.outbox import Outbox
 from sitl_sim.network.services import SimulatorServices
 
 FENCE = mavlink2.MAV_MISSION_TYPE_FENCE
+RALLY = mavlink2.MAV_MISSION_TYPE_RALLY
+SERVED = (FENCE, RALLY)
+# MissionItemProtocol_Fence::timeout, MissionItemProtocol_Rally::timeout
+TIMEOUT_TEXT = {FENCE: "Fence upload timeout", RALLY: "Rally upload timeout"}
+RALLY_POINT = mavlink2.MAV_CMD_NAV_RALLY_POINT
+RALLY_FRAMES = (mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
+INT16 = (-32768, 32767)  # RallyLocation.alt m
 UPLOAD_TIMEOUT_S = 8.0  # MissionItemProtocol upload_timeout_ms
 REQUEST_RESEND_S = 1.0  # MissionItemProtocol::update wp_recv_timeout_ms (1000 + stream slowdown)
 ITEM_FRAMES = (
@@ -66,8 +80,8 @@ ITEM_FRAMES = (
 
 
 class FenceProtocol:
-    """Mission-protocol state of vehicle `index` (fence uploads, downloads and clears), served by `sim`;
-    replies go to `outbox`, refusals to `counters`."""
+    """Mission-protocol state of vehicle `index` (fence and rally uploads, downloads and clears), served by
+    `sim`; replies go to `outbox`, refusals to `counters`."""
 
     def __init__(self, index: int, counters: LinkCounters, outbox: Outbox, sim: SimulatorServices) -> None:
         self.index = index
@@ -75,10 +89,11 @@ class FenceProtocol:
         self.outbox = outbox
         self.sim = sim
         self.receiving = False
+        self.mission_type = FENCE  # of the upload running (or the last one)
         self.dest = (0, 0)  # (sysid, compid) of the uploader
         self.request_i = 0
         self.request_last = -1
-        self.new_items: list[FenceItem | None] = []
+        self.new_items: list[FenceItem | RallyItem | None] = []
         self.last_receive = 0.0
         self.last_request = 0.0
         self.int_mode = False  # the peer last used MISSION_REQUEST_INT / MISSION_ITEM_INT (PX4's _int_mode)
@@ -98,7 +113,10 @@ class FenceProtocol:
 
     # --- replies --------------------------------------------------------------------------------------------
 
-    def _ack(self, msg: mavlink2.MAVLink_message, result: int, mission_type: int = FENCE) -> None:
+    def _ack(self, msg: mavlink2.MAVLink_message, result: int, mission_type: int | None = None) -> None:
+        """MISSION_ACK `result` to msg's sender, of `mission_type` (None: msg's own)."""
+        if mission_type is None:
+            mission_type = int(getattr(msg, "mission_type", FENCE))
         if result != mavlink2.MAV_MISSION_ACCEPTED:
             self.counters.refused += 1
         self.outbox.send(
@@ -119,18 +137,34 @@ class FenceProtocol:
         MISSION_REQUEST_INT once the peer spoke the _INT messages (mavlink_mission.cpp send_mission_request:
         _int_mode, set by MISSION_REQUEST_INT / MISSION_ITEM_INT, cleared by their float forms)."""
         if self.int_mode and self._px4():
-            request = self.outbox.tx.mission_request_int_encode(*self.dest, self.request_i, FENCE)
+            request = self.outbox.tx.mission_request_int_encode(*self.dest, self.request_i, self.mission_type)
         else:
-            request = self.outbox.tx.mission_request_encode(*self.dest, self.request_i, FENCE)
+            request = self.outbox.tx.mission_request_encode(*self.dest, self.request_i, self.mission_type)
         self.outbox.send(request)
         self.last_request = self.sim.t
 
     # --- handlers -------------------------------------------------------------------------------------------
 
-    def _fence(self, msg: mavlink2.MAVLink_message) -> bool:
-        """Whether msg is about the fence; other mission types are answered UNSUPPORTED (no store)."""
-        mission_type = int(getattr(msg, "mission_type", 0))
+    def _stored(self, mission_type: int) -> tuple[FenceItem, ...] | tuple[RallyItem, ...]:
+        """The vehicle's stored items of `mission_type` (FENCE or RALLY)."""
+        autopilot, i = self.sim.autopilot, self.index
+        return autopilot.fence.items[i] if mission_type == FENCE else autopilot.rally.items[i]
+
+    def _store(self, mission_type: int, items: list) -> None:  # type: ignore[type-arg]
+        """Keep `items` as the vehicle's whole fence or rally list (rally points placed in the ENU frame)."""
         if mission_type == FENCE:
+            self.sim.store_fence(self.index, items)
+            return
+        xy = np.zeros((len(items), 2))
+        geodesy = self.sim.geodesy
+        for k, item in enumerate(items):
+            xy[k] = geodesy.to_enu(item.lat_e7 * 1e-7, item.lon_e7 * 1e-7, geodesy.alt0)[:2]
+        self.sim.autopilot.store_rally(self.index, items, xy)
+
+    def _fence(self, msg: mavlink2.MAVLink_message) -> bool:
+        """Whether msg is about a served mission type (FENCE, RALLY); others are answered UNSUPPORTED."""
+        mission_type = int(getattr(msg, "mission_type", 0))
+        if mission_type in SERVED:
             return True
         if msg.get_msgId() not in (
             mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_INT,
@@ -154,11 +188,12 @@ class FenceProtocol:
     def _on_count(self, msg: mavlink2.MAVLink_mission_count_message) -> None:
         if not self._fence(msg) or not self._cancel_upload(msg):
             return
-        if msg.count > MAX_ITEMS:
+        if msg.mission_type == FENCE and msg.count > MAX_ITEMS:
             self._ack(msg, mavlink2.MAV_MISSION_NO_SPACE)
             self._say(mavlink2.MAV_SEVERITY_WARNING, f"Only {MAX_ITEMS} items are supported")
             return
         self.new_items = [None] * msg.count
+        self.mission_type = int(msg.mission_type)
         if msg.count == 0:
             self._complete(msg)
             return
@@ -170,13 +205,14 @@ class FenceProtocol:
         if self.receiving:
             self._ack(msg, mavlink2.MAV_MISSION_DENIED)
             return
-        stored = self.sim.autopilot.fence.items[self.index]
+        stored = self._stored(int(msg.mission_type))
         start, end = msg.start_index, msg.end_index
         if start > len(stored) or end > len(stored) or end < start or start < 0:
             self._say(mavlink2.MAV_SEVERITY_WARNING, "Flight plan update rejected")
             self._ack(msg, mavlink2.MAV_MISSION_ERROR)
             return
         self.new_items = list(stored)
+        self.mission_type = int(msg.mission_type)
         self._start(msg, start, end)
 
     def _start(self, msg: mavlink2.MAVLink_message, first: int, last: int) -> None:
@@ -204,8 +240,8 @@ class FenceProtocol:
             if not self._item_warned:
                 self._item_warned = True
                 self._say(mavlink2.MAV_SEVERITY_WARNING, "got MISSION_ITEM; GCS should send MISSION_ITEM_INT")
-        if not self.receiving:
-            self._ack(msg, mavlink2.MAV_MISSION_ERROR)
+        if not self.receiving or msg.mission_type != self.mission_type:
+            self._ack(msg, mavlink2.MAV_MISSION_ERROR, int(msg.mission_type))
             return
         if msg.seq != self.request_i:
             if not self._px4():  # PX4 ignores it silently (handle_mission_item_both); both go on
@@ -220,7 +256,7 @@ class FenceProtocol:
         else:
             item, result = self._convert(msg, deprecated)
         if item is None:
-            self._ack(msg, result)
+            self._ack(msg, result, self.mission_type)
             self.receiving = False
             return
         self.new_items[msg.seq] = item
@@ -231,10 +267,15 @@ class FenceProtocol:
             return
         self._send_request()
 
-    def _convert(self, msg: mavlink2.MAVLink_message, deprecated: bool) -> tuple[FenceItem | None, int]:
-        """MISSION_ITEM(_INT) -> FenceItem, or (None, the MAV_MISSION_RESULT refusing it)
+    def _convert(
+        self, msg: mavlink2.MAVLink_message, deprecated: bool
+    ) -> tuple[FenceItem | RallyItem | None, int]:
+        """MISSION_ITEM(_INT) -> FenceItem or RallyItem, or (None, the MAV_MISSION_RESULT refusing it)
         (MissionItemProtocol_Fence::convert_MISSION_ITEM_INT_to_AC_PolyFenceItem). What the conversion lets
         through (a NaN or negative radius, a vertex count of 0) is refused when the fence is validated."""
+        scale = 1e7 if deprecated else 1.0  # AP_Mission::convert_MISSION_ITEM_to_MISSION_ITEM_INT
+        if self.mission_type == RALLY:
+            return self._convert_rally(msg, scale)
         if msg.frame not in ITEM_FRAMES:
             return None, mavlink2.MAV_MISSION_UNSUPPORTED_FRAME
         if msg.command not in FENCE_COMMANDS:
@@ -248,36 +289,59 @@ class FenceProtocol:
             param1 = float(int(param1)) if math.isfinite(param1) and param1 >= 0 else 0.0  # a uint8 count
         else:
             param1 = float(np.float32(param1))  # the radius is stored as a float
-        scale = 1e7 if deprecated else 1.0  # AP_Mission::convert_MISSION_ITEM_to_MISSION_ITEM_INT
         lat, lon = round(float(msg.x) * scale), round(float(msg.y) * scale)
         return FenceItem(int(msg.command), lat, lon, param1), mavlink2.MAV_MISSION_ACCEPTED
+
+    def _convert_rally(self, msg: mavlink2.MAVLink_message, scale: float) -> tuple[RallyItem | None, int]:
+        """MissionItemProtocol_Rally::convert_MISSION_ITEM_INT_to_RallyLocation: the command, the frame, the
+        position, z as an int16 of metres (a C conversion: truncated)."""
+        if msg.command != RALLY_POINT:
+            return None, mavlink2.MAV_MISSION_UNSUPPORTED
+        if msg.frame not in RALLY_FRAMES:
+            return None, mavlink2.MAV_MISSION_UNSUPPORTED_FRAME
+        lat, lon = round(float(msg.x) * scale), round(float(msg.y) * scale)
+        if abs(lat) > 900_000_000:  # check_lat
+            return None, mavlink2.MAV_MISSION_INVALID_PARAM5_X
+        if abs(lon) > 1_800_000_000:  # check_lng
+            return None, mavlink2.MAV_MISSION_INVALID_PARAM6_Y
+        z = float(msg.z)
+        if not (math.isfinite(z) and INT16[0] <= z <= INT16[1]):
+            self.counters.invalid += 0 if math.isfinite(z) else 1
+            return None, mavlink2.MAV_MISSION_INVALID_PARAM7
+        return RallyItem(lat, lon, float(math.trunc(z))), mavlink2.MAV_MISSION_ACCEPTED
 
     def _complete(self, msg: mavlink2.MAVLink_message) -> None:
         """MissionItemProtocol::transfer_is_complete: validate and store, then ACK."""
         self.receiving = False
         items = [item for item in self.new_items if item is not None]
+        kind = self.mission_type
         if len(items) != len(self.new_items):
             self._say(mavlink2.MAV_SEVERITY_INFO, "Error replacing item")
-            self._ack(msg, mavlink2.MAV_MISSION_ERROR)
+            self._ack(msg, mavlink2.MAV_MISSION_ERROR, kind)
             return
-        problem = validate(items)
+        if kind == RALLY:
+            self._store(RALLY, items)
+            self._ack(msg, mavlink2.MAV_MISSION_ACCEPTED, RALLY)
+            return
+        problem = validate([item for item in items if isinstance(item, FenceItem)])
         if problem is not None:
             self._say(mavlink2.MAV_SEVERITY_WARNING, problem)
             self._say(mavlink2.MAV_SEVERITY_WARNING, "Fence validation failed")
             self._ack(msg, mavlink2.MAV_MISSION_ERROR)
             return
-        self.sim.store_fence(self.index, items)
+        self._store(FENCE, items)
         self._ack(msg, mavlink2.MAV_MISSION_ACCEPTED)
 
     def _on_request_list(self, msg: mavlink2.MAVLink_mission_request_list_message) -> None:
         if not self._fence(msg):
             return
+        mission_type = int(msg.mission_type)
         if self.receiving:
-            self._ack(msg, mavlink2.MAV_MISSION_DENIED)
+            self._ack(msg, mavlink2.MAV_MISSION_DENIED, mission_type)
             return
-        count = len(self.sim.autopilot.fence.items[self.index])
+        count = len(self._stored(mission_type))
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
-        self.outbox.send(self.outbox.tx.mission_count_encode(sysid, compid, count, FENCE))
+        self.outbox.send(self.outbox.tx.mission_count_encode(sysid, compid, count, mission_type))
 
     def _on_request(self, msg: mavlink2.MAVLink_message) -> None:
         if not self._fence(msg):
@@ -287,32 +351,38 @@ class FenceProtocol:
         if self.receiving and not deprecated:
             self._ack(msg, mavlink2.MAV_MISSION_DENIED)
             return
-        stored = self.sim.autopilot.fence.items[self.index]
+        mission_type = int(msg.mission_type)
+        stored = self._stored(mission_type)
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         if not 0 <= msg.seq < len(stored):
             if not deprecated:
-                self.outbox.send(self.outbox.tx.mission_count_encode(sysid, compid, len(stored), FENCE))
+                count = self.outbox.tx.mission_count_encode(sysid, compid, len(stored), mission_type)
+                self.outbox.send(count)
             self._ack(msg, mavlink2.MAV_MISSION_INVALID_SEQUENCE)
             return
         item = stored[msg.seq]
+        if isinstance(item, RallyItem):  # MissionItemProtocol_Rally::get_item: above home
+            frame, command, param1, z = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT, RALLY_POINT, 0.0, item.alt_m
+        else:
+            frame, command, param1, z = mavlink2.MAV_FRAME_GLOBAL, item.command, item.param1, 0.0
         if deprecated:
             if not self._request_warned:
                 self._request_warned = True
                 self._say(mavlink2.MAV_SEVERITY_WARNING, "got MISSION_REQUEST; use MISSION_REQUEST_INT!")
             self.outbox.send(self.outbox.tx.mission_item_encode(
-                sysid, compid, msg.seq, mavlink2.MAV_FRAME_GLOBAL, item.command, 0, 0, item.param1, 0.0, 0.0,
-                0.0, item.lat_e7 * 1e-7, item.lon_e7 * 1e-7, 0.0, FENCE,
+                sysid, compid, msg.seq, frame, command, 0, 0, param1, 0.0, 0.0, 0.0, item.lat_e7 * 1e-7,
+                item.lon_e7 * 1e-7, z, mission_type,
             ))  # fmt: skip
             return
         self.outbox.send(self.outbox.tx.mission_item_int_encode(
-            sysid, compid, msg.seq, mavlink2.MAV_FRAME_GLOBAL, item.command, 0, 0, item.param1, 0.0, 0.0, 0.0,
-            item.lat_e7, item.lon_e7, 0.0, FENCE,
+            sysid, compid, msg.seq, frame, command, 0, 0, param1, 0.0, 0.0, 0.0, item.lat_e7, item.lon_e7, z,
+            mission_type,
         ))  # fmt: skip
 
     def _on_clear_all(self, msg: mavlink2.MAVLink_mission_clear_all_message) -> None:
         if not self._fence(msg) or not self._cancel_upload(msg):
             return
-        self.sim.store_fence(self.index, [])
+        self._store(int(msg.mission_type), [])
         self._ack(msg, mavlink2.MAV_MISSION_ACCEPTED)
 
     # --- time -----------------------------------------------------------------------------------------------
@@ -325,11 +395,10 @@ class FenceProtocol:
         now = self.sim.t
         if now - self.last_receive > UPLOAD_TIMEOUT_S:
             self.receiving = False
-            self._say(mavlink2.MAV_SEVERITY_WARNING, "Fence upload timeout")
+            self._say(mavlink2.MAV_SEVERITY_WARNING, TIMEOUT_TEXT[self.mission_type])
             self.counters.refused += 1
-            self.outbox.send(
-                self.outbox.tx.mission_ack_encode(*self.dest, mavlink2.MAV_MISSION_OPERATION_CANCELLED, FENCE)
-            )
+            cancelled = mavlink2.MAV_MISSION_OPERATION_CANCELLED
+            self.outbox.send(self.outbox.tx.mission_ack_encode(*self.dest, cancelled, self.mission_type))
             return
         if now - self.last_request > REQUEST_RESEND_S:
             self._send_request()

@@ -6,6 +6,7 @@ simulator is driven message by message (fast and exact); garbage is fuzzed."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -240,7 +241,7 @@ def test_clear_partial_write_and_requests_out_of_range():
 def test_other_mission_types_are_unsupported():
     bench = _bench()
     try:
-        for mission_type in (M.MAV_MISSION_TYPE_MISSION, M.MAV_MISSION_TYPE_RALLY, M.MAV_MISSION_TYPE_ALL):
+        for mission_type in (M.MAV_MISSION_TYPE_MISSION, M.MAV_MISSION_TYPE_ALL):
             bench.send(bench.gcs.mission_count_encode(1, 1, 1, mission_type))
             bench.send(bench.gcs.mission_request_list_encode(1, 1, mission_type))
             bench.send(bench.gcs.mission_clear_all_encode(1, 1, mission_type))
@@ -248,6 +249,71 @@ def test_other_mission_types_are_unsupported():
             acks = bench.take("MISSION_ACK")
             assert [(a.type, a.mission_type) for a in acks] == [(M.MAV_MISSION_UNSUPPORTED, mission_type)] * 3
         assert not bench.got
+    finally:
+        bench.close()
+
+
+RALLY = M.MAV_MISSION_TYPE_RALLY
+
+
+def _rally(
+    bench: Bench, seq: int, lat: int, lon: int, z: float, frame: int = M.MAV_FRAME_GLOBAL_RELATIVE_ALT
+):
+    return bench.gcs.mission_item_int_encode(
+        1, 1, seq, frame, M.MAV_CMD_NAV_RALLY_POINT, 0, 0, 0, 0, 0, 0, lat, lon, z, RALLY
+    )
+
+
+def test_rally_points_upload_download_and_clear_as_arducopter():
+    # MissionItemProtocol_Rally: NAV_RALLY_POINT items above home, z kept as an int16 of metres (C truncation:
+    # 12.7 -> 12), read back in frame GLOBAL_RELATIVE_ALT; RALLY_TOTAL follows the count (AP_Rally::append)
+    bench = _bench()
+    try:
+        points = [(LAT + 3000, LON + 4000, 12.7), (LAT - 900, LON, 30.0)]
+        bench.send(bench.gcs.mission_count_encode(1, 1, len(points), RALLY))
+        for _ in points:
+            (request,) = bench.take("MISSION_REQUEST")
+            assert request.mission_type == RALLY
+            bench.send(_rally(bench, request.seq, *points[request.seq]))
+        assert bench.acks() == [M.MAV_MISSION_ACCEPTED]
+        assert bench.sim.params.value(0, "RALLY_TOTAL") == 2
+        bench.send(bench.gcs.mission_request_list_encode(1, 1, RALLY))
+        (count,) = bench.take("MISSION_COUNT")
+        assert (count.count, count.mission_type) == (2, RALLY)
+        for seq, (lat, lon, _) in enumerate(points):
+            bench.send(bench.gcs.mission_request_int_encode(1, 1, seq, RALLY))
+            (item,) = bench.take("MISSION_ITEM_INT")
+            assert (item.command, item.frame, item.x, item.y, item.mission_type) == (
+                M.MAV_CMD_NAV_RALLY_POINT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, lat, lon, RALLY,
+            )  # fmt: skip
+            assert item.z == [12.0, 30.0][seq]
+        assert bench.download() == []  # the fence is another list
+        # (12.7 m above home; 4000e-7 deg east is ~36.4 m at 35 deg S, 3000e-7 deg north ~33.3 m)
+        assert bench.sim.autopilot.rally.xyz[0][0] == pytest.approx([36.4, 33.3, 12.0], abs=0.2)
+        bench.send(bench.gcs.mission_clear_all_encode(1, 1, RALLY))
+        assert bench.acks() == [M.MAV_MISSION_ACCEPTED] and bench.sim.autopilot.rally.items[0] == ()
+        assert bench.sim.params.value(0, "RALLY_TOTAL") == 0
+    finally:
+        bench.close()
+
+
+def test_rally_items_refused_with_arducopters_codes():
+    bench = _bench()
+    try:
+        wrong_frame = _rally(bench, 0, LAT, LON, 10.0, frame=M.MAV_FRAME_GLOBAL)
+        not_rally = bench.item(0, f.CIRCLE_EXCLUSION, 5.0)
+        not_rally.mission_type = RALLY
+        too_high = _rally(bench, 0, LAT, LON, 40000.0)
+        for item, result in (
+            (wrong_frame, M.MAV_MISSION_UNSUPPORTED_FRAME),
+            (not_rally, M.MAV_MISSION_UNSUPPORTED),
+            (too_high, M.MAV_MISSION_INVALID_PARAM7),
+        ):
+            bench.send(bench.gcs.mission_count_encode(1, 1, 1, RALLY))
+            bench.take("MISSION_REQUEST")
+            bench.send(item)
+            assert bench.acks() == [result]
+        assert bench.sim.autopilot.rally.items[0] == ()
     finally:
         bench.close()
 
