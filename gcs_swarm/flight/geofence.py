@@ -60,6 +60,15 @@ it re-asks) and answers MISSION_ACK ACCEPTED after the last item, or ERROR (for 
 than 3 vertices), or NO_SPACE. It checks every stored zone whenever it has some (Geofence::checkAll: outside
 every inclusion zone or inside an exclusion zone is a breach), says "Geofence violation", and its failsafe
 acts as GF_ACTION says (commander failsafe.cpp fromGfActParam).
+
+Rally points (`rally_items`, the mission's safety.rally, whenever it has some) go up the same way with
+mission_type RALLY: MAV_CMD_NAV_RALLY_POINT items in frame GLOBAL_RELATIVE_ALT, z the height above home in
+whole metres (ArduPilot: MissionItemProtocol_Rally, RallyLocation.alt an int16, RALLY_TOTAL follows; PX4:
+mavlink_mission.cpp stores them as safe points), verified by download and put back after the run (a
+`params_changed` row "rally items"). The parameters that make each autopilot's RTL (the dead-ground-station
+failsafe `rtl`, a fence action `rtl`) go to the nearest of them are the dialect's `rally_params`: ArduPilot
+RALLY_INCL_HOME 0 and RALLY_LIMIT_KM 0 (AP_Rally::calc_best_rally_or_home_location), PX4 RTL_TYPE 1
+(rtl.cpp findRtlDestination; PX4 ignores a rally point within 10 m of home).
 """
 
 from __future__ import annotations
@@ -72,6 +81,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_swarm.link import frames
+from gcs_swarm.link.autopilots import AutopilotDialect
 from gcs_swarm.link.connection import LinkError, MAVLinkMessage
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams, ParamChange
@@ -82,11 +92,14 @@ from gcs_swarm.mission.geometry import mission_offsets
 from gcs_swarm.mission.model import Fence
 
 FENCE = mavlink2.MAV_MISSION_TYPE_FENCE
+RALLY = mavlink2.MAV_MISSION_TYPE_RALLY
+RALLY_POINT = mavlink2.MAV_CMD_NAV_RALLY_POINT
 CIRCLE_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 CIRCLE_INCLUSION = mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
 POLYGON_INCLUSION = mavlink2.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
 POLYGON_EXCLUSION = mavlink2.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION
 FENCE_ITEMS = "fence items"  # the FlightParams change row of a vehicle's fence
+RALLY_ITEMS = "rally items"  # ... of its rally points
 BAND_TOLERANCE_M = 3.0  # m above and below the formation's altitudes that count as "met" (altitude error,
 # vertical separation manoeuvres)
 KEEP_OUT_M = 1.0  # m a circle keeps clear of start positions, waypoints and final slots (beyond the body)
@@ -94,26 +107,30 @@ FIRST_ANSWER_S = 1.0  # vehicle s to wait for the vehicle's first answer before 
 SETTLE_S = 0.3  # vehicle s for ArduPilot's fence loader (10 Hz) to act on a stored fence before reading it
 STALL_S = 2.5  # vehicle s without a request during an upload before it is started over (the vehicle re-asks
 # after 1 s itself, MissionItemProtocol::update)
+_WHAT = {FENCE: "fence", RALLY: "rally points"}  # a mission type in an error sentence
 _REFUSALS_TO_RETRY = (mavlink2.MAV_MISSION_OPERATION_CANCELLED, mavlink2.MAV_MISSION_DENIED)
 
 
 @dataclass(frozen=True)
 class FenceItem:
-    """One fence item as a vehicle stores it: MAV_CMD_NAV_FENCE_* command, lat/lon degE7, param1 (a circle's
-    radius in m, float32 on the vehicle; a polygon vertex's vertex count)."""
+    """One fence item or rally point as a vehicle stores it: MAV_CMD_NAV_FENCE_* or MAV_CMD_NAV_RALLY_POINT
+    command, lat/lon degE7, param1 (a circle's radius in m, float32 on the vehicle; a polygon vertex's vertex
+    count), alt_m (a rally point's height m above home, frame GLOBAL_RELATIVE_ALT; 0 for fence items)."""
 
     command: int
     lat_e7: int
     lon_e7: int
     param1: float = 0.0
+    alt_m: float = 0.0
 
     def same_as(self, other: FenceItem) -> bool:
-        """Equal as stored (the radius as a float32)."""
+        """Equal as stored (the radius and the height as float32)."""
         return (
             self.command == other.command
             and self.lat_e7 == other.lat_e7
             and self.lon_e7 == other.lon_e7
             and np.float32(self.param1) == np.float32(other.param1)
+            and np.float32(self.alt_m) == np.float32(other.alt_m)
         )
 
 
@@ -202,6 +219,18 @@ def site_items(fence: Fence, origin: frames.Origin) -> list[FenceItem]:
     return items
 
 
+def rally_items(rally: Iterable[np.ndarray], origin: frames.Origin) -> list[FenceItem]:
+    """The mission's rally points (3,) ENU m each as MAV_CMD_NAV_RALLY_POINT items: lat/lon about the origin,
+    the height above the origin as metres above home (a flat site; the vehicles start at the origin's
+    height), rounded to whole metres as ArduPilot stores it (RallyLocation.alt, an int16)."""
+    return [
+        FenceItem(
+            RALLY_POINT, *_geodetic_e7(float(p[0]), float(p[1]), origin), 0.0, float(round(float(p[2])))
+        )
+        for p in rally
+    ]
+
+
 # --------------------------------------------------------------------------------------------------- protocol
 
 
@@ -210,12 +239,13 @@ def _ack_name(result: int) -> str:
     return entry.name.removeprefix("MAV_MISSION_") if entry is not None else str(result)
 
 
-def _fence_messages(link: VehicleLink) -> list[MAVLinkMessage]:
-    """The MISSION_* messages about the fence received since the last call."""
+def _fence_messages(link: VehicleLink, mission_type: int = FENCE) -> list[MAVLinkMessage]:
+    """The MISSION_* messages of `mission_type` (FENCE, RALLY) received since the last call (others are
+    dropped: one transfer runs at a time on a vehicle)."""
     out = []
     while link.mission_messages:
         msg = link.mission_messages.popleft()
-        if getattr(msg, "mission_type", 0) == FENCE:
+        if getattr(msg, "mission_type", 0) == mission_type:
             out.append(msg)
     return out
 
@@ -225,13 +255,16 @@ def _require_alive(link: VehicleLink) -> None:
         raise LinkError(f"{link.name} is not responding (its link is down)")
 
 
-def _send_item(link: VehicleLink, seq: int, item: FenceItem) -> None:
+def _send_item(link: VehicleLink, seq: int, item: FenceItem, mission_type: int) -> None:
+    """MISSION_ITEM_INT of `item`: frame GLOBAL for a fence item, GLOBAL_RELATIVE_ALT for a rally point
+    (the only frame ArduPilot's MissionItemProtocol_Rally takes besides its _INT twin)."""
+    rally = item.command == RALLY_POINT
     link.send(
         link.mav.mission_item_int_encode(
             link.sysid or 0,
             link.compid,
             seq,
-            mavlink2.MAV_FRAME_GLOBAL,
+            mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT if rally else mavlink2.MAV_FRAME_GLOBAL,
             item.command,
             0,
             0,
@@ -241,36 +274,38 @@ def _send_item(link: VehicleLink, seq: int, item: FenceItem) -> None:
             0.0,
             item.lat_e7,
             item.lon_e7,
-            0.0,
-            FENCE,
+            float(item.alt_m),
+            mission_type,
         )
     )
 
 
 def op_upload_fence(
-    link: VehicleLink, items: list[FenceItem], retries: int = COMMAND_RETRIES
+    link: VehicleLink, items: list[FenceItem], retries: int = COMMAND_RETRIES, mission_type: int = FENCE
 ) -> Operation[None]:
-    """Upload `items` as the vehicle's whole fence (MISSION_COUNT, then the items it asks for, until
-    MISSION_ACK ACCEPTED); started over (up to `retries` times) when it stalls, is cancelled or denied."""
+    """Upload `items` as the vehicle's whole fence (or rally list: `mission_type` RALLY) (MISSION_COUNT, then
+    the items it asks for, until MISSION_ACK ACCEPTED); started over (up to `retries` times) when it stalls,
+    is cancelled or denied."""
     _require_alive(link)
     count = len(items)
     texts = link.telemetry.statustexts
     last_refusal = "no answer"
-    _fence_messages(link)
+    what = _WHAT[mission_type]
+    _fence_messages(link, mission_type)
     timeout = Timeout(FIRST_ANSWER_S, link.vehicle_clock)
     for _ in range(retries + 1):
-        link.send(link.mav.mission_count_encode(link.sysid or 0, link.compid, count, FENCE))
+        link.send(link.mav.mission_count_encode(link.sysid or 0, link.compid, count, mission_type))
         timeout.seconds = FIRST_ANSWER_S
         timeout.restart()
         sent_last = count == 0
         restart = False
         while not restart and not timeout.expired():
             yield
-            for msg in _fence_messages(link):
+            for msg in _fence_messages(link, mission_type):
                 kind = msg.get_type()
                 if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
                     if 0 <= msg.seq < count:
-                        _send_item(link, msg.seq, items[msg.seq])
+                        _send_item(link, msg.seq, items[msg.seq], mission_type)
                         sent_last |= msg.seq == count - 1
                         timeout.seconds = STALL_S
                         timeout.restart()
@@ -287,77 +322,86 @@ def op_upload_fence(
                     restart = True
                     break
                 said = f' ("{link.telemetry.last_statustext}")' if link.telemetry.statustexts > texts else ""
-                raise LinkError(f"{link.name} refused the fence: {last_refusal}{said}")
-    raise LinkError(f"{link.name} did not take the fence ({retries + 1} attempts; last: {last_refusal})")
+                raise LinkError(f"{link.name} refused the {what}: {last_refusal}{said}")
+    raise LinkError(f"{link.name} did not take the {what} ({retries + 1} attempts; last: {last_refusal})")
 
 
-def op_download_fence(link: VehicleLink, retries: int = COMMAND_RETRIES) -> Operation[list[FenceItem]]:
-    """The vehicle's fence items (MISSION_REQUEST_LIST, then MISSION_REQUEST_INT per item), each request
-    resent after a silent second of vehicle time (up to `retries` times)."""
+def op_download_fence(
+    link: VehicleLink, retries: int = COMMAND_RETRIES, mission_type: int = FENCE
+) -> Operation[list[FenceItem]]:
+    """The vehicle's fence items (or rally points: `mission_type` RALLY) (MISSION_REQUEST_LIST, then
+    MISSION_REQUEST_INT per item), each request resent after a silent second of vehicle time (up to
+    `retries` times)."""
     _require_alive(link)
-    _fence_messages(link)
+    what = _WHAT[mission_type]
+    _fence_messages(link, mission_type)
     timeout = Timeout(FIRST_ANSWER_S, link.vehicle_clock)
     count: int | None = None
     for _ in range(retries + 1):
-        link.send(link.mav.mission_request_list_encode(link.sysid or 0, link.compid, FENCE))
+        link.send(link.mav.mission_request_list_encode(link.sysid or 0, link.compid, mission_type))
         timeout.restart()
         while count is None and not timeout.expired():
             yield
-            for msg in _fence_messages(link):
+            for msg in _fence_messages(link, mission_type):
                 if msg.get_type() == "MISSION_COUNT":
                     count = int(msg.count)
                 elif msg.get_type() == "MISSION_ACK" and msg.type not in _REFUSALS_TO_RETRY:
                     raise LinkError(
-                        f"{link.name} refused to list its fence: MISSION_ACK {_ack_name(msg.type)}"
+                        f"{link.name} refused to list its {what}: MISSION_ACK {_ack_name(msg.type)}"
                     )
         if count is not None:
             break
     if count is None:
-        raise LinkError(f"{link.name} did not say how many fence items it has ({retries + 1} requests)")
+        raise LinkError(f"{link.name} did not say how many {what} items it has ({retries + 1} requests)")
     items: list[FenceItem | None] = [None] * count
     for seq in range(count):
         for _ in range(retries + 1):
             if items[seq] is not None:
                 break
-            link.send(link.mav.mission_request_int_encode(link.sysid or 0, link.compid, seq, FENCE))
+            link.send(link.mav.mission_request_int_encode(link.sysid or 0, link.compid, seq, mission_type))
             timeout.restart()
             while items[seq] is None and not timeout.expired():
                 yield
-                for msg in _fence_messages(link):
+                for msg in _fence_messages(link, mission_type):
                     if msg.get_type() == "MISSION_ITEM_INT" and 0 <= msg.seq < count:
                         items[msg.seq] = FenceItem(
-                            int(msg.command), int(msg.x), int(msg.y), float(msg.param1)
+                            int(msg.command), int(msg.x), int(msg.y), float(msg.param1), float(msg.z)
                         )
                     elif (
                         msg.get_type() == "MISSION_ACK" and msg.type == mavlink2.MAV_MISSION_INVALID_SEQUENCE
                     ):
-                        raise LinkError(f"{link.name}'s fence changed while it was read (item {seq})")
+                        raise LinkError(f"{link.name}'s {what} changed while it was read (item {seq})")
         if items[seq] is None:
-            raise LinkError(f"{link.name} did not send fence item {seq} ({retries + 1} requests)")
-    link.send(link.mav.mission_ack_encode(link.sysid or 0, link.compid, mavlink2.MAV_MISSION_ACCEPTED, FENCE))
+            raise LinkError(f"{link.name} did not send {what} item {seq} ({retries + 1} requests)")
+    accepted = mavlink2.MAV_MISSION_ACCEPTED
+    link.send(link.mav.mission_ack_encode(link.sysid or 0, link.compid, accepted, mission_type))
     return [item for item in items if item is not None]
 
 
-def op_clear_fence(link: VehicleLink, retries: int = COMMAND_RETRIES) -> Operation[None]:
-    """MISSION_CLEAR_ALL(FENCE) until MISSION_ACK ACCEPTED (resent after a silent second, or when denied)."""
+def op_clear_fence(
+    link: VehicleLink, retries: int = COMMAND_RETRIES, mission_type: int = FENCE
+) -> Operation[None]:
+    """MISSION_CLEAR_ALL(`mission_type`: FENCE or RALLY) until MISSION_ACK ACCEPTED (resent after a silent
+    second, or when denied)."""
     _require_alive(link)
-    _fence_messages(link)
+    what = _WHAT[mission_type]
+    _fence_messages(link, mission_type)
     timeout = Timeout(FIRST_ANSWER_S, link.vehicle_clock)
     for _ in range(retries + 1):
-        link.send(link.mav.mission_clear_all_encode(link.sysid or 0, link.compid, FENCE))
+        link.send(link.mav.mission_clear_all_encode(link.sysid or 0, link.compid, mission_type))
         timeout.restart()
         while not timeout.expired():
             yield
-            for msg in _fence_messages(link):
+            for msg in _fence_messages(link, mission_type):
                 if msg.get_type() != "MISSION_ACK":
                     continue
                 if msg.type == mavlink2.MAV_MISSION_ACCEPTED:
                     return
                 if msg.type not in _REFUSALS_TO_RETRY:
                     raise LinkError(
-                        f"{link.name} refused to clear its fence: MISSION_ACK {_ack_name(msg.type)}"
+                        f"{link.name} refused to clear its {what}: MISSION_ACK {_ack_name(msg.type)}"
                     )
-    raise LinkError(f"{link.name} did not confirm clearing its fence ({retries + 1} requests)")
+    raise LinkError(f"{link.name} did not confirm clearing its {what} ({retries + 1} requests)")
 
 
 def _legacy_total(items: list[FenceItem]) -> int:
@@ -373,26 +417,27 @@ def _settle(link: VehicleLink) -> Operation[None]:
 
 
 def op_put_fence(
-    link: VehicleLink, items: list[FenceItem], retries: int = COMMAND_RETRIES
+    link: VehicleLink, items: list[FenceItem], retries: int = COMMAND_RETRIES, mission_type: int = FENCE
 ) -> Operation[None]:
-    """Make `items` the vehicle's fence and read it back after SETTLE_S: LinkError if what it stored differs.
+    """Make `items` the vehicle's fence (or rally list: `mission_type` RALLY) and read it back after
+    SETTLE_S: LinkError if what it stored differs.
 
     ArduPilot SITL builds erase a fence whose FENCE_TOTAL (circles and vertices + 2, or 0 below 3) is 0 when
     the previous one's was not (AC_PolyFence_loader::update, the old fence-point protocol): so 1 or 2 circles
     are uploaded over a cleared fence (FENCE_TOTAL already 0), never straight over a bigger one."""
-    if items and _legacy_total(items) == 0:
+    if items and mission_type == FENCE and _legacy_total(items) == 0:
         yield from op_clear_fence(link, retries)
         yield from _settle(link)
     if items:
-        yield from op_upload_fence(link, items, retries)
+        yield from op_upload_fence(link, items, retries, mission_type)
     else:
-        yield from op_clear_fence(link, retries)
+        yield from op_clear_fence(link, retries, mission_type)
     yield from _settle(link)
-    stored = yield from op_download_fence(link, retries)
-    if len(stored) != len(items) or not all(a.same_as(b) for a, b in zip(stored, items, strict=True)):
+    stored = yield from op_download_fence(link, retries, mission_type)
+    if not _same(stored, items):
         raise LinkError(
-            f"{link.name} stored a different fence than uploaded ({len(stored)} items read back, "
-            f"{len(items)} sent)"
+            f"{link.name} stored different {_WHAT[mission_type]} than uploaded ({len(stored)} items read "
+            f"back, {len(items)} sent)"
         )
 
 
@@ -400,21 +445,24 @@ def op_put_fence(
 
 
 class FenceInstall:
-    """What `install_fence` did: the circles and items, each vehicle's fence before the run; `restore` puts
-    that back (a FlightParams restorer), `report` turns a vehicle's breach STATUSTEXT into an event."""
+    """What `install_fence` did: the circles and items, the rally points, each vehicle's fence and rally
+    points before the run; `restore` and `restore_rally` put them back (FlightParams restorers), `report`
+    turns a vehicle's breach STATUSTEXT into an event."""
 
     def __init__(
         self,
         circles: list[FenceCircle],
         items: list[FenceItem],
-        before: dict[str, list[FenceItem]],
+        rally: list[FenceItem],
         action: str,
         events: list[str],
         progress: Callable[[str], None],
     ) -> None:
         self.circles = circles
         self.items = items
-        self.before = before
+        self.rally = rally
+        self.before: dict[str, list[FenceItem]] = {}  # vehicle name -> its fence before the run
+        self.rally_before: dict[str, list[FenceItem]] = {}  # ... its rally points
         self.action = action
         self.events = events
         self.progress = progress
@@ -422,6 +470,10 @@ class FenceInstall:
     def restore(self, link: VehicleLink, change: ParamChange) -> Operation[None]:
         """The vehicle's own fence back (cleared if it had none), verified by download."""
         return op_put_fence(link, self.before.get(link.name, []))
+
+    def restore_rally(self, link: VehicleLink, change: ParamChange) -> Operation[None]:
+        """The vehicle's own rally points back (cleared if it had none), verified by download."""
+        return op_put_fence(link, self.rally_before.get(link.name, []), mission_type=RALLY)
 
     def report(self, link: VehicleLink, text: str) -> None:
         """A STATUSTEXT "<fences> breached" (ArduCopter/fence.cpp) or "Geofence violation" (PX4 navigator
@@ -438,6 +490,37 @@ def _same(a: list[FenceItem], b: list[FenceItem]) -> bool:
     return len(a) == len(b) and all(x.same_as(y) for x, y in zip(a, b, strict=True))
 
 
+def _put_on_all(
+    fleet: Fleet, flight: FlightParams, links: list[VehicleLink], items: list[FenceItem], mission_type: int
+) -> dict[str, list[FenceItem]]:
+    """Read each vehicle's list of `mission_type`, make `items` its list (verified by download) and add a
+    change row (FENCE_ITEMS or RALLY_ITEMS: item counts before and flown) where it differed; returns the
+    lists before, by vehicle name."""
+    old = fleet.run(op_download_fence(link, mission_type=mission_type) for link in links)
+    before = {link.name: items_before for link, items_before in zip(links, old, strict=True)}
+    fleet.run(op_put_fence(link, items, mission_type=mission_type) for link in links)
+    row = FENCE_ITEMS if mission_type == FENCE else RALLY_ITEMS
+    for link in links:
+        if not _same(before[link.name], items):
+            flight.changes.append(
+                ParamChange(link.name, row, float(len(before[link.name])), float(len(items)))
+            )
+    return before
+
+
+def _set_by_dialect(
+    flight: FlightParams,
+    links: list[VehicleLink],
+    params: Callable[[AutopilotDialect], list[tuple[str, float]]],
+) -> None:
+    """Set `params(dialect)` on the vehicles of each autopilot dialect among `links`."""
+    dialects = {link.channel.autopilot.key: link.channel.autopilot for link in links}
+    for key, dialect in dialects.items():
+        rows = [link.index for link in links if link.channel.autopilot.key == key]
+        for name, value in params(dialect):
+            flight.set_all(name, value, rows)
+
+
 def install_fence(
     fleet: Fleet,
     flight: FlightParams,
@@ -446,9 +529,10 @@ def install_fence(
     progress: Callable[[str], None],
 ) -> FenceInstall | None:
     """Preflight: fence the obstacles on every live vehicle (see the module docstring) when
-    safety.dead_gcs.fence.enabled, and the site fence when safety.geofence.upload; notes and breaches go to
-    `events` (flight.json) and `progress`. LinkError when a vehicle does not take the fence; None when nothing
-    is fenced."""
+    safety.dead_gcs.fence.enabled, the site fence when safety.geofence.upload, and the rally points of
+    safety.rally whenever the mission has some (each autopilot's RTL then returns to the nearest:
+    AutopilotDialect.rally_params); notes and breaches go to `events` (flight.json) and `progress`. LinkError
+    when a vehicle does not take them; None when there is nothing to install."""
     params = mission.safety.dead_gcs.fence
     circles, notes = exclusion_circles(mission, params.margin_m) if params.enabled else ([], [])
     for note in notes:
@@ -456,7 +540,8 @@ def install_fence(
         progress(f"fence: {note}")
     site = site_items(mission.fence, mission.origin) if mission.fence.upload else []
     items = circle_items(circles, mission.origin) + site
-    if not items:
+    rally = rally_items(mission.rally, mission.origin)
+    if not items and not rally:
         return None
     links = [link for link in fleet.select() if link.channel.autopilot.geofence]
     unfenced = [link.name for link in fleet.select() if not link.channel.autopilot.geofence]
@@ -466,31 +551,27 @@ def install_fence(
         progress(f"fence: {note}")
     if not links:
         return None
-    old = fleet.run(op_download_fence(link) for link in links)
-    before = {link.name: items_before for link, items_before in zip(links, old, strict=True)}
-    fleet.run(op_put_fence(link, items) for link in links)
-    install = FenceInstall(circles, items, before, params.action, events, progress)
-    flight.restorers[FENCE_ITEMS] = install.restore
-    for link in links:
-        if not _same(before[link.name], items):
-            flight.changes.append(
-                ParamChange(link.name, FENCE_ITEMS, float(len(before[link.name])), float(len(items)))
-            )
-    dialects = {link.channel.autopilot.key: link.channel.autopilot for link in links}
-    for key, dialect in dialects.items():  # each autopilot's own parameters (AutopilotDialect.fence_params)
-        rows = [link.index for link in links if link.channel.autopilot.key == key]
-        for name, value in dialect.fence_params(params.action):
-            flight.set_all(name, value, rows)
-    for link in (link for link in fleet.links if link.channel.autopilot.geofence):  # one reporter each,
-        # even if preflight runs again
-        link.statustext_hooks[:] = [
-            hook
-            for hook in link.statustext_hooks
-            if not isinstance(getattr(hook, "__self__", None), FenceInstall)
-        ]
-        link.statustext_hooks.append(install.report)
+    install = FenceInstall(circles, items, rally, params.action, events, progress)
+    if items:
+        install.before = _put_on_all(fleet, flight, links, items, FENCE)
+        flight.restorers[FENCE_ITEMS] = install.restore
+        _set_by_dialect(flight, links, lambda dialect: dialect.fence_params(params.action))
+        for link in (link for link in fleet.links if link.channel.autopilot.geofence):  # one reporter each,
+            # even if preflight runs again
+            link.statustext_hooks[:] = [
+                hook
+                for hook in link.statustext_hooks
+                if not isinstance(getattr(hook, "__self__", None), FenceInstall)
+            ]
+            link.statustext_hooks.append(install.report)
+    if rally:
+        install.rally_before = _put_on_all(fleet, flight, links, rally, RALLY)
+        flight.restorers[RALLY_ITEMS] = install.restore_rally
+        _set_by_dialect(flight, links, lambda dialect: dialect.rally_params())
     radii = ", ".join(f"{c.radius:.1f}" for c in circles)
     what = [f"{len(circles)} exclusion circle(s) around obstacles, radii {radii} m"] if circles else []
     what += [f"the site fence ({len(site)} items)"] if site else []
-    progress(f"fence: {' and '.join(what)} on every vehicle, action {params.action}")
+    what += [f"{len(rally)} rally point(s)"] if rally else []
+    action = f", action {params.action}" if items else ""
+    progress(f"fence: {' and '.join(what)} on every vehicle{action}")
     return install

@@ -301,7 +301,7 @@ class Mission(_ValueEquality):
     planner: PlannerSpec
     # [add] the leader's pace from what its followers can fly (guidance.pace)
     pace: CapabilityParams = dataclasses.field(default_factory=CapabilityParams)
-    # [add] the site (issue 37): the fence, buildings and trees (avoided: spec 2.2); rally points carried
+    # [add] the site (issue 37): the fence, buildings and trees (avoided: spec 2.2); rally points (RTL's)
     fence: Fence = dataclasses.field(default_factory=Fence)
     prisms: tuple[Prism, ...] = ()
     cylinders: tuple[Cylinder, ...] = ()

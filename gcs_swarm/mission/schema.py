@@ -535,7 +535,7 @@ class SafetySection(Section):
     separation: Annotated[SeparationParams, Params()] = SeparationParams()
     min_altitude: Annotated[float, Range(ge=0, unit="m")] = 2.0
     geofence: GeofenceSection = GeofenceSection()
-    rally: list[Position] | None = None  # rally points; carried, not yet used (checks.not_yet_flown)
+    rally: list[Position] | None = None  # rally points: uploaded, RTL returns to them (flight.geofence)
     collision_radius: Annotated[float, Range(gt=0, unit="m")] = 0.175
     gcs_failsafe: Annotated[str, one_of("brake", "land", "rtl", "off")] = "land"
     telemetry: Annotated[TelemetryParams, Params()] = TelemetryParams()

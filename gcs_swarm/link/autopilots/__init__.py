@@ -78,6 +78,10 @@ class AutopilotDialect(Protocol):
         `action` ("report", "rtl", "land", "brake": safety.dead_gcs.fence.action)."""
         ...
 
+    def rally_params(self) -> list[tuple[str, float]]:
+        """(name, value) that make its RTL return to the nearest uploaded rally point (restored after)."""
+        ...
+
     def is_angle_boost_on(self, value: float) -> bool:
         """`angle_boost_param`'s value as read -> whether the boost is on."""
         ...

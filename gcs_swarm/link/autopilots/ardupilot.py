@@ -164,6 +164,13 @@ class ArduPilotDialect:
             ("FENCE_ENABLE", 1.0),
         ]
 
+    def rally_params(self) -> list[tuple[str, float]]:
+        """RALLY_INCL_HOME = 0 and RALLY_LIMIT_KM = 0: RTL returns to the nearest rally point even when home
+        is nearer or the point lies beyond the default 0.3 km (libraries/AP_Rally/AP_Rally.cpp
+        find_nearest_rally_point, calc_best_rally_or_home_location; Copter's defaults 1 and 0.3). RALLY_TOTAL
+        is the rally upload's own (AP_Rally::append)."""
+        return [("RALLY_INCL_HOME", 0.0), ("RALLY_LIMIT_KM", 0.0)]
+
     def is_angle_boost_on(self, value: float) -> bool:
         """ATC_ANGLE_BOOST as read from a vehicle: 0 off, else on (ArduCopter's default is on)."""
         return not (math.isfinite(value) and value == 0.0)

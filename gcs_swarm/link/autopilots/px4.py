@@ -194,6 +194,13 @@ class PX4Dialect:
         and left as the vehicle has them, as is GF_PREDICT (0 by default: a breach is the crossing itself)."""
         return [("GF_ACTION", float(GEOFENCE_ACTION[action]))]
 
+    def rally_params(self) -> list[tuple[str, float]]:
+        """RTL_TYPE = 1: Return goes to the closest rally (safe) point, home only when there is none
+        (navigator rtl.cpp findRtlDestination: prioritize_safe_points_over_home; the default 0 takes home
+        when it is nearer). PX4 ignores a safe point within 10 m of home (MAX_DIST_FROM_HOME_FOR_LAND_
+        APPROACHES)."""
+        return [("RTL_TYPE", 1.0)]
+
     def is_angle_boost_on(self, value: float) -> bool:
         """PX4 has no angle boost on offboard thrust."""
         return False

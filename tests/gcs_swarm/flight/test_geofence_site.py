@@ -123,3 +123,45 @@ def test_install_fence_uploads_the_site_with_the_obstacle_circles_and_restores(s
         fleet.run([link.parameters.op_get(name)])[0]
         for name in ("FENCE_TYPE", "FENCE_ACTION", "FENCE_ENABLE")
     ] == [7, 1, 0]
+
+
+RALLY_MISSION = MISSION.replace(
+    "  dead_gcs: {fence: {enabled: true, margin_m: 2}}\n",
+    "  dead_gcs: {fence: {enabled: true, margin_m: 2}}\n  rally: [[80, 10, 12.4], [-20, 20, 15.6]]\n",
+)
+
+
+def test_rally_items_are_points_above_home_in_whole_metres() -> None:
+    mission = parse_mission(RALLY_MISSION, "site.yaml")
+    items = fence.rally_items(mission.rally, mission.origin)
+    # MAV_CMD_NAV_RALLY_POINT, no param1, z rounded to whole metres (ArduPilot's RallyLocation.alt: int16)
+    assert [(item.command, item.param1, item.alt_m) for item in items] == [
+        (fence.RALLY_POINT, 0.0, 12.0),
+        (fence.RALLY_POINT, 0.0, 16.0),
+    ]
+    np.testing.assert_allclose(_enu(items[0]), [80, 10], atol=0.02)
+    np.testing.assert_allclose(_enu(items[1]), [-20, 20], atol=0.02)
+
+
+def test_install_fence_uploads_rally_points_and_restores(sim_fleet) -> None:
+    _, fleet = sim_fleet
+    mission = parse_mission(RALLY_MISSION, "site.yaml")
+    link = fleet.vehicle("lead")
+    flight, events, said = FlightParams(fleet), list[str](), list[str]()
+    install = fence.install_fence(fleet, flight, mission, events, said.append)
+    assert install is not None and install.rally == fence.rally_items(mission.rally, mission.origin)
+    stored = fleet.run([fence.op_download_fence(link, mission_type=fence.RALLY)])[0]
+    assert len(stored) == 2 and all(a.same_as(b) for a, b in zip(stored, install.rally, strict=True))
+    assert len(fleet.run([fence.op_download_fence(link)])[0]) == 11  # the fence beside them, unchanged
+    names = ("RALLY_TOTAL", "RALLY_INCL_HOME", "RALLY_LIMIT_KM")
+    # RALLY_TOTAL follows the upload; home excluded and no distance limit: RTL takes the nearest point
+    assert [fleet.run([link.parameters.op_get(name)])[0] for name in names] == [2, 0, 0]
+    assert "2 rally point(s)" in said[-1]
+    rows = {c.name: c for c in flight.changes}
+    assert (rows["rally items"].original, rows["rally items"].flown) == (0.0, 2.0)
+    flight.restore()
+    assert fleet.run([fence.op_download_fence(link, mission_type=fence.RALLY)]) == [[]]
+    # Copter's defaults back (sitl_sim params.py: RALLY_INCL_HOME 1, RALLY_LIMIT_KM 0.3)
+    got = [fleet.run([link.parameters.op_get(name)])[0] for name in names]
+    assert got[:2] == [0, 1] and got[2] == pytest.approx(0.3)
+    assert all(c.restored for c in flight.changes)
