@@ -1,5 +1,5 @@
-"""RTL with rally points in the simulator (sitl_sim.autopilot.rally, issue 37 item 5): ArduCopter returns to the
-nearest rally point unless it lies beyond RALLY_LIMIT_KM or home is nearer with RALLY_INCL_HOME
+"""RTL with rally points in the simulator (sitl_sim.autopilot.rally, issue 37 item 5): ArduCopter returns to
+the nearest rally point unless it lies beyond RALLY_LIMIT_KM or home is nearer with RALLY_INCL_HOME
 (AP_Rally::calc_best_rally_or_home_location); PX4 takes the closest of home and the safe points more than 10 m
 from home, 2 m nearer than the best so far, home last with RTL_TYPE 1 (rtl.cpp findRtlDestination). Worked by
 hand on a plan: home (0, 0), rally A (80, 30), B (-50, 0), C (5, 0); a full RTL lands at the chosen point."""
@@ -48,7 +48,8 @@ def test_arducopter_returns_to_the_nearest_rally_point(at, limit_km, include_hom
     ("at", "rtl_type", "expected"),
     [
         ((60.0, 0.0), 0, A),  # A (36.1 m) + 2 < home (60 m)
-        ((10.0, 0.0), 0, (0.0, 0.0)),  # home (10 m) nearest; C (5 m from here) is within 10 m of home: no point
+        # home (10 m) nearest; C (5 m from here) is within 10 m of home: not a destination
+        ((10.0, 0.0), 0, (0.0, 0.0)),
         ((10.0, 0.0), 1, B),  # RTL_TYPE 1: home last; B 60 m < A 76.2 m; C ignored
         ((4.0, 0.0), 1, B),
     ],
@@ -61,10 +62,9 @@ def test_px4_returns_to_the_closest_safe_point(at, rtl_type, expected) -> None:
 
 def test_no_rally_points_is_home() -> None:
     rally = RallyPoints(1)
-    assert rally.arducopter_destination(0, np.array([60.0, 0.0, 10.0]), HOME, 0.3, False)[:2] == pytest.approx(
-        (0.0, 0.0)
-    )
-    assert rally.px4_destination(0, np.array([60.0, 0.0, 10.0]), HOME, 1)[:2] == pytest.approx((0.0, 0.0))
+    at = np.array([60.0, 0.0, 10.0])
+    assert rally.arducopter_destination(0, at, HOME, 0.3, False)[:2] == pytest.approx((0.0, 0.0))
+    assert rally.px4_destination(0, at, HOME, 1)[:2] == pytest.approx((0.0, 0.0))
 
 
 def _land_in_rtl(autopilot: str) -> tuple[Simulator, np.ndarray]:
