@@ -6,12 +6,13 @@ a snapshot (gcs_swarm.web.live.LiveSnapshot, stamped with the wall clock when ma
 page's rate (live.RATE_HZ); the LiveServer (its thread, its loop) turns each into a frame and sends it over a
 loopback WebSocket to a client in this process, which notes its receipt time. Latency = receipt - stamp.
 
-(2) Tick latency: `gcs-swarm run missions/quickstart.yaml --time-mode lockstep --quiet`, interleaved: without
-`--web`, then with `--web 127.0.0.1:0` and a WebSocket client (another process) reading every frame,
-`--repeats` times each. Per flight: flight.json tick_latency_ms (median, p99: a complete telemetry frame in to
+(2) Tick latency: `gcs-swarm run missions/quickstart.yaml --time-mode lockstep --quiet` (with `--fleet N`: a
+grid of N vehicles flying 200 m east, bench_fleet_capacity.grid_mission), interleaved: without `--web`, then
+with `--web 127.0.0.1:0` and a WebSocket client (another process) reading every frame, `--repeats` times
+each. Per flight: flight.json tick_latency_ms (median, p99: a complete telemetry frame in to
 the last command out); for the flights with the page, the page's latency of the real flight's frames too.
 
-Usage: python benchmarks/bench_web_latency.py [--sizes 9,200] [--seconds 20] [--repeats 3]
+Usage: python benchmarks/bench_web_latency.py [--sizes 9,200] [--seconds 20] [--repeats 3] [--fleet N]
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_fleet_capacity import grid_mission  # noqa: E402
 
 from gcs_swarm.link.autopilots import dialect_named  # noqa: E402
 from gcs_swarm.mission import Mission, load_mission  # noqa: E402
@@ -41,6 +45,7 @@ from gcs_swarm.web.live import RATE_HZ, Handoff, LiveServer, LiveSnapshot  # noq
 from swarm_common.ports import free_udp_base  # noqa: E402
 
 QUICKSTART = ROOT / "missions" / "quickstart.yaml"
+FLEET_LEG_M = 200.0  # m the --fleet grid's leader flies east
 
 
 def fleet_mission(n: int) -> Mission:
@@ -151,10 +156,11 @@ asyncio.run(main(sys.argv[1], sys.argv[2]))
 """
 
 
-def flight(web: bool, out: Path) -> dict[str, Any]:
-    """One lockstep quickstart; with `web`, a page client in another process reads every frame."""
-    cmd = [sys.executable, "-m", "gcs_swarm", "run", str(QUICKSTART), "--out", str(out)]
-    cmd += ["--time-mode", "lockstep", "--quiet", "--base-port", str(free_udp_base(10))]
+def flight(web: bool, out: Path, mission: Path = QUICKSTART, n: int = 3) -> dict[str, Any]:
+    """One lockstep flight of `mission` (n vehicles); with `web`, a page client in another process reads
+    every frame."""
+    cmd = [sys.executable, "-m", "gcs_swarm", "run", str(mission), "--out", str(out)]
+    cmd += ["--time-mode", "lockstep", "--quiet", "--base-port", str(free_udp_base(max(n, 10)))]
     if web:
         cmd += ["--web", "127.0.0.1:0"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -186,14 +192,20 @@ def main() -> None:
     parser.add_argument("--sizes", default="9,200")
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--fleet", type=int, default=0, help="tick A/B with a grid of N vehicles (0: quickstart)"
+    )
     args = parser.parse_args()
     for n in (int(s) for s in args.sizes.split(",")):
         print(json.dumps({"vehicles": n, "synthetic": synthetic_latency(n, args.seconds)}), flush=True)
     flights: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
+        mission, n = QUICKSTART, 3
+        if args.fleet:
+            mission, n = grid_mission(args.fleet, Path(tmp), FLEET_LEG_M), args.fleet
         for k in range(args.repeats):
             for web in (False, True):
-                flights.append(flight(web, Path(tmp) / f"{k}-{int(web)}"))
+                flights.append(flight(web, Path(tmp) / f"{k}-{int(web)}", mission, n))
                 print(json.dumps(flights[-1]), flush=True)
     for web in (False, True):
         ours = [f["tick_latency_ms"] for f in flights if f["web"] is web]
