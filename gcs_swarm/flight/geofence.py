@@ -61,14 +61,16 @@ than 3 vertices), or NO_SPACE. It checks every stored zone whenever it has some 
 every inclusion zone or inside an exclusion zone is a breach), says "Geofence violation", and its failsafe
 acts as GF_ACTION says (commander failsafe.cpp fromGfActParam).
 
-Rally points (`rally_items`, the mission's safety.rally, whenever it has some) go up the same way with
-mission_type RALLY: MAV_CMD_NAV_RALLY_POINT items in frame GLOBAL_RELATIVE_ALT, z the height above home in
-whole metres (ArduPilot: MissionItemProtocol_Rally, RallyLocation.alt an int16, RALLY_TOTAL follows; PX4:
-mavlink_mission.cpp stores them as safe points), verified by download and put back after the run (a
-`params_changed` row "rally items"). The parameters that make each autopilot's RTL (the dead-ground-station
-failsafe `rtl`, a fence action `rtl`) go to the nearest of them are the dialect's `rally_params`: ArduPilot
-RALLY_INCL_HOME 0 and RALLY_LIMIT_KM 0 (AP_Rally::calc_best_rally_or_home_location), PX4 RTL_TYPE 1
-(rtl.cpp findRtlDestination; PX4 ignores a rally point within 10 m of home).
+Rally points (`rally_items`, the mission's safety.rally, whenever it has some) are shared out one a vehicle
+(`rally_by_vehicle`: a fleet holding one list would all return to the same nearest point and land on each
+other) and go up the same way with mission_type RALLY: MAV_CMD_NAV_RALLY_POINT items in frame
+GLOBAL_RELATIVE_ALT, z the height above home in whole metres (ArduPilot: MissionItemProtocol_Rally,
+RallyLocation.alt an int16, RALLY_TOTAL follows; PX4: mavlink_mission.cpp stores them as safe points),
+verified by download and put back after the run (a `params_changed` row "rally items"). The parameters that
+make each autopilot's RTL (the dead-ground-station failsafe `rtl`, a fence action `rtl`) go to the vehicle's
+own point are the dialect's `rally_params`: ArduPilot RALLY_INCL_HOME 0 and RALLY_LIMIT_KM 0
+(AP_Rally::calc_best_rally_or_home_location), PX4 RTL_TYPE 1 (rtl.cpp findRtlDestination; PX4 ignores a rally
+point within 10 m of home).
 """
 
 from __future__ import annotations
@@ -79,6 +81,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+from scipy.optimize import linear_sum_assignment
 
 from gcs_swarm.link import frames
 from gcs_swarm.link.autopilots import AutopilotDialect
@@ -229,6 +232,23 @@ def rally_items(rally: Iterable[np.ndarray], origin: frames.Origin) -> list[Fenc
         )
         for p in rally
     ]
+
+
+def rally_by_vehicle(mission: Mission) -> dict[str, list[np.ndarray]]:
+    """Vehicle name -> the rally points (3,) ENU m it gets: one each, a different one for every vehicle, by
+    the least total horizontal distance from the vehicles' starts (their homes; scipy
+    linear_sum_assignment). Both autopilots send every vehicle of a fleet that shares a rally list to the
+    same nearest point, where they would land on each other (seen in sitl-sim: three quadrotors killed one
+    second into formation flight all flew to one point); so each vehicle holds only its own. A vehicle left
+    without one (fewer points than vehicles) holds none and returns home."""
+    if not mission.rally:
+        return {}
+    starts = np.array([v.start.position[:2] for v in mission.vehicles], dtype=float)
+    points = np.array([p[:2] for p in mission.rally], dtype=float)
+    cost = np.linalg.norm(starts[:, None, :] - points[None, :, :], axis=2)
+    rows, cols = linear_sum_assignment(cost)
+    given = {mission.vehicles[r].name: [mission.rally[c]] for r, c in zip(rows, cols, strict=True)}
+    return {v.name: given.get(v.name, []) for v in mission.vehicles}
 
 
 # --------------------------------------------------------------------------------------------------- protocol
@@ -453,14 +473,14 @@ class FenceInstall:
         self,
         circles: list[FenceCircle],
         items: list[FenceItem],
-        rally: list[FenceItem],
+        rally: dict[str, list[FenceItem]],
         action: str,
         events: list[str],
         progress: Callable[[str], None],
     ) -> None:
         self.circles = circles
         self.items = items
-        self.rally = rally
+        self.rally = rally  # vehicle name -> its rally points as installed
         self.before: dict[str, list[FenceItem]] = {}  # vehicle name -> its fence before the run
         self.rally_before: dict[str, list[FenceItem]] = {}  # ... its rally points
         self.action = action
@@ -491,20 +511,23 @@ def _same(a: list[FenceItem], b: list[FenceItem]) -> bool:
 
 
 def _put_on_all(
-    fleet: Fleet, flight: FlightParams, links: list[VehicleLink], items: list[FenceItem], mission_type: int
+    fleet: Fleet,
+    flight: FlightParams,
+    links: list[VehicleLink],
+    items: dict[str, list[FenceItem]],
+    mission_type: int,
 ) -> dict[str, list[FenceItem]]:
-    """Read each vehicle's list of `mission_type`, make `items` its list (verified by download) and add a
-    change row (FENCE_ITEMS or RALLY_ITEMS: item counts before and flown) where it differed; returns the
-    lists before, by vehicle name."""
+    """Read each vehicle's list of `mission_type`, make items[its name] its list (verified by download) and
+    add a change row (FENCE_ITEMS or RALLY_ITEMS: item counts before and flown) where it differed; returns
+    the lists before, by vehicle name."""
     old = fleet.run(op_download_fence(link, mission_type=mission_type) for link in links)
     before = {link.name: items_before for link, items_before in zip(links, old, strict=True)}
-    fleet.run(op_put_fence(link, items, mission_type=mission_type) for link in links)
+    fleet.run(op_put_fence(link, items[link.name], mission_type=mission_type) for link in links)
     row = FENCE_ITEMS if mission_type == FENCE else RALLY_ITEMS
     for link in links:
-        if not _same(before[link.name], items):
-            flight.changes.append(
-                ParamChange(link.name, row, float(len(before[link.name])), float(len(items)))
-            )
+        if not _same(before[link.name], items[link.name]):
+            counts = float(len(before[link.name])), float(len(items[link.name]))
+            flight.changes.append(ParamChange(link.name, row, *counts))
     return before
 
 
@@ -540,7 +563,7 @@ def install_fence(
         progress(f"fence: {note}")
     site = site_items(mission.fence, mission.origin) if mission.fence.upload else []
     items = circle_items(circles, mission.origin) + site
-    rally = rally_items(mission.rally, mission.origin)
+    rally = {name: rally_items(points, mission.origin) for name, points in rally_by_vehicle(mission).items()}
     if not items and not rally:
         return None
     links = [link for link in fleet.select() if link.channel.autopilot.geofence]
@@ -553,7 +576,7 @@ def install_fence(
         return None
     install = FenceInstall(circles, items, rally, params.action, events, progress)
     if items:
-        install.before = _put_on_all(fleet, flight, links, items, FENCE)
+        install.before = _put_on_all(fleet, flight, links, {link.name: items for link in links}, FENCE)
         flight.restorers[FENCE_ITEMS] = install.restore
         _set_by_dialect(flight, links, lambda dialect: dialect.fence_params(params.action))
         for link in (link for link in fleet.links if link.channel.autopilot.geofence):  # one reporter each,
@@ -565,13 +588,14 @@ def install_fence(
             ]
             link.statustext_hooks.append(install.report)
     if rally:
-        install.rally_before = _put_on_all(fleet, flight, links, rally, RALLY)
+        own = {link.name: rally.get(link.name, []) for link in links}
+        install.rally_before = _put_on_all(fleet, flight, links, own, RALLY)
         flight.restorers[RALLY_ITEMS] = install.restore_rally
         _set_by_dialect(flight, links, lambda dialect: dialect.rally_params())
     radii = ", ".join(f"{c.radius:.1f}" for c in circles)
     what = [f"{len(circles)} exclusion circle(s) around obstacles, radii {radii} m"] if circles else []
     what += [f"the site fence ({len(site)} items)"] if site else []
-    what += [f"{len(rally)} rally point(s)"] if rally else []
+    what += [f"{len(mission.rally)} rally point(s), one a vehicle"] if rally else []
     action = f", action {params.action}" if items else ""
     progress(f"fence: {' and '.join(what)} on every vehicle{action}")
     return install

@@ -1,8 +1,8 @@
 """The site fence and rally points on a fleet of ArduCopter and PX4 vehicles (issue 37 item 5):
-missions/mixed_fleet.yaml with an inclusion polygon around the course, an exclusion circle beside it, two
+missions/mixed_fleet.yaml with an inclusion polygon around the course, an exclusion circle beside it, four
 rally points, `safety.geofence.upload: true` and the fence action "rtl", flown in lockstep against the
-embedded simulator. Every vehicle, PX4 ones too, takes the fence items and rally points (verified by download
-before the flight), its autopilot's own parameters are set (PX4's GF_ACTION 3 = Return mode,
+embedded simulator. Every vehicle, PX4 ones too, takes the fence items and its own rally point (verified by
+download before the flight), its autopilot's own parameters are set (PX4's GF_ACTION 3 = Return mode,
 geofence_params.c, and RTL_TYPE 1, rally points before home; ArduCopter's FENCE_TYPE 4 and FENCE_ENABLE 1, its
 FENCE_ACTION 1 = RTL already being its default, and RALLY_INCL_HOME 0, RALLY_LIMIT_KM 0), nothing is
 breached, and after landing everything is put back (params_changed in flight.json)."""
@@ -19,7 +19,8 @@ from tests.e2e.flights import derived_mission, fly
 POLYGON = [[-40.0, -50.0], [200.0, -50.0], [200.0, 160.0], [-40.0, 160.0]]  # ENU m, around starts and goal
 POND = {"name": "pond", "center": [150.0, 0.0], "radius": 5.0}  # 150 m east: far off the diagonal route
 ITEMS = len(POLYGON) + 1  # one vertex item per corner, one circle
-RALLY = [[100.0, 20.0, 15.0], [20.0, 100.0, 15.0]]  # ENU m, inside the polygon, off the route
+# ENU m, inside the polygon, off the route: four, one for each vehicle (geofence.rally_by_vehicle)
+RALLY = [[100.0, 20.0, 15.0], [20.0, 100.0, 15.0], [60.0, -30.0, 15.0], [-30.0, 60.0, 15.0]]
 
 
 def test_px4_and_arducopter_take_the_site_fence_and_rally_points_and_get_them_back(tmp_path: Path) -> None:
@@ -50,7 +51,7 @@ def test_px4_and_arducopter_take_the_site_fence_and_rally_points_and_get_them_ba
             "vehicle": px4, "name": "GF_ACTION", "original": 2.0, "flown": 3.0, "restored": True,
         }  # fmt: skip
         assert rows[(px4, "rally items")] == {
-            "vehicle": px4, "name": "rally items", "original": 0.0, "flown": 2.0, "restored": True,
+            "vehicle": px4, "name": "rally items", "original": 0.0, "flown": 1.0, "restored": True,
         }  # fmt: skip
         # RTL_TYPE from PX4's default 0 (closest of home and rally points) to 1 (rally points first)
         assert rows[(px4, "RTL_TYPE")] == {
@@ -64,7 +65,7 @@ def test_px4_and_arducopter_take_the_site_fence_and_rally_points_and_get_them_ba
         assert (rows[(apm, "FENCE_ENABLE")]["original"], rows[(apm, "FENCE_ENABLE")]["flown"]) == (0.0, 1.0)
         assert rows[(apm, "FENCE_TYPE")]["restored"] and rows[(apm, "FENCE_ENABLE")]["restored"]
         assert (apm, "GF_ACTION") not in rows
-        assert rows[(apm, "rally items")]["restored"] and rows[(apm, "rally items")]["flown"] == 2.0
+        assert rows[(apm, "rally items")]["restored"] and rows[(apm, "rally items")]["flown"] == 1.0
         # Copter's defaults RALLY_INCL_HOME 1 and RALLY_LIMIT_KM 0.3 (sitl_sim params.py) to 0 and 0
         assert (rows[(apm, "RALLY_INCL_HOME")]["original"], rows[(apm, "RALLY_INCL_HOME")]["flown"]) == (
             1.0,

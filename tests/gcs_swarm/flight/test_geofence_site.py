@@ -6,8 +6,10 @@ download, FENCE_* set, and the vehicle's own fence and parameters restored after
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,10 +19,11 @@ from gcs_swarm.link import frames
 from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.flight_params import FlightParams
 from gcs_swarm.link.vehicle import VehicleConfig
-from gcs_swarm.mission.loader import parse_mission
+from gcs_swarm.mission.loader import load_mission, parse_mission
 from sitl_sim.autopilot import fence as sim_fence
 from tests.sitl_sim.sim_process import SimProcess, start_sim
 
+ROOT = Path(__file__).resolve().parents[3]
 ORIGIN = (-35.0, 149.0, 500.0)
 MISSION = """
 origin: {lat: -35.0, lon: 149.0, alt: 500.0}
@@ -143,22 +146,42 @@ def test_rally_items_are_points_above_home_in_whole_metres() -> None:
     np.testing.assert_allclose(_enu(items[1]), [-20, 20], atol=0.02)
 
 
+def test_rally_points_are_shared_out_one_a_vehicle_by_least_total_distance() -> None:
+    mission = load_mission(ROOT / "missions" / "quickstart.yaml")  # starts lead (0, 0), right (-1.5, -10),
+    # left (-10, 1.5)
+    points = [np.array(p) for p in ([10.0, -35.0, 15.0], [-35.0, 10.0, 15.0], [25.0, 20.0, 15.0])]
+    got = fence.rally_by_vehicle(dataclasses.replace(mission, rally=tuple(points)))
+    # by hand: lead-(25, 20) 32.0 m, right-(10, -35) 27.5 m, left-(-35, 10) 26.4 m, 85.9 m in all; every
+    # other one-to-one choice is longer (e.g. lead-(10, -35) 36.4 + right-(25, 20) 40.0 + left 26.4 = 102.8)
+    assert {name: [tuple(p[:2]) for p in given] for name, given in got.items()} == {
+        "lead": [(25.0, 20.0)],
+        "right": [(10.0, -35.0)],
+        "left": [(-35.0, 10.0)],
+    }
+    # one point for three: the vehicle nearest to it (left, 26.4 m) holds it, the others none (home)
+    got = fence.rally_by_vehicle(dataclasses.replace(mission, rally=(points[1],)))
+    assert [len(got[name]) for name in ("lead", "right", "left")] == [0, 0, 1]
+    assert fence.rally_by_vehicle(mission) == {}
+
+
 def test_install_fence_uploads_rally_points_and_restores(sim_fleet) -> None:
     _, fleet = sim_fleet
     mission = parse_mission(RALLY_MISSION, "site.yaml")
     link = fleet.vehicle("lead")
     flight, events, said = FlightParams(fleet), list[str](), list[str]()
     install = fence.install_fence(fleet, flight, mission, events, said.append)
-    assert install is not None and install.rally == fence.rally_items(mission.rally, mission.origin)
+    # the one vehicle holds the point nearer its start (0, 0): (-20, 20) 28.3 m, not (80, 10) 80.6 m
+    mine = fence.rally_items(mission.rally, mission.origin)[1:]
+    assert install is not None and install.rally == {"lead": mine}
     stored = fleet.run([fence.op_download_fence(link, mission_type=fence.RALLY)])[0]
-    assert len(stored) == 2 and all(a.same_as(b) for a, b in zip(stored, install.rally, strict=True))
+    assert len(stored) == 1 and stored[0].same_as(mine[0])
     assert len(fleet.run([fence.op_download_fence(link)])[0]) == 11  # the fence beside them, unchanged
     names = ("RALLY_TOTAL", "RALLY_INCL_HOME", "RALLY_LIMIT_KM")
-    # RALLY_TOTAL follows the upload; home excluded and no distance limit: RTL takes the nearest point
-    assert [fleet.run([link.parameters.op_get(name)])[0] for name in names] == [2, 0, 0]
-    assert "2 rally point(s)" in said[-1]
+    # RALLY_TOTAL follows the upload; home excluded and no distance limit: RTL takes the vehicle's point
+    assert [fleet.run([link.parameters.op_get(name)])[0] for name in names] == [1, 0, 0]
+    assert "2 rally point(s), one a vehicle" in said[-1]
     rows = {c.name: c for c in flight.changes}
-    assert (rows["rally items"].original, rows["rally items"].flown) == (0.0, 2.0)
+    assert (rows["rally items"].original, rows["rally items"].flown) == (0.0, 1.0)
     flight.restore()
     assert fleet.run([fence.op_download_fence(link, mission_type=fence.RALLY)]) == [[]]
     # Copter's defaults back (sitl_sim params.py: RALLY_INCL_HOME 1, RALLY_LIMIT_KM 0.3)
