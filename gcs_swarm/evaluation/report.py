@@ -217,6 +217,8 @@ def _report_from(
         "legs": list(flight.get("legs", [])),
         # bytes/s each way per vehicle and the link budget (flight.json link_use; None in older runs)
         "link_use": flight.get("link_use"),
+        # each step down of the command mode in flight (flight.json command_mode_changes; [] in older runs)
+        "command_mode_changes": list(flight.get("command_mode_changes") or []),
         "source": traj.source,
     }
 
@@ -339,6 +341,20 @@ def render_markdown(report: dict[str, Any]) -> str:
                 f"{_fmt(use.get('budget_B_s'))} | {_fmt(use.get('over_budget_s'))} | "
                 f"{_fmt(radio.get('txbuf_min_pct'))} |"
             )
+    changes = report.get("command_mode_changes")
+    if changes:
+        lines += ["", "Changes of the command mode in flight (docs/command-modes.md):", ""]
+        lines += [
+            "| vehicle time s | from | to | planned B/s up + down | vehicle | because its |",
+            "|" + "---|" * 6,
+        ]
+        lines += [
+            f"| {_fmt(c.get('t_s'))} | {c.get('from_mode')} {_fmt(c.get('from_hz'))} Hz | "
+            f"{c.get('to_mode')} {_fmt(c.get('to_hz'))} Hz | "
+            f"{_fmt(c.get('planned_up_B_s'))} + {_fmt(c.get('planned_down_B_s'))} | {c.get('vehicle')} | "
+            f"{c.get('reason')} |"
+            for c in changes
+        ]
     legs = report.get("legs")
     if legs:
         lines += ["", "Legs of the route, as the leader started them:", ""]

@@ -161,6 +161,7 @@ def write_flight(
         "link_stats": link_stats,  # {"vehicles": Fleet.stats(), "forwards": Fleet.forward_stats()}
         "link_use": link_use,  # bytes/s each way per vehicle and the budget (link.link_use.LinkUse.summary)
         "command_mode": result.command_mode,  # link.command_mode.CommandPlan.as_json (None: not chosen)
+        "command_mode_changes": result.command_mode_changes,  # link.command_mode.change_row rows, in flight
     }
     (run_dir / FLIGHT_FILE).write_text(json.dumps(flight, indent=2) + "\n")
 
@@ -209,6 +210,7 @@ def mission_fleet(
         # world.link.budget_bps, else the mission's radio's capacity in MAVLink bytes (link.command_mode)
         link_budget_bps=None if plan.budget is None else plan.budget.bytes_per_s * 8.0,
         command_plan=plan,
+        step_down=mission.link.step_down,
     )
 
 
@@ -334,6 +336,7 @@ def fly_mission(mission_path: str, options: RunOptions, say: Callable[[str], Non
                 link_stats = {"vehicles": fleet.stats(), "forwards": fleet.forward_stats()}
                 link_use = fleet.link_use.summary()
                 result.events.extend(fleet.link_use.events)
+                result.command_mode_changes = fleet.command_watch.changes
                 for line in fleet.link_summary():
                     say(line)
     except (MissionError, SimulatorError, PreflightError) as exc:

@@ -16,6 +16,8 @@ class FlightResult:
 
     phase_reached: Phase = Phase.CONNECT
     command_mode: dict[str, object] | None = None  # the command mode chosen before take-off (CommandPlan)
+    # each step down of the command mode in flight (link.command_mode.change_row), oldest first
+    command_mode_changes: list[dict[str, object]] = field(default_factory=list)
     arrived: bool = False
     t_formation_start: float | None = None
     t_arrival: float | None = None

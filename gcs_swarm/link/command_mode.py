@@ -19,7 +19,8 @@ parameter exchanges already run over the slowed link):
 In flight (`CommandModeWatch`, once per link_use window) the chosen mode steps down when the measured
 downlink degrades: from ATTITUDE to POSITION, and from one POSITION rate to the next slower one, never back
 up (no mode fight; docs/command-modes.md "In flight" says why), each step an event "command mode: ...
-because ...".
+because ..." and a row of flight.json `command_mode_changes`; its thresholds, and whether it acts at all,
+are the mission's `world.link.step_down` (`StepDown`).
 
 Bytes are counted as on the wire: MAVLink 2 framing (10 header + 2 checksum bytes, + 13 signed) around each
 message's full payload (pymavlink's struct size: the longest it can be; MAVLink 2 trims trailing zeros), and
@@ -36,7 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_swarm.link.link_use import TXBUF_LOW, LinkUse
+from gcs_swarm.link.link_use import TXBUF_LOW, WINDOW_MS, LinkUse
 from gcs_swarm.link.streams import telemetry_rates
 from swarm_common.radio_presets import RADIO_OVERRIDES, radio_spec
 
@@ -60,14 +61,33 @@ UNREAD_STREAMS = ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED")
 MAVLINK2_FRAMING = 12  # bytes around a MAVLink 2 payload: 10 header + 2 checksum
 SIGNATURE = 13  # bytes a MAVLink 2 signature adds
 SETPOINT_MESSAGE = {ATTITUDE: "SET_ATTITUDE_TARGET", POSITION: "SET_POSITION_TARGET_GLOBAL_INT"}
-# the in-flight watch (CommandModeWatch), per link_use window (1 s of vehicle time):
-AGE_MAX_S = 0.15  # s of queueing: telemetry older at a window's end than this plus one report period is
-# waiting on the air (a SiK buffer full at 64 kbit/s holds 1850 B * 10.2 / 64000 = 0.29 s); the lockstep radio
-# adds 1-2 frames (20-40 ms), quickstart_faulty's jitter at most 100 ms
-DEGRADED_WINDOWS = 2  # consecutive degraded windows of one vehicle before the mode steps down (the dwell:
-# one bad window is a burst; the stale-telemetry watch holds vehicles whose telemetry is 1 s old)
+# the in-flight watch (CommandModeWatch), per link_use window (1 s of vehicle time); its thresholds are the
+# mission's (StepDown, world.link.step_down)
 SETTLE_WINDOWS = 2  # windows after a step that are not judged: the new rates take effect, the queues drain
 REASK_RATIO = 1.5  # positions still arriving above this times the rate asked after a step: ask again
+
+
+@dataclass(frozen=True)
+class StepDown:
+    """When the command mode steps down in flight (CommandModeWatch; the mission's world.link.step_down,
+    docs/command-modes.md "In flight"). The defaults are this project's choices, not the paper's."""
+
+    enabled: bool = True  # False: the mode chosen before take-off is flown to the end
+    # s of queueing: telemetry older at a window's end than this plus one report period is waiting on the air
+    # (a SiK buffer full at 64 kbit/s holds 1850 B * 10.2 / 64000 = 0.29 s); the lockstep radio adds 1-2
+    # frames (20-40 ms), quickstart_faulty's jitter at most 100 ms
+    queue_age_s: float = 0.15
+    # s (whole link_use windows of WINDOW_MS) a vehicle's downlink stays degraded before the fleet steps
+    # down: the dwell, one bad window is a burst; the stale-telemetry watch holds vehicles at 1 s of age
+    after_s: int = 2
+
+    @property
+    def windows(self) -> int:
+        """after_s in link_use windows (at least one)."""
+        return max(1, math.ceil(self.after_s * 1000 / WINDOW_MS))
+
+
+DEFAULT_STEP_DOWN = StepDown()  # a mission without world.link.step_down
 
 
 class CommandModeError(Exception):
@@ -242,26 +262,50 @@ def position_plan(
     return CommandPlan(POSITION, hz, hz, STATUS_HZ_SLOW, *needs[choice], attitude_B_s, budget, forced, signed)
 
 
+def change_row(
+    t_s: float, was: CommandPlan, now: CommandPlan, vehicle: str, reason: str
+) -> dict[str, object]:
+    """One row of flight.json `command_mode_changes`: at vehicle time t_s s the fleet went from plan `was`
+    to plan `now` because `vehicle`'s downlink was degraded (`reason`, as in the event); the bytes/s the new
+    plan needs each way."""
+    return {
+        "t_s": round(t_s, 3),
+        "from_mode": was.mode,
+        "from_hz": was.setpoint_hz,
+        "to_mode": now.mode,
+        "to_hz": now.setpoint_hz,
+        "vehicle": vehicle,
+        "reason": reason,
+        "planned_up_B_s": round(now.up_B_s, 1),
+        "planned_down_B_s": round(now.down_B_s, 1),
+    }
+
+
 class CommandModeWatch:
     """Steps the command mode down in flight when a vehicle's downlink stays degraded (module doc).
 
     After each link_use window (`sample`), a vehicle that delivered positions in it is degraded when its
-    telemetry queues (older than AGE_MAX_S plus one report period, 1 / state_hz, at the window's end) or its
-    radio's RADIO_STATUS txbuf (where one reports) is below link_use.TXBUF_LOW. The positions' arrival rate
-    is not a trigger by itself: random loss and reordering lower it as much as congestion does
+    telemetry queues (older than step_down.queue_age_s plus one report period, 1 / state_hz, at the window's
+    end) or its radio's RADIO_STATUS txbuf (where one reports) is below link_use.TXBUF_LOW. The positions'
+    arrival rate is not a trigger by itself: random loss and reordering lower it as much as congestion does
     (quickstart_faulty's 100 ms of jitter makes many positions late, which the intake drops), while only
-    congestion makes the telemetry wait. A window without any position (an outage, a reboot, a lost
-    vehicle: the stale-telemetry and loss watches' business, which a slower mode would not help) clears the
-    vehicle's count. DEGRADED_WINDOWS in a row of any vehicle step the whole fleet down one step: ATTITUDE ->
-    POSITION, or POSITION -> its next slower rate, the rate chosen by position_plan against what the
-    degraded link carried in its last window, up and down (its capacity, when full); never back up. A mode
-    the mission forced is kept. After a step the telemetry of the new plan is asked for without waiting
-    (Streams.ask), asked again each window a vehicle still sends positions above REASK_RATIO times the new
-    rate, and SETTLE_WINDOWS windows are not judged."""
+    congestion makes the telemetry wait. A window without any position (an outage, a reboot, a lost vehicle:
+    the stale-telemetry and loss watches' business, which a slower mode would not help) clears the vehicle's
+    count. step_down.after_s of such windows in a row of any vehicle step the whole fleet down one step:
+    ATTITUDE -> POSITION, or POSITION -> its next slower rate, the rate chosen by position_plan against what
+    the degraded link carried in its last window, up and down (its capacity, when full); never back up. A mode
+    the mission forced is kept, and so is every mode when step_down.enabled is false. After a step the
+    telemetry of the new plan is asked for without waiting (Streams.ask), asked again each window a vehicle
+    still sends positions above REASK_RATIO times the new rate, and SETTLE_WINDOWS windows are not judged.
+    Each step is a row of `changes` (flight.json command_mode_changes)."""
 
-    def __init__(self, links: Sequence[VehicleLink], use: LinkUse) -> None:
+    def __init__(
+        self, links: Sequence[VehicleLink], use: LinkUse, step_down: StepDown = DEFAULT_STEP_DOWN
+    ) -> None:
         self.links = links
         self.use = use
+        self.step_down = step_down
+        self.changes: list[dict[str, object]] = []  # one row per step (`change_row`), oldest first
         self.degraded = np.zeros(len(links), dtype=np.int64)  # (N,) consecutive degraded windows
         self.settle = 0  # windows still not judged after a step
         self.windows = 0  # use.windows at the last sample
@@ -272,7 +316,7 @@ class CommandModeWatch:
         """The plan to fly after the latest link_use window (`plan` itself, or the next step down, whose
         telemetry is then asked for and whose event is out)."""
         use = self.use
-        if plan is None or plan.forced or use.windows == self.windows:
+        if plan is None or plan.forced or not self.step_down.enabled or use.windows == self.windows:
             return plan
         self.windows = use.windows
         if plan.mode == POSITION and self.steps:
@@ -283,7 +327,7 @@ class CommandModeWatch:
             return plan
         reasons = self._judge(plan)
         worst = int(np.argmax(self.degraded))
-        if self.degraded[worst] < DEGRADED_WINDOWS or self.exhausted:
+        if self.degraded[worst] < self.step_down.windows or self.exhausted:
             return plan
         carried = float(np.nansum(use.rate[worst]))
         budget = LinkBudget(
@@ -293,7 +337,7 @@ class CommandModeWatch:
         )
         below = plan.setpoint_hz if plan.mode == POSITION else math.inf
         step = position_plan(budget, plan.setpoint_hz, plan.signed, plan.attitude_B_s, below_hz=below)
-        because = f"because {self.links[worst].name}'s {reasons[worst]} for {DEGRADED_WINDOWS} s"
+        because = f"because {self.links[worst].name}'s {reasons[worst]} for {self.step_down.after_s} s"
         if step is None:
             self.exhausted = True
             use.fleet_event(
@@ -310,10 +354,11 @@ class CommandModeWatch:
                 link.streams.ask(step.telemetry)
         was = "attitude targets" if plan.mode == ATTITUDE else "position targets"
         need = step.up_B_s + step.down_B_s
-        use.fleet_event(
+        t_s = use.fleet_event(
             f"command mode: position targets at {step.setpoint_hz:g} Hz ({need:.0f} B/s), telemetry at "
             f"{step.state_hz:g} Hz, instead of {was} at {plan.setpoint_hz:g} Hz {because}"
         )
+        self.changes.append(change_row(t_s, plan, step, self.links[worst].name, reasons[worst]))
         return step
 
     def _judge(self, plan: CommandPlan) -> list[str]:
@@ -323,7 +368,7 @@ class CommandModeWatch:
         for i, link in enumerate(self.links):
             hz, age, txbuf = float(use.position_hz[i]), float(use.age_s[i]), link.radio.txbuf
             wrong = []
-            if age > AGE_MAX_S + 1.0 / plan.state_hz:
+            if age > self.step_down.queue_age_s + 1.0 / plan.state_hz:
                 wrong.append(f"telemetry was {age:.2f} s old (positions at {hz:.0f} of {plan.state_hz:g} Hz)")
             if txbuf is not None and txbuf < TXBUF_LOW:
                 wrong.append(f"radio buffer was {txbuf}% free")

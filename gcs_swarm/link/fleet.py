@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gcs_swarm.link import attitude_commands, frames, intake_kernel
 from gcs_swarm.link.autopilots import AutopilotDialect, ModeChoice, dialect_named, mode_name_in
-from gcs_swarm.link.command_mode import POSITION, CommandModeWatch, CommandPlan
+from gcs_swarm.link.command_mode import DEFAULT_STEP_DOWN, POSITION, CommandModeWatch, CommandPlan, StepDown
 from gcs_swarm.link.connection import LinkError
 from gcs_swarm.link.forward import ForwardConfig
 from gcs_swarm.link.housekeeping import Housekeeping
@@ -96,12 +96,14 @@ class Fleet:
         spin_s: float = 0.0,
         link_budget_bps: float | None = None,
         command_plan: CommandPlan | None = None,
+        step_down: StepDown = DEFAULT_STEP_DOWN,
     ) -> None:
         """`stream_rate_hz`: the rate of the state telemetry asked for as soon as a vehicle is heard
         (`telemetry_rates`; the control loop's rate). `link_budget_bps`: bit/s each vehicle's link carries
         for the ground station, up and down together (link.link_use; None: no budget). `command_plan`: the
         command mode and telemetry rates chosen for the link (link.command_mode); its telemetry is asked
-        for instead (None: attitude targets, telemetry at stream_rate_hz)."""
+        for instead (None: attitude targets, telemetry at stream_rate_hz). `step_down`: when that plan steps
+        down in flight (CommandModeWatch)."""
         _validate(vehicles, gcs_sysid, gcs_compid)
         self.stream_rate_hz = stream_rate_hz
         self.command_plan = command_plan
@@ -122,7 +124,8 @@ class Fleet:
         self.network = Network(self.links, signing_key, forwards, spin_s=spin_s)
         self.housekeeping = Housekeeping(self.links, self.state)  # heartbeats, loss checks, stream watchdog
         self.link_use = LinkUse(self.links, link_budget_bps)  # bytes/s each way per vehicle, the budget
-        self.command_watch = CommandModeWatch(self.links, self.link_use)  # steps command_plan down in flight
+        # steps command_plan down in flight
+        self.command_watch = CommandModeWatch(self.links, self.link_use, step_down)
         self.on_pump: Callable[[], None] | None = None  # called at the end of every pump (e.g. a UI refresh)
         # wall s every pump so far spent blocked in select for packets, and the rest of its time (decoding
         # what arrived, heartbeats, loss checks, on_pump): read as differences (flight.tick_timing)

@@ -125,13 +125,14 @@ class LinkUse:
                 self._txbuf_low[i] = False
                 self._event(i, f"radio transmit buffer {txbuf}% free again")
 
-    def fleet_event(self, text: str) -> None:
+    def fleet_event(self, text: str) -> float:
         """An event of the whole fleet (e.g. a change of command mode): every link's events (the console)
-        and `events` ("t=T s text", T the newest vehicle time)."""
+        and `events` ("t=T s text", T the newest vehicle time); T, s."""
         for link in self.links:
             link.add_event(text)
         t_s = max(max((int(link.state.time_ms[link.index]) for link in self.links), default=0), 0) / 1000.0
         self.events.append(f"t={t_s:.2f} s {text}")
+        return t_s
 
     def _event(self, i: int, text: str) -> None:
         link = self.links[i]

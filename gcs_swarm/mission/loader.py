@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from gcs_swarm.guidance.params import STOP_SHAPING
+from gcs_swarm.link.command_mode import StepDown
 from gcs_swarm.mission import checks
 from gcs_swarm.mission.geodesy import Origin, ground_enu, implied_origin, position_enu, vertex_enu
 from gcs_swarm.mission.imports import with_imports
@@ -183,7 +184,8 @@ def _mission(file: MissionFile, source: str, root: Node) -> Mission:
         ),
         wind=file.world.wind,
         link=LinkSpec(
-            **link.model_dump(exclude={"outages"}),
+            **link.model_dump(exclude={"outages", "step_down"}),
+            step_down=StepDown(**link.step_down.model_dump()),
             outages=tuple(
                 OutageSpec(
                     None if "vehicle" not in outage.model_fields_set else names.index(outage.vehicle),

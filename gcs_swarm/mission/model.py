@@ -25,6 +25,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
     TelemetryParams,
 )
+from gcs_swarm.link.command_mode import StepDown
 from gcs_swarm.mission.schema import SimulatorSection, WindSection
 
 
@@ -176,6 +177,7 @@ class LinkSpec:
     # no budget); going over it is an event (gcs_swarm.link.link_use)
     budget_bps: float | None = None
     command_mode: str = "auto"  # auto (from the budget) | attitude | position (gcs_swarm.link.command_mode)
+    step_down: StepDown = StepDown()  # when the command mode steps down in flight (link.command_mode)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

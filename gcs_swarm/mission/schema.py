@@ -51,6 +51,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
     TelemetryParams,
 )
+from gcs_swarm.link.command_mode import StepDown
 from gcs_swarm.mission.yaml_tree import Node, loc_path
 from swarm_common.radio_presets import RADIO_PRESETS, RADIO_RANGES
 
@@ -431,6 +432,16 @@ def _radio_range(key: str) -> Range:
     return Range(ge=low, le=high, unit=unit)
 
 
+class StepDownSection(Section):
+    """When the command mode steps down in flight (link.command_mode.StepDown, docs/command-modes.md)."""
+
+    enabled: bool = StepDown.enabled  # false: the mode chosen before take-off is flown to the end
+    # telemetry older than this plus one report period at a window's end is queueing on the air
+    queue_age_s: Annotated[float, Range(gt=0, le=5, unit="s")] = StepDown.queue_age_s
+    # a vehicle's downlink degraded this long (whole seconds: windows of 1 s) steps the fleet down
+    after_s: Annotated[int, Range(ge=1, le=60, unit="s")] = StepDown.after_s
+
+
 class LinkSection(Section):
     loss: Probability = 0.0
     dup: Probability = 0.0
@@ -456,6 +467,7 @@ class LinkSection(Section):
     # how the ground station commands the vehicles: auto (from the budget), attitude or position
     # (docs/command-modes.md; link.command_mode)
     command_mode: Annotated[str, one_of("auto", "attitude", "position")] = "auto"
+    step_down: StepDownSection = StepDownSection()  # the in-flight step down (link.command_mode)
 
 
 class _Heights(Entry):

@@ -53,6 +53,20 @@ def test_a_capacity_drop_in_flight_switches_to_position_targets_once_and_the_for
     head = "command mode: position targets at 10 Hz (1663 B/s), telemetry at 10 Hz, instead of attitude"
     assert head in changes[0] and "because" in changes[0]
     assert "position targets 10 Hz" in run.output  # the progress line
+    # the step as data (flight.json command_mode_changes, report.json, report.md): the event's time, the
+    # bytes of position targets at 10 Hz (671 up + 992 down, by hand in test_command_mode_watch.py's doc)
+    (row,) = flight["command_mode_changes"]
+    assert abs(row["t_s"] - t_switch) < 0.01  # the event's t is printed to 2 decimals
+    assert (row["from_mode"], row["from_hz"], row["to_mode"], row["to_hz"]) == (
+        "attitude",
+        50.0,
+        "position",
+        10.0,
+    )
+    assert (row["planned_up_B_s"], row["planned_down_B_s"]) == (671.0, 992.0)
+    assert f"because {row['vehicle']}'s {row['reason']} for 2 s" in changes[0]
+    assert report["command_mode_changes"] == [row]
+    assert "Changes of the command mode in flight" in (run.run_dir / "report.md").read_text()
     # the simulator's radios carried the drop: something waited or was dropped on the air after it
     log = (run.run_dir / "simulator.log").read_text()
     assert max(float(x) for x in re.findall(r"radio_down_delay_max_ms=([\d.]+)", log)) > 100.0

@@ -55,7 +55,22 @@ OPTIONAL_FLIGHT_KEYS = (
     "autopilots",
     "wall_duration_s",
     "commands_limited",
+    "command_mode_changes",
 )
+# flight.json command_mode_changes of a run whose fleet stepped down once (link.command_mode.change_row)
+CHANGES = [
+    {
+        "t_s": 2.5,
+        "from_mode": "attitude",
+        "from_hz": 50.0,
+        "to_mode": "position",
+        "to_hz": 10.0,
+        "vehicle": "uav1",
+        "reason": "telemetry was 0.35 s old (positions at 40 of 50 Hz)",
+        "planned_up_B_s": 671.0,
+        "planned_down_B_s": 992.0,
+    }
+]
 
 
 @cache
@@ -230,6 +245,7 @@ def write_story(run_dir: Path, story: RunStory) -> dict[str, Any]:
         "autopilots": dict.fromkeys(names, "ardupilot"),
         "wall_duration_s": 1.0,
         "commands_limited": 0,
+        "command_mode_changes": CHANGES,
     }
     for key in story.dropped_keys:
         flight.pop(key)
@@ -244,6 +260,7 @@ def write_story(run_dir: Path, story: RunStory) -> dict[str, Any]:
         "crashed": truth_crashed if story.with_truth else set(),
         "lost": [] if "lost" in story.dropped_keys else lost,
         "taken": [] if "taken_over" in story.dropped_keys else taken,
+        "changes": [] if "command_mode_changes" in story.dropped_keys else CHANGES,
         "uncommanded": uncommanded,
     }
 
@@ -263,8 +280,12 @@ def _check(report: dict[str, Any], story: RunStory, known: dict[str, Any]) -> No
         for i in known["uncommanded"]:  # never commanded: no rate figure can exist
             entry = report["command_rates"]["vehicles"][i]
             assert all(value is None for axis in ("pitch_rate", "yaw_rate") for value in entry[axis].values())
+    assert report["command_mode_changes"] == known["changes"]
     text = render_markdown(report)
     assert all(name in text for name in known["names"])
+    # the change's row in report.md, or no table without one
+    row = "| 2.50 | attitude 50.00 Hz | position 10.00 Hz | 671.00 + 992.00 | uav1 | telemetry was 0.35 s old"
+    assert (row in text) == bool(known["changes"])
 
 
 SETTINGS = settings(

@@ -21,16 +21,18 @@ import numpy as np
 import pytest
 
 from gcs_swarm.link.command_mode import (
-    AGE_MAX_S,
     ATTITUDE,
-    DEGRADED_WINDOWS,
+    DEFAULT_STEP_DOWN,
     POSITION,
     SETTLE_WINDOWS,
     CommandModeWatch,
     CommandPlan,
+    StepDown,
     command_plan,
 )
 
+AGE_MAX_S = DEFAULT_STEP_DOWN.queue_age_s  # 0.15 s (world.link.step_down.queue_age_s)
+DEGRADED_WINDOWS = DEFAULT_STEP_DOWN.after_s  # 2 windows of 1 s (world.link.step_down.after_s)
 FRESH_S = 0.03  # a healthy lockstep radio: one or two frames of age
 QUEUED_S = 0.35  # a SiK buffer full at 64 kbit/s and more
 
@@ -58,8 +60,10 @@ class Use:
             self.position_hz[i], self.age_s[i] = hz, age
             self.rate[i] = carried / 2
 
-    def fleet_event(self, text: str) -> None:
+    def fleet_event(self, text: str) -> float:
+        """Keep the event; its time: one s of vehicle time a window."""
         self.events.append(text)
+        return float(self.windows)
 
 
 class Streams:
@@ -129,6 +133,21 @@ def test_one_vehicle_queueing_for_the_dwell_steps_the_fleet_to_position_targets_
     for link in links:  # every vehicle asked for the slower telemetry at once
         assert link.streams.asked == [step.telemetry]
         assert link.streams.asked[0]["GLOBAL_POSITION_INT"] == 10.0
+    # the step as data (flight.json command_mode_changes): the window it closed is the 2 * DEGRADED_WINDOWS-th
+    # (one short, a healthy one, then the dwell), which the stand-in's clock makes that many seconds
+    assert watch.changes == [
+        {
+            "t_s": 2.0 * DEGRADED_WINDOWS,
+            "from_mode": "attitude",
+            "from_hz": 50.0,
+            "to_mode": "position",
+            "to_hz": 10.0,
+            "vehicle": "right",
+            "reason": "telemetry was 0.35 s old (positions at 40 of 50 Hz)",
+            "planned_up_B_s": 671.0,
+            "planned_down_B_s": 992.0,
+        }
+    ]
 
 
 def test_after_a_step_the_watch_settles_then_steps_down_rate_by_rate_and_never_back_up() -> None:
@@ -165,6 +184,12 @@ def test_after_a_step_the_watch_settles_then_steps_down_rate_by_rate_and_never_b
         assert watch.sample(plan) is plan
     assert rates == [10.0, 5.0, 4.0]
     assert len(use.events) == 4
+    # three steps as data; "the slowest, kept" is an event, not a change
+    assert [(c["from_mode"], c["from_hz"], c["to_hz"]) for c in watch.changes] == [
+        ("attitude", 50.0, 10.0),
+        ("position", 10.0, 5.0),
+        ("position", 5.0, 4.0),
+    ]
     assert use.events[1].startswith("command mode: position targets at 5 Hz (938 B/s), telemetry at 5 Hz, ")
     assert "instead of position targets at 10 Hz because lead's telemetry was 0.60 s old" in use.events[1]
     assert use.events[2].startswith("command mode: position targets at 4 Hz (793 B/s)")
@@ -235,3 +260,36 @@ def test_a_lost_stream_request_is_asked_again_while_positions_come_too_fast(stil
         use.window(still_hz, FRESH_S)
         assert watch.sample(plan) is plan
     assert len(links[0].streams.asked) == (4 if still_hz == 50.0 else 1)
+
+
+def test_with_step_down_disabled_the_mode_chosen_before_take_off_is_kept() -> None:
+    """world.link.step_down.enabled false: queueing and a full radio buffer change nothing."""
+    links, use = _links(2, txbuf=10), Use(2)
+    watch = CommandModeWatch(links, use, StepDown(enabled=False))  # type: ignore[arg-type]
+    plan = _attitude_plan()
+    for _ in range(10):
+        use.window(40.0, QUEUED_S)
+        assert watch.sample(plan) is plan
+    assert use.events == [] and watch.changes == [] and all(link.streams.asked == [] for link in links)
+
+
+def test_the_mission_s_queue_age_and_dwell_are_the_thresholds() -> None:
+    """queue_age_s 0.4 at attitude targets at 50 Hz: degraded above 0.4 + 1/50 = 0.42 s of age, so the
+    default's 0.35 s is healthy and 0.5 s is not; after_s 3: three degraded windows (of 1 s) step, two do
+    not."""
+    links, use = _links(1), Use(1)
+    watch = CommandModeWatch(links, use, StepDown(queue_age_s=0.4, after_s=3))  # type: ignore[arg-type]
+    plan = _attitude_plan()
+    for _ in range(10):
+        use.window(40.0, QUEUED_S)
+        assert watch.sample(plan) is plan
+    for _ in range(2):
+        use.window(40.0, 0.5)
+        assert watch.sample(plan) is plan
+    use.window(40.0, 0.5)
+    step = _sample(watch, plan)
+    assert step.mode == POSITION
+    assert use.events[0].endswith(
+        "because lead's telemetry was 0.50 s old (positions at 40 of 50 Hz) for 3 s"
+    )
+    assert [c["t_s"] for c in watch.changes] == [13.0]  # the 13th window
