@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -188,3 +189,46 @@ def test_install_fence_uploads_rally_points_and_restores(sim_fleet) -> None:
     got = [fleet.run([link.parameters.op_get(name)])[0] for name in names]
     assert got[:2] == [0, 1] and got[2] == pytest.approx(0.3)
     assert all(c.restored for c in flight.changes)
+
+
+@pytest.fixture
+def px4_fleet() -> Iterator[Fleet]:
+    """A lockstep sitl-sim of one PX4 vehicle at the mission's origin, a connected Fleet."""
+    sim = start_sim(
+        "--lockstep", "--ready-delay", "1", "--home=-35.0,149.0,500.0", "--autopilot", "px4", vehicles=1
+    )
+    fleet = Fleet([VehicleConfig("lead", f"udpout:127.0.0.1:{sim.port(0)}", 1)], ORIGIN)
+    try:
+        fleet.connect(timeout_s=10.0)
+        yield fleet
+    finally:
+        fleet.close()
+        sim.stop(signal.SIGKILL if sim.proc.poll() is None else signal.SIGTERM, timeout_s=5.0)
+
+
+@pytest.mark.sim  # px4_fleet starts a sitl-sim (tests/conftest.py)
+def test_install_on_px4_sets_gf_action_and_rtl_type_reports_violations_and_restores(px4_fleet) -> None:
+    fleet = px4_fleet
+    mission = parse_mission(RALLY_MISSION, "site.yaml")
+    link = fleet.vehicle("lead")
+    flight, events, said = FlightParams(fleet), list[str](), list[str]()
+    install = fence.install_fence(fleet, flight, mission, events, said.append)
+    assert install is not None and len(fleet.run([fence.op_download_fence(link)])[0]) == 11
+    assert len(fleet.run([fence.op_download_fence(link, mission_type=fence.RALLY)])[0]) == 1
+    # dead_gcs.fence.action brake -> GF_ACTION 2 (Hold mode), PX4's default already: no change row; RTL_TYPE
+    # from 0 to 1 (rally points before home); no ArduPilot parameter asked
+    assert [fleet.run([link.parameters.op_get(name)])[0] for name in ("GF_ACTION", "RTL_TYPE")] == [2, 1]
+    assert [c.name for c in flight.changes] == ["fence items", "rally items", "RTL_TYPE"]
+    link.handle(_statustext("Geofence violation"), time.monotonic())  # as PX4's navigator says it
+    assert events[-1].endswith("lead: Geofence violation: its autopilot takes over (fence action brake)")
+    flight.restore()
+    assert all(c.restored for c in flight.changes)
+    assert fleet.run([fence.op_download_fence(link)]) == [[]]
+    assert fleet.run([fence.op_download_fence(link, mission_type=fence.RALLY)]) == [[]]
+    assert fleet.run([link.parameters.op_get("RTL_TYPE")])[0] == 0
+
+
+def _statustext(text: str):  # noqa: ANN202 - a pymavlink message
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+    return mavlink2.MAVLink_statustext_message(mavlink2.MAV_SEVERITY_CRITICAL, text.encode())
