@@ -21,8 +21,9 @@ MissionItemProtocol_Fence.cpp, GCS_Common.cpp):
 - a PX4 vehicle (persona mission_protocol "px4", src/modules/mavlink/mavlink_mission.cpp) differs in two
   ways: it asks with MISSION_REQUEST_INT once the peer has used MISSION_REQUEST_INT or MISSION_ITEM_INT
   (_int_mode; the float forms switch it back), and it ignores an item of the wrong seq without an answer
-  (handle_mission_item_both). Its fence is validated as ArduPilot's (PX4 refuses a polygon of fewer than 3
-  vertices with ERROR as well; its dataman limits are not simulated).
+  (handle_mission_item_both). Its fence and rally points are validated as ArduPilot's (PX4 refuses a polygon
+  of fewer than 3 vertices with ERROR as well, but also takes rally points in frame GLOBAL; its dataman limits
+  are not simulated).
 - rally points (mission_type RALLY, MissionItemProtocol_Rally.cpp): the same transfers with
   MAV_CMD_NAV_RALLY_POINT items (another command: UNSUPPORTED) in frame GLOBAL_RELATIVE_ALT(_INT) (another:
   UNSUPPORTED_FRAME), z metres above home stored as a whole number (RallyLocation.alt, an int16; outside it
