@@ -145,7 +145,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     )
     try:
         load_mission(args.mission)
-    except MissionError as exc:  # a site part the flight cannot yet honour (checks.not_yet_flown)
+    except MissionError as exc:  # the flight refuses it (checks.flight_refusal: legs too near the site fence)
         print(f"note: valid, but it cannot be flown yet: {exc}")
     return 0
 

@@ -14,7 +14,7 @@ import yaml
 from shapely.geometry import Polygon
 
 from gcs_swarm.mission import MissionError, load_mission
-from gcs_swarm.mission.checks import not_yet_flown
+from gcs_swarm.mission.checks import flight_refusal
 from gcs_swarm.mission.yaml_tree import parse_yaml
 from gcs_swarm.site import Site, SiteError, merge_sites, mission_fragment, read_site
 
@@ -47,7 +47,7 @@ def import_command(files: list[str], out: str, vehicles: int, spacing: float) ->
         f"{len(mission.cylinders)} cylinders, {len(mission.rally)} rally points, "
         f"{len(mission.vehicles)} vehicles"
     )
-    refusal = not_yet_flown(mission, parse_yaml(text, out))
+    refusal = flight_refusal(mission, parse_yaml(text, out))
     if refusal is not None:
         print(f"note: it cannot be flown yet: {refusal}")
     if not site.waypoints:

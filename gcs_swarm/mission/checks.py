@@ -444,25 +444,9 @@ def _fenced_legs(mission: Mission, root: Node) -> MissionError | None:
     return None
 
 
-# what a mission may carry that the flight cannot yet honour (key path -> the sentence refusing it), and who
-# is to make it so (issue 37): nothing today. The site fence (safety.geofence.polygon, .exclusions) is flown:
-# enforced by the command guard, kept clear by the legs; prisms and cylinders are flown: avoided with their
-# true distance and normal (spec 2.2); rally points are flown: uploaded to the autopilots, whose RTL returns
-# to the nearest (gcs_swarm.flight.geofence)
-NOT_YET_FLOWN: tuple[tuple[tuple[str, ...], str], ...] = ()
-
-
-def not_yet_flown(mission: Mission, root: Node) -> MissionError | None:
-    """The refusal to fly a mission with a site part the flight cannot yet honour (NOT_YET_FLOWN), or whose
-    leader's legs bring the formation too near the site fence (_fenced_legs), or None: nothing is silently
-    left out of a flight."""
-    given: dict[tuple[str, ...], bool] = {}  # NOT_YET_FLOWN's key paths: whether the mission sets them
-    for loc, sentence in NOT_YET_FLOWN:
-        if given[loc]:
-            return root.at(loc).error(
-                f"{sentence}; the loader refuses to fly such a mission until it is (`gcs-swarm check` "
-                "validates it)"
-            )
+def flight_refusal(mission: Mission, root: Node) -> MissionError | None:
+    """The refusal to fly a valid mission whose leader's legs bring the formation too near the site fence
+    (_fenced_legs), or None: `gcs-swarm check` validates such a mission, `gcs-swarm run` refuses it."""
     return _fenced_legs(mission, root)
 
 

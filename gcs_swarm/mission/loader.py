@@ -54,7 +54,7 @@ from gcs_swarm.mission.yaml_tree import MissionError, Node, parse_yaml
 
 def load_mission(path: str | Path, *, to_fly: bool = True) -> Mission:
     """Read and validate a mission file; MissionError (one sentence, file:line: field) on any mistake.
-    `to_fly` False: also a mission whose site the flight cannot yet honour (checks.not_yet_flown)."""
+    `to_fly` False: also a mission the flight refuses (checks.flight_refusal: legs near the site fence)."""
     source = str(path)
     try:
         data = Path(path).read_bytes()
@@ -95,7 +95,7 @@ def parse_mission(text: str, source: str = "<string>", *, to_fly: bool = True) -
     mission = _mission(file, source, root)
     checks.check_mission(mission, root)
     if to_fly:
-        refusal = checks.not_yet_flown(mission, root)
+        refusal = checks.flight_refusal(mission, root)
         if refusal is not None:
             raise refusal
     return mission

@@ -499,8 +499,8 @@ class CylinderEntry(_Heights):
 
 class WorldSection(Section):
     obstacles: list[ObstacleEntry] | None = None
-    prisms: list[PrismEntry] | None = None  # carried, not yet avoided (checks.not_yet_flown)
-    cylinders: list[CylinderEntry] | None = None  # carried, not yet avoided (checks.not_yet_flown)
+    prisms: list[PrismEntry] | None = None  # buildings, avoided (spec 2.2)
+    cylinders: list[CylinderEntry] | None = None  # trees and masts, avoided (spec 2.2)
     # site files merged into the mission (paths relative to the mission file; gcs_swarm.mission.imports)
     imports: list[Annotated[str, text()]] = Field(default=[], validation_alias="import")
     wind: WindSection = WindSection()

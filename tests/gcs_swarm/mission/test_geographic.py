@@ -1,5 +1,5 @@
 """Missions in latitude/longitude (issue 37 item 1), fences as data (item 2's data side), and the refusal to
-fly what the flight cannot yet honour.
+fly legs too near the fence.
 
 Expected values are reasoned independently of the loader: a geographic mission is written from an ENU one with
 pymap3d.enu2geodetic (the inverse the loader does not use), and distances on the ellipsoid come from the
