@@ -90,11 +90,13 @@ class MissionRunner:
             min_altitude=mission.safety.min_altitude,
             geofence_radius=mission.safety.geofence_radius,
             geofence_max_alt=mission.safety.geofence_max_alt,
-            # the site fence; its braking margin assumes full-tilt braking, g tan(tilt_max)
+            # the site fence, buildings and trees; the braking margin assumes full-tilt braking, g tan(tilt)
             fence=GuardFence.of(
                 mission.fence.polygon,
                 mission.fence.exclusions,
                 G * math.tan(math.radians(mission.limits.tilt_max_deg)),
+                mission.prisms,
+                mission.cylinders,
             ),
         )
         self.commands_limited = 0  # vehicle-ticks whose command the final guard had to change

@@ -13,7 +13,9 @@ Rules, per vehicle row (one compiled loop over the vehicles):
   points outward no more steeply than straight braking does (a_r / |a| <= -v_r / |v|), so it slows the
   vehicle down without steering it outward (`_pushes_out`); above the fence ceiling thrust <= hover; below
   the minimum altitude thrust >= hover (never accelerate down);
-- the site fence (`GuardFence`: the inclusion polygon, exclusion polygons and circles, horizontal ENU m): the
+- the site fence (`GuardFence`: the inclusion polygon, exclusion polygons and circles, horizontal ENU m, at
+  every height; and the buildings' footprints and the trees' circles as exclusion zones between their bottom
+  and top heights, so that a vehicle above a roof is free to fly over it): the
   same rule as the radius's, with the normal n of the nearest edge (or of the circle) pointing into the
   forbidden side instead of the radial direction, for every zone the vehicle is in or about to enter: its
   signed depth into the forbidden side s (m, > 0 outside the polygon or inside an exclusion zone) is
@@ -53,40 +55,83 @@ class ZoneShape(Protocol):
     def radius(self) -> float: ...
 
 
+class PrismShape(Protocol):
+    """A building as the mission gives it (gcs_swarm.mission.model.Prism): a footprint (K, 2) m between bottom
+    and top m above the origin."""
+
+    @property
+    def footprint(self) -> np.ndarray: ...
+    @property
+    def bottom(self) -> float: ...
+    @property
+    def top(self) -> float: ...
+
+
+class CylinderShape(Protocol):
+    """A tree or mast as the mission gives it (gcs_swarm.mission.model.Cylinder): center (2,) m, radius m,
+    between bottom and top m above the origin."""
+
+    @property
+    def center(self) -> np.ndarray: ...
+    @property
+    def radius(self) -> float: ...
+    @property
+    def bottom(self) -> float: ...
+    @property
+    def top(self) -> float: ...
+
+
 @dataclass(frozen=True, eq=False)
 class GuardFence:
     """The site fence as the guard's arrays, horizontal ENU m: polygon rings (vertices in order, not closed)
     stacked in `vertices` (K, 2), ring r being vertices[rings[r]:rings[r + 1]] (rings (R + 1,) int64) of kind
-    kinds[r] (INCLUSION or EXCLUSION); exclusion circles (C, 3) rows (east, north, radius); `brake` m/s^2, the
-    horizontal deceleration the braking margin assumes."""
+    kinds[r] (INCLUSION or EXCLUSION) acting between the heights heights[r] (R, 2) (bottom, top m above the
+    origin; -inf, inf for the fence's own zones); exclusion circles (C, 5) rows (east, north, radius, bottom,
+    top); `brake` m/s^2, the horizontal deceleration the braking margin assumes."""
 
     vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     rings: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
     kinds: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    circles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    heights: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    circles: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
     brake: float = 1.0
 
     @classmethod
-    def of(cls, polygon: np.ndarray | None, exclusions: Sequence[ZoneShape], brake: float) -> GuardFence:
-        """The arrays of an inclusion polygon (K, 2) m (None: none) and exclusion zones; brake m/s^2 > 0."""
-        rings = ([(np.asarray(polygon, dtype=np.float64), INCLUSION)] if polygon is not None else []) + [
-            (np.asarray(zone.polygon, dtype=np.float64), EXCLUSION)
+    def of(
+        cls,
+        polygon: np.ndarray | None,
+        exclusions: Sequence[ZoneShape],
+        brake: float,
+        prisms: Sequence[PrismShape] = (),
+        cylinders: Sequence[CylinderShape] = (),
+    ) -> GuardFence:
+        """The arrays of an inclusion polygon (K, 2) m (None: none), exclusion zones (at every height), and
+        buildings' footprints and trees' circles (exclusion zones between their bottom and top); brake m/s^2
+        > 0."""
+        always = (-math.inf, math.inf)
+        rings = (
+            [(np.asarray(polygon, dtype=np.float64), INCLUSION, always)] if polygon is not None else []
+        ) + [
+            (np.asarray(zone.polygon, dtype=np.float64), EXCLUSION, always)
             for zone in exclusions
             if zone.polygon is not None
         ]
+        rings += [(np.asarray(p.footprint, dtype=np.float64), EXCLUSION, (p.bottom, p.top)) for p in prisms]
         circles = [
-            (float(zone.center[0]), float(zone.center[1]), float(zone.radius))
+            (float(zone.center[0]), float(zone.center[1]), float(zone.radius), *always)
             for zone in exclusions
             if zone.polygon is None and zone.center is not None
         ]
-        sizes = [len(ring) for ring, _ in rings]
+        circles += [(float(c.center[0]), float(c.center[1]), c.radius, c.bottom, c.top) for c in cylinders]
+        sizes = [len(ring) for ring, _, _ in rings]
         return cls(
             vertices=np.ascontiguousarray(
-                np.concatenate([r for r, _ in rings]) if rings else np.zeros((0, 2))
+                np.concatenate([r for r, _, _ in rings]) if rings else np.zeros((0, 2))
             ),
             rings=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
-            kinds=np.array([kind for _, kind in rings], dtype=np.int64),
-            circles=np.array(circles, dtype=np.float64).reshape(-1, 3),
+            kinds=np.array([kind for _, kind, _ in rings], dtype=np.int64),
+            heights=np.array([h for _, _, h in rings], dtype=np.float64).reshape(-1, 2),
+            circles=np.array(circles, dtype=np.float64).reshape(-1, 5),
             brake=float(brake),
         )
 
@@ -139,7 +184,7 @@ def guard_attitude_commands(
     fence = limits.fence
     return _guard(  # type: ignore[no-any-return]
         r, p, y, t, tilt, x, v, heading, h, bounds, TILT_SLACK,
-        fence.vertices, fence.rings, fence.kinds, fence.circles, fence.brake,
+        fence.vertices, fence.rings, fence.kinds, fence.heights, fence.circles, fence.brake,
     )  # fmt: skip
 
 
@@ -196,6 +241,7 @@ def _pushes_out(a_e: float, a_n: float, v_e: float, v_n: float, n_e: float, n_n:
 def _fence_pushes_out(
     x: float,
     y: float,
+    z: float,
     a_e: float,
     a_n: float,
     v_e: float,
@@ -203,12 +249,16 @@ def _fence_pushes_out(
     vertices: np.ndarray,
     rings: np.ndarray,
     kinds: np.ndarray,
+    heights: np.ndarray,
     circles: np.ndarray,
     brake: float,
 ) -> bool:
-    """Whether the site fence levels the horizontal thrust direction (a_e, a_n) of a vehicle at (x, y) m
-    moving at (v_e, v_n) m/s (module doc: for each zone, depth s and normal n into the forbidden side)."""
+    """Whether the site fence levels the horizontal thrust direction (a_e, a_n) of a vehicle at (x, y, z) m
+    moving at (v_e, v_n) m/s (module doc: for each zone acting at height z, depth s and normal n into the
+    forbidden side; a NaN z meets every zone)."""
     for r in range(kinds.shape[0]):
+        if z < heights[r, 0] or z > heights[r, 1]:
+            continue
         inside, d, n_e, n_n = ring_distance(x, y, vertices, rings[r], rings[r + 1])
         forbidden = inside if kinds[r] == EXCLUSION else not inside
         depth = d if forbidden else -d
@@ -217,6 +267,8 @@ def _fence_pushes_out(
         if _in_margin(depth, v_e * n_e + v_n * n_n, brake) and _pushes_out(a_e, a_n, v_e, v_n, n_e, n_n):
             return True
     for c in range(circles.shape[0]):
+        if z < circles[c, 3] or z > circles[c, 4]:
+            continue
         o_e, o_n = circles[c, 0] - x, circles[c, 1] - y
         d = np.hypot(o_e, o_n)
         if not d > 0.0:
@@ -252,6 +304,7 @@ def _guard(
     vertices: np.ndarray,
     rings: np.ndarray,
     kinds: np.ndarray,
+    heights: np.ndarray,
     circles: np.ndarray,
     brake: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -285,7 +338,7 @@ def _guard(
             outward = beyond and _pushes_out(a_e, a_n, v_e, v_n, x_e, y_n)  # the radial direction
             if fenced and not outward:
                 outward = _fence_pushes_out(
-                    x_e, y_n, a_e, a_n, v_e, v_n, vertices, rings, kinds, circles, brake
+                    x_e, y_n, z_u, a_e, a_n, v_e, v_n, vertices, rings, kinds, heights, circles, brake
                 )
         if outward:
             r, p = 0.0, 0.0
@@ -347,7 +400,17 @@ def guard_position_targets(
     )
     fence = limits.fence
     out = _guard_targets(
-        p_d, v_d, a_d, x, bounds, float(g), fence.vertices, fence.rings, fence.kinds, fence.circles
+        p_d,
+        v_d,
+        a_d,
+        x,
+        bounds,
+        float(g),
+        fence.vertices,
+        fence.rings,
+        fence.kinds,
+        fence.heights,
+        fence.circles,
     )
     return PositionTargets(*out)
 
@@ -376,6 +439,7 @@ def _guard_targets(
     vertices: np.ndarray,
     rings: np.ndarray,
     kinds: np.ndarray,
+    heights: np.ndarray,
     circles: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """guard_position_targets, one loop over the N vehicles; `limits`: CommandLimits' scalar fields in order;
@@ -414,6 +478,8 @@ def _guard_targets(
             u_e, u_n = p[0] / math.hypot(p[0], p[1]), p[1] / math.hypot(p[0], p[1])
             changed[i] |= _without_outward(v, u_e, u_n, 0.0) | _without_outward(a, u_e, u_n, 0.0)
         for z in range(kinds.shape[0]):
+            if p[2] < heights[z, 0] or p[2] > heights[z, 1]:
+                continue  # a building's footprint acts between its bottom and top only
             inside, d, n_e, n_n = ring_distance(p[0], p[1], vertices, rings[z], rings[z + 1])
             if kinds[z] == EXCLUSION:
                 n_e, n_n = -n_e, -n_n
@@ -424,6 +490,8 @@ def _guard_targets(
                     changed[i] = True
                 changed[i] |= _without_outward(v, n_e, n_n, 0.0) | _without_outward(a, n_e, n_n, 0.0)
         for c in range(circles.shape[0]):
+            if p[2] < circles[c, 3] or p[2] > circles[c, 4]:
+                continue
             o_e, o_n = circles[c, 0] - p[0], circles[c, 1] - p[1]
             d = math.hypot(o_e, o_n)
             depth = circles[c, 2] - d

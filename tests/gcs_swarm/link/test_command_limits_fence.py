@@ -184,3 +184,36 @@ def test_the_fence_only_ever_levels_a_tilt(ring, hole, circle, rows) -> None:
     assert np.isfinite(np.stack([r, p, t])).all()
     np.testing.assert_array_equal(np.where(changed, 0.0, roll), r)
     np.testing.assert_array_equal(np.where(changed, 0.0, pitch), p)
+
+
+# A building 20 m high whose west wall is x = 40 (footprint x 40..60, y 40..60) and a tree 15 m high (trunk of
+# radius 3 at (20, 80)): exclusion zones between their bottom and top, free air above them.
+BUILDING = SimpleNamespace(footprint=HOLE, bottom=0.0, top=20.0)
+TREE = SimpleNamespace(center=np.array([20.0, 80.0]), radius=3.0, bottom=0.0, top=15.0)
+SITE = CommandLimits(
+    math.radians(35.0), 2.0, 1.0, 1000.0, 500.0, GuardFence.of(None, [], G_TAN_35, [BUILDING], [TREE])
+)
+
+
+@pytest.mark.parametrize(
+    ("why", "pos", "levelled"),
+    [
+        (
+            "1 m short of the building's wall at 10 m, closing at 5 m/s (margin 1.82 m)",
+            (39.0, 50.0, 10.0),
+            True,
+        ),
+        ("the same 5 m above its roof", (39.0, 50.0, 25.0), False),
+        ("1 m short of the tree's trunk at 10 m, closing at 5 m/s", (16.0, 80.0, 10.0), True),
+        ("the same 1 m above its crown", (16.0, 80.0, 16.0), False),
+        ("3 m short of the wall at 10 m (beyond the margin)", (37.0, 50.0, 10.0), False),
+    ],
+)
+def test_a_tilt_into_a_building_or_a_tree_is_levelled_below_its_top_only(why, pos, levelled) -> None:
+    """Tilting 0.3 rad east at yaw 0, flying east at 5 m/s."""
+    roll, pitch = 0.0, 0.3  # horizontal thrust direction at yaw 0: (sin p cos r, -sin r), east
+    out = guard_attitude_commands(
+        np.array([roll]), np.array([pitch]), np.zeros(1), np.array([0.5]), np.array([pos]), np.zeros(1),
+        np.full(1, 0.5), SITE, vel=np.array([[5.0, 0.0, 0.0]]),
+    )  # fmt: skip
+    assert bool(out[4][0]) is levelled and bool(out[1][0] == 0.0) is levelled, why

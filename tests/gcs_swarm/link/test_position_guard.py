@@ -143,3 +143,17 @@ def test_a_target_outside_a_convex_site_lands_on_shapely_s_nearest_point(
     else:
         expected = nearest_points(polygon.exterior, Point(x, y))[0]
         assert p[0] == pytest.approx(expected.x, abs=1e-9) and p[1] == pytest.approx(expected.y, abs=1e-9)
+
+
+def test_a_target_inside_a_building_is_moved_onto_its_wall_but_not_one_above_its_roof() -> None:
+    """A building 20 m high, footprint x 20..40, y 20..40: the target (22, 30) at 10 m is 2 m inside its west
+    wall (the nearest), so it goes to (20, 30) and its eastward velocity (3, 0, 0) is dropped; the same target
+    at 25 m, above the roof, is free air and left as it is."""
+    building = SimpleNamespace(
+        footprint=np.array([[20.0, 20.0], [40.0, 20.0], [40.0, 40.0], [20.0, 40.0]]), bottom=0.0, top=20.0
+    )
+    limits = _limits(GuardFence.of(None, [], brake=1.0, prisms=[building]))
+    p, v, _, changed = _one(limits, (22.0, 30.0, 10.0), v=(3.0, 0.0, 0.0))
+    assert changed and p == pytest.approx([20.0, 30.0, 10.0]) and v == pytest.approx([0.0, 0.0, 0.0])
+    p, v, _, changed = _one(limits, (22.0, 30.0, 25.0), v=(3.0, 0.0, 0.0))
+    assert not changed and p == pytest.approx([22.0, 30.0, 25.0]) and v == pytest.approx([3.0, 0.0, 0.0])
