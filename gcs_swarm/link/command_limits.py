@@ -147,6 +147,17 @@ class CommandLimits:
     geofence_max_alt: float  # m (ENU z)
     fence: GuardFence = field(default_factory=GuardFence)  # the site fence (none by default)
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float, float]:
+        """The scalar fields in order, as floats: what the compiled guards take as `limits`."""
+        return (
+            float(self.tilt_max),
+            float(self.thrust_max_g),
+            float(self.min_altitude),
+            float(self.geofence_radius),
+            float(self.geofence_max_alt),
+        )
+
 
 def guard_attitude_commands(
     roll: FloatArray,
@@ -174,14 +185,7 @@ def guard_attitude_commands(
     # about one value in ten, and numpy's is the one the guard has always used
     with np.errstate(invalid="ignore"):
         tilt = np.arccos(np.clip(np.cos(r) * np.cos(p), -1.0, 1.0))
-    bounds = (
-        float(limits.tilt_max),
-        float(limits.thrust_max_g),
-        float(limits.min_altitude),
-        float(limits.geofence_radius),
-        float(limits.geofence_max_alt),
-    )
-    fence = limits.fence
+    bounds, fence = limits.bounds, limits.fence
     return _guard(  # type: ignore[no-any-return]
         r, p, y, t, tilt, x, v, heading, h, bounds, TILT_SLACK,
         fence.vertices, fence.rings, fence.kinds, fence.heights, fence.circles, fence.brake,
@@ -391,14 +395,7 @@ def guard_position_targets(
         np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)
         for a in (target_pos, target_vel, target_acc, pos)
     )
-    bounds = (
-        float(limits.tilt_max),
-        float(limits.thrust_max_g),
-        float(limits.min_altitude),
-        float(limits.geofence_radius),
-        float(limits.geofence_max_alt),
-    )
-    fence = limits.fence
+    bounds, fence = limits.bounds, limits.fence
     out = _guard_targets(
         p_d,
         v_d,
