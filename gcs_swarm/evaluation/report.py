@@ -277,6 +277,14 @@ def _list(v: Any) -> str:
     return ", ".join(_fmt(x) for x in v) if isinstance(v, list) else _fmt(v)
 
 
+def _table(title: str, header: list[str], rows: list[list[str]]) -> list[str]:
+    """report.md lines of a titled table (none without rows)."""
+    if not rows:
+        return []
+    lines = ["", title, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return lines + ["| " + " | ".join(row) + " |" for row in rows]
+
+
 def render_markdown(report: dict[str, Any]) -> str:
     """Human-readable report.md."""
     lines = [
@@ -323,55 +331,51 @@ def render_markdown(report: dict[str, Any]) -> str:
             f"{_fmt(cruise['spacing_max_abs_error_m'])} m, all within 1 m "
             f"{_fmt(cruise['spacing_within_1m_fraction'])} of the time).",
         ]
-    link_use = report.get("link_use")
-    if link_use:
-        lines += [
-            "",
-            "Link use, MAVLink bytes/s (framing and signature included) over the flight:",
-            "",
-            "| vehicle | up mean | up peak | down mean | down peak | budget (up + down) | over budget s | "
-            "radio txbuf min % |",
-            "|---|---|---|---|---|---|---|---|",
-        ]
-        for name, use in link_use.items():
-            radio = use.get("radio_status") or {}
-            lines.append(
-                f"| {name} | {_fmt(use.get('up_mean_B_s'))} | {_fmt(use.get('up_peak_B_s'))} | "
-                f"{_fmt(use.get('down_mean_B_s'))} | {_fmt(use.get('down_peak_B_s'))} | "
-                f"{_fmt(use.get('budget_B_s'))} | {_fmt(use.get('over_budget_s'))} | "
-                f"{_fmt(radio.get('txbuf_min_pct'))} |"
-            )
-    changes = report.get("command_mode_changes")
-    if changes:
-        lines += ["", "Changes of the command mode in flight (docs/command-modes.md):", ""]
-        lines += [
-            "| vehicle time s | from | to | planned B/s up + down | vehicle | because its |",
-            "|" + "---|" * 6,
-        ]
-        lines += [
-            f"| {_fmt(c.get('t_s'))} | {c.get('from_mode')} {_fmt(c.get('from_hz'))} Hz | "
-            f"{c.get('to_mode')} {_fmt(c.get('to_hz'))} Hz | "
-            f"{_fmt(c.get('planned_up_B_s'))} + {_fmt(c.get('planned_down_B_s'))} | {c.get('vehicle')} | "
-            f"{c.get('reason')} |"
-            for c in changes
-        ]
-    legs = report.get("legs")
-    if legs:
-        lines += ["", "Legs of the route, as the leader started them:", ""]
-        lines += ["| leg | vehicle time s | formation | spacing m | leader speed cap m/s |", "|" + "---|" * 5]
-        lines += [
-            f"| {int(row['index']) + 1} ({row.get('name')}) | {_fmt(row.get('t_s'))} | {row.get('shape')} | "
-            f"{_fmt(row.get('spacing_m'))} | {_fmt(row.get('speed_m_s'))} |"
-            for row in legs
-        ]
-    reshapes = report.get("reshapes")
-    if reshapes:
-        lines += ["", "Changes of the formation's shape (guidance.reshape):", ""]
-        lines += ["| vehicle time s | change | shape | spacing of the mission's |", "|---|---|---|---|"]
-        lines += [
-            f"| {_fmt(r.get('t_s'))} | {r.get('change')} | {r.get('shape')} | {_fmt(r.get('scale'))} |"
-            for r in reshapes
-        ]
+    link_use = report.get("link_use") or {}
+    lines += _table(
+        "Link use, MAVLink bytes/s (framing and signature included) over the flight:",
+        ["vehicle", "up mean", "up peak", "down mean", "down peak", "budget (up + down)", "over budget s"]
+        + ["radio txbuf min %"],
+        [
+            [name]
+            + [_fmt(use.get(k)) for k in ("up_mean_B_s", "up_peak_B_s", "down_mean_B_s", "down_peak_B_s")]
+            + [_fmt(use.get("budget_B_s")), _fmt(use.get("over_budget_s"))]
+            + [_fmt((use.get("radio_status") or {}).get("txbuf_min_pct"))]
+            for name, use in link_use.items()
+        ],
+    )
+    lines += _table(
+        "Changes of the command mode in flight (docs/command-modes.md):",
+        ["vehicle time s", "from", "to", "planned B/s up + down", "vehicle", "because its"],
+        [
+            [
+                _fmt(c.get("t_s")),
+                f"{c.get('from_mode')} {_fmt(c.get('from_hz'))} Hz",
+                f"{c.get('to_mode')} {_fmt(c.get('to_hz'))} Hz",
+                f"{_fmt(c.get('planned_up_B_s'))} + {_fmt(c.get('planned_down_B_s'))}",
+                str(c.get("vehicle")),
+                str(c.get("reason")),
+            ]
+            for c in report.get("command_mode_changes") or []
+        ],
+    )
+    lines += _table(
+        "Legs of the route, as the leader started them:",
+        ["leg", "vehicle time s", "formation", "spacing m", "leader speed cap m/s"],
+        [
+            [f"{int(row['index']) + 1} ({row.get('name')})", _fmt(row.get("t_s")), str(row.get("shape"))]
+            + [_fmt(row.get("spacing_m")), _fmt(row.get("speed_m_s"))]
+            for row in report.get("legs") or []
+        ],
+    )
+    lines += _table(
+        "Changes of the formation's shape (guidance.reshape):",
+        ["vehicle time s", "change", "shape", "spacing of the mission's"],
+        [
+            [_fmt(r.get("t_s")), str(r.get("change")), str(r.get("shape")), _fmt(r.get("scale"))]
+            for r in report.get("reshapes") or []
+        ],
+    )
     figures = report.get("figures")
     if figures is not None:
         lines += ["", "## Figures", ""]
