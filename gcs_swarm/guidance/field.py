@@ -112,11 +112,12 @@ def obstacle_forces(
     F*_rep2 = 0.5 n k_rep (1/l - 1/l0)^2 rho^(n-1) along n_g (0 closer than rho_eps to dest); else (APF,
     spec 2 Eq 4) F_rep = k_rep (1/l - 1/l0) / l^2 along n_o. Both 0 beyond l0.
     [add] `circulation` > 0: a tangential companion, gain * |F_rep1| * max(0, -n_o . n_g) along the
-    horizontal unit vector across n_o on the side where the goal lies, i.e. only while the obstacle stands
-    between the vehicle and its goal. The paper's repulsion pushes straight back from an obstacle ahead, so
-    a goal behind it is a saddle where the vehicle stalls (head-on, for ever); this turns the push into a way
-    round, as a vortex field does; an obstacle dead ahead is passed on the right (HEAD_ON_BIAS keeps the
-    side continuous). [add] The vertical component is weighted by `obstacle_vertical` (1: the paper's)."""
+    horizontal unit vector across n_o on the side where the goal lies, times clip(rho / l - 1, 0, 1), i.e.
+    only while the obstacle stands between the vehicle and its goal (the goal beyond the surface). The
+    paper's repulsion pushes straight back from an obstacle ahead, so a goal behind it is a saddle where the
+    vehicle stalls (head-on, for ever); this turns the push into a way round, as a vortex field does; an
+    obstacle dead ahead is passed on the right (HEAD_ON_BIAS keeps the side continuous). [add] The vertical
+    component is weighted by `obstacle_vertical` (1: the paper's)."""
     force = np.zeros((n, 3))
     bracket_scale = 0.5 * n_exp * k_rep
     for p in range(vehicle.shape[0]):
@@ -145,7 +146,11 @@ def obstacle_forces(
                 w0, w1, w2 = w0 / length, w1 / length, w2 / length
             else:
                 w0, w1, w2 = 0.0, 0.0, 0.0
-            blocking = maximum(-dot3(o0, o1, o2, g0, g1, g2), 0.0)
+            # the obstacle stands between the vehicle and its destination only when the destination lies
+            # beyond its surface: the share fades in from rho = l to rho = 2 l, so no vortex circles a
+            # destination beside the obstacle (a follower whose slot is there would orbit it for ever)
+            beyond = clip_to_scalars(rho[p] / lp - 1.0, 0.0, 1.0)
+            blocking = maximum(-dot3(o0, o1, o2, g0, g1, g2), 0.0) * beyond
             c = circulation * f1 * blocking
             x0, x1, x2 = x0 + c * w0, x1 + c * w1, x2 + c * w2
         x2 = x2 * obstacle_vertical

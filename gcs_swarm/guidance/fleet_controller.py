@@ -236,7 +236,9 @@ class FleetController:
         self.shaper = (
             None
             if self.reshape is None
-            else FormationShaper(self.reshape, self.offsets, leader, self.separation.d_emg + RESHAPE_GAP_M)
+            else FormationShaper(
+                self.reshape, self.offsets, leader, self.separation.d_emg + RESHAPE_GAP_M, hold_m=self.d_g
+            )
         )
         self.envelope = (
             None if pace is None or not pace.enabled else SpeedEnvelope(n, pace, self.limits.tilt_max, g)
@@ -525,7 +527,7 @@ class FleetController:
         d_max = self.d_max * wide
         if shrink < 1.0:  # a tighter shape: its neighbours are not repelled out of their slots
             assert self.reshape is not None
-            cushion = self.reshape.min_spacing_m + RESHAPE_CUSHION_M
+            cushion = self.reshape.min_spacing_m - RESHAPE_CUSHION_M
             d_max = min(self.d_max, max(self.d_max * shrink, cushion)) * wide
         known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
         f_uav, emergency = uav_repulsion(

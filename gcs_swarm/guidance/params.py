@@ -298,8 +298,11 @@ class ReshapeParams:
     `clearance_m` to an obstacle along the look-ahead, and re-forms when the wider shape fits again."""
 
     enabled: bool = True  # false: the paper's fixed formation (each follower avoids on its own repulsion)
-    clearance_m: float = 4.0  # m between every slot and an obstacle surface along the look-ahead
-    lookahead_s: float = 6.0  # s of leader travel at its speed cap checked ahead ...
+    # m between every slot and an obstacle surface along the look-ahead: a slot within about 10 m of a surface
+    # lies in the strong part of the obstacle's repulsion (l0 = 20 m), which holds its follower metres off it
+    # (docs/metrics.md, slot error against slot clearance)
+    clearance_m: float = 10.0
+    lookahead_s: float = 6.0  # s of leader travel at its speed cap checked ahead, plus committed travel ...
     lookahead_min_m: float = 30.0  # m, ... but at least this far
     # m, the tightest spacing a narrowed formation or column flies: D_Emg (3 m) plus 2 m of slot error on
     # each of two neighbours before they are in an emergency separation
@@ -307,6 +310,8 @@ class ReshapeParams:
     steps: int = 3  # spacings tried between the mission's and min_spacing_m
     column: bool = True  # may fall into a column (line astern) when no narrowed shape fits
     speed_m_s: float = 2.5  # m/s, fastest a slot moves relative to the leader while the shape changes
+    # m/s^2, fastest the leader's pace cap falls while the shape changes (the followers brake with it)
+    pace_decel_m_s2: float = 1.5
     restore_after_s: float = 1.5  # s a wider shape must keep fitting before the formation widens to it
     decide_every_s: float = 0.2  # s between decisions
 
@@ -315,6 +320,8 @@ class ReshapeParams:
             raise ValueError("need clearance_m >= 0, lookahead_s > 0 and lookahead_min_m >= 0")
         if not (self.min_spacing_m > 0 and self.speed_m_s > 0 and self.steps >= 1):
             raise ValueError("need min_spacing_m > 0, speed_m_s > 0 and steps >= 1")
+        if not self.pace_decel_m_s2 > 0:
+            raise ValueError("need pace_decel_m_s2 > 0")
         if not (self.restore_after_s >= 0 and self.decide_every_s > 0):
             raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
 

@@ -8,7 +8,10 @@ purpose instead, and its followers' slots move with it:
   `steps` steps to `min_spacing_m` between nearest slots; a column (line astern) min_spacing_m apart (short,
   so that its tail swings little when the leader turns).
 - **Look-ahead**: the leader's route from where it is (through its remaining waypoints) for
-  max(lookahead_min_m, lookahead_s x its speed cap), sampled every SAMPLE_STEP_M, the formation turned to
+  max(lookahead_min_m, lookahead_s x its speed cap + the leader's committed travel), sampled every
+  SAMPLE_STEP_M (the committed travel: the distance the leader covers at its pace floors while the slowest
+  change from the mission's shape runs, so that a change seen this far ahead can finish in time), the
+  formation turned to
   each piece of the route (and, where the leader is now, to its present heading psi_L). A candidate fits when
   every follower's slot keeps `clearance_m` from every obstacle surface at every sample.
 - **Choice**, every `decide_every_s`: the widest candidate that fits. When none does (an obstacle on the
@@ -26,8 +29,12 @@ purpose instead, and its followers' slots move with it:
   faster than speed_m_s relative to the leader.
   The offsets' rate of change goes to the followers as a velocity feed-forward.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
-  reach the first place it does not fit before the change is done (`pace_cap`), but not below
-  1.875 speed_m_s - PACE_MARGIN_M_S, so that no follower whose slot falls back reverses at speed.
+  reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
+  which a slot falls back along the leader's heading, not below that phase's peak fall-back rate less
+  PACE_MARGIN_M_S (the phase's floor), so that no follower whose slot falls back reverses at speed; in a
+  phase in which none does (a move across, a shrink), down to a hover: the leader waits for the formation.
+  The cap falls no faster than `pace_decel_m_s2`: followers whose slots brake with the leader, and fall back
+  besides, brake no harder than they can.
 
 Offsets are (N, 3) leader-frame metres (x forward, y left, z up), the leader's row zero. `scale` is the
 spacing of the flown shape over the mission's (1 unreshaped); the inter-UAV repulsion range shrinks with it
@@ -48,8 +55,8 @@ from swarm_common.jit import kernel
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, surface
 
 SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
-# m/s: the leader keeps above the peak speed (1.875 speed_m_s) at which a slot falls back in the formation,
-# less this, so a follower whose slot falls back drifts backwards at under the 2 m/s of a cusp (metrics.md)
+# m/s: while slots fall back in the formation, the leader keeps above the peak rate at which they do, less
+# this, so a follower whose slot falls back drifts backwards at under the 2 m/s of a cusp (metrics.md)
 PACE_MARGIN_M_S = 1.5
 WIDEN_MARGIN_M = 1.0  # m more than clearance_m a wider shape must keep to be taken (no flapping at the edge)
 CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
@@ -126,15 +133,16 @@ def candidate_shapes(nominal: np.ndarray, leader: int, params: ReshapeParams) ->
 
 
 def route_samples(
-    p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, length: float
+    p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, length: float, hold_m: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (P, 3) ENU m along the leader's route from p_leader (3,) through `waypoints` (W, 3), every
     SAMPLE_STEP_M up to `length` m, the heading (P,) rad the formation has at each (psi_leader at the
-    leader's position, the direction of the route's piece elsewhere) and their distance (P,) m along the
-    route from the leader."""
+    leader's position, the direction of the route's piece elsewhere, except within `hold_m` m of the last
+    waypoint, where the leader's heading holds (LeaderHeading's hold distance): there the heading the leader
+    comes in with) and their distance (P,) m along the route from the leader."""
     points, headings, along_route = [np.asarray(p_leader, dtype=float)], [float(psi_leader)], [0.0]
     here, done = points[0], 0.0
-    for wp in waypoints:
+    for k, wp in enumerate(waypoints):
         leg = wp - here
         size = float(np.hypot(leg[0], leg[1]))
         if size < 1e-6:
@@ -142,6 +150,8 @@ def route_samples(
         heading = math.atan2(leg[1], leg[0])
         along = np.arange(SAMPLE_STEP_M, min(size, length - done) + 1e-9, SAMPLE_STEP_M)
         points.extend(here + leg * (a / size) for a in along)
+        if k == len(waypoints) - 1 and size <= hold_m:  # the leader holds its heading all the way in
+            heading = headings[-1]
         headings.extend([heading] * len(along))
         along_route.extend(done + along)
         done += size
@@ -240,6 +250,44 @@ class SlotMove:
             elapsed -= duration
         return offsets, rate
 
+    def phases_left(self, t: float) -> list[tuple[float, float]]:
+        """The phases not finished at t s, in order: (their time left s, the leader's pace floor m/s in them,
+        `fall_back_floor` of the phase's peak fall-back rate)."""
+        out, start = [], self.t0
+        for axes, duration in self.phases:
+            end = start + duration
+            if duration > 0.0 and t < end:
+                back = 0.0
+                if 0 in axes:  # 1.875 x the longest backward move along the heading / duration (min_jerk)
+                    back = 1.875 * float(np.max(self.start[:, 0] - self.end[:, 0], initial=0.0)) / duration
+                out.append((end - max(t, start), fall_back_floor(back)))
+            start = end
+        return out
+
+
+def fall_back_floor(rate: float) -> float:
+    """m/s, the slowest the leader may fly while slots fall back along its heading at up to `rate` m/s
+    relative to it (module docstring, Pace): 0 when none does."""
+    return max(rate - PACE_MARGIN_M_S, 0.0) if rate > 0.0 else 0.0
+
+
+def pace_speed(phases: list[tuple[float, float]], room: float) -> float:
+    """The fastest speed v m/s at which the leader, flying max(v, floor) in each of `phases` (time left s,
+    floor m/s), covers at most `room` m before they are over (module docstring, Pace); 0 when the floors alone
+    take it further. The travel sum max(v, f_k) d_k grows with v and bends at each floor, so v is solved
+    piece by piece between floors, lowest first."""
+    by_floor = sorted(phases, key=lambda phase: phase[1])
+    at_floors = sum(duration * floor for duration, floor in by_floor)  # m covered when every phase is floored
+    if at_floors >= room:
+        return 0.0
+    free_time = 0.0  # s of the phases whose floors lie below v: the leader flies v in them
+    for duration, floor in by_floor:
+        if free_time > 0.0 and (room - at_floors) / free_time <= floor:
+            break
+        free_time += duration
+        at_floors -= duration * floor
+    return (room - at_floors) / free_time if free_time > 0.0 else 0.0
+
 
 def closest_pair_along(start: np.ndarray, end: np.ndarray, axes_order: tuple[tuple[int, ...], ...]) -> float:
     """Smallest distance m between two rows of start/end (M, 3) moving phase by phase as `axes_order` says:
@@ -278,17 +326,22 @@ class FormationShaper:
     """The shape the formation flies (module docstring): `flown(t)` the offsets and their rate now, `decide`
     the choice of shape, `set_nominal` a new mission formation (a re-form, a console reshape)."""
 
-    def __init__(self, params: ReshapeParams, nominal: np.ndarray, leader: int, min_gap: float) -> None:
+    def __init__(
+        self, params: ReshapeParams, nominal: np.ndarray, leader: int, min_gap: float, hold_m: float = 0.0
+    ) -> None:
         """`nominal` (N, 3) the mission's offsets; `min_gap` m the distance followers moving to new slots
-        keep from each other (slot_assignment)."""
+        keep from each other (slot_assignment); `hold_m` m the distance from its last waypoint within which
+        the leader's heading holds (route_samples)."""
         self.params = params
         self.leader = leader
         self.min_gap = min_gap
+        self.hold_m = hold_m
         self.changes: list[ShapeChange] = []  # the changes of shape made; the caller empties it
         self._set(np.array(nominal, dtype=float))
         self.next_decision = -math.inf
         self.wider_since: float | None = None
         self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
+        self.paced_at = -math.inf  # s, when pace_cap was last set
         self.waiting_move: tuple[int, SlotMove] | None = None  # a widening planned, waiting for a clear way
 
     def _set(self, nominal: np.ndarray) -> None:
@@ -296,6 +349,11 @@ class FormationShaper:
         self.current = 0  # index into shapes of the shape flown (or being formed)
         self.move = SlotMove(nominal, nominal, 0.0, ())
         self.start_scale = self.end_scale = 1.0
+        # m the leader covers at its pace floors while the slowest change from the mission's shape runs
+        self.committed_m = max(
+            sum(d * floor for d, floor in self._plan(k, nominal, 0.0).phases_left(0.0))
+            for k in range(len(self.shapes))
+        )
 
     def set_nominal(self, nominal: np.ndarray, leader: int, t: float | None) -> None:
         """A new mission formation (N, 3) around `leader`: flown at once when t is None, else reached from
@@ -350,11 +408,6 @@ class FormationShaper:
             self.changes.append(ShapeChange(t, change, shape.name, shape.scale))
         self.current = index
 
-    @property
-    def pace_floor(self) -> float:
-        """m/s, the slowest the pace holds the leader to while the slots move (module docstring, Pace)."""
-        return max(1.875 * self.params.speed_m_s - PACE_MARGIN_M_S, 0.0)
-
     def _widening(self, index: int, t: float) -> SlotMove:
         """The move to the wider shape `index` from t: planned once while the slots stand still, then the
         same move started later (the assignment is the costly part)."""
@@ -376,7 +429,9 @@ class FormationShaper:
         its sides on their way to a wider shape. Sampled every MOVE_SAMPLE_S; inf without obstacles."""
         moments = np.linspace(0.0, move.duration, max(2, math.ceil(move.duration / MOVE_SAMPLE_S) + 1))
         travel = speed * moments
-        points, headings, along = route_samples(p_leader, psi_leader, waypoints, float(travel[-1]))
+        points, headings, along = route_samples(
+            p_leader, psi_leader, waypoints, float(travel[-1]), self.hold_m
+        )
         at = np.minimum(np.searchsorted(along, travel), len(along) - 1)
         offsets = np.stack([move.at(move.t0 + m)[0] for m in moments])
         rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
@@ -394,8 +449,8 @@ class FormationShaper:
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
-        length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap)
-        points, headings, along = route_samples(p_leader, psi_leader, waypoints, length)
+        length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap + self.committed_m)
+        points, headings, along = route_samples(p_leader, psi_leader, waypoints, length, self.hold_m)
         reach = max(float(np.max(np.linalg.norm(s.offsets, axis=1))) for s in self.shapes)
         near = np.linalg.norm(centres - p_leader, axis=1) - radii <= length + reach + self.params.clearance_m
         every = centres, radii
@@ -426,20 +481,26 @@ class FormationShaper:
                     self._change_to(best, move.start, t, move=move)
         else:
             self.wider_since = None
-        self._pace(t, points, headings, along, centres, radii, shapes)
+        self._pace(t, speed, points, headings, along, centres, radii, shapes)
 
     def _pace(
-        self, t: float, points: np.ndarray, headings: np.ndarray, along: np.ndarray, centres: np.ndarray,
-        radii: np.ndarray, shapes: ShapeArrays,
+        self, t: float, speed: float, points: np.ndarray, headings: np.ndarray, along: np.ndarray,
+        centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays,
     ) -> None:  # fmt: skip
         """The leader's speed cap while the slots move (`pace_cap`): the shape flown now must not reach the
         first place along the route where it does not fit before the change is done, so the leader covers at
-        most that distance in the change's remaining time (module docstring, Pace); inf otherwise."""
-        left = self.move.t0 + self.move.duration - t
-        self.pace_cap = math.inf
-        if left <= 0.0 or self.current == 0:
-            return
-        gap = clearance_along(self.flown(t)[0], points, headings, centres, radii, shapes)
-        tight = np.flatnonzero(gap < self.params.clearance_m)
-        if len(tight):
-            self.pace_cap = max(self.pace_floor, float(along[tight[0]]) / left)
+        most that distance in the change's remaining phases, each at least at its floor (`pace_speed`; module
+        docstring, Pace); inf otherwise. The cap falls from the leader's `speed` m/s (or the cap before) no
+        faster than pace_decel_m_s2, so that followers whose slots brake with the leader can brake as fast."""
+        phases = self.move.phases_left(t)
+        cap = math.inf
+        if phases and self.current != 0:
+            gap = clearance_along(self.flown(t)[0], points, headings, centres, radii, shapes)
+            tight = np.flatnonzero(gap < self.params.clearance_m)
+            if len(tight):
+                cap = max(phases[0][1], pace_speed(phases, float(along[tight[0]])))
+        if math.isfinite(cap):
+            start = self.pace_cap if math.isfinite(self.pace_cap) else speed
+            elapsed = t - self.paced_at if math.isfinite(self.paced_at) else self.params.decide_every_s
+            cap = max(cap, start - self.params.pace_decel_m_s2 * elapsed)
+        self.pace_cap, self.paced_at = cap, t

@@ -13,16 +13,19 @@ from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import PAPER_PLAIN, ReshapeParams
 from gcs_swarm.guidance.reshape import (
+    PACE_MARGIN_M_S,
     FormationShaper,
     candidate_shapes,
     min_jerk,
     nearest_slot_spacing,
+    pace_speed,
+    plan_move,
     route_samples,
     shape_clearance,
 )
 from swarm_common.obstacle_shapes import NO_SHAPES, pack_shapes
 
-PARAMS = ReshapeParams()
+PARAMS = ReshapeParams(clearance_m=4.0)  # the worlds below are sized for 4 m between slots and surfaces
 
 
 def _v(followers: int = 4, spacing: float = 10.0) -> np.ndarray:
@@ -68,6 +71,17 @@ def test_route_samples_follow_the_waypoints_and_stop_at_the_look_ahead():
     np.testing.assert_allclose(points[6:, 1], [2, 4, 6, 8, 10])  # 10 m along the second leg: 20 m in all
     np.testing.assert_allclose(headings[6:], math.pi / 2)
     np.testing.assert_allclose(along, np.arange(11) * 2.0)
+
+
+def test_route_samples_keep_the_leaders_heading_within_its_hold_distance_of_the_goal():
+    """A leader heading west (psi = pi) that has come to rest 4 m west of its goal keeps its heading there
+    (LeaderHeading holds within d_g of the goal), so the formation is checked as it will stand, not turned
+    round to face the goal 4 m east. Farther than the hold distance, the route's direction counts."""
+    leader, goal = np.array([0.0, 0.0, 10.0]), np.array([[4.0, 0.0, 10.0]])
+    _, headings, _ = route_samples(leader, math.pi, goal, 30.0, hold_m=10.0)
+    np.testing.assert_allclose(headings, math.pi)
+    _, headings, _ = route_samples(leader, math.pi, goal, 30.0, hold_m=3.0)
+    np.testing.assert_allclose(headings[1:], 0.0)
 
 
 def test_clearance_of_a_slot_is_its_distance_to_the_surface():
@@ -269,7 +283,7 @@ def test_a_column_opens_into_a_line_across_first_so_everyone_keeps_the_column_sp
     places 7 m apart along the heading while they spread, then each moves forward in its own lane 10 m from
     the next (and from the leader's lane), so the closest pair stays 7 m apart; straight diagonal moves would
     not do as well, so the plan moves across first."""
-    from gcs_swarm.guidance.reshape import closest_pair_along, plan_move
+    from gcs_swarm.guidance.reshape import closest_pair_along
 
     column = np.zeros((5, 3))
     column[1:, 0] = [-7.0, -14.0, -21.0, -28.0]
@@ -286,3 +300,98 @@ def test_a_column_opens_into_a_line_across_first_so_everyone_keeps_the_column_sp
     half, rate = move.at(move.phases[0][1])  # the end of the first phase: spread, not yet forward
     np.testing.assert_allclose(half[:, 0], column[:, 0])
     np.testing.assert_allclose(half[:, 1], line[:, 1])
+
+
+def _line(followers: int, spacing: float) -> np.ndarray:
+    out = np.zeros((followers + 1, 3))
+    out[1:] = formation_offsets("line", followers, spacing)
+    return out
+
+
+@pytest.mark.parametrize(
+    "phases, room, speed",
+    [
+        ([(20.0, 0.0)], 50.0, 2.5),  # no floor: 50 m in 20 s
+        ([(10.0, 2.0), (20.0, 0.0)], 300.0, 10.0),  # 300 m in 30 s: 10 m/s, above the floor
+        # at v >= 2 the 30 s would take 30 v >= 60 m > 50: so v < 2, the floored phase at 2 m/s (20 m) and the
+        # other at v: 20 + 20 v = 50, v = 1.5
+        ([(10.0, 2.0), (20.0, 0.0)], 50.0, 1.5),
+        ([(20.0, 0.0), (10.0, 2.0)], 50.0, 1.5),  # the order of the phases does not matter
+        ([(10.0, 2.0), (20.0, 0.0)], 10.0, 0.0),  # the floor alone takes it 20 m: hover outside it
+        # floors 0, 1 and 3: below 1 m/s the travel is 20 v + 10 + 30 (50 m at v = 0.5); between 1 and 3 it is
+        # 20 v + 10 v + 30 (70 m at v = 4/3)
+        ([(10.0, 1.0), (10.0, 3.0), (20.0, 0.0)], 50.0, 0.5),
+        ([(10.0, 1.0), (10.0, 3.0), (20.0, 0.0)], 70.0, 4.0 / 3.0),
+    ],
+)
+def test_pace_speed_covers_the_room_with_each_phase_at_least_at_its_floor(phases, room, speed):
+    assert pace_speed(phases, room) == pytest.approx(speed)
+
+
+def test_only_a_phase_in_which_slots_fall_back_has_a_pace_floor():
+    """Line abreast of four 12 m apart -> column 7 m apart: the slots fall back 7..28 m along the heading in
+    one phase and close in across in the other. The floor of the fall-back phase is the fastest a slot
+    falls back in it (sampled from the move itself: speed_m_s, the profile's peak) less PACE_MARGIN_M_S; the
+    phase across has none. The way back (column -> line) moves the slots forward: no floor at all."""
+    line = _line(4, 12.0)
+    column = np.zeros((5, 3))
+    column[1:, 0] = [-7.0, -14.0, -21.0, -28.0]
+    rows = np.ones(5, dtype=bool)
+    move = plan_move(line, column, rows, 0.0, PARAMS.speed_m_s)
+    fastest_back = max(-move.at(t)[1][:, 0].min() for t in np.linspace(0.0, move.duration, 2001))
+    assert fastest_back == pytest.approx(PARAMS.speed_m_s, rel=1e-4)
+    floors = {axes: floor for (axes, _), (_, floor) in zip(move.phases, move.phases_left(0.0), strict=True)}
+    along = next(axes for axes in floors if 0 in axes)
+    assert floors[along] == pytest.approx(fastest_back - PACE_MARGIN_M_S, rel=1e-4)
+    assert all(floor == 0.0 for axes, floor in floors.items() if 0 not in axes)
+    back = plan_move(column, line, rows, 0.0, PARAMS.speed_m_s)
+    assert [floor for _, floor in back.phases_left(0.0)] == [0.0, 0.0]
+    # halfway through its first phase, only that phase's remaining half and the whole second are left
+    first, second = move.phases[0][1], move.phases[1][1]
+    assert [d for d, _ in move.phases_left(first / 2)] == pytest.approx([first / 2, second])
+
+
+def test_a_line_wider_than_a_gap_is_a_column_before_it_and_no_follower_reverses_at_speed():
+    """A line abreast of four 12 m apart (48 m wide) meets a gap 16 m wide at x = 80, seen from x = -60 with
+    the leader at 10 m/s: the change to a column (about 30 s of moves at speed_m_s) takes longer than the
+    leader's 14 s to the gap, so the leader slows and, while the slots cross, waits. Before any slot reaches
+    the spheres' span (x >= 72 - 4) the shape flown keeps clearance_m from both; and no follower ever moves
+    backwards along the route faster than PACE_MARGIN_M_S (its slot's ground speed: the leader's plus the
+    slot's rate), under the 2 m/s of a cusp."""
+    centres, radii = _gap_world(16.0, x=80.0)
+    shaper = FormationShaper(PARAMS, _line(4, 12.0), 0, 4.0)
+    steps = _fly_shaper(shaper, centres, radii, -60.0, 140.0)
+    previous_x = None
+    for t, x, offsets, rate, name in steps:
+        slots = np.array([x, 0.0, 10.0]) + offsets[1:]
+        if slots[:, 0].max() >= 80.0 - 8.0 - PARAMS.clearance_m and slots[:, 0].min() <= 80.0 + 8.0:
+            gap = np.linalg.norm(slots[:, None, :] - centres[None], axis=-1) - radii
+            assert gap.min() >= PARAMS.clearance_m - 1e-9, (t, x, name)
+        if previous_x is not None:
+            leader_speed = (x - previous_x) / 0.02
+            assert (leader_speed + rate[1:, 0]).min() >= -PACE_MARGIN_M_S - 1e-6, (t, x, name)
+        previous_x = x
+    assert "column" in [s[4] for s in steps]
+    assert steps[-1][4] == "formation"
+
+
+def test_the_leaders_pace_cap_falls_no_faster_than_pace_decel():
+    """The same line and gap: the leader at 10 m/s is slowed by the pace, but its cap falls by at most
+    pace_decel_m_s2 x the time between two decisions, starting from its speed, so followers whose slots
+    brake with it are not asked to brake harder; and the pace does bind (the cap goes below 5 m/s)."""
+    centres, radii = _gap_world(16.0, x=80.0)
+    shaper = FormationShaper(PARAMS, _line(4, 12.0), 0, 4.0)
+    wp, x, t, speed = np.array([[400.0, 0.0, 10.0]]), -60.0, 0.0, 10.0
+    decisions = []  # (t, cap) at every decision
+    while x < 140.0:
+        shaper.decide(t, np.array([x, 0.0, 10.0]), 0.0, wp, 10.0, speed, centres, radii)
+        if shaper.paced_at == t:
+            decisions.append((t, shaper.pace_cap))
+        speed = min(10.0, shaper.pace_cap)
+        x += speed * 0.02
+        t += 0.02
+    assert min(cap for _, cap in decisions) < 5.0
+    for (t0, before), (t1, after) in zip(decisions, decisions[1:], strict=False):
+        if math.isfinite(after):  # from the cap before, or from 10 m/s (the leader's speed) when none bound
+            start = before if math.isfinite(before) else 10.0
+            assert start - after <= PARAMS.pace_decel_m_s2 * (t1 - t0) + 1e-9, t1

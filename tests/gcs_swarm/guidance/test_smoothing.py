@@ -223,6 +223,26 @@ def test_circulation_goes_round_on_the_goal_side():
     assert turned[0, 1] > 0.0
 
 
+def test_circulation_fades_for_a_goal_nearer_than_the_obstacle():
+    """A vehicle 10 m from an obstacle's surface (centre 12 m ahead, radius 2) whose goal lies 4 m ahead, in
+    front of the obstacle: the obstacle is not between them (rho 4 < l 10), so there is no way round to take
+    and the circulation adds nothing. Its share grows with rho / l - 1: a goal 15 m ahead (beyond the centre,
+    rho / l = 1.5) gets half the sideways push of a goal far behind the obstacle (rho / l >= 2), which gets
+    gain x the backward part (previous test)."""
+    q = np.array([[0.0, 0.0, 10.0]])
+    centre, radius = np.array([[12.0, 0.0, 10.0]]), np.array([2.0])
+    plain_fp = FieldParams(method="apf", **PLAIN)
+    turned_fp = FieldParams(method="apf", circulation=0.5, obstacle_vertical=1.0)
+    near = np.array([[4.0, 0.0, 10.0]])
+    np.testing.assert_allclose(
+        field(q, near, centre, radius, turned_fp), field(q, near, centre, radius, plain_fp)
+    )
+    half_way = np.array([[15.0, 0.0, 10.0]])
+    plain = field(q, half_way, centre, radius, plain_fp)
+    turned = field(q, half_way, centre, radius, turned_fp)
+    assert turned[0, 1] == pytest.approx(0.5 * 0.5 * plain[0, 0])
+
+
 def test_vertical_weight_scales_only_z():
     q = np.array([[0.0, 0.0, 6.0]])  # below an obstacle centre at 10 m: pushed down by the 3-D field
     dest = np.array([[100.0, 0.0, 6.0]])
