@@ -119,12 +119,14 @@ def test_montecarlo_interrupted_then_resumed_loses_and_repeats_nothing(
     assert _group_gone(proc.pid), "a worker or simulator outlived the interrupted campaign"
     assert proc.returncode == 130, output
     assert "rerun the same command to resume" in output
-    kept = [json.loads(line) for line in results.read_text().splitlines()]
-    assert [r["seed"] for r in kept] == [7]  # the interrupted run is not recorded as finished
+    kept = [json.loads(line)["seed"] for line in results.read_text().splitlines()]
+    # the interrupted run is not recorded as finished; on a loaded machine the second run may have finished
+    # (and been recorded) before the interrupt reached the campaign, and then nothing was interrupted
+    assert kept in ([7], [7, 8])
 
     resumed = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
-    assert "1 of 2 runs done, 1 to fly" in resumed.stdout
+    assert f"{len(kept)} of 2 runs done, {2 - len(kept)} to fly" in resumed.stdout
     lines = results.read_text().splitlines()
     assert sorted(json.loads(line)["seed"] for line in lines) == [7, 8]
 

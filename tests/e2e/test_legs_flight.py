@@ -29,7 +29,7 @@ def flown(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, np.ndar
     data = yaml.safe_load(mission.read_text())
     del data["goal"]  # the legs are the route
     data["vehicles"].append(TAIL)
-    data["world"]["obstacles"] = [{"center": [60.0, 60.0, 10.0], "radius": 4.0}]
+    data["world"]["obstacles"] = [{"center": [30.0, 50.0, 10.0], "radius": 4.0}]  # well clear of every leg
     mission.write_text(yaml.safe_dump(data, sort_keys=False))
     run = fly(mission, folder / "run", timeout_s=600, extra=["--time-mode", "lockstep"])
     assert run.status == 0, run.output[-3000:]
