@@ -260,7 +260,11 @@ def test_console_rejoin_hands_the_vehicle_back(tmp_path: Path) -> None:
         return float(np.linalg.norm(a - b))
 
     assert gap(t_rejoin) > 30.0
-    assert gap(t_rejoin + 14.0) < gap(t_rejoin) - 15.0
+    # within 20 m before the flight ends (its slot lies 10 m from the leader); not by a set time: in real time
+    # on a loaded machine the rejoin lands a second earlier or later on the leader's way, and a leader still
+    # flying at 10 m/s to the goal then opens the gap for a while before the follower closes it
+    later = truth["t"][truth["t"] > t_rejoin]
+    assert min(gap(t) for t in later[::50]) < 20.0
     assert not truth["crashed"].any()
 
     # the tlog: no setpoint to left from its first HEARTBEAT in LOITER until the rejoin's GUIDED, then
