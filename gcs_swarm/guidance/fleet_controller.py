@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -27,8 +28,9 @@ from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.degradation import stale_verdict
 from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_caps, speed_caps_from_table
 from gcs_swarm.guidance.field import attraction, obstacle_repulsion
-from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets
+from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets, leader_course
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
+from gcs_swarm.guidance.leader_path import LeaderModel, predict_leader_path
 from gcs_swarm.guidance.leader_wait import leader_cap_scale
 from gcs_swarm.guidance.params import (
     CapabilityParams,
@@ -42,7 +44,7 @@ from gcs_swarm.guidance.params import (
     SMCParams,
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
-from gcs_swarm.guidance.reshape import FormationShaper, ShapeChange, shape_clearance
+from gcs_swarm.guidance.reshape import SAMPLE_STEP_M, FormationShaper, ShapeChange, shape_clearance
 from gcs_swarm.guidance.separation import (
     closing_deceleration,
     closing_range,
@@ -240,6 +242,10 @@ class FleetController:
                 self.reshape, self.offsets, leader, self.separation.d_emg + RESHAPE_GAP_M, hold_m=self.d_g
             )
         )
+        self.leader_model = LeaderModel(
+            self.generator.config, self.field, float(self.d_g), float(self.reference.brake_accel),
+            float(self.reference.waypoint_radius), bool(self.reference.heading_from_route),
+        )  # fmt: skip
         self.envelope = (
             None if pace is None or not pace.enabled else SpeedEnvelope(n, pace, self.limits.tilt_max, g)
         )
@@ -311,6 +317,20 @@ class FleetController:
         if self.follower_pace < cap[self.leader]:  # [add] no faster than the slowest follower (capability)
             cap[self.leader] = self.follower_pace
         return cap
+
+    def _leader_path_ahead(
+        self, speed_cap: float, centres: np.ndarray, radii: np.ndarray, length: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The reshape's look-ahead route (reshape.Route) for `length` m: the leader's path predicted from its
+        reference state at up to speed_cap m/s among the obstacles (K, 3), (K,) m and shapes of this tick
+        (gcs_swarm.guidance.leader_path)."""
+        assert self.heading is not None
+        lead, gen = self.leader, self.generator
+        return predict_leader_path(
+            self.leader_model, gen.p[lead], gen.v[lead], gen.a[lead], self.heading,
+            self.waypoints[self.waypoint_index :], speed_cap, length, SAMPLE_STEP_M, centres, radii,
+            self.shapes,
+        )  # fmt: skip
 
     def drain_events(self) -> list[str]:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
@@ -468,11 +488,7 @@ class FleetController:
             self.waypoint_index += 1
             goal_dist = float(np.linalg.norm(self.waypoints[self.waypoint_index] - p_lead))
         goal = self.waypoints[self.waypoint_index]
-        course = self.generator.v[lead, :2]
-        to_goal = goal[:2] - p_lead[:2]
-        across = float(np.hypot(to_goal[0], to_goal[1]))
-        if self.reference.heading_from_route and across > 0.0:  # [add] the route's direction, at that speed
-            course = to_goal * (float(np.hypot(course[0], course[1])) / across)
+        course = leader_course(self.generator.v[lead, :2], p_lead, goal, self.reference.heading_from_route)
         if self.reference.heading_sweep_max > 0.0:  # [add] the farthest slot swings at most this fast
             flown = self.flown_offsets
             reach = float(np.max(np.hypot(flown[:, 0], flown[:, 1]))) * self.spacing_scale
@@ -480,14 +496,17 @@ class FleetController:
             self.heading.rate_max = min(self.heading_rate_max, sweep_rate)
         self.heading.update(course, goal_dist, dt)
         ref = self.reference
-        offsets, offset_rate, shrink = self.offsets, None, 1.0
+        offsets, offset_rate, offset_accel, shrink = self.offsets, None, None, 1.0
         if self.shaper is not None:  # [add] deliberate reshaping around obstacles (reshape)
+            assert self.reshape is not None
+            cap_now = float(self.v_xy_cap[lead] * self.speed_scale)
+            predicted = partial(self._leader_path_ahead, cap_now, centres, radii)
             self.shaper.decide(
-                t, p_lead, self.heading.psi, self.waypoints[self.waypoint_index :],
-                float(self.v_xy_cap[lead] * self.speed_scale), float(np.hypot(*self.last_vel[lead, :2])),
-                centres, radii, self.shapes,
+                t, p_lead, self.heading.psi, self.waypoints[self.waypoint_index :], cap_now,
+                float(np.hypot(*self.last_vel[lead, :2])), centres, radii, self.shapes,
+                route=predicted if self.reshape.predict_path else None,
             )  # fmt: skip
-            offsets, offset_rate = self.shaper.flown(t)
+            offsets, offset_rate, offset_accel = self.shaper.flown(t)
             shrink = self.shaper.scale(t)
         self.flown_offsets = offsets
         if ref.leader_wait_m > 0.0:  # [add] the leader waits for followers behind their slots (leader_wait)
@@ -506,11 +525,12 @@ class FleetController:
             heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
             int(lead), goal, destinations, *self.shapes,
         )  # fmt: skip
-        if offset_rate is not None and offset_rate.any():  # the slots' own motion in the leader frame
-            rate = offset_rate * self.spacing_scale
-            v_ff[:, 0] += rate[:, 0] * cos_l - rate[:, 1] * sin_l
-            v_ff[:, 1] += rate[:, 0] * sin_l + rate[:, 1] * cos_l
-            v_ff[:, 2] += rate[:, 2]
+        for motion, ff in ((offset_rate, v_ff), (offset_accel, a_ff)):  # the slots' own motion, leader frame
+            if motion is not None and motion.any():
+                scaled = motion * self.spacing_scale
+                ff[:, 0] += scaled[:, 0] * cos_l - scaled[:, 1] * sin_l
+                ff[:, 1] += scaled[:, 0] * sin_l + scaled[:, 1] * cos_l
+                ff[:, 2] += scaled[:, 2]
         gen = self.generator
         literal = ref.paper_literal & ~self.is_leader
         if ref.paper_literal:

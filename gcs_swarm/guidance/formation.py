@@ -171,6 +171,19 @@ def assign_slots(
     return out, rule
 
 
+def leader_course(
+    v_ref_xy: np.ndarray, p_leader: np.ndarray, goal: np.ndarray, from_route: bool
+) -> np.ndarray:
+    """The course (2,) m/s that psi_L steers to (LeaderHeading.update): the leader's reference velocity
+    v_ref_xy (2,), or with `from_route` [add] the direction from p_leader (3,) to its waypoint goal (3,) ENU m
+    at that speed (the velocity itself at the waypoint)."""
+    to_goal = goal[:2] - p_leader[:2]
+    across = float(np.hypot(to_goal[0], to_goal[1]))
+    if from_route and across > 0.0:
+        return to_goal * (float(np.hypot(v_ref_xy[0], v_ref_xy[1])) / across)
+    return np.asarray(v_ref_xy[:2], dtype=float)
+
+
 class LeaderHeading:
     """psi_L: course of the leader's reference velocity, held when slow or near the goal (spec 6 [add]). The
     formation rotates with it and every vehicle's yaw is commanded to it.

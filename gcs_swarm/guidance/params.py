@@ -304,12 +304,18 @@ class ReshapeParams:
     clearance_m: float = 10.0
     lookahead_s: float = 6.0  # s of leader travel at its speed cap checked ahead, plus committed travel ...
     lookahead_min_m: float = 30.0  # m, ... but at least this far
+    # the look-ahead follows the leader's path predicted by flying its reference forward through the field
+    # (gcs_swarm.guidance.leader_path); false: the straight route through its waypoints
+    predict_path: bool = True
     # m, the tightest spacing a narrowed formation or column flies: D_Emg (3 m) plus 2 m of slot error on
     # each of two neighbours before they are in an emergency separation
     min_spacing_m: float = 7.0
     steps: int = 3  # spacings tried between the mission's and min_spacing_m
     column: bool = True  # may fall into a column (line astern) when no narrowed shape fits
-    speed_m_s: float = 2.5  # m/s, fastest a slot moves relative to the leader while the shape changes
+    speed_m_s: float = 6.0  # m/s, fastest a slot moves relative to the leader while the shape changes
+    # m/s^2, hardest a slot accelerates relative to the leader in a change: with pace_decel_m_s2, within the
+    # reference's accel_xy_max (4 m/s^2)
+    accel_m_s2: float = 2.0
     # m/s^2, fastest the leader's pace cap falls while the shape changes (the followers brake with it)
     pace_decel_m_s2: float = 1.5
     restore_after_s: float = 1.5  # s a wider shape must keep fitting before the formation widens to it
@@ -320,8 +326,8 @@ class ReshapeParams:
             raise ValueError("need clearance_m >= 0, lookahead_s > 0 and lookahead_min_m >= 0")
         if not (self.min_spacing_m > 0 and self.speed_m_s > 0 and self.steps >= 1):
             raise ValueError("need min_spacing_m > 0, speed_m_s > 0 and steps >= 1")
-        if not self.pace_decel_m_s2 > 0:
-            raise ValueError("need pace_decel_m_s2 > 0")
+        if not (self.pace_decel_m_s2 > 0 and self.accel_m_s2 > 0):
+            raise ValueError("need pace_decel_m_s2 > 0 and accel_m_s2 > 0")
         if not (self.restore_after_s >= 0 and self.decide_every_s > 0):
             raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
 

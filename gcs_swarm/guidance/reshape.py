@@ -7,17 +7,18 @@ purpose instead, and its followers' slots move with it:
 - **Candidates**, widest first: the mission's formation; the same shape with its spacing scaled down in
   `steps` steps to `min_spacing_m` between nearest slots; a column (line astern) min_spacing_m apart (short,
   so that its tail swings little when the leader turns).
-- **Look-ahead**: the leader's route from where it is (through its remaining waypoints) for
-  max(lookahead_min_m, lookahead_s x its speed cap + the leader's committed travel), sampled every
-  SAMPLE_STEP_M (the committed travel: the distance the leader covers at its pace floors while the slowest
-  change from the mission's shape runs, so that a change seen this far ahead can finish in time), the
-  formation turned to
-  each piece of the route (and, where the leader is now, to its present heading psi_L). A candidate fits when
-  every follower's slot keeps `clearance_m` from every obstacle surface at every sample.
-- **Choice**, every `decide_every_s`: the widest candidate that fits. When none does (an obstacle on the
-  leader's own route, which the leader will swerve round in a way the route does not tell), the one with the
-  most clearance, but only if all its slots stay outside the obstacles and it clears them by CLEARER_M more
-  than the shape flown; else the shape flown is kept. Narrower than the shape flown: at once; wider: once it
+- **Look-ahead**: the leader's way ahead (a `Route`: the path it will fly, predicted by running its own
+  reference forward through the field, gcs_swarm.guidance.leader_path; or the straight route through its
+  remaining waypoints, `route_samples`) for max(lookahead_min_m, lookahead_s x its speed cap + the leader's
+  committed travel), sampled every SAMPLE_STEP_M (the committed travel: the distance the leader covers at its
+  pace floors while the slowest change from the mission's shape runs, so that a change seen this far ahead
+  can finish in time), the formation turned at each sample to the heading psi_L has there. A candidate fits
+  when every follower's slot keeps `clearance_m` from every obstacle surface at every sample.
+- **Choice**, every `decide_every_s`: the widest candidate that fits. When none does (a gap narrower than
+  any shape with its clearance; along the straight route, an obstacle on the leader's own line, round which
+  the leader will swerve in a way the route does not tell), the one with the most clearance, but only if
+  all its slots stay outside the obstacles and it clears them by CLEARER_M more than the shape flown; else
+  the shape flown is kept. Narrower than the shape flown: at once; wider: once it
   has kept fitting, with WIDEN_MARGIN_M more clearance, for `restore_after_s`, so the formation does not flap
   at the edge of a gap.
 - **Change**: the followers are assigned to the new slots by the shortest longest move
@@ -25,9 +26,9 @@ purpose instead, and its followers' slots move with it:
   along the leader's heading and then across it, or the other way round (MOVE_ORDERS): whichever keeps the
   vehicles farthest apart (a column opening into a line moves across first, each follower still 7 m behind
   the next, then forward, each in its own lane). Each phase follows a minimum-jerk profile (quintic, zero
-  velocity and acceleration at both ends) that takes 1.875 x (its longest move) / speed_m_s, so no slot moves
-  faster than speed_m_s relative to the leader.
-  The offsets' rate of change goes to the followers as a velocity feed-forward.
+  velocity and acceleration at both ends) as short as lets no slot move faster than speed_m_s nor accelerate
+  harder than accel_m_s2 relative to the leader (`move_duration`).
+  The offsets' rate and acceleration go to the followers as velocity and acceleration feed-forwards.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
   reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
   which a slot falls back along the leader's heading, not below that phase's peak fall-back rate less
@@ -44,6 +45,7 @@ spacing of the flown shape over the mission's (1 unreshaped); the inter-UAV repu
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -61,6 +63,9 @@ PACE_MARGIN_M_S = 1.5
 WIDEN_MARGIN_M = 1.0  # m more than clearance_m a wider shape must keep to be taken (no flapping at the edge)
 CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
 MOVE_SAMPLE_S = 0.25  # s between the moments of a move checked for clearance (move_clearance)
+# the leader's way ahead for a length m: points (P, 3) ENU m, the formation's heading there (P,) rad, their
+# travel from the leader (P,) m (route_samples, gcs_swarm.guidance.leader_path)
+Route = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 @dataclass(frozen=True)
@@ -203,10 +208,28 @@ def clearance_along(
     return shape_clearance(offsets[None], which, followers, points, headings, centres, radii, *shapes)
 
 
-def min_jerk(tau: float) -> tuple[float, float]:
-    """The quintic 10 t^3 - 15 t^4 + 6 t^5 and its derivative at tau in [0, 1] (clipped)."""
+def min_jerk(tau: float) -> tuple[float, float, float]:
+    """The quintic 10 t^3 - 15 t^4 + 6 t^5 and its first and second derivatives at tau in [0, 1] (clipped)."""
     tau = min(max(tau, 0.0), 1.0)
-    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau), 30.0 * tau * tau * (1.0 - tau) ** 2
+    return (
+        tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau),
+        30.0 * tau * tau * (1.0 - tau) ** 2,
+        60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau),
+    )
+
+
+# The minimum-jerk profile's peaks per unit move and time: rate 1.875 (at tau = 1/2) and acceleration
+# 10 / sqrt(3) (at tau = 1/2 - sqrt(3)/6).
+MIN_JERK_PEAK_RATE = 1.875
+MIN_JERK_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
+
+
+def move_duration(distance: float, speed: float, accel: float) -> float:
+    """s, the shortest minimum-jerk move over `distance` m whose rate stays within `speed` m/s and whose
+    acceleration within `accel` m/s^2."""
+    if distance <= 0.0:
+        return 0.0
+    return max(MIN_JERK_PEAK_RATE * distance / speed, math.sqrt(MIN_JERK_PEAK_ACCEL * distance / accel))
 
 
 # The ways the slots may move from one shape to another: which axes of the leader frame move in each phase, in
@@ -233,22 +256,23 @@ class SlotMove:
         """s, the whole move."""
         return sum(d for _, d in self.phases)
 
-    def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Offsets (N, 3) at time t s and their rate (N, 3) m/s."""
-        offsets, rate = self.start.copy(), np.zeros_like(self.start)
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Offsets (N, 3) at time t s, their rate (N, 3) m/s and their acceleration (N, 3) m/s^2."""
+        offsets, rate, accel = self.start.copy(), np.zeros_like(self.start), np.zeros_like(self.start)
         elapsed = t - self.t0
         for axes, duration in self.phases:
             cols = list(axes)
             if duration <= 0.0 or elapsed >= duration:
                 offsets[:, cols] = self.end[:, cols]
             else:
-                lam, dlam = min_jerk(max(elapsed, 0.0) / duration)
+                lam, dlam, ddlam = min_jerk(max(elapsed, 0.0) / duration)
                 delta = self.end[:, cols] - self.start[:, cols]
                 offsets[:, cols] = self.start[:, cols] + lam * delta
                 rate[:, cols] = delta * (dlam / duration)
+                accel[:, cols] = delta * (ddlam / duration**2)
                 break
             elapsed -= duration
-        return offsets, rate
+        return offsets, rate, accel
 
     def phases_left(self, t: float) -> list[tuple[float, float]]:
         """The phases not finished at t s, in order: (their time left s, the leader's pace floor m/s in them,
@@ -258,8 +282,12 @@ class SlotMove:
             end = start + duration
             if duration > 0.0 and t < end:
                 back = 0.0
-                if 0 in axes:  # 1.875 x the longest backward move along the heading / duration (min_jerk)
-                    back = 1.875 * float(np.max(self.start[:, 0] - self.end[:, 0], initial=0.0)) / duration
+                if 0 in axes:  # the peak rate of the longest backward move along the heading (min_jerk)
+                    back = (
+                        MIN_JERK_PEAK_RATE
+                        * float(np.max(self.start[:, 0] - self.end[:, 0], initial=0.0))
+                        / duration
+                    )
                 out.append((end - max(t, start), fall_back_floor(back)))
             start = end
         return out
@@ -303,10 +331,12 @@ def closest_pair_along(start: np.ndarray, end: np.ndarray, axes_order: tuple[tup
     return best
 
 
-def plan_move(start: np.ndarray, end: np.ndarray, rows: np.ndarray, t0: float, speed: float) -> SlotMove:
+def plan_move(
+    start: np.ndarray, end: np.ndarray, rows: np.ndarray, t0: float, speed: float, accel: float = math.inf
+) -> SlotMove:
     """The move from `start` to `end` (N, 3) among the MOVE_ORDERS that keeps the (N,) bool `rows` (the
-    leader's among them) farthest apart, straight when none does better; each phase lasts 1.875 x its
-    longest move / speed (m/s), so no slot moves faster than speed."""
+    leader's among them) farthest apart, straight when none does better; each phase lasts the
+    `move_duration` of its longest move at `speed` m/s and `accel` m/s^2."""
     best_order, best_gap = MOVE_ORDERS["straight"], -math.inf
     for order in MOVE_ORDERS.values():
         gap = closest_pair_along(start[rows], end[rows], order)
@@ -315,7 +345,9 @@ def plan_move(start: np.ndarray, end: np.ndarray, rows: np.ndarray, t0: float, s
     phases = tuple(
         (
             axes,
-            1.875 * float(np.max(np.linalg.norm((end - start)[:, list(axes)], axis=1), initial=0.0)) / speed,
+            move_duration(
+                float(np.max(np.linalg.norm((end - start)[:, list(axes)], axis=1), initial=0.0)), speed, accel
+            ),
         )
         for axes in best_order
     )
@@ -364,8 +396,8 @@ class FormationShaper:
         if was is not None and t is not None:
             self._change_to(0, was, t, announce=False)
 
-    def flown(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Offsets (N, 3) flown at time t s and their rate of change (N, 3) m/s."""
+    def flown(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Offsets (N, 3) flown at time t s, their rate of change (N, 3) m/s and its rate (N, 3) m/s^2."""
         return self.move.at(t)
 
     def scale(self, t: float) -> float:
@@ -373,7 +405,7 @@ class FormationShaper:
         duration = self.move.duration
         if duration <= 0.0 or t >= self.move.t0 + duration:
             return self.end_scale
-        lam, _ = min_jerk((t - self.move.t0) / duration)
+        lam = min_jerk((t - self.move.t0) / duration)[0]
         return self.start_scale + lam * (self.end_scale - self.start_scale)
 
     @property
@@ -392,7 +424,7 @@ class FormationShaper:
             end[followers] = target.offsets[followers[order]]
         rows = np.any(now != 0.0, axis=1) | np.any(end != 0.0, axis=1)
         rows[self.leader] = True
-        return plan_move(now, end, rows, t, self.params.speed_m_s)
+        return plan_move(now, end, rows, t, self.params.speed_m_s, self.params.accel_m_s2)
 
     def _change_to(
         self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None
@@ -420,18 +452,16 @@ class FormationShaper:
         return replace(cached[1], t0=t)
 
     def move_clearance(
-        self, move: SlotMove, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed: float,
-        centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
+        self, move: SlotMove, route: Route, speed: float, centres: np.ndarray, radii: np.ndarray,
+        shapes: ShapeArrays = NO_SHAPES,
     ) -> float:  # fmt: skip
         """Smallest distance m from a moving slot to an obstacle surface while `move` runs, the leader going
-        on along its route from p_leader (3,) ENU m, heading psi_leader rad, through `waypoints` (W, 3) at
-        `speed` m/s (stopping at the last): the slots of a tail still short of a gap must not cut through
-        its sides on their way to a wider shape. Sampled every MOVE_SAMPLE_S; inf without obstacles."""
+        on along `route` at `speed` m/s (stopping where it ends): the slots of a tail still short of a gap
+        must not cut through its sides on their way to a wider shape. Sampled every MOVE_SAMPLE_S; inf
+        without obstacles."""
         moments = np.linspace(0.0, move.duration, max(2, math.ceil(move.duration / MOVE_SAMPLE_S) + 1))
         travel = speed * moments
-        points, headings, along = route_samples(
-            p_leader, psi_leader, waypoints, float(travel[-1]), self.hold_m
-        )
+        points, headings, along = route(float(travel[-1]))
         at = np.minimum(np.searchsorted(along, travel), len(along) - 1)
         offsets = np.stack([move.at(move.t0 + m)[0] for m in moments])
         rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
@@ -442,15 +472,23 @@ class FormationShaper:
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
         speed: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
+        route: Route | None = None,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
         psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
-        spherical obstacles (K, 3), (K,) m and the still cylinders and prisms `shapes` (spec 2.2)."""
+        spherical obstacles (K, 3), (K,) m and the still cylinders and prisms `shapes` (spec 2.2), along
+        `route` (the leader's path predicted, gcs_swarm.guidance.leader_path; None: the straight route
+        through the waypoints, route_samples)."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
+        if route is None:
+
+            def route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                return route_samples(p_leader, psi_leader, waypoints, length, self.hold_m)
+
         length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap + self.committed_m)
-        points, headings, along = route_samples(p_leader, psi_leader, waypoints, length, self.hold_m)
+        points, headings, along = route(length)
         reach = max(float(np.max(np.linalg.norm(s.offsets, axis=1))) for s in self.shapes)
         near = np.linalg.norm(centres - p_leader, axis=1) - radii <= length + reach + self.params.clearance_m
         every = centres, radii
@@ -474,7 +512,7 @@ class FormationShaper:
                 self.wider_since = t
             if t - self.wider_since >= self.params.restore_after_s:
                 move = self._widening(best, t)
-                if self.move_clearance(move, p_leader, psi_leader, waypoints, speed, *every, shapes) >= (
+                if self.move_clearance(move, route, speed, *every, shapes) >= (
                     self.params.clearance_m
                 ):  # the way there is clear too
                     self.wider_since = None

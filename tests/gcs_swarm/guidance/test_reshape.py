@@ -13,10 +13,12 @@ from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import PAPER_PLAIN, ReshapeParams
 from gcs_swarm.guidance.reshape import (
+    MIN_JERK_PEAK_ACCEL,
     PACE_MARGIN_M_S,
     FormationShaper,
     candidate_shapes,
     min_jerk,
+    move_duration,
     nearest_slot_spacing,
     pace_speed,
     plan_move,
@@ -120,10 +122,35 @@ def test_clearance_of_a_slot_beside_a_building_is_its_distance_to_the_wall():
 
 
 def test_min_jerk_profile_starts_and_ends_at_rest():
-    assert min_jerk(0.0) == (0.0, 0.0)
-    assert min_jerk(1.0) == (1.0, 0.0)
-    assert min_jerk(0.5)[0] == pytest.approx(0.5)
-    assert min_jerk(0.5)[1] == pytest.approx(1.875)  # the peak rate: 1.875 x the move per unit time
+    assert min_jerk(0.0) == (0.0, 0.0, 0.0)
+    assert min_jerk(1.0) == (1.0, 0.0, 0.0)
+    assert min_jerk(0.5) == pytest.approx((0.5, 1.875, 0.0))  # the peak rate: 1.875 x the move per unit time
+    # the derivatives are those of the quintic, by finite differences
+    for tau in (0.1, 0.3, 0.7):
+        h = 1e-6
+        assert min_jerk(tau)[1] == pytest.approx(
+            (min_jerk(tau + h)[0] - min_jerk(tau - h)[0]) / (2 * h), rel=1e-6
+        )
+        assert min_jerk(tau)[2] == pytest.approx(
+            (min_jerk(tau + h)[1] - min_jerk(tau - h)[1]) / (2 * h), rel=1e-5
+        )
+    # the peak acceleration 10 / sqrt(3) where the jerk 60 (1 - 6 tau + 6 tau^2) is zero
+    taus = np.linspace(0.0, 1.0, 100001)
+    assert max(min_jerk(t)[2] for t in taus) == pytest.approx(MIN_JERK_PEAK_ACCEL, rel=1e-8)
+    assert min_jerk((3 - math.sqrt(3)) / 6)[2] == pytest.approx(10 / math.sqrt(3))
+
+
+def test_move_duration_keeps_both_limits():
+    # 20 m at 2.5 m/s and 1 m/s^2: the rate bounds it (15 s; the acceleration alone: sqrt(5.77 x 20) = 10.7 s)
+    assert move_duration(20.0, 2.5, 1.0) == pytest.approx(15.0)
+    # 2 m: the acceleration bounds it (sqrt(5.7735 x 2 / 1) = 3.40 s, against 1.5 s at 2.5 m/s)
+    assert move_duration(2.0, 2.5, 1.0) == pytest.approx(math.sqrt(20 / math.sqrt(3)))
+    assert move_duration(0.0, 2.5, 1.0) == 0.0
+    for distance in (0.5, 7.0, 35.0):
+        duration = move_duration(distance, 4.0, 1.5)
+        taus = np.linspace(0.0, 1.0, 2001)
+        assert max(distance * min_jerk(t)[1] / duration for t in taus) <= 4.0 + 1e-9
+        assert max(abs(distance * min_jerk(t)[2]) / duration**2 for t in taus) <= 1.5 + 1e-9
 
 
 def _fly_shaper(
@@ -151,15 +178,16 @@ def test_a_v_wider_than_a_gap_narrows_or_falls_into_a_column_before_it_and_is_re
     centres, radii = _gap_world(12.0)
     shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
     steps = _fly_shaper(shaper, centres, radii, -100.0, 160.0)
-    for t, x, offsets, rate, name in steps:
+    for t, x, offsets, rate, accel, name in steps:
         slots = np.array([x, 0.0, 10.0]) + offsets[1:]
         if 40.0 <= x <= 65.0 and name != "formation":
             gap = np.linalg.norm(slots[:, None, :] - centres[None], axis=-1) - radii
             assert gap.min() >= PARAMS.clearance_m - 1e-9, (t, x, name)
         assert np.linalg.norm(rate, axis=1).max() <= PARAMS.speed_m_s + 1e-9
+        assert np.linalg.norm(accel, axis=1).max() <= PARAMS.accel_m_s2 + 1e-9
         d = np.linalg.norm(offsets[1:, None] - offsets[None, 1:], axis=-1)
         assert d[np.triu_indices(4, 1)].min() >= 4.0 - 1e-9
-    names = [s[4] for s in steps]
+    names = [s[-1] for s in steps]
     assert names[0] == "formation"
     assert any(n != "formation" for n in names)
     assert names[-1] == "formation"
@@ -182,13 +210,13 @@ def test_a_v_wider_than_a_gap_between_two_buildings_narrows_before_it():
     steps = _fly_shaper(shaper, np.zeros((0, 3)), np.zeros(0), -100.0, 160.0, shapes=shapes)
     footprints = [Polygon(footprint) for footprint in walls]
     checked = 0
-    for _, x, offsets, _, name in steps:
+    for _, x, offsets, _, _, name in steps:
         if 40.0 <= x <= 65.0:
             assert name != "formation", x
             slots = [Point(x + o[0], o[1]) for o in offsets[1:]]
             assert min(f.distance(p) for f in footprints for p in slots) >= PARAMS.clearance_m - 1e-6, x
             checked += 1
-    assert checked > 0 and steps[-1][4] == "formation"
+    assert checked > 0 and steps[-1][-1] == "formation"
 
 
 def test_a_column_whose_tail_is_short_of_a_gap_waits_to_open_until_the_way_is_clear():
@@ -297,7 +325,7 @@ def test_a_column_opens_into_a_line_across_first_so_everyone_keeps_the_column_sp
     # each phase lasts 1.875 x its longest move / speed: across 20 m, along 28 m
     assert [d for _, d in move.phases] == pytest.approx([1.875 * 20 / 2.5, 1.875 * 28 / 2.5])
     np.testing.assert_allclose(move.at(move.duration)[0], line)
-    half, rate = move.at(move.phases[0][1])  # the end of the first phase: spread, not yet forward
+    half, rate, _ = move.at(move.phases[0][1])  # the end of the first phase: spread, not yet forward
     np.testing.assert_allclose(half[:, 0], column[:, 0])
     np.testing.assert_allclose(half[:, 1], line[:, 1])
 
@@ -362,7 +390,7 @@ def test_a_line_wider_than_a_gap_is_a_column_before_it_and_no_follower_reverses_
     shaper = FormationShaper(PARAMS, _line(4, 12.0), 0, 4.0)
     steps = _fly_shaper(shaper, centres, radii, -60.0, 140.0)
     previous_x = None
-    for t, x, offsets, rate, name in steps:
+    for t, x, offsets, rate, _, name in steps:
         slots = np.array([x, 0.0, 10.0]) + offsets[1:]
         if slots[:, 0].max() >= 80.0 - 8.0 - PARAMS.clearance_m and slots[:, 0].min() <= 80.0 + 8.0:
             gap = np.linalg.norm(slots[:, None, :] - centres[None], axis=-1) - radii
@@ -371,8 +399,8 @@ def test_a_line_wider_than_a_gap_is_a_column_before_it_and_no_follower_reverses_
             leader_speed = (x - previous_x) / 0.02
             assert (leader_speed + rate[1:, 0]).min() >= -PACE_MARGIN_M_S - 1e-6, (t, x, name)
         previous_x = x
-    assert "column" in [s[4] for s in steps]
-    assert steps[-1][4] == "formation"
+    assert "column" in [s[-1] for s in steps]
+    assert steps[-1][-1] == "formation"
 
 
 def test_the_leaders_pace_cap_falls_no_faster_than_pace_decel():
