@@ -4,6 +4,7 @@ choice and the smooth change, on hand-built worlds whose answers follow from the
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -406,9 +407,11 @@ def test_a_line_wider_than_a_gap_is_a_column_before_it_and_no_follower_reverses_
 def test_the_leaders_pace_cap_falls_no_faster_than_pace_decel():
     """The same line and gap: the leader at 10 m/s is slowed by the pace, but its cap falls by at most
     pace_decel_m_s2 x the time between two decisions, starting from its speed, so followers whose slots
-    brake with it are not asked to brake harder; and the pace does bind (the cap goes below 5 m/s)."""
+    brake with it are not asked to brake harder; and the pace does bind (the cap goes below 5 m/s: the slots
+    move at 2.5 m/s, so the change takes long enough)."""
     centres, radii = _gap_world(16.0, x=80.0)
-    shaper = FormationShaper(PARAMS, _line(4, 12.0), 0, 4.0)
+    params = replace(PARAMS, speed_m_s=2.5)
+    shaper = FormationShaper(params, _line(4, 12.0), 0, 4.0)
     wp, x, t, speed = np.array([[400.0, 0.0, 10.0]]), -60.0, 0.0, 10.0
     decisions = []  # (t, cap) at every decision
     while x < 140.0:
@@ -422,4 +425,4 @@ def test_the_leaders_pace_cap_falls_no_faster_than_pace_decel():
     for (t0, before), (t1, after) in zip(decisions, decisions[1:], strict=False):
         if math.isfinite(after):  # from the cap before, or from 10 m/s (the leader's speed) when none bound
             start = before if math.isfinite(before) else 10.0
-            assert start - after <= PARAMS.pace_decel_m_s2 * (t1 - t0) + 1e-9, t1
+            assert start - after <= params.pace_decel_m_s2 * (t1 - t0) + 1e-9, t1
