@@ -9,7 +9,12 @@ no shape fits, and changes shape only once the obstacle is close. Here the leade
 2-5: attraction to its waypoint, the obstacles' repulsion along its braking path, the jerk-limited shaping,
 its speed cap) is integrated forward from its present state alone, without the other vehicles, every
 PREDICT_DT_S, and the formation's heading psi_L with it (formation.leader_course, LeaderHeading); the path is
-resampled every `step_m` of horizontal travel. Obstacles are taken where they are now.
+resampled every `step_m` of horizontal travel. Obstacles are taken where they are now. Where the predicted
+leader stops short of the length asked (at its goal, or stalled where its attraction and an obstacle's
+repulsion balance, as in front of a gap between two large obstacles, which the real leader leaves seconds
+later), the path goes on along the straight route from there (reshape.route_samples): a look-ahead that
+ended at the stall would find no obstacle beyond it, and a formation narrowed for the gap would widen in
+front of it.
 
 Shapes: positions (3,) or (P, 3) ENU m; headings rad; distances m.
 """
@@ -26,6 +31,7 @@ from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.formation import LeaderHeading, leader_course
 from gcs_swarm.guidance.params import FieldParams
 from gcs_swarm.guidance.reference import ReferenceConfig, leash_and_lookahead, reference_step
+from gcs_swarm.guidance.reshape import route_samples
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
 
 PREDICT_DT_S = 0.1  # s, the prediction's step
@@ -89,6 +95,13 @@ def predict_leader_path(
             break
         if index == last and float(np.hypot(vs[0, 0], vs[0, 1])) < STOPPED_M_S and distance < model.d_g:
             break
+    if travel[-1] < length:  # stopped short: on along the straight route (from its end, the waypoints left)
+        rest, rest_courses, rest_travel = route_samples(
+            track[-1], courses[-1], waypoints[index:], length - travel[-1], model.d_g
+        )
+        track.extend(rest[1:])
+        courses.extend(rest_courses[1:])
+        travel.extend(travel[-1] + rest_travel[1:])
     headings = np.unwrap(np.array(courses))
     return resample(np.array(track), headings, np.array(travel), min(length, travel[-1]), step_m)
 

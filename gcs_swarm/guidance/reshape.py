@@ -17,8 +17,9 @@ purpose instead, and its followers' slots move with it:
 - **Choice**, every `decide_every_s`: the widest candidate that fits. When none does (a gap narrower than
   any shape with its clearance; along the straight route, an obstacle on the leader's own line, round which
   the leader will swerve in a way the route does not tell), the one with the most clearance, but only if
-  all its slots stay outside the obstacles and it clears them by CLEARER_M more than the shape flown; else
-  the shape flown is kept. Narrower than the shape flown: at once; wider: once it
+  it is narrower than the shape flown, all its slots stay outside the obstacles and it clears them by
+  CLEARER_M more than the shape flown; else the shape flown is kept (a formation never widens while nothing
+  fits). Narrower than the shape flown: at once; wider: once it
   has kept fitting, with WIDEN_MARGIN_M more clearance, for `restore_after_s`, so the formation does not flap
   at the edge of a gap.
 - **Change**: the followers are assigned to the new slots by the shortest longest move
@@ -501,8 +502,9 @@ class FormationShaper:
                 break
             if gaps[k] > best_gap + 1e-9:
                 best, best_gap = k, gaps[k]
-        else:  # none fits: a shape whose slots all stay outside obstacles, clearly clearer than the one flown
-            if not (best_gap > max(0.0, gaps[self.current] + CLEARER_M)):
+        else:  # none fits: a narrower shape whose slots all stay outside obstacles, clearly clearer than the
+            # one flown; never a wider one (a column stalled in front of a gap widened into it)
+            if not (best > self.current and best_gap > max(0.0, gaps[self.current] + CLEARER_M)):
                 best = self.current
         if best > self.current:
             self.wider_since = None

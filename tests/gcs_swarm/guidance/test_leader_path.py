@@ -125,3 +125,29 @@ def test_look_ahead_on_the_predicted_path_changes_shape_sooner() -> None:
                 break
     assert first_change[True] < 10.0  # m east of the start: at once (the look-ahead covers the obstacle)
     assert first_change.get(False, math.inf) > first_change[True] + 20.0
+
+
+def test_a_leader_stalled_in_front_of_a_gap_is_looked_past():
+    # Two spheres of 8.5 m with 8.2 m between their surfaces across the leader's line: attraction and
+    # repulsion balance in front of the gap, and the leader's reference stops there (the paper's local
+    # minimum). The look-ahead still covers the length asked, along the straight route through the gap, so a
+    # formation narrowed for the gap does not widen in front of it.
+    centres = np.array([[60.0, 12.6, 10.0], [60.0, -12.6, 10.0]])
+    radii = np.array([8.5, 8.5])
+    ctl = _controller()
+    gen = ctl.generator
+    assert ctl.heading is not None
+    points, headings, along = predict_leader_path(
+        ctl.leader_model, gen.p[0], gen.v[0], gen.a[0], ctl.heading, GOAL, 10.0, 150.0, 2.0, centres, radii
+    )
+    dt = ctl.control_dt
+    for k in range(round(30.0 / dt)):  # the leader's own reference, flown: it stalls short of the gap
+        pos = ctl.generator.p.copy()
+        ctl.tick(
+            k * dt, pos, ctl.generator.v.copy(), np.zeros((1, 3)), centres, radii, np.ones(1, dtype=bool)
+        )
+    stall = float(ctl.generator.p[0, 0])
+    assert stall < 60.0 - 8.5 and float(np.hypot(*ctl.generator.v[0, :2])) < 0.1
+    assert along[-1] >= 150.0 - 2.0 and points[:, 0].max() > 60.0 + 8.5  # through the gap and beyond
+    beyond = points[:, 0] > stall + 1.0
+    assert np.allclose(points[beyond, 1], 0.0, atol=1e-6) and np.allclose(headings[beyond], 0.0, atol=1e-6)
