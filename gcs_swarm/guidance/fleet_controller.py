@@ -31,7 +31,7 @@ from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets, leader_course
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.leader_path import LeaderModel, predict_leader_path
-from gcs_swarm.guidance.leader_wait import leader_cap_scale, turn_wait_scale
+from gcs_swarm.guidance.leader_wait import leader_cap_scale
 from gcs_swarm.guidance.params import (
     CapabilityParams,
     DeadGcsParams,
@@ -514,11 +514,6 @@ class FleetController:
                 self.last_pos, lead, offsets * self.spacing_scale, self.heading.psi,
                 active & ~self.is_leader, ref.leader_wait_m, ref.leader_wait_span_m, ref.leader_wait_floor,
             )  # fmt: skip
-        if ref.turn_wait_deg > 0.0:  # [add] the leader waits for the formation to turn
-            self.leader_speed_scale = min(
-                self.leader_speed_scale if ref.leader_wait_m > 0.0 else 1.0,
-                turn_wait_scale(p_lead, goal, self.heading.psi, goal_dist > self.d_g, ref),
-            )
 
         # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
         self.relay.push(self._leader_state())
