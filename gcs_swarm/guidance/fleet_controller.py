@@ -30,7 +30,7 @@ from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_ca
 from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets, leader_course
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
-from gcs_swarm.guidance.leader_path import LeaderModel, predict_leader_path
+from gcs_swarm.guidance.leader_path import LeaderModel, predict_leader_path, waypoint_ahead
 from gcs_swarm.guidance.leader_wait import leader_cap_scale
 from gcs_swarm.guidance.params import (
     CapabilityParams,
@@ -483,10 +483,9 @@ class FleetController:
         # Leader goal and heading (spec 6 [add]); the heading follows the leader's reference velocity.
         lead = self.leader
         p_lead = self.last_pos[lead]
-        goal_dist = float(np.linalg.norm(self.waypoints[self.waypoint_index] - p_lead))
-        if goal_dist < self.reference.waypoint_radius and self.waypoint_index < len(self.waypoints) - 1:
-            self.waypoint_index += 1
-            goal_dist = float(np.linalg.norm(self.waypoints[self.waypoint_index] - p_lead))
+        self.waypoint_index, goal_dist = waypoint_ahead(
+            self.waypoints, self.waypoint_index, p_lead, self.reference.waypoint_radius
+        )
         goal = self.waypoints[self.waypoint_index]
         course = leader_course(self.generator.v[lead, :2], p_lead, goal, self.reference.heading_from_route)
         if self.reference.heading_sweep_max > 0.0:  # [add] the farthest slot swings at most this fast

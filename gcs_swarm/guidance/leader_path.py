@@ -42,6 +42,16 @@ MIN_STEPS = 20
 STOPPED_M_S = 0.05  # m/s: a leader this slow at its last waypoint has arrived
 
 
+def waypoint_ahead(waypoints: np.ndarray, index: int, p: np.ndarray, radius: float) -> tuple[int, float]:
+    """The leader's waypoint (spec 6 [add]): the index into waypoints (W, 3) it flies to from p (3,) ENU m,
+    moving on from `index` to the next once within `radius` m (never past the last), and its distance m."""
+    distance = float(np.linalg.norm(waypoints[index] - p))
+    if distance < radius and index < len(waypoints) - 1:
+        index += 1
+        distance = float(np.linalg.norm(waypoints[index] - p))
+    return index, distance
+
+
 @dataclass(frozen=True)
 class LeaderModel:
     """What the prediction flies: the leader's reference settings (ReferenceGenerator.config), its field,
@@ -63,9 +73,9 @@ def predict_leader_path(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The leader's path from its reference state p, v, a (3,) (ENU m, m/s, m/s^2) and heading (not changed:
     a copy is flown) through the waypoints (W, 3) still ahead at up to speed_cap m/s, among spheres centres
-    (K, 3), radii (K,) and `shapes`, for `length` m of horizontal travel or until the leader stops (module
-    docstring): points (P, 3), the formation's heading there (P,) rad and their travel from p (P,) m, one
-    every step_m, the first p itself with the present heading."""
+    (K, 3), radii (K,) and `shapes`, for `length` m of horizontal travel (where the leader stops short, on
+    along the straight route: module docstring): points (P, 3), the formation's heading there (P,) rad and
+    their travel from p (P,) m, one every step_m, the first p itself with the present heading."""
     psi = copy.deepcopy(heading)
     ps, vs, accel = (np.array(x, dtype=float).reshape(1, 3) for x in (p, v, a))
     rows, evasive, zero = np.ones(1, dtype=bool), np.zeros(1, dtype=bool), np.zeros((1, 3))
@@ -74,12 +84,8 @@ def predict_leader_path(
     track, courses, travel = [ps[0].copy()], [psi.psi], [0.0]
     steps = max(MIN_STEPS, math.ceil(STEP_ALLOWANCE * length / (max(speed_cap, 1.0) * PREDICT_DT_S)))
     for _ in range(steps):
+        index, distance = waypoint_ahead(waypoints, index, ps[0], model.waypoint_radius)
         goal = waypoints[index]
-        distance = float(np.linalg.norm(goal - ps[0]))
-        if distance < model.waypoint_radius and index < last:
-            index += 1
-            goal = waypoints[index]
-            distance = float(np.linalg.norm(goal - ps[0]))
         goal_row = goal.reshape(1, 3)
         ahead = leash_and_lookahead(ps, vs, ps, rows, math.inf, model.brake_accel)
         force = attraction(ps, goal_row, model.field, model.d_g)
