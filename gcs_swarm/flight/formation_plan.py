@@ -64,6 +64,7 @@ def build_controller(
         pace=mission.pace,
         names=tuple(v.name for v in mission.vehicles),
         shapes=site_shapes(mission),
+        still_obstacles=still_obstacles(mission),
     )
 
 
@@ -71,6 +72,16 @@ def site_shapes(mission: Mission) -> ShapeArrays:
     """The mission's cylinders (world.cylinders) and prisms (world.prisms), packed for the guidance and the
     report (swarm_common.obstacle_shapes, spec 2.2), in that order."""
     return pack_shapes(
+        cylinders=[(c.center, c.radius, c.bottom, c.top) for c in mission.cylinders],
+        prisms=[(p.footprint, p.bottom, p.top) for p in mission.prisms],
+    )
+
+
+def still_obstacles(mission: Mission) -> ShapeArrays:
+    """Every obstacle of the mission that does not move: its spheres at rest (world.obstacles with zero
+    velocity), cylinders and prisms, packed (the leader's route is planned round them)."""
+    return pack_shapes(
+        spheres=[(o.center, o.radius) for o in mission.obstacles if not np.any(o.velocity)],
         cylinders=[(c.center, c.radius, c.bottom, c.top) for c in mission.cylinders],
         prisms=[(p.footprint, p.bottom, p.top) for p in mission.prisms],
     )

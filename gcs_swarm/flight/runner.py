@@ -490,7 +490,7 @@ class MissionRunner:
             self._start_leg(t, leg_index)
         errors = np.linalg.norm(pos - targets, axis=1)
         self.formation_rms = formation_rms(errors, active, ctl.leader)
-        last_waypoint = cmd.waypoint_index == len(ctl.waypoints) - 1
+        last_waypoint = ctl.on_last_point  # no via point of the route before it
         at_goal = bool((errors[active] <= run.goal_tolerance_m).all()) and ctl.shape_settled(t)
         if last_waypoint and active.any() and at_goal:
             self._hold_since = t if self._hold_since is None else self._hold_since

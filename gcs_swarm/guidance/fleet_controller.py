@@ -30,7 +30,7 @@ from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_ca
 from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets, leader_course
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
-from gcs_swarm.guidance.leader_path import LeaderModel, predict_leader_path, waypoint_ahead
+from gcs_swarm.guidance.leader_path import LeaderModel, leader_stalls, predict_leader_path, waypoint_ahead
 from gcs_swarm.guidance.leader_wait import leader_cap_scale
 from gcs_swarm.guidance.params import (
     CapabilityParams,
@@ -45,6 +45,7 @@ from gcs_swarm.guidance.params import (
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
 from gcs_swarm.guidance.reshape import SAMPLE_STEP_M, FormationShaper, ShapeChange, shape_clearance
+from gcs_swarm.guidance.route_plan import detour
 from gcs_swarm.guidance.separation import (
     closing_deceleration,
     closing_range,
@@ -60,6 +61,7 @@ NO_ROWS = np.zeros((0, 3))
 RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in a reshape
 PACE_EVENT_SHARE = 0.1  # a new pace event when the followers' cap moves by more than this share
 RESHAPE_CUSHION_M = 1.0  # m: in a tighter shape, neighbours repel once this much closer than min_spacing_m
+CORNER_TOLERANCE_M = 2.0  # m, how far the leader's route round a gap may stray to bend fewer times
 _prepared = False  # every kernel was called once in this process (prepare_kernels)
 
 
@@ -113,7 +115,8 @@ class Command:
     thrust = MOT_THST_HOVER * thrust_acc / g). Diagnostics: ref_pos/ref_vel/ref_acc (N, 3) the SMC's desired
     state, field_force (N, 3) field units, slots (N, 3) formation targets (the leader's row is its current
     waypoint), u (N, 3) limited thrust acceleration, emergency (N,) inside D_Emg of another vehicle,
-    psi_leader rad, waypoint_index, leader_goal_distance m (leader to its current waypoint).
+    psi_leader rad, waypoint_index (the mission waypoint whose leg the leader flies), leader_goal_distance m
+    (leader to the point of its route it flies to: its waypoint, or a via point round a gap).
     """
 
     active: np.ndarray
@@ -168,6 +171,7 @@ class FleetController:
         pace: CapabilityParams | None = None,
         names: tuple[str, ...] = (),
         shapes: ShapeArrays = NO_SHAPES,
+        still_obstacles: ShapeArrays = NO_SHAPES,
     ) -> None:
         """`n` vehicles, `leader` its index; `offsets` (N, 3) leader-frame slots (leader row zero),
         `goal_waypoints` (W, 3) the leader's goals in order, `follower_targets` (N, 3) final destinations g_i
@@ -181,7 +185,9 @@ class FleetController:
         gcs_swarm.guidance.reshape), `pace` the leader's cap from its followers' measured drag (None or not
         enabled: v_xy_leader alone, gcs_swarm.guidance.capability), `names` the vehicles' names for events
         (default "vehicle <i+1>"), `shapes` the still cylinders and prisms (spec 2.2) the field, the slots and
-        the failsafe speed caps avoid beside the spheres each tick is given.
+        the failsafe speed caps avoid beside the spheres each tick is given, `still_obstacles` every obstacle
+        that does not move (spheres included) the leader's route goes round where they close a gap its
+        formation cannot fly (reshape.route_round_gaps, gcs_swarm.guidance.route_plan).
         """
         if n < 1 or not 0 <= leader < n:
             raise ValueError(f"leader index {leader} is not a vehicle of a fleet of {n}")
@@ -205,6 +211,7 @@ class FleetController:
         self.set_goal_waypoints(goal_waypoints)
         self.follower_targets = None if follower_targets is None else self._checked_targets(follower_targets)
         self.shapes = shapes
+        self.still_obstacles = still_obstacles
         self.d_g = default_d_g(self.field, self.limits.v_xy, self.reference.k_v)
         self.d_max = repulsion_range(self.separation, self.limits.v_xy, self.limits.a_xy)
         self.closing_accel = closing_deceleration(self.separation, self.limits.tilt_max, g)  # m/s^2, 0: off
@@ -265,6 +272,13 @@ class FleetController:
             raise ValueError(f"goal waypoints must be a non-empty finite (W, 3) array, got shape {wp.shape}")
         self.waypoints = np.ascontiguousarray(wp)  # its rows go to a kernel
         self.waypoint_index = 0
+        self.route_points = self.waypoints  # (R, 3) ENU m: the leader's route, via points among its waypoints
+        self.route_legs = np.arange(len(wp))  # (R,) the index of the waypoint each route point's leg ends at
+        self.route_ends = (
+            self.waypoints
+        )  # (R, 3) that waypoint: the adaptive factor's destination (spec 6a.8)
+        self.route_index = 0  # into route_points: the point the leader flies to
+        self.route_stale = True  # the route is rebuilt, and its first leg planned, at the next tick
 
     def set_goal(self, goal: np.ndarray) -> None:
         """Fly the leader to one new goal (3,); per-follower destinations revert to the default."""
@@ -279,6 +293,48 @@ class FleetController:
             self.shaper.set_nominal(self.offsets, self.leader, self.last_t if self.heading else None)
         else:
             self.flown_offsets = self.offsets
+
+    @property
+    def on_last_point(self) -> bool:
+        """The leader flies to its last waypoint, no via point of its route before it."""
+        return self.route_index == len(self.route_points) - 1
+
+    def _plan_leg(self, t: float, centres: np.ndarray, radii: np.ndarray) -> None:
+        """With reshaping and route_round_gaps on, the leg the leader starts now (to the waypoint
+        route_points[route_index]) goes round a cluster of still obstacles that closes a gap its formation's
+        narrowest shape cannot fly (route_plan.detour), if the leader's own field would stall it in front of
+        that gap on the straight leg (leader_path.leader_stalls, among this tick's spheres (K, 3), (K,) m):
+        via points go in before the waypoint, and an event says so (spec 6a.8)."""
+        if self.shaper is None or self.reshape is None or not self.reshape.route_round_gaps:
+            return
+        lead, gen = self.leader, self.generator
+        goal = self.route_points[self.route_index]
+        narrowest = self.shaper.shapes[-1].offsets
+        half_width = float(np.max(np.abs(narrowest[:, 1])))
+        clearance = self.reshape.gap_clearance_m
+        via = detour(gen.p[lead], goal, self.still_obstacles, clearance, half_width, CORNER_TOLERANCE_M)
+        if via is None:
+            return
+        assert self.heading is not None
+        cap = float(self.v_xy_cap[lead] * self.speed_scale)
+        if not leader_stalls(
+            self.leader_model, gen.p[lead], gen.v[lead], gen.a[lead], self.heading, goal, cap, centres, radii,
+            self.shapes,
+        ):  # fmt: skip
+            return
+        k = self.route_index
+        self.route_points = np.ascontiguousarray(
+            np.vstack([self.route_points[:k], via, self.route_points[k:]])
+        )
+        self.route_legs = np.concatenate(
+            [self.route_legs[:k], np.full(len(via), self.route_legs[k]), self.route_legs[k:]]
+        )
+        self.route_ends = np.ascontiguousarray(self.waypoints[self.route_legs])
+        corners = ", ".join(f"({x:.0f}, {y:.0f})" for x, y in via[:, :2])
+        self.events.append(
+            f"t={t:.2f} s route: round a gap too narrow for the formation, through {corners} to waypoint "
+            f"{self.route_legs[k] + 1}"
+        )
 
     def shape_settled(self, t: float) -> bool:
         """No change of the formation's shape is under way at vehicle time t s (the slots stand still in
@@ -328,7 +384,7 @@ class FleetController:
         lead, gen = self.leader, self.generator
         return predict_leader_path(
             self.leader_model, gen.p[lead], gen.v[lead], gen.a[lead], self.heading,
-            self.waypoints[self.waypoint_index :], speed_cap, length, SAMPLE_STEP_M, centres, radii,
+            self.route_points[self.route_index :], speed_cap, length, SAMPLE_STEP_M, centres, radii,
             self.shapes,
         )  # fmt: skip
 
@@ -483,10 +539,20 @@ class FleetController:
         # Leader goal and heading (spec 6 [add]); the heading follows the leader's reference velocity.
         lead = self.leader
         p_lead = self.last_pos[lead]
-        self.waypoint_index, goal_dist = waypoint_ahead(
-            self.waypoints, self.waypoint_index, p_lead, self.reference.waypoint_radius
+        new_leg = self.route_stale
+        if self.route_stale:  # from the waypoint flown to, no via points yet
+            self.route_points, self.route_legs = self.waypoints, np.arange(len(self.waypoints))
+            self.route_ends = self.waypoints
+            self.route_index, self.route_stale = self.waypoint_index, False
+        self.route_index, goal_dist = waypoint_ahead(
+            self.route_points, self.route_index, p_lead, self.reference.waypoint_radius
         )
-        goal = self.waypoints[self.waypoint_index]
+        new_leg |= int(self.route_legs[self.route_index]) != self.waypoint_index
+        self.waypoint_index = int(self.route_legs[self.route_index])
+        if new_leg:  # [add] round a gap the formation cannot fly (route_plan)
+            self._plan_leg(t, centres, radii)
+            goal_dist = float(np.linalg.norm(self.route_points[self.route_index] - p_lead))
+        goal = self.route_points[self.route_index]
         course = leader_course(self.generator.v[lead, :2], p_lead, goal, self.reference.heading_from_route)
         if self.reference.heading_sweep_max > 0.0:  # [add] the farthest slot swings at most this fast
             flown = self.flown_offsets
@@ -501,7 +567,7 @@ class FleetController:
             cap_now = float(self.v_xy_cap[lead] * self.speed_scale)
             predicted = partial(self._leader_path_ahead, cap_now, centres, radii)
             self.shaper.decide(
-                t, p_lead, self.heading.psi, self.waypoints[self.waypoint_index :], cap_now,
+                t, p_lead, self.heading.psi, self.route_points[self.route_index :], cap_now,
                 float(np.hypot(*self.last_vel[lead, :2])), centres, radii, self.shapes,
                 route=predicted if self.reshape.predict_path else None,
             )  # fmt: skip
@@ -513,7 +579,6 @@ class FleetController:
                 self.last_pos, lead, offsets * self.spacing_scale, self.heading.psi,
                 active & ~self.is_leader, ref.leader_wait_m, ref.leader_wait_span_m, ref.leader_wait_floor,
             )  # fmt: skip
-
         # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
         self.relay.push(self._leader_state())
         heard = self.relay.read()
@@ -522,7 +587,7 @@ class FleetController:
         cos_l, sin_l = np.cos(psi_l), np.sin(psi_l)
         targets, v_ff, a_ff, dest = formation_targets(
             heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
-            int(lead), goal, destinations, *self.shapes,
+            int(lead), goal, self.route_ends[self.route_index], destinations, *self.shapes,
         )  # fmt: skip
         for motion, ff in ((offset_rate, v_ff), (offset_accel, a_ff)):  # the slots' own motion, leader frame
             if motion is not None and motion.any():

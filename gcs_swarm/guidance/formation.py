@@ -87,7 +87,8 @@ def slot_positions(p_leader: np.ndarray, psi_leader: np.ndarray | float, offsets
 def formation_targets(
     heard: np.ndarray, cos_psi: np.ndarray, sin_psi: np.ndarray, offsets: np.ndarray, spacing: float,
     centres: np.ndarray, radii: np.ndarray, slot_margin: float, lead: int, goal: np.ndarray,
-    follower_targets: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
+    destination: np.ndarray, follower_targets: np.ndarray, kinds: np.ndarray, params: np.ndarray,
+    vertices: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Spec 8 step 1 for every vehicle from the leader state it heard (N, 11) (p (3), v (3), psi, psi rate,
     a (3)) and cos, sin of that psi (N,); offsets (N, 3) in the leader frame, scaled by `spacing`:
@@ -99,8 +100,10 @@ def formation_targets(
     - the velocity feed-forward v_L + psi_L_dot z x R(psi_L) delta_i (N, 3);
     - [add] the acceleration feed-forward a_L minus the centripetal psi_L_dot^2 R(psi_L) delta_i (horizontal)
       (N, 3): followers accelerate with the leader; both feed-forwards zero in the leader's row;
-    - the adaptive factor's destinations (N, 3): goal + R(psi_L) delta_i, or `follower_targets` (N, 3)
-      when it has rows; the leader's row its goal."""
+    - the adaptive factor's destinations (N, 3): destination + R(psi_L) delta_i, or `follower_targets`
+      (N, 3) when it has rows; the leader's row its goal. `destination` (3,) is the goal itself, or, while
+      the leader flies to a via point round a gap (spec 6a.8), the waypoint that leg ends at: the followers'
+      rho, and with it their repulsion, does not jump at each via point."""
     n = heard.shape[0]
     targets = np.empty((n, 3))
     v_ff = np.empty((n, 3))
@@ -120,7 +123,7 @@ def formation_targets(
         a_ff[i, 1] = heard[i, 9] - rate_sq * w1
         a_ff[i, 2] = heard[i, 10] - rate_sq * 0.0
         if follower_targets.shape[0] == 0:
-            dest[i, 0], dest[i, 1], dest[i, 2] = goal[0] + w0, goal[1] + w1, goal[2] + w2
+            dest[i, 0], dest[i, 1], dest[i, 2] = destination[0] + w0, destination[1] + w1, destination[2] + w2
         else:
             dest[i, 0], dest[i, 1], dest[i, 2] = (
                 follower_targets[i, 0],

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,8 @@ PREDICT_DT_S = 0.1  # s, the prediction's step
 STEP_ALLOWANCE = 2.0
 MIN_STEPS = 20
 STOPPED_M_S = 0.05  # m/s: a leader this slow at its last waypoint has arrived
+STALL_PROGRESS_M = 1.0  # m: a leader that comes no closer to its goal than this ...
+STALL_S = 6.0  # s: ... for this long, far from it, is held by its field (leader_stalls)
 
 
 def waypoint_ahead(waypoints: np.ndarray, index: int, p: np.ndarray, radius: float) -> tuple[int, float]:
@@ -66,23 +69,21 @@ class LeaderModel:
     heading_from_route: bool
 
 
-def predict_leader_path(
+def leader_steps(
     model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading,
-    waypoints: np.ndarray, speed_cap: float, length: float, step_m: float, centres: np.ndarray,
-    radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """The leader's path from its reference state p, v, a (3,) (ENU m, m/s, m/s^2) and heading (not changed:
-    a copy is flown) through the waypoints (W, 3) still ahead at up to speed_cap m/s, among spheres centres
-    (K, 3), radii (K,) and `shapes`, for `length` m of horizontal travel (where the leader stops short, on
-    along the straight route: module docstring): points (P, 3), the formation's heading there (P,) rad and
-    their travel from p (P,) m, one every step_m, the first p itself with the present heading."""
+    waypoints: np.ndarray, speed_cap: float, steps: int, centres: np.ndarray, radii: np.ndarray,
+    shapes: ShapeArrays = NO_SHAPES,
+) -> Iterator[tuple[np.ndarray, float, float, int, float]]:  # fmt: skip
+    """The leader's reference flown forward from p, v, a (3,) (ENU m, m/s, m/s^2) and heading (not changed: a
+    copy is flown) through the waypoints (W, 3) at up to speed_cap m/s among spheres centres (K, 3), radii
+    (K,) and `shapes`, for at most `steps` steps of PREDICT_DT_S: after each, its position (3,), horizontal
+    speed m/s, the formation's heading psi_L rad, the index of the waypoint it flies to and its distance m;
+    the steps end early once it has stopped at its last waypoint."""
     psi = copy.deepcopy(heading)
     ps, vs, accel = (np.array(x, dtype=float).reshape(1, 3) for x in (p, v, a))
     rows, evasive, zero = np.ones(1, dtype=bool), np.zeros(1, dtype=bool), np.zeros((1, 3))
     cap = np.array([float(speed_cap)])
     index, last = 0, len(waypoints) - 1
-    track, courses, travel = [ps[0].copy()], [psi.psi], [0.0]
-    steps = max(MIN_STEPS, math.ceil(STEP_ALLOWANCE * length / (max(speed_cap, 1.0) * PREDICT_DT_S)))
     for _ in range(steps):
         index, distance = waypoint_ahead(waypoints, index, ps[0], model.waypoint_radius)
         goal = waypoints[index]
@@ -94,12 +95,31 @@ def predict_leader_path(
         accel, ps, vs = reference_step(
             ps, vs, accel, force, zero, zero, goal_row, cap, rows, evasive, PREDICT_DT_S, *model.config
         )
-        track.append(ps[0].copy())
-        courses.append(psi.psi)
+        speed = float(np.hypot(vs[0, 0], vs[0, 1]))
+        yield ps[0].copy(), speed, psi.psi, index, distance
+        if index == last and speed < STOPPED_M_S and distance < model.d_g:
+            return
+
+
+def predict_leader_path(
+    model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading,
+    waypoints: np.ndarray, speed_cap: float, length: float, step_m: float, centres: np.ndarray,
+    radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The leader's path (`leader_steps`) from its reference state p, v, a (3,)
+    and heading through the waypoints (W, 3) still ahead at up to speed_cap m/s, among spheres centres (K, 3),
+    radii (K,) and `shapes`, for `length` m of horizontal travel (where the leader stops short, on along the
+    straight route: module docstring): points (P, 3), the formation's heading there (P,) rad and their travel
+    from p (P,) m, one every step_m, the first p itself with the present heading."""
+    track, courses, travel, index = [np.array(p, dtype=float)], [heading.psi], [0.0], 0
+    steps = max(MIN_STEPS, math.ceil(STEP_ALLOWANCE * length / (max(speed_cap, 1.0) * PREDICT_DT_S)))
+    flight = leader_steps(model, p, v, a, heading, waypoints, speed_cap, steps, centres, radii, shapes)
+    for point, _, psi, heading_to, _ in flight:
+        index = heading_to  # the waypoint the path goes on from if it stops short
+        track.append(point)
+        courses.append(psi)
         travel.append(travel[-1] + float(np.hypot(*(track[-1][:2] - track[-2][:2]))))
         if travel[-1] >= length:
-            break
-        if index == last and float(np.hypot(vs[0, 0], vs[0, 1])) < STOPPED_M_S and distance < model.d_g:
             break
     if travel[-1] < length:  # stopped short: on along the straight route (from its end, the waypoints left)
         rest, rest_courses, rest_travel = route_samples(
@@ -110,6 +130,31 @@ def predict_leader_path(
         travel.extend(travel[-1] + rest_travel[1:])
     headings = np.unwrap(np.array(courses))
     return resample(np.array(track), headings, np.array(travel), min(length, travel[-1]), step_m)
+
+
+def leader_stalls(
+    model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading, goal: np.ndarray,
+    speed_cap: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
+) -> bool:  # fmt: skip
+    """Whether the leader, flown forward (`leader_steps`) from p, v, a (3,) and heading to goal (3,) at up to
+    speed_cap m/s among the obstacles, is held on the way: for STALL_S its distance to the goal, still more
+    than d_g m, comes no STALL_PROGRESS_M closer than it has been (held where its attraction and the
+    repulsion balance, at rest or swinging to and fro), within STEP_ALLOWANCE times the time the straight
+    line takes at speed_cap."""
+    length = float(np.hypot(*(np.asarray(goal)[:2] - np.asarray(p)[:2])))
+    steps = max(MIN_STEPS, math.ceil(STEP_ALLOWANCE * length / (max(speed_cap, 1.0) * PREDICT_DT_S)))
+    goal_row = np.asarray(goal, dtype=float).reshape(1, 3)
+    closest, held_s = math.inf, 0.0
+    for _, _, _, _, distance in leader_steps(
+        model, p, v, a, heading, goal_row, speed_cap, steps, centres, radii, shapes
+    ):
+        if distance < closest - STALL_PROGRESS_M:
+            closest, held_s = distance, 0.0
+        else:
+            held_s += PREDICT_DT_S
+        if held_s >= STALL_S and distance > model.d_g:
+            return True
+    return False
 
 
 def resample(

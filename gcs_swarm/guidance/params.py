@@ -319,6 +319,12 @@ class ReshapeParams:
     # m/s^2, fastest the leader's pace cap falls while the shape changes (the followers brake with it)
     pace_decel_m_s2: float = 1.5
     restore_after_s: float = 1.5  # s a wider shape must keep fitting before the formation widens to it
+    # the leader's route goes round clusters of still obstacles that close a gap narrower than
+    # 2 x gap_clearance_m plus the narrowest shape's width (gcs_swarm.guidance.route_plan): with the field's
+    # defaults a leader's reference stalls in front of a 12 m gap between two spheres of 6-10 m and passes a
+    # 14 m one (tests/gcs_swarm/guidance/test_route_plan.py)
+    route_round_gaps: bool = True
+    gap_clearance_m: float = 7.0  # m
     decide_every_s: float = 0.2  # s between decisions
 
     def __post_init__(self) -> None:
@@ -328,6 +334,8 @@ class ReshapeParams:
             raise ValueError("need min_spacing_m > 0, speed_m_s > 0 and steps >= 1")
         if not (self.pace_decel_m_s2 > 0 and self.accel_m_s2 > 0):
             raise ValueError("need pace_decel_m_s2 > 0 and accel_m_s2 > 0")
+        if not self.gap_clearance_m >= 0:
+            raise ValueError("need gap_clearance_m >= 0")
         if not (self.restore_after_s >= 0 and self.decide_every_s > 0):
             raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
 

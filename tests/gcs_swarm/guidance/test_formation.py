@@ -67,17 +67,33 @@ def test_paper_six_uav_offsets_give_table3_targets():
     np.testing.assert_allclose(rotate_to_world(TABLE3_OFFSETS, 0.0), TABLE3_OFFSETS)
 
 
-def targets_at(t, p0, v, psi0, rate, offsets, lead=0, margin=0.0, centres=None, radii=None):
+def targets_at(t, p0, v, psi0, rate, offsets, lead=0, margin=0.0, centres=None, radii=None, destination=None):
     """formation_targets for a leader at p0 + v t heading psi0 + rate t (constant v and rate), goal at the
-    origin; every vehicle heard the leader now."""
+    origin (and the followers' destinations round `destination`, default the goal); every vehicle heard the
+    leader now."""
     psi = psi0 + rate * t
     heard = np.tile(np.concatenate([p0 + v * t, v, [psi, rate], np.zeros(3)]), (len(offsets), 1))
     cos, sin = np.full(len(offsets), math.cos(psi)), np.full(len(offsets), math.sin(psi))
     centres = np.zeros((0, 3)) if centres is None else centres
     radii = np.zeros(0) if radii is None else radii
+    destination = np.zeros(3) if destination is None else destination
+    goal, none = np.zeros(3), np.zeros((0, 3))
     return formation_targets(
-        heard, cos, sin, offsets, 1.0, centres, radii, margin, lead, np.zeros(3), np.zeros((0, 3)), *NO_SHAPES
+        heard, cos, sin, offsets, 1.0, centres, radii, margin, lead, goal, destination, none, *NO_SHAPES
     )
+
+
+def test_followers_destinations_are_round_the_legs_end_and_the_leaders_is_its_goal():
+    """While the leader flies to a via point (the goal, here the origin) of a leg that ends at a waypoint
+    elsewhere, the followers' adaptive-factor destinations are their offsets round that waypoint (rotated by
+    psi_L), and the leader's is the via point it flies to (spec 6a.8)."""
+    offsets = np.vstack([np.zeros(3), formation_offsets("column", 2, 7.0)])
+    end = np.array([100.0, 40.0, 10.0])
+    dest = targets_at(
+        0.0, np.array([5.0, 0.0, 10.0]), np.zeros(3), math.pi / 2, 0.0, offsets, destination=end
+    )[3]
+    np.testing.assert_allclose(dest[0], np.zeros(3), atol=1e-12)
+    np.testing.assert_allclose(dest[1:], [[100.0, 33.0, 10.0], [100.0, 26.0, 10.0]], atol=1e-12)  # by hand
 
 
 def test_slot_feed_forwards_are_the_time_derivatives_of_the_slot():
