@@ -157,11 +157,29 @@ def leg_events(flight: dict[str, Any]) -> list[tuple[float, str]]:
 
 
 def _draw_legs(ax: Any, traj: Trajectories, mission: Any, flight: dict[str, Any]) -> None:
-    """The leader's route (start, waypoints) as a dotted line on the top view, and where the leader truly was
-    when each leg of the route began (flight.json's legs), labelled with the leg and its formation."""
-    if len(mission.waypoints) < 2 or len(traj.t) == 0:
+    """The leader's route (start, waypoints) as a dotted line on the top view, where the leader truly was
+    when each leg of the route began (flight.json's legs), labelled with the leg and its formation, and the
+    via points of legs flown round a gap (flight.json's detours) as crosses joined by a dashed line."""
+    if len(traj.t) == 0:
         return
     leader = int(flight.get("leader", mission.leader_index))
+    for detour in flight.get("detours", []):
+        try:
+            via = np.array(detour["via"], dtype=float).reshape(-1, 3)
+            k = int(np.clip(np.searchsorted(traj.t, float(detour["t_s"])), 0, len(traj.t) - 1))
+            index = min(int(detour["waypoint"]), len(mission.waypoints) - 1)
+        except (KeyError, TypeError, ValueError):  # a row a hand edit broke: drawn without it
+            continue
+        path = np.vstack([traj.pos[k, leader, :2], via[:, :2], np.asarray(mission.waypoints[index])[:2]])
+        ax.plot(path[:, 0], path[:, 1], "--", color="tab:purple", lw=0.8)
+        ax.plot(via[:, 0], via[:, 1], "x", color="tab:purple", ms=6)
+        if len(via):
+            ax.annotate(
+                "round a gap", tuple(via[0, :2]), textcoords="offset points", xytext=(4, -10), fontsize=7,
+                color="tab:purple",
+            )  # fmt: skip
+    if len(mission.waypoints) < 2:
+        return
     route = np.vstack([traj.pos[0, mission.leader_index, None, :2], [w[:2] for w in mission.waypoints]])
     ax.plot(route[:, 0], route[:, 1], ":", color="0.3", lw=0.8)
     for when, what in leg_events(flight):

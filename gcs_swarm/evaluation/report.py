@@ -215,6 +215,8 @@ def _report_from(
         "reshapes": list(flight.get("reshapes", [])),
         # the legs of the route as the leader started them (flight.json legs: index, name, t_s, shape, ...)
         "legs": list(flight.get("legs", [])),
+        # legs the leader flew round a gap (flight.json detours: t_s, waypoint, via; [] in older runs)
+        "detours": list(flight.get("detours", [])),
         # bytes/s each way per vehicle and the link budget (flight.json link_use; None in older runs)
         "link_use": flight.get("link_use"),
         # each step down of the command mode in flight (flight.json command_mode_changes; [] in older runs)
@@ -376,6 +378,11 @@ def render_markdown(report: dict[str, Any]) -> str:
             for r in report.get("reshapes") or []
         ],
     )
+    lines += _table(
+        "Legs flown round a gap too narrow for the formation (guidance.route_plan):",
+        ["vehicle time s", "to waypoint", "via points (x, y) m"],
+        [_detour_row(d) for d in report.get("detours") or []],
+    )
     figures = report.get("figures")
     if figures is not None:
         lines += ["", "## Figures", ""]
@@ -383,6 +390,22 @@ def render_markdown(report: dict[str, Any]) -> str:
     if report["lost"] or report["events"]:
         lines += ["", "## Events", ""] + [f"- {e}" for e in report["events"]]
     return "\n".join(lines) + "\n"
+
+
+def _detour_row(detour: Any) -> list[str]:
+    """A flight.json detours row (t_s, waypoint 0-based, via [[x, y, z], ...]) as report.md's cells: the
+    time, the waypoint counted from 1, the via points as "(x, y), ..." to the metre; "-" for what a hand edit
+    broke."""
+    row = detour if isinstance(detour, dict) else {}
+    try:
+        waypoint = str(int(row.get("waypoint")) + 1)
+    except (TypeError, ValueError):
+        waypoint = "-"
+    try:
+        via = ", ".join(f"({float(p[0]):.0f}, {float(p[1]):.0f})" for p in row.get("via")) or "-"
+    except (TypeError, ValueError, IndexError):
+        via = "-"
+    return [_fmt(row.get("t_s")), waypoint, via]
 
 
 NO_PLOT_NOTE = (

@@ -149,6 +149,7 @@ def write_flight(
         "autopilots": result.autopilots,
         "reshapes": result.reshapes,  # guidance.reshape.ShapeChange.as_json rows, oldest first
         "legs": result.legs,  # each leg of the route as the leader started it (runner._start_leg)
+        "detours": result.detours,  # legs flown round a gap (guidance.route_plan.Detour.as_json)
         "formation_timeline": [
             {
                 "t": t,

@@ -30,6 +30,8 @@ class FlightResult:
     # each leg of the route as the leader started it (runner._start_leg: index, name, t_s, shape, spacing_m,
     # speed_m_s, first_waypoint)
     legs: list[dict[str, float | int | str]] = field(default_factory=list)
+    # legs the leader flew round a gap (guidance.route_plan.Detour.as_json: t_s, waypoint, via)
+    detours: list[dict[str, object]] = field(default_factory=list)
     ticks: int = 0
     final_targets: np.ndarray | None = None  # (N, 3) where each vehicle should end, from the last tick
     leader: int | None = None  # the leading vehicle at the end (the lead passes on when a leader is lost)

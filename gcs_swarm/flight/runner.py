@@ -482,6 +482,7 @@ class MissionRunner:
         note_formation(self.result.formation_timeline, t, ctl, flown)
         changes = ctl.drain_shape_changes()  # reshapes around obstacles
         self.result.reshapes += [change.as_json() for change in changes]
+        self.result.detours += [detour.as_json() for detour in ctl.drain_detours()]  # round gaps
         for event in [change.sentence for change in changes] + ctl.drain_events():  # and the leader's pace
             self.result.events.append(event)
             self.progress(event)

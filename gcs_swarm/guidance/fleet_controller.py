@@ -45,7 +45,7 @@ from gcs_swarm.guidance.params import (
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
 from gcs_swarm.guidance.reshape import SAMPLE_STEP_M, FormationShaper, ShapeChange, shape_clearance
-from gcs_swarm.guidance.route_plan import detour
+from gcs_swarm.guidance.route_plan import Detour, detour
 from gcs_swarm.guidance.separation import (
     closing_deceleration,
     closing_range,
@@ -258,6 +258,7 @@ class FleetController:
         )
         self.follower_pace = math.inf  # m/s, the leader's cap from its followers' top speeds (`envelope`)
         self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
+        self.detours: list[Detour] = []  # legs planned round a gap (`drain_detours`)
         self.names = names if len(names) == n else tuple(f"vehicle {i + 1}" for i in range(n))
         prepare_kernels(dead_gcs)  # now, not in the first formation tick, where it stalled the control loop
 
@@ -330,6 +331,7 @@ class FleetController:
             [self.route_legs[:k], np.full(len(via), self.route_legs[k]), self.route_legs[k:]]
         )
         self.route_ends = np.ascontiguousarray(self.waypoints[self.route_legs])
+        self.detours.append(Detour(t, int(self.route_legs[k]), via))
         corners = ", ".join(f"({x:.0f}, {y:.0f})" for x, y in via[:, :2])
         self.events.append(
             f"t={t:.2f} s route: round a gap too narrow for the formation, through {corners} to waypoint "
@@ -392,6 +394,11 @@ class FleetController:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
         shape come apart, from `drain_shape_changes`."""
         out, self.events = self.events, []
+        return out
+
+    def drain_detours(self) -> list[Detour]:
+        """The legs planned round a gap (route_plan) since the last call, oldest first."""
+        out, self.detours = self.detours, []
         return out
 
     def drain_shape_changes(self) -> list[ShapeChange]:

@@ -22,11 +22,28 @@ Shapes: points (2,) or (3,) ENU m; footprints and hulls shapely polygons in the 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import shapely
 from scipy.sparse.csgraph import dijkstra
 
 from swarm_common.obstacle_shapes import CYLINDER, PRISM, SPHERE, ShapeArrays
+
+
+@dataclass(frozen=True)
+class Detour:
+    """A leg flown round a gap: planned at vehicle time t_s s, to the mission's waypoint of index `waypoint`
+    (0-based), through the via points `via` (V, 3) ENU m."""
+
+    t_s: float
+    waypoint: int
+    via: np.ndarray
+
+    def as_json(self) -> dict[str, object]:
+        """flight.json's row: t_s, waypoint (0-based), via [[x, y, z], ...] m, to the centimetre."""
+        return {"t_s": round(self.t_s, 3), "waypoint": self.waypoint, "via": np.round(self.via, 2).tolist()}
+
 
 CIRCLE_SEGMENTS = 16  # segments of a quarter circle in a footprint polygon
 INSIDE_TOLERANCE_M = 1e-6  # m: a line along a hull's edge does not cross it

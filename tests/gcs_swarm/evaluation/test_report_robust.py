@@ -36,11 +36,19 @@ EVENTS = (
     "t=2.00 s left taken over: now in LOITER",
     "lost right at t=1.5 s",
     "interrupted by the operator",
+    "t=1.20 s route: round a gap too narrow for the formation, through (40, 30), (60, 45) to waypoint 1",
 )
 # flight.json's reshapes rows of the EVENTS that are changes of shape
 RESHAPES = {
     EVENTS[0]: {"t_s": 3.1, "change": "narrows", "shape": "column", "scale": 0.5},
     EVENTS[1]: {"t_s": 4.0, "change": "restored", "shape": "formation", "scale": 1.0},
+}
+# flight.json's detours rows of the EVENTS that are legs round a gap, and one a hand edit broke
+DETOURS = {
+    EVENTS[5]: [
+        {"t_s": 1.2, "waypoint": 0, "via": [[40.0, 30.0, 10.0], [60.0, 45.0, 10.0]]},
+        {"t_s": 1.3, "waypoint": "first", "via": "round the trees"},
+    ],
 }
 OPTIONAL_FLIGHT_KEYS = (
     "leader",
@@ -49,6 +57,7 @@ OPTIONAL_FLIGHT_KEYS = (
     "lost",
     "events",
     "reshapes",
+    "detours",
     "taken_over",
     "left_to_operator",
     "formation_timeline",
@@ -230,6 +239,7 @@ def write_story(run_dir: Path, story: RunStory) -> dict[str, Any]:
         "lost": lost,
         "events": list(story.events),
         "reshapes": [RESHAPES[e] for e in story.events if e in RESHAPES],
+        "detours": [row for e in story.events for row in DETOURS.get(e, [])],
         "taken_over": taken,
         "left_to_operator": [entry["vehicle"] for entry in taken],
         "formation_timeline": [
