@@ -2,7 +2,9 @@
 measured drag (gcs_swarm.guidance.capability) in FleetController.tick: a grid of N vehicles 9 m apart flies
 east at 8 m/s past 10 obstacles spread over its course, 150 ticks, with `guidance.reshape` off, on, and on
 with `guidance.pace` (fed every tick, sampled every 0.2 s), interleaved run by run. Prints per N and setting
-the median tick (ms) and the slowest tick (ms; the tick of a decision that changes the shape) of each run.
+the median tick (ms), the median decision tick (ms; the ticks in which the reshape decided, every
+`decide_every_s`, each predicting the leader's path over its look-ahead) and the slowest tick (ms; the tick of
+a decision that changes the shape) of each run.
 
 Usage: python benchmarks/bench_reshape.py [--sizes 9,100] [--repeats 5]
 """
@@ -10,6 +12,7 @@ Usage: python benchmarks/bench_reshape.py [--sizes 9,100] [--repeats 5]
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import sys
 import time
@@ -27,8 +30,11 @@ TICKS = 150
 DT = 0.02  # s
 
 
-def run(n: int, reshape: ReshapeParams | None, pace: CapabilityParams | None = None) -> tuple[float, float]:
-    """(median, max) ms of TICKS ticks of an N-vehicle grid."""
+def run(
+    n: int, reshape: ReshapeParams | None, pace: CapabilityParams | None = None
+) -> tuple[float, float, float]:
+    """(median, median of the decision ticks (NaN without reshaping), max) ms of TICKS ticks of an N-vehicle
+    grid."""
     offsets = np.zeros((n, 3))
     offsets[1:] = formation_offsets("grid", n - 1, 9.0)
     rng = np.random.default_rng(0)
@@ -43,12 +49,16 @@ def run(n: int, reshape: ReshapeParams | None, pace: CapabilityParams | None = N
     att = np.zeros((n, 3))
     ctl.reset(pos, vel, np.zeros(n))
     active = np.ones(n, dtype=bool)
-    ticks = []
+    ticks, decisions = [], []
     for k in range(TICKS):
+        due = None if ctl.shaper is None else ctl.shaper.next_decision
         start = time.perf_counter()
         ctl.tick(k * DT, pos + vel * k * DT, vel, att, centres, radii, active)
         ticks.append(time.perf_counter() - start)
-    return statistics.median(ticks) * 1e3, max(ticks) * 1e3
+        if ctl.shaper is not None and ctl.shaper.next_decision != due:
+            decisions.append(ticks[-1])
+    decided = statistics.median(decisions) * 1e3 if decisions else math.nan
+    return statistics.median(ticks) * 1e3, decided, max(ticks) * 1e3
 
 
 def main() -> None:
@@ -57,22 +67,23 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     run(3, ReshapeParams())  # compile or load every kernel first
-    print("| N | reshape | median tick ms (per run) | slowest tick ms (per run) |")
-    print("|---|---|---|---|")
+    print("| N | reshape | median tick ms, per run | median decision tick ms | slowest tick ms |")
+    print("|---|---|---|---|---|")
     for n in (int(s) for s in args.sizes.split(",")):
         settings = {
             "off": (None, None),
             "on": (ReshapeParams(), None),
             "on, pace": (ReshapeParams(), CapabilityParams()),
         }
-        results: dict[str, list[tuple[float, float]]] = {label: [] for label in settings}
+        results: dict[str, list[tuple[float, float, float]]] = {label: [] for label in settings}
         for _ in range(args.repeats):
             for label, (reshape, pace) in settings.items():
                 results[label].append(run(n, reshape, pace))
         for label, rows in results.items():
-            medians = ", ".join(f"{m:.3f}" for m, _ in rows)
-            slowest = ", ".join(f"{s:.1f}" for _, s in rows)
-            print(f"| {n} | {label} | {medians} | {slowest} |")
+            medians = ", ".join(f"{m:.3f}" for m, _, _ in rows)
+            decided = ", ".join("-" if math.isnan(d) else f"{d:.2f}" for _, d, _ in rows)
+            slowest = ", ".join(f"{s:.1f}" for _, _, s in rows)
+            print(f"| {n} | {label} | {medians} | {decided} | {slowest} |")
 
 
 if __name__ == "__main__":

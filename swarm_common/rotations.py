@@ -19,8 +19,10 @@ def wrap_pi(angle: ArrayLike) -> FloatArray:
     return np.asarray((np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi, dtype=float)
 
 
+@kernel_with("float64(float64)")  # compiled (or loaded) at import; callable from Python and kernels
 def wrap_pi_float(angle: float) -> float:
-    """`wrap_pi` of one angle in plain floats (the same bits: Python's float % is numpy's remainder)."""
+    """`wrap_pi` of one angle in plain floats (the same bits: Python's float %, which numba compiles with the
+    same rule, is numpy's remainder)."""
     return (float(angle) + math.pi) % (2.0 * math.pi) - math.pi
 
 

@@ -396,14 +396,14 @@ def _detour_row(detour: Any) -> list[str]:
     """A flight.json detours row (t_s, waypoint 0-based, via [[x, y, z], ...]) as report.md's cells: the
     time, the waypoint counted from 1, the via points as "(x, y), ..." to the metre; "-" for what a hand edit
     broke."""
-    row = detour if isinstance(detour, dict) else {}
+    row: dict[str, Any] = detour if isinstance(detour, dict) else {}
     try:
-        waypoint = str(int(row.get("waypoint")) + 1)
-    except (TypeError, ValueError):
+        waypoint = str(int(row["waypoint"]) + 1)
+    except (KeyError, TypeError, ValueError):
         waypoint = "-"
     try:
-        via = ", ".join(f"({float(p[0]):.0f}, {float(p[1]):.0f})" for p in row.get("via")) or "-"
-    except (TypeError, ValueError, IndexError):
+        via = ", ".join(f"({float(p[0]):.0f}, {float(p[1]):.0f})" for p in row["via"]) or "-"
+    except (KeyError, TypeError, ValueError, IndexError):
         via = "-"
     return [_fmt(row.get("t_s")), waypoint, via]
 

@@ -9,14 +9,17 @@ segment q[i] -> ahead[i] (the reference's braking path, gcs_swarm.guidance.refer
 an obstacle ahead is felt as soon as the vehicle could no longer stop short of it, one alongside or behind
 exactly as at q.
 
-The pairs and the forces are compiled kernels (swarm_common.jit); between them `obstacle_repulsion` raises
-rho to the power n with numpy. Shapes: N points, K obstacles, P pairs; ENU m; forces in field units
-(k_att m).
+The pairs and the forces are compiled kernels (swarm_common.jit), joined by the kernel
+`obstacle_repulsion_force`, which the tick (through `obstacle_repulsion`, the settings from FieldParams) and
+the leader's predicted path (gcs_swarm.guidance.leader_path, from inside its own kernel) both call; rho^n is
+libm's pow, compiled and interpreted alike. Shapes: N points, K obstacles, P pairs; ENU m; forces in field
+units (k_att m).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -26,6 +29,42 @@ from swarm_common.numpy_rules import clip_to_scalars, dot3, maximum, norm3
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, segment_nearest, sphere_surface, surface
 
 HEAD_ON_BIAS = 0.05  # share of the right-hand side mixed into the way round, so a dead-ahead obstacle has one
+
+
+class AttractionConfig(NamedTuple):
+    """The settings of `attraction_force`, its last parameters in this order (`attraction_config`)."""
+
+    k_att: float  # attraction gain, field units per m
+    d_g: float  # m, the segment boundary
+    segmented: bool  # the IAAPF's segmented attraction (spec 3.1), else the APF's (spec 2)
+
+
+class RepulsionConfig(NamedTuple):
+    """The settings of `obstacle_repulsion_force`, its last parameters in this order (`repulsion_config`)."""
+
+    l0: float  # m, influence distance from the surface
+    l_min: float  # m, distance floor
+    adaptive: bool  # the IAAPF's adaptive repulsion (spec 3.2), else the APF's (spec 2)
+    k_rep: float  # repulsion gain
+    n_exp: float  # the adaptive factor's exponent n
+    rho_eps: float  # m, F*_rep2 is zero closer than this to the destination
+    circulation: float  # the tangential companion's gain [add]
+    obstacle_vertical: float  # weight of the vertical component [add]
+
+
+def attraction_config(fp: FieldParams, d_g: float) -> AttractionConfig:
+    """`attraction_force`'s settings for the method fp.law and the segment boundary d_g m."""
+    return AttractionConfig(float(fp.k_att), float(d_g), fp.law is FieldMethod.IAAPF)
+
+
+def repulsion_config(fp: FieldParams, circulation: float | None = None) -> RepulsionConfig:
+    """`obstacle_repulsion_force`'s settings for the method fp.law; `circulation` overrides fp.circulation
+    (the 2-D planner: 0)."""
+    gain = fp.circulation if circulation is None else circulation
+    return RepulsionConfig(
+        float(fp.l0), float(fp.l_min), fp.law is FieldMethod.IAAPF, float(fp.k_rep), float(fp.n),
+        float(fp.rho_eps), float(gain), float(fp.obstacle_vertical),
+    )  # fmt: skip
 
 
 @kernel
@@ -103,10 +142,11 @@ def obstacle_pairs(
 @kernel
 def obstacle_forces(
     n: int, vehicle: np.ndarray, l: np.ndarray, n_o: np.ndarray, n_g: np.ndarray, rho: np.ndarray,
-    rho_n: np.ndarray, adaptive: bool, k_rep: float, l0: float, n_exp: float, rho_eps: float,
-    circulation: float, obstacle_vertical: float,
+    adaptive: bool, k_rep: float, l0: float, n_exp: float, rho_eps: float, circulation: float,
+    obstacle_vertical: float,
 ) -> np.ndarray:  # fmt: skip
-    """The summed obstacle repulsion (n, 3) of the pairs of `obstacle_pairs`, rho_n = rho^n (P,).
+    """The summed obstacle repulsion (n, 3) on n points of the pairs of `obstacle_pairs` (n in the formulas
+    below is the exponent n_exp; rho^n is libm's pow).
 
     `adaptive` (IAAPF, spec 3.2 Eqs 10-12): F*_rep1 = k_rep (1/l - 1/l0) rho^n / l^2 along n_o plus
     F*_rep2 = 0.5 n k_rep (1/l - 1/l0)^2 rho^(n-1) along n_g (0 closer than rho_eps to dest); else (APF,
@@ -126,11 +166,12 @@ def obstacle_forces(
         g0, g1, g2 = n_g[p, 0], n_g[p, 1], n_g[p, 2]
         if adaptive:
             bracket = 1.0 / lp - 1.0 / l0 if lp <= l0 else 0.0
-            f1 = k_rep * bracket * rho_n[p] / (lp * lp)
+            rho_n = rho[p] ** n_exp  # libm's pow both compiled and interpreted (a numpy scalar's **)
+            f1 = k_rep * bracket * rho_n / (lp * lp)
             if rho[p] < rho_eps:
                 f2 = 0.0
             else:
-                f2 = bracket_scale * bracket * bracket * rho_n[p] / rho[p]
+                f2 = bracket_scale * bracket * bracket * rho_n / rho[p]
             x0, x1, x2 = f1 * o0 + f2 * g0, f1 * o1 + f2 * g1, f1 * o2 + f2 * g2
         else:
             f1 = k_rep * (1.0 / lp - 1.0 / l0) / (lp * lp) if lp <= l0 else 0.0
@@ -161,6 +202,25 @@ def obstacle_forces(
     return force
 
 
+@kernel
+def obstacle_repulsion_force(
+    q: np.ndarray, ahead: np.ndarray, dest: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+    kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, l0: float, l_min: float, adaptive: bool,
+    k_rep: float, n_exp: float, rho_eps: float, circulation: float, obstacle_vertical: float,
+) -> np.ndarray:  # fmt: skip
+    """Summed obstacle repulsion (N, 3) at the points q (N, 3), evaluated along the segments to `ahead`
+    (N, 3) (q itself: at q), with the adaptive factor's destinations dest (N, 3), of the spheres centres
+    (K, 3), radii (K,) and the shapes packed as kinds, params, vertices (spec 2.2): `obstacle_pairs`, then
+    `obstacle_forces`. The settings are RepulsionConfig's fields (called with *repulsion_config(...))."""
+    vehicle, l, n_o, n_g, rho = obstacle_pairs(
+        q, ahead, dest, centres, radii, l0, l_min, kinds, params, vertices
+    )
+    return obstacle_forces(
+        q.shape[0], vehicle, l, n_o, n_g, rho, adaptive, k_rep, l0, n_exp, rho_eps, circulation,
+        obstacle_vertical,
+    )  # fmt: skip
+
+
 def obstacle_repulsion(
     q: np.ndarray,
     ahead: np.ndarray,
@@ -175,20 +235,10 @@ def obstacle_repulsion(
     segments to `ahead` (N, 3) (q itself: at q), with the adaptive factor's destinations dest (N, 3); K
     spheres centres (K, 3), radii (K,) and the cylinders and prisms `shapes` (spec 2.2). `circulation`
     overrides fp.circulation (the 2-D planner: 0)."""
-    adaptive = fp.law is FieldMethod.IAAPF
-    vehicle, l, n_o, n_g, rho = obstacle_pairs(
-        q, ahead, dest, centres, radii, float(fp.l0), float(fp.l_min), *shapes
-    )  # fmt: skip
-    if not len(vehicle):
-        return np.zeros((len(q), 3))
-    rho_n = rho**fp.n if adaptive else rho
-    gain = fp.circulation if circulation is None else circulation
-    return obstacle_forces(
-        len(q), vehicle, l, n_o, n_g, rho, rho_n, adaptive, float(fp.k_rep), float(fp.l0), float(fp.n),
-        float(fp.rho_eps), float(gain), float(fp.obstacle_vertical),
-    )  # fmt: skip
+    args = (q, ahead, dest, centres, radii, *shapes, *repulsion_config(fp, circulation))
+    return obstacle_repulsion_force(*args)
 
 
 def attraction(q: np.ndarray, target: np.ndarray, fp: FieldParams, d_g: float) -> np.ndarray:
     """The attraction (N, 3) of the method fp.law toward target (N, 3), segment boundary d_g m."""
-    return attraction_force(q, target, float(fp.k_att), float(d_g), fp.law is FieldMethod.IAAPF)
+    return attraction_force(q, target, *attraction_config(fp, d_g))

@@ -100,6 +100,11 @@ def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
         obstacle_r,
         *NO_SHAPES,
     )  # reshape
+    assert ctl.heading is not None  # the leader's path flown forward (leader_path: look-ahead, gaps)
+    goal = pos[0] + 30.0
+    leader_stalls(
+        ctl.leader_model, pos[0], np.ones(3), np.zeros(3), ctl.heading, goal, 5.0, obstacle_c, obstacle_r
+    )
     table = np.array([0.0, 1.0])  # the failsafe speed scheduling's kernels, on a small table
     brake_distances(table, 7.5, 5.0, 0.002, 2)
     speed_caps_from_table(pos, np.ones((3, 3)), obstacle_c, obstacle_r, 1.0, table, table, *NO_SHAPES)

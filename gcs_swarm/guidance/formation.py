@@ -174,17 +174,51 @@ def assign_slots(
     return out, rule
 
 
+@kernel
 def leader_course(
     v_ref_xy: np.ndarray, p_leader: np.ndarray, goal: np.ndarray, from_route: bool
-) -> np.ndarray:
-    """The course (2,) m/s that psi_L steers to (LeaderHeading.update): the leader's reference velocity
-    v_ref_xy (2,), or with `from_route` [add] the direction from p_leader (3,) to its waypoint goal (3,) ENU m
-    at that speed (the velocity itself at the waypoint)."""
-    to_goal = goal[:2] - p_leader[:2]
-    across = float(np.hypot(to_goal[0], to_goal[1]))
+) -> tuple[float, float]:
+    """The course (x, y) m/s that psi_L steers to (`heading_step`): the leader's reference velocity v_ref_xy
+    (2,), or with `from_route` [add] the direction from p_leader (3,) to its waypoint goal (3,) ENU m at that
+    speed (the velocity itself at the waypoint). Compiled: the tick calls it, and so does the leader's
+    predicted path (gcs_swarm.guidance.leader_path) from its kernel."""
+    to_x, to_y = goal[0] - p_leader[0], goal[1] - p_leader[1]
+    across = np.hypot(to_x, to_y)
     if from_route and across > 0.0:
-        return to_goal * (float(np.hypot(v_ref_xy[0], v_ref_xy[1])) / across)
-    return np.asarray(v_ref_xy[:2], dtype=float)
+        scale = np.hypot(v_ref_xy[0], v_ref_xy[1]) / across
+        return to_x * scale, to_y * scale
+    return v_ref_xy[0], v_ref_xy[1]
+
+
+@kernel
+def heading_step(
+    psi: float, rate: float, filtered: bool, fx: float, fy: float, vx: float, vy: float, distance: float,
+    dt: float, min_speed: float, rate_max: float, hold_distance: float, accel_max: float, filter_s: float,
+    gain: float,
+) -> tuple[float, float, float, float]:  # fmt: skip
+    """One step of dt s of psi_L (spec 6 [add]; LeaderHeading documents the law) from its heading psi rad,
+    turn rate rad/s and low-passed course (fx, fy) m/s (`filtered`: there is one yet), toward the course
+    (vx, vy) m/s (`leader_course`) of a leader `distance` m from its goal; the settings are LeaderHeading's
+    (min_speed m/s, rate_max rad/s, hold_distance m, accel_max rad/s^2, filter_s s, gain 1/s). Returns the
+    new psi rad in [-pi, pi), its rate rad/s and the low-passed course (x, y) m/s. Plain float arithmetic,
+    compiled: the tick's LeaderHeading.update and the leader's predicted path (gcs_swarm.guidance.leader_path)
+    call it."""
+    if filtered and filter_s > 0.0:
+        k = dt / (filter_s + dt)
+        vx, vy = fx + (vx - fx) * k, fy + (vy - fy) * k
+    steering = np.hypot(vx, vy) > min_speed and distance > hold_distance
+    error = wrap_pi_float(math.atan2(vy, vx) - psi) if steering else 0.0
+    if accel_max <= 0.0:
+        turn = error / dt
+    else:
+        turn = sqrt_controller(error, gain, accel_max, dt)
+    turn = min(max(turn, -rate_max), rate_max)
+    if accel_max > 0.0:
+        step = accel_max * dt
+        turn = min(max(turn, rate - step), rate + step)
+    if not steering and accel_max <= 0.0:
+        turn = 0.0
+    return wrap_pi_float(psi + turn * dt), turn, vx, vy
 
 
 class LeaderHeading:
@@ -195,7 +229,7 @@ class LeaderHeading:
     the course is taken from the reference velocity low-passed with time constant `filter_s`, and psi_L
     follows it with ArduPilot's angle shaping (swarm_common.shaping.sqrt_controller): turn rate at
     most `rate_max`, changing at most `accel_max` rad/s^2. `accel_max` = 0 and `filter_s` = 0 give the
-    spec's plain rate limit (the rate steps between -rate_max and +rate_max)."""
+    spec's plain rate limit (the rate steps between -rate_max and +rate_max). The law is `heading_step`."""
 
     def __init__(
         self,
@@ -219,27 +253,22 @@ class LeaderHeading:
         self.gain = gain
         self.v_filtered: tuple[float, float] | None = None  # m/s, the low-passed (x, y)
 
-    def update(self, v_ref_xy: np.ndarray, distance_to_goal: float, dt: float) -> float:
-        """Advance psi_L by one step of dt s from the leader's reference velocity (2,) and goal distance m.
-        Plain float arithmetic (a tick calls it once)."""
-        vx, vy, dt = float(v_ref_xy[0]), float(v_ref_xy[1]), float(dt)
-        if self.v_filtered is not None and self.filter_s > 0.0:
-            fx, fy = self.v_filtered
-            k = dt / (self.filter_s + dt)
-            vx, vy = fx + (vx - fx) * k, fy + (vy - fy) * k
+    def settings(self) -> tuple[float, float, float, float, float, float]:
+        """`heading_step`'s settings, its last parameters in order: min_speed, rate_max, hold_distance,
+        accel_max, filter_s, gain (as floats)."""
+        return (
+            float(self.min_speed), float(self.rate_max), float(self.hold_distance), float(self.accel_max),
+            float(self.filter_s), float(self.gain),
+        )  # fmt: skip
+
+    def update(self, v_ref_xy: np.ndarray | tuple[float, float], distance_to_goal: float, dt: float) -> float:
+        """Advance psi_L by one step of dt s (`heading_step`) toward the course v_ref_xy (2,) m/s
+        (`leader_course`) of a leader distance_to_goal m from its goal; returns psi_L rad."""
+        filtered = self.v_filtered is not None
+        fx, fy = self.v_filtered if self.v_filtered is not None else (0.0, 0.0)
+        self.psi, self.rate, vx, vy = heading_step(
+            self.psi, self.rate, filtered, fx, fy, float(v_ref_xy[0]), float(v_ref_xy[1]),
+            float(distance_to_goal), float(dt), *self.settings(),
+        )  # fmt: skip
         self.v_filtered = (vx, vy)
-        steering = math.hypot(vx, vy) > self.min_speed and distance_to_goal > self.hold_distance
-        error = wrap_pi_float(math.atan2(vy, vx) - self.psi) if steering else 0.0
-        if self.accel_max <= 0.0:
-            rate = error / dt
-        else:
-            rate = sqrt_controller(error, float(self.gain), float(self.accel_max), dt)
-        rate = min(max(rate, -self.rate_max), self.rate_max)
-        if self.accel_max > 0.0:
-            step = self.accel_max * dt
-            rate = min(max(rate, self.rate - step), self.rate + step)
-        if not steering and self.accel_max <= 0.0:
-            rate = 0.0
-        self.psi = wrap_pi_float(self.psi + rate * dt)
-        self.rate = rate
         return self.psi

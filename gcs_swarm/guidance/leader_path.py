@@ -16,23 +16,35 @@ later), the path goes on along the straight route from there (reshape.route_samp
 ended at the stall would find no obstacle beyond it, and a formation narrowed for the gap would widen in
 front of it.
 
+The stepping is one compiled kernel (`leader_flight`, swarm_common.jit) over the laws the tick itself calls,
+each written once: the waypoint switch (`waypoint_ahead`), the braking look-ahead and the reference step
+(reference.py), the field (field.attraction_force, field.obstacle_repulsion_force) and psi_L
+(formation.leader_course, formation.heading_step); with NUMBA_DISABLE_JIT=1 the same code runs as plain
+Python and gives the same path (tests/gcs_swarm/guidance/test_leader_path.py).
+
 Shapes: positions (3,) or (P, 3) ENU m; headings rad; distances m.
 """
 
 from __future__ import annotations
 
-import copy
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-from gcs_swarm.guidance.field import attraction, obstacle_repulsion
-from gcs_swarm.guidance.formation import LeaderHeading, leader_course
+from gcs_swarm.guidance.field import (
+    attraction_config,
+    attraction_force,
+    obstacle_repulsion_force,
+    repulsion_config,
+)
+from gcs_swarm.guidance.formation import LeaderHeading, heading_step, leader_course
 from gcs_swarm.guidance.params import FieldParams
 from gcs_swarm.guidance.reference import ReferenceConfig, leash_and_lookahead, reference_step
 from gcs_swarm.guidance.reshape import route_samples
+from swarm_common.jit import kernel
+from swarm_common.numpy_rules import norm3
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
 
 PREDICT_DT_S = 0.1  # s, the prediction's step
@@ -45,13 +57,15 @@ STALL_PROGRESS_M = 1.0  # m: a leader that comes no closer to its goal than this
 STALL_S = 6.0  # s: ... for this long, far from it, is held by its field (leader_stalls)
 
 
+@kernel
 def waypoint_ahead(waypoints: np.ndarray, index: int, p: np.ndarray, radius: float) -> tuple[int, float]:
     """The leader's waypoint (spec 6 [add]): the index into waypoints (W, 3) it flies to from p (3,) ENU m,
-    moving on from `index` to the next once within `radius` m (never past the last), and its distance m."""
-    distance = float(np.linalg.norm(waypoints[index] - p))
-    if distance < radius and index < len(waypoints) - 1:
+    moving on from `index` to the next once within `radius` m (never past the last), and its distance m.
+    Compiled: the tick calls it, and so does `leader_flight`."""
+    distance = norm3(waypoints[index, 0] - p[0], waypoints[index, 1] - p[1], waypoints[index, 2] - p[2])
+    if distance < radius and index < waypoints.shape[0] - 1:
         index += 1
-        distance = float(np.linalg.norm(waypoints[index] - p))
+        distance = norm3(waypoints[index, 0] - p[0], waypoints[index, 1] - p[1], waypoints[index, 2] - p[2])
     return index, distance
 
 
@@ -69,36 +83,116 @@ class LeaderModel:
     heading_from_route: bool
 
 
+class LeaderSteps(NamedTuple):
+    """The leader's reference flown forward (`leader_steps`), one row per step of PREDICT_DT_S (S steps)."""
+
+    positions: np.ndarray  # (S, 3) ENU m, after each step
+    speeds: np.ndarray  # (S,) m/s, horizontal
+    headings: np.ndarray  # (S,) rad, the formation's heading psi_L, in [-pi, pi)
+    waypoints: np.ndarray  # (S,) int, the index of the waypoint flown to during the step
+    distances: np.ndarray  # (S,) m, the distance to that waypoint at the step's start
+    travel: np.ndarray  # (S,) m, the horizontal path length from the start
+
+
+@kernel
+def leader_flight(
+    p: np.ndarray, v: np.ndarray, a: np.ndarray, psi: float, rate: float, filtered: bool, fx: float,
+    fy: float, min_speed: float, rate_max: float, hold_distance: float, accel_max: float, filter_s: float,
+    gain: float, waypoints: np.ndarray, speed_cap: float, steps: int, length: float, centres: np.ndarray,
+    radii: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, k_att: float,
+    d_g: float, segmented: bool, l0: float, l_min: float, adaptive: bool, k_rep: float, n_exp: float,
+    rho_eps: float, circulation: float, obstacle_vertical: float, brake_accel: float, waypoint_radius: float,
+    from_route: bool, ref_gain: float, v_z: float, stop_accel: float, k_v: float, jerk_max: float,
+    has_z_min: bool, z_min: float, jerk_max_z: float, a_z: float, tau_v: float, a_xy_max: float,
+    a_xy_evasive: float, jerk_xy_evasive: float, jerk_z_evasive: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:  # fmt: skip
+    """The leader's reference (spec 8 steps 2-5) flown forward alone from p, v, a (3,) (ENU m, m/s, m/s^2)
+    with psi_L's state psi rad, rate rad/s, low-passed course (fx, fy) m/s (`filtered`: there is one) and
+    settings (`heading_step`'s), through the waypoints (W, 3) from the first (`waypoint_ahead`, switch radius
+    waypoint_radius m) at up to speed_cap m/s, among spheres centres (K, 3), radii (K,) and the shapes
+    packed as kinds, params, vertices, for at most `steps` steps of PREDICT_DT_S. The field's settings are
+    AttractionConfig's (k_att .. segmented) and RepulsionConfig's (l0 .. obstacle_vertical), the braking
+    look-ahead's deceleration brake_accel m/s^2, `from_route` psi_L's course (`leader_course`), the rest
+    ReferenceConfig's (its `gain` as ref_gain). Each step: the waypoint, the field at the reference (the
+    obstacles along its braking path), psi_L, then the reference step.
+
+    Returns the arrays of LeaderSteps, `steps` rows each, and the number S of rows filled: the steps end
+    early after the one whose horizontal travel reaches `length` m, or once the leader has stopped
+    (slower than STOPPED_M_S within d_g m of its last waypoint)."""
+    positions = np.empty((steps, 3))
+    speeds = np.empty(steps)
+    headings = np.empty(steps)
+    indices = np.empty(steps, dtype=np.int64)
+    distances = np.empty(steps)
+    travel = np.empty(steps)
+    ps, vs, accel = np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3))
+    goal = np.empty((1, 3))
+    for d in range(3):
+        ps[0, d], vs[0, d], accel[0, d] = p[d], v[d], a[d]
+    rows, evasive, zero = np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_), np.zeros((1, 3))
+    cap = np.full(1, speed_cap)
+    index, last, covered, count = 0, waypoints.shape[0] - 1, 0.0, 0
+    for step in range(steps):
+        index, distance = waypoint_ahead(waypoints, index, ps[0], waypoint_radius)
+        for d in range(3):
+            goal[0, d] = waypoints[index, d]
+        ahead = leash_and_lookahead(ps, vs, ps, rows, math.inf, brake_accel)
+        force = attraction_force(ps, goal, k_att, d_g, segmented) + obstacle_repulsion_force(
+            ps, ahead, goal, centres, radii, kinds, params, vertices, l0, l_min, adaptive, k_rep, n_exp,
+            rho_eps, circulation, obstacle_vertical,
+        )  # fmt: skip
+        course_x, course_y = leader_course(vs[0, :2], ps[0], goal[0], from_route)
+        psi, rate, fx, fy = heading_step(
+            psi, rate, filtered, fx, fy, course_x, course_y, distance, PREDICT_DT_S, min_speed, rate_max,
+            hold_distance, accel_max, filter_s, gain,
+        )  # fmt: skip
+        filtered = True
+        was_x, was_y = ps[0, 0], ps[0, 1]
+        accel, ps, vs = reference_step(
+            ps, vs, accel, force, zero, zero, goal, cap, rows, evasive, PREDICT_DT_S, ref_gain, v_z,
+            stop_accel, k_v, jerk_max, has_z_min, z_min, jerk_max_z, a_z, tau_v, a_xy_max, a_xy_evasive,
+            jerk_xy_evasive, jerk_z_evasive,
+        )  # fmt: skip
+        speed = np.hypot(vs[0, 0], vs[0, 1])
+        covered += np.hypot(ps[0, 0] - was_x, ps[0, 1] - was_y)
+        for d in range(3):
+            positions[step, d] = ps[0, d]
+        speeds[step], headings[step], indices[step] = speed, psi, index
+        distances[step], travel[step] = distance, covered
+        count = step + 1
+        if covered >= length or (index == last and speed < STOPPED_M_S and distance < d_g):
+            break
+    return positions, speeds, headings, indices, distances, travel, count
+
+
 def leader_steps(
     model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading,
-    waypoints: np.ndarray, speed_cap: float, steps: int, centres: np.ndarray, radii: np.ndarray,
-    shapes: ShapeArrays = NO_SHAPES,
-) -> Iterator[tuple[np.ndarray, float, float, int, float]]:  # fmt: skip
-    """The leader's reference flown forward from p, v, a (3,) (ENU m, m/s, m/s^2) and heading (not changed: a
-    copy is flown) through the waypoints (W, 3) at up to speed_cap m/s among spheres centres (K, 3), radii
-    (K,) and `shapes`, for at most `steps` steps of PREDICT_DT_S: after each, its position (3,), horizontal
-    speed m/s, the formation's heading psi_L rad, the index of the waypoint it flies to and its distance m;
-    the steps end early once it has stopped at its last waypoint."""
-    psi = copy.deepcopy(heading)
-    ps, vs, accel = (np.array(x, dtype=float).reshape(1, 3) for x in (p, v, a))
-    rows, evasive, zero = np.ones(1, dtype=bool), np.zeros(1, dtype=bool), np.zeros((1, 3))
-    cap = np.array([float(speed_cap)])
-    index, last = 0, len(waypoints) - 1
-    for _ in range(steps):
-        index, distance = waypoint_ahead(waypoints, index, ps[0], model.waypoint_radius)
-        goal = waypoints[index]
-        goal_row = goal.reshape(1, 3)
-        ahead = leash_and_lookahead(ps, vs, ps, rows, math.inf, model.brake_accel)
-        force = attraction(ps, goal_row, model.field, model.d_g)
-        force += obstacle_repulsion(ps, ahead, goal_row, centres, radii, model.field, shapes=shapes)
-        psi.update(leader_course(vs[0, :2], ps[0], goal, model.heading_from_route), distance, PREDICT_DT_S)
-        accel, ps, vs = reference_step(
-            ps, vs, accel, force, zero, zero, goal_row, cap, rows, evasive, PREDICT_DT_S, *model.config
-        )
-        speed = float(np.hypot(vs[0, 0], vs[0, 1]))
-        yield ps[0].copy(), speed, psi.psi, index, distance
-        if index == last and speed < STOPPED_M_S and distance < model.d_g:
-            return
+    waypoints: np.ndarray, speed_cap: float, steps: int, length: float, centres: np.ndarray,
+    radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
+) -> LeaderSteps:  # fmt: skip
+    """The leader's reference flown forward (`leader_flight`) from p, v, a (3,) (ENU m, m/s, m/s^2) and psi_L
+    as `heading` stands (not changed) through the waypoints (W, 3) at up to speed_cap m/s among spheres
+    centres (K, 3), radii (K,) and `shapes`, for at most `steps` steps of PREDICT_DT_S, ending after the
+    step whose horizontal travel reaches `length` m (math.inf: no such end) or once it has stopped at its
+    last waypoint."""
+    fx, fy = heading.v_filtered if heading.v_filtered is not None else (0.0, 0.0)
+    p, v, a = (np.ascontiguousarray(x, dtype=float).reshape(3) for x in (p, v, a))
+    start = (p, v, a, float(heading.psi), float(heading.rate), heading.v_filtered is not None, fx, fy)
+    course = (np.ascontiguousarray(waypoints, dtype=float), float(speed_cap), int(steps), float(length))
+    obstacles = (np.ascontiguousarray(centres, dtype=float), np.ascontiguousarray(radii, dtype=float))
+    leader = (float(model.brake_accel), float(model.waypoint_radius), bool(model.heading_from_route))
+    args = (
+        *start, *heading.settings(), *course, *obstacles, *shapes, *attraction_config(model.field, model.d_g),
+        *repulsion_config(model.field), *leader, *model.config,
+    )  # fmt: skip
+    *arrays, count = leader_flight(*args)
+    return LeaderSteps(*(x[:count] for x in arrays))
+
+
+def _step_budget(length: float, speed_cap: float) -> int:
+    """Steps allowed for `length` m at up to speed_cap m/s: STEP_ALLOWANCE times the time at the cap, and
+    at least MIN_STEPS."""
+    return max(MIN_STEPS, math.ceil(STEP_ALLOWANCE * length / (max(speed_cap, 1.0) * PREDICT_DT_S)))
 
 
 def predict_leader_path(
@@ -111,25 +205,22 @@ def predict_leader_path(
     radii (K,) and `shapes`, for `length` m of horizontal travel (where the leader stops short, on along the
     straight route: module docstring): points (P, 3), the formation's heading there (P,) rad and their travel
     from p (P,) m, one every step_m, the first p itself with the present heading."""
-    track, courses, travel, index = [np.array(p, dtype=float)], [heading.psi], [0.0], 0
-    steps = max(MIN_STEPS, math.ceil(STEP_ALLOWANCE * length / (max(speed_cap, 1.0) * PREDICT_DT_S)))
-    flight = leader_steps(model, p, v, a, heading, waypoints, speed_cap, steps, centres, radii, shapes)
-    for point, _, psi, heading_to, _ in flight:
-        index = heading_to  # the waypoint the path goes on from if it stops short
-        track.append(point)
-        courses.append(psi)
-        travel.append(travel[-1] + float(np.hypot(*(track[-1][:2] - track[-2][:2]))))
-        if travel[-1] >= length:
-            break
+    steps = _step_budget(length, speed_cap)
+    flight = leader_steps(
+        model, p, v, a, heading, waypoints, speed_cap, steps, length, centres, radii, shapes
+    )
+    track = np.vstack([np.asarray(p, dtype=float).reshape(1, 3), flight.positions])
+    courses = np.concatenate([[heading.psi], flight.headings])
+    travel = np.concatenate([[0.0], flight.travel])
     if travel[-1] < length:  # stopped short: on along the straight route (from its end, the waypoints left)
+        index = int(flight.waypoints[-1]) if len(flight.waypoints) else 0
         rest, rest_courses, rest_travel = route_samples(
             track[-1], courses[-1], waypoints[index:], length - travel[-1], model.d_g
         )
-        track.extend(rest[1:])
-        courses.extend(rest_courses[1:])
-        travel.extend(travel[-1] + rest_travel[1:])
-    headings = np.unwrap(np.array(courses))
-    return resample(np.array(track), headings, np.array(travel), min(length, travel[-1]), step_m)
+        track = np.vstack([track, rest[1:]])
+        courses = np.concatenate([courses, rest_courses[1:]])
+        travel = np.concatenate([travel, travel[-1] + rest_travel[1:]])
+    return resample(track, np.unwrap(courses), travel, min(length, travel[-1]), step_m)
 
 
 def leader_stalls(
@@ -142,12 +233,13 @@ def leader_stalls(
     repulsion balance, at rest or swinging to and fro), within STEP_ALLOWANCE times the time the straight
     line takes at speed_cap."""
     length = float(np.hypot(*(np.asarray(goal)[:2] - np.asarray(p)[:2])))
-    steps = max(MIN_STEPS, math.ceil(STEP_ALLOWANCE * length / (max(speed_cap, 1.0) * PREDICT_DT_S)))
     goal_row = np.asarray(goal, dtype=float).reshape(1, 3)
+    flight = leader_steps(
+        model, p, v, a, heading, goal_row, speed_cap, _step_budget(length, speed_cap), math.inf, centres,
+        radii, shapes,
+    )  # fmt: skip
     closest, held_s = math.inf, 0.0
-    for _, _, _, _, distance in leader_steps(
-        model, p, v, a, heading, goal_row, speed_cap, steps, centres, radii, shapes
-    ):
+    for distance in flight.distances.tolist():
         if distance < closest - STALL_PROGRESS_M:
             closest, held_s = distance, 0.0
         else:

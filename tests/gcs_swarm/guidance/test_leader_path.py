@@ -1,27 +1,39 @@
 """The leader's path predicted for the reshape's look-ahead (gcs_swarm.guidance.leader_path): it is the path
-the leader's own reference then flies, and the look-ahead uses it."""
+the leader's own reference then flies, and the look-ahead uses it; compiled and interpreted
+(NUMBA_DISABLE_JIT=1) predictions are the same bits."""
 
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
-from gcs_swarm.guidance.leader_path import predict_leader_path, resample
-from gcs_swarm.guidance.params import ReshapeParams
+from gcs_swarm.guidance.leader_path import leader_stalls, leader_steps, predict_leader_path, resample
+from gcs_swarm.guidance.params import FieldParams, ReferenceParams, ReshapeParams
+from swarm_common.obstacle_shapes import pack_shapes
 
 GOAL = np.array([[200.0, 0.0, 10.0]])
 OBSTACLE_C = np.array([[60.0, 2.0, 10.0]])  # 2 m left of the leader's straight line, in its way
 OBSTACLE_R = np.array([4.0])
+ROOT = Path(__file__).resolve().parents[3]
 
 
-def _controller(n: int = 1, reshape: ReshapeParams | None = None) -> FleetController:
+def _controller(
+    n: int = 1,
+    reshape: ReshapeParams | None = None,
+    field: FieldParams | None = None,
+    reference: ReferenceParams | None = None,
+) -> FleetController:
     offsets = np.zeros((n, 3))
     if n > 1:
         offsets[1:] = formation_offsets("v", n - 1, 10.0)
-    ctl = FleetController(n, 0, offsets, GOAL, reshape=reshape, z_min=1.0)
+    ctl = FleetController(n, 0, offsets, GOAL, reshape=reshape, z_min=1.0, field=field, reference=reference)
     pos = offsets + [0.0, 0.0, 10.0]
     ctl.reset(pos, np.zeros((n, 3)), np.zeros(n))
     return ctl
@@ -151,3 +163,84 @@ def test_a_leader_stalled_in_front_of_a_gap_is_looked_past():
     assert along[-1] >= 150.0 - 2.0 and points[:, 0].max() > 60.0 + 8.5  # through the gap and beyond
     beyond = points[:, 0] > stall + 1.0
     assert np.allclose(points[beyond, 1], 0.0, atol=1e-6) and np.allclose(headings[beyond], 0.0, atol=1e-6)
+
+
+def test_the_leader_flown_forward_keeps_to_its_speed_cap_and_stops_at_its_goal() -> None:
+    ctl = _controller()
+    gen = ctl.generator
+    assert ctl.heading is not None
+    flight = leader_steps(
+        ctl.leader_model, gen.p[0], gen.v[0], gen.a[0], ctl.heading, GOAL, 6.0, 1000, math.inf, OBSTACLE_C,
+        OBSTACLE_R,
+    )  # fmt: skip
+    assert 0 < len(flight.speeds) < 1000  # stopped at the goal, before the steps ran out
+    assert np.all(flight.speeds <= 6.0 + 1e-9) and flight.speeds.max() > 5.9
+    assert np.all(flight.waypoints == 0) and flight.distances[-1] < ctl.leader_model.d_g
+    steps = np.hypot(*np.diff(np.vstack([gen.p[:1], flight.positions])[:, :2], axis=0).T)
+    assert np.array_equal(flight.travel, np.cumsum(steps))
+
+
+def predictions() -> dict[str, np.ndarray]:
+    """Every array the prediction gives on scenes that take each branch: spheres and packed shapes, the IAAPF
+    and the APF, psi_L's low-pass and angle shaping on and off, a waypoint switch, a stop at the goal, a
+    stall in front of a gap (leader_stalls) and a straight continuation past it."""
+    shapes = pack_shapes(
+        cylinders=[((110.0, 14.0), 3.0, 0.0, 30.0)],
+        prisms=[([(140.0, 4.0), (150.0, 4.0), (150.0, 20.0), (140.0, 20.0)], 0.0, 25.0)],
+    )
+    gap_c, gap_r = np.array([[60.0, 12.6, 10.0], [60.0, -12.6, 10.0]]), np.array([8.5, 8.5])
+    route = np.array([[80.0, 30.0, 12.0], [200.0, 0.0, 10.0]])
+    out: dict[str, np.ndarray] = {}
+    scenes = [
+        ("iaapf", FieldParams(), ReferenceParams(heading_filter_s=0.5)),
+        (
+            "apf",
+            FieldParams(method="apf"),
+            ReferenceParams(heading_accel_max_deg=0.0, heading_from_route=False),
+        ),
+    ]
+    for name, field, reference in scenes:
+        ctl = _controller(field=field, reference=reference)
+        for k in range(15):  # a moving start, with a low-passed course
+            pos, vel = ctl.generator.p.copy(), ctl.generator.v.copy()
+            ctl.tick(k * ctl.control_dt, pos, vel, np.zeros((1, 3)), OBSTACLE_C, OBSTACLE_R, np.ones(1, bool))
+        gen, model, heading = ctl.generator, ctl.leader_model, ctl.heading
+        assert heading is not None
+        flight = leader_steps(
+            model, gen.p[0], gen.v[0], gen.a[0], heading, route, 9.0, 600, math.inf, OBSTACLE_C, OBSTACLE_R,
+            shapes,
+        )  # fmt: skip
+        for field_name, values in flight._asdict().items():
+            out[f"{name} steps {field_name}"] = values
+        for label, centres, radii in (("obstacles", OBSTACLE_C, OBSTACLE_R), ("gap", gap_c, gap_r)):
+            path = predict_leader_path(
+                model, gen.p[0], gen.v[0], gen.a[0], heading, GOAL, 10.0, 150.0, 2.0, centres, radii, shapes
+            )
+            for part, values in zip(("points", "headings", "travel"), path, strict=True):
+                out[f"{name} {label} {part}"] = values
+        stalls = [leader_stalls(model, gen.p[0], gen.v[0], gen.a[0], heading, GOAL[0], 10.0, gap_c, gap_r)]
+        out[f"{name} stalls"] = np.array(stalls)
+    return out
+
+
+def test_compiled_and_interpreted_predictions_are_the_same_bits(tmp_path: Path) -> None:
+    """The prediction's kernel and the laws it calls, compiled here and run as plain Python in a subprocess
+    with NUMBA_DISABLE_JIT=1 (as test_interpreted_tick.py does for the tick), give the same arrays."""
+    compiled = predictions()
+    for name in ("iaapf", "apf"):  # the branches are met: a waypoint switch, a stop at the goal
+        waypoints = compiled[f"{name} steps waypoints"]
+        assert waypoints[0] == 0 and waypoints[-1] == 1 and len(waypoints) < 600
+    assert compiled["iaapf stalls"][0]  # and a stall in front of the gap
+    out = tmp_path / "interpreted.npz"
+    script = (
+        "import numpy as np, numba, sys\n"
+        "assert numba.config.DISABLE_JIT\n"
+        "from tests.gcs_swarm.guidance.test_leader_path import predictions\n"
+        "np.savez(sys.argv[1], **predictions())\n"
+    )
+    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
+    subprocess.run([sys.executable, "-c", script, str(out)], check=True, cwd=ROOT, env=env, timeout=300)
+    interpreted = np.load(out)
+    assert sorted(interpreted.files) == sorted(compiled)
+    for key, values in compiled.items():
+        assert values.dtype == interpreted[key].dtype and values.tobytes() == interpreted[key].tobytes(), key
