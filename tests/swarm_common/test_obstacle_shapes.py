@@ -7,11 +7,12 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Point, Polygon
 
 from swarm_common.obstacle_shapes import (
+    NEAREST_TOLERANCE,
     course_entry,
     footprint_distance,
     pack_shapes,
@@ -143,20 +144,56 @@ def test_segment_nearest_finds_the_closest_point_of_a_segment() -> None:
     assert segment_nearest(-10.0, -25.0, 10.0, 10.0, -25.0, 10.0, SPHERE_K, *SHAPES) == 0.5
 
 
-@settings(max_examples=100, deadline=None)
-@given(finite, finite, st.floats(-10.0, 30.0), finite, finite, st.floats(-10.0, 30.0))
-def test_segment_nearest_is_no_farther_than_a_dense_sampling(
-    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float
+def test_segment_nearest_past_the_ells_notch_finds_the_corner_not_the_roofs_edge() -> None:
+    # hypothesis' case: the segment (0, 13, 16) -> (54, 1, 4) passes 0.434 m over the stem's roof edge above
+    # the notch (f = 0.631) and then 0.108 m beside the foot's vertical edge at (40, 4) (f = 0.741), both in
+    # the sampled interval 5/8..6/8, whose ends tie at 0.5 m: golden-section search took the first valley.
+    # The nearest point: the foot of the perpendicular from (40, 4) on the footprint's line (0, 13) + f (54,
+    # -12): f = (40 * 54 + 9 * 12) / (54^2 + 12^2) = 2268 / 3060 = 63 / 85, at |(54, -12) x (40, -9)| /
+    # |(54, -12)| = 6 / sqrt(3060) m; its height 16 - 12 f = 7.1 lies between the L's 2 and 8 m
+    f = segment_nearest(0.0, 13.0, 16.0, 54.0, 1.0, 4.0, ELL_K, *SHAPES)
+    assert f == pytest.approx(63 / 85, abs=1e-6)
+    assert at(54.0 * f, 13.0 - 12.0 * f, 16.0 - 12.0 * f, ELL_K)[0] == pytest.approx(
+        6 / math.sqrt(3060), abs=1e-6
+    )
+
+
+def nearest_against_a_dense_sampling(
+    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, shapes: range
 ) -> None:
-    # against 2001 evenly spaced points (an independent brute force), within their spacing
+    # 2001 evenly spaced points of the segment (an independent brute force): each is a point of the segment,
+    # so the segment's nearest is at most as far as the best of them, and segment_nearest's within
+    # NEAREST_TOLERANCE of that
     fs = np.linspace(0.0, 1.0, 2001)
     points = np.array([x0, y0, z0]) + fs[:, None] * np.array([x1 - x0, y1 - y0, z1 - z0])
     brute = surface_distances(points, *SHAPES).min(axis=0)
-    spacing = math.dist((x0, y0, z0), (x1, y1, z1)) / 2000
-    for k in range(SHAPES.number):
+    for k in shapes:
         f = segment_nearest(x0, y0, z0, x1, y1, z1, k, *SHAPES)
+        assert 0.0 <= f <= 1.0
         found = at(x0 + f * (x1 - x0), y0 + f * (y1 - y0), z0 + f * (z1 - z0), k)[0]
-        assert found <= brute[k] + spacing + 1e-9
+        assert found <= brute[k] + NEAREST_TOLERANCE
+
+
+@settings(max_examples=100, deadline=None)
+@given(finite, finite, st.floats(-10.0, 30.0), finite, finite, st.floats(-10.0, 30.0))
+@example(0.0, 13.0, 16.0, 54.0, 1.0, 4.0)  # two valleys in one sampled interval (the test above)
+def test_segment_nearest_is_no_farther_than_a_dense_sampling(
+    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float
+) -> None:
+    nearest_against_a_dense_sampling(x0, y0, z0, x1, y1, z1, range(SHAPES.number))
+
+
+near_x, near_y, near_z = st.floats(25.0, 45.0), st.floats(-5.0, 17.0), st.floats(0.0, 10.0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(near_x, near_y, near_z, near_x, near_y, near_z)
+def test_segment_nearest_round_and_through_the_notched_prism(
+    x0: float, y0: float, z0: float, x1: float, y1: float, z1: float
+) -> None:
+    # segments about the L (x 30..40, y 0..12, z 2..8): past its notch, over and under it, into it (there the
+    # nearest is the deepest point)
+    nearest_against_a_dense_sampling(x0, y0, z0, x1, y1, z1, range(ELL_K, ELL_K + 1))
 
 
 def test_course_entry_against_hand_geometry() -> None:
