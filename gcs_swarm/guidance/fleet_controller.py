@@ -8,8 +8,9 @@ SET_ATTITUDE_TARGET messages (the link converts frames and thrust).
 
 The per-vehicle work of every step is a compiled kernel of the module that owns its law (formation, field,
 separation, failsafe_speed, reference, smc, inversion, attitude_slew; swarm_common.jit); `tick` strings them
-together and evaluates the transcendental functions (cos, sin, powers, arctan2, arcsin) with numpy between
-them. With NUMBA_DISABLE_JIT=1 the same code runs as plain Python and gives the same commands
+together and evaluates most transcendental functions (cos, sin, arctan2, arcsin) with numpy between them
+(the obstacle repulsion's rho^n and psi_L's atan2 are inside their kernels: libm's, in both modes). With
+NUMBA_DISABLE_JIT=1 the same code runs as plain Python and gives the same commands
 (tests/gcs_swarm/guidance/test_interpreted_tick.py). `prepare_kernels` compiles, or loads from numba's cache,
 every kernel ahead of the first tick.
 """
@@ -31,7 +32,7 @@ from gcs_swarm.guidance.field import attraction, obstacle_repulsion
 from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets, leader_course
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.leader_path import LeaderModel, leader_stalls, predict_leader_path, waypoint_ahead
-from gcs_swarm.guidance.leader_wait import leader_cap_scale
+from gcs_swarm.guidance.leader_wait import leader_cap_scale, turn_wait_scale
 from gcs_swarm.guidance.params import (
     CapabilityParams,
     DeadGcsParams,
@@ -591,6 +592,13 @@ class FleetController:
                 self.last_pos, lead, offsets * self.spacing_scale, self.heading.psi,
                 active & ~self.is_leader, ref.leader_wait_m, ref.leader_wait_span_m, ref.leader_wait_floor,
             )  # fmt: skip
+        if ref.turn_wait_deg > 0.0:  # [add] at a corner of its route the leader waits for the formation to
+            # turn (not on its first leg, while the formation assembles, nor near its goal: psi_L holds there)
+            at_corner = self.route_index > 0 and goal_dist > self.d_g
+            turn_scale = turn_wait_scale(p_lead, goal, self.heading.psi, at_corner, ref)
+            waited = self.leader_speed_scale if ref.leader_wait_m > 0.0 else 1.0
+            self.leader_speed_scale = min(waited, turn_scale)
+
         # Step 1: targets from the leader state each vehicle has heard (relay delay, spec 6).
         self.relay.push(self._leader_state())
         heard = self.relay.read()

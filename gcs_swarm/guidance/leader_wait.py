@@ -20,9 +20,13 @@ waiting does not shorten that (docs/px4-sitl.md).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from gcs_swarm.guidance.formation import rotate_to_world
+from gcs_swarm.guidance.params import ReferenceParams
+from swarm_common.rotations import wrap_pi_float
 
 
 def worst_slot_error(pos: np.ndarray, leader: int, world_offsets: np.ndarray, followers: np.ndarray) -> float:
@@ -59,3 +63,17 @@ def leader_cap_scale(
     known = followers & np.isfinite(pos).all(axis=1)
     error = worst_slot_error(pos, leader, rotate_to_world(offsets, psi_leader), known)
     return leader_wait_scale(error, wait_m, span_m, floor)
+
+
+def turn_wait_scale(
+    p_leader: np.ndarray, waypoint: np.ndarray, psi_leader: float, steering: bool, ref: ReferenceParams
+) -> float:
+    """The factor in [turn_wait_floor, 1] on the leader's speed cap while the formation's heading psi_leader
+    (rad) lags the direction from p_leader (3,) to its waypoint (3,) ENU m by more than turn_wait_deg, falling
+    linearly over turn_wait_span_deg; 1 when not `steering` (FleetController: on its first leg, or near its
+    goal, where psi_L holds)."""
+    if not steering:
+        return 1.0
+    lag = abs(wrap_pi_float(math.atan2(waypoint[1] - p_leader[1], waypoint[0] - p_leader[0]) - psi_leader))
+    over = (math.degrees(lag) - ref.turn_wait_deg) / ref.turn_wait_span_deg
+    return float(min(1.0, max(ref.turn_wait_floor, 1.0 - over)))

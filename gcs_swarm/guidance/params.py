@@ -239,6 +239,13 @@ class ReferenceParams:
     leader_wait_m: float = 0.0
     leader_wait_span_m: float = 5.0
     leader_wait_floor: float = 0.2
+    # [add] the leader waits for the formation to turn (gcs_swarm.guidance.leader_wait): its speed cap falls
+    # once psi_L lags the direction to its waypoint by more than turn_wait_deg, linearly over
+    # turn_wait_span_deg down to turn_wait_floor x v_xy_leader (above heading_min_speed, or psi_L stops
+    # turning); 0 = off
+    turn_wait_deg: float = 20.0
+    turn_wait_span_deg: float = 30.0
+    turn_wait_floor: float = 0.4
 
     def __post_init__(self) -> None:
         for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius", "accel_xy_max"):
@@ -259,6 +266,10 @@ class ReferenceParams:
         if not (self.leader_wait_m >= 0 and self.leader_wait_span_m > 0 and 0 < self.leader_wait_floor <= 1):
             raise ValueError(
                 "need leader_wait_m >= 0 (0: off), leader_wait_span_m > 0 and 0 < leader_wait_floor <= 1"
+            )
+        if not (self.turn_wait_deg >= 0 and self.turn_wait_span_deg > 0 and 0 < self.turn_wait_floor <= 1):
+            raise ValueError(
+                "need turn_wait_deg >= 0 (0: off), turn_wait_span_deg > 0 and 0 < turn_wait_floor <= 1"
             )
 
 
@@ -446,6 +457,7 @@ PAPER_PLAIN: dict[str, dict[str, float]] = {
         "heading_filter_s": 0.0,
         "heading_from_route": False,
         "heading_sweep_max": 0.0,
+        "turn_wait_deg": 0.0,
     },
     "limits": {"tilt_rate_max_deg": 0.0},
     "control.smc": {"drag_adaptation": 0.0},

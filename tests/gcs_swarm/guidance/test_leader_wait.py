@@ -11,7 +11,12 @@ import pytest
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets, slot_positions
 from gcs_swarm.guidance.inversion import thrust_vector
-from gcs_swarm.guidance.leader_wait import leader_cap_scale, leader_wait_scale, worst_slot_error
+from gcs_swarm.guidance.leader_wait import (
+    leader_cap_scale,
+    leader_wait_scale,
+    turn_wait_scale,
+    worst_slot_error,
+)
 from gcs_swarm.guidance.params import G, ReferenceParams
 
 DT = 0.02
@@ -56,10 +61,14 @@ def test_no_wait_when_off():
         {"leader_wait_span_m": 0.0},
         {"leader_wait_floor": 0.0},
         {"leader_wait_floor": 1.5},
+        {"turn_wait_deg": -1.0},
+        {"turn_wait_span_deg": 0.0},
+        {"turn_wait_floor": 0.0},
+        {"turn_wait_floor": 1.5},
     ],
 )
 def test_bad_parameters_are_refused(bad):
-    with pytest.raises(ValueError, match="leader_wait"):
+    with pytest.raises(ValueError, match=next(iter(bad)).split("_wait")[0] + "_wait"):
         ReferenceParams(**bad)
 
 
@@ -110,8 +119,10 @@ def slot_errors(reference: ReferenceParams, seconds: float = 60.0) -> tuple[np.n
 def test_a_waiting_leader_keeps_followers_that_cannot_outrun_it_near_their_slots():
     """(The compiled tick when numba is installed; tick_replay's grid_7_slow shows the numpy steps give the
     same bytes.)"""
-    plain, plain_arrival = slot_errors(ReferenceParams(leader_wait_m=0.0), 80.0)
-    waiting, waiting_arrival = slot_errors(ReferenceParams(leader_wait_m=3.0, leader_wait_span_m=10.0), 80.0)
+    plain, plain_arrival = slot_errors(ReferenceParams(leader_wait_m=0.0, turn_wait_deg=0.0), 80.0)
+    waiting, waiting_arrival = slot_errors(
+        ReferenceParams(leader_wait_m=3.0, leader_wait_span_m=10.0, turn_wait_deg=0.0), 80.0
+    )
     # straight flight after the V assembled (15-30 s) and after the turn at the first waypoint (50-60 s)
     straight = np.r_[int(15.0 / DT) : int(30.0 / DT), int(50.0 / DT) : int(60.0 / DT)]
     # the paper's leader flies flat out at the airframe's g tan(35 deg) / drag = 6.86 m/s, as fast as its
@@ -156,3 +167,50 @@ def test_only_the_leaders_cap_is_scaled():
     ctl.set_degraded(0.8, 1.0)
     # v_xy_leader 10 m/s x 0.5, v_xy 20 m/s; all x the degraded-flight 0.8
     np.testing.assert_allclose(ctl.speed_caps(), [16.0, 4.0, 16.0])
+
+
+def test_the_leader_waits_for_the_formation_to_turn():
+    """turn_wait_scale: 1 while psi_L lags the direction to the waypoint by up to turn_wait_deg, then falling
+    linearly over turn_wait_span_deg to turn_wait_floor; either way round; 1 while the heading holds."""
+    ref = ReferenceParams(turn_wait_deg=20.0, turn_wait_span_deg=30.0, turn_wait_floor=0.4)
+    here = np.array([10.0, 10.0, 20.0])
+    north = here + [0.0, 100.0, 0.0]  # the waypoint bears 90 deg (ENU)
+    for psi_deg, expected in ((90.0, 1.0), (75.0, 1.0), (70.0, 1.0), (55.0, 0.5), (125.0, 0.5), (45.0, 0.4)):
+        scale = turn_wait_scale(here, north, math.radians(psi_deg), True, ref)
+        assert scale == pytest.approx(expected), psi_deg
+    assert turn_wait_scale(here, north, math.radians(-90.0), True, ref) == pytest.approx(0.4)  # 180 deg
+    assert turn_wait_scale(here, north, math.radians(-90.0), False, ref) == 1.0  # holding near the goal
+
+
+def test_the_formation_turns_before_the_leader_runs_down_the_new_leg():
+    """A column of 4, 7 m apart, flies east to a waypoint and turns 90 deg north. Its heading turns no faster
+    than its tail can swing at heading_sweep_max (4 m/s over 21 m: 11 deg/s): without the turn wait the leader
+    runs down the new leg at full speed with the column still pointing east behind it; with it the leader
+    creeps until psi_L is within 50 deg of north, so the column has turned before the leader is 40 m up the
+    leg (point masses on their references)."""
+    n = 4
+    offsets = np.zeros((n, 3))
+    offsets[1:, 0] = [-7.0, -14.0, -21.0]
+    route = np.array([[60.0, 0.0, 20.0], [60.0, 200.0, 20.0]])
+    up_the_leg = {}
+    for wait in (0.0, 20.0):
+        ctl = FleetController(
+            n, 0, offsets, route, reference=ReferenceParams(turn_wait_deg=wait), control_dt=DT
+        )
+        pos = slot_positions(np.array([0.0, 0.0, 20.0]), 0.0, offsets)
+        ctl.reset(pos, np.zeros((n, 3)), np.zeros(n))
+        for k in range(int(40.0 / DT)):
+            cmd = ctl.tick(
+                k * DT,
+                pos,
+                ctl.generator.v,
+                np.zeros((n, 3)),
+                np.zeros((0, 3)),
+                np.zeros(0),
+                np.ones(n, bool),
+            )
+            pos = ctl.generator.p.copy()
+            if ctl.waypoint_index == 1 and abs(cmd.psi_leader - math.pi / 2) < math.radians(10.0):
+                up_the_leg[wait] = pos[0, 1]
+                break
+    assert up_the_leg[20.0] < 40.0 < up_the_leg[0.0]
