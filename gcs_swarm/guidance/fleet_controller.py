@@ -595,7 +595,8 @@ class FleetController:
         if ref.turn_wait_deg > 0.0:  # [add] at a corner of its route the leader waits for the formation to
             # turn (not on its first leg, while the formation assembles, nor near its goal: psi_L holds there)
             at_corner = self.route_index > 0 and goal_dist > self.d_g
-            turn_scale = turn_wait_scale(p_lead, goal, self.heading.psi, at_corner, ref)
+            cap = float(self.v_xy_cap[lead] * self.speed_scale)
+            turn_scale = turn_wait_scale(p_lead, goal, self.heading.psi, at_corner, ref, cap)
             waited = self.leader_speed_scale if ref.leader_wait_m > 0.0 else 1.0
             self.leader_speed_scale = min(waited, turn_scale)
 

@@ -28,6 +28,8 @@ from gcs_swarm.guidance.formation import rotate_to_world
 from gcs_swarm.guidance.params import ReferenceParams
 from swarm_common.rotations import wrap_pi_float
 
+TURNING_MARGIN = 1.25  # the turn wait keeps the leader this many times heading_min_speed
+
 
 def worst_slot_error(pos: np.ndarray, leader: int, world_offsets: np.ndarray, followers: np.ndarray) -> float:
     """m: the largest horizontal distance of a follower (rows of the (N,) bool mask `followers`) from its
@@ -66,14 +68,20 @@ def leader_cap_scale(
 
 
 def turn_wait_scale(
-    p_leader: np.ndarray, waypoint: np.ndarray, psi_leader: float, steering: bool, ref: ReferenceParams
-) -> float:
-    """The factor in [turn_wait_floor, 1] on the leader's speed cap while the formation's heading psi_leader
-    (rad) lags the direction from p_leader (3,) to its waypoint (3,) ENU m by more than turn_wait_deg, falling
-    linearly over turn_wait_span_deg; 1 when not `steering` (FleetController: on its first leg, or near its
-    goal, where psi_L holds)."""
+    p_leader: np.ndarray, waypoint: np.ndarray, psi_leader: float, steering: bool, ref: ReferenceParams,
+    cap: float,
+) -> float:  # fmt: skip
+    """The factor on the leader's speed cap `cap` m/s while the formation's heading psi_leader (rad) lags the
+    direction from p_leader (3,) to its waypoint (3,) ENU m by more than turn_wait_deg, falling linearly over
+    turn_wait_span_deg to turn_wait_floor, but never to less than TURNING_MARGIN x heading_min_speed m/s
+    (psi_L turns only while the leader is faster than that: a leg capped at 6 m/s with the floor 0.4 would
+    freeze the formation's heading mid-turn); 1 when not `steering` (FleetController: on its first leg, or
+    near its goal, where psi_L holds)."""
     if not steering:
         return 1.0
     lag = abs(wrap_pi_float(math.atan2(waypoint[1] - p_leader[1], waypoint[0] - p_leader[0]) - psi_leader))
     over = (math.degrees(lag) - ref.turn_wait_deg) / ref.turn_wait_span_deg
-    return float(min(1.0, max(ref.turn_wait_floor, 1.0 - over)))
+    floor = ref.turn_wait_floor
+    if cap > 0.0:
+        floor = max(floor, min(1.0, TURNING_MARGIN * ref.heading_min_speed / cap))
+    return float(min(1.0, max(floor, 1.0 - over)))

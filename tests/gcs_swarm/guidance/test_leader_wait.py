@@ -176,10 +176,14 @@ def test_the_leader_waits_for_the_formation_to_turn():
     here = np.array([10.0, 10.0, 20.0])
     north = here + [0.0, 100.0, 0.0]  # the waypoint bears 90 deg (ENU)
     for psi_deg, expected in ((90.0, 1.0), (75.0, 1.0), (70.0, 1.0), (55.0, 0.5), (125.0, 0.5), (45.0, 0.4)):
-        scale = turn_wait_scale(here, north, math.radians(psi_deg), True, ref)
+        scale = turn_wait_scale(here, north, math.radians(psi_deg), True, ref, 10.0)
         assert scale == pytest.approx(expected), psi_deg
-    assert turn_wait_scale(here, north, math.radians(-90.0), True, ref) == pytest.approx(0.4)  # 180 deg
-    assert turn_wait_scale(here, north, math.radians(-90.0), False, ref) == 1.0  # holding near the goal
+    assert turn_wait_scale(here, north, math.radians(-90.0), True, ref, 10.0) == pytest.approx(0.4)  # 180 deg
+    assert turn_wait_scale(here, north, math.radians(-90.0), False, ref, 10.0) == 1.0  # holding near the goal
+    # a leg capped at 6 m/s: never below 1.25 x heading_min_speed (3 m/s) = 3.75 m/s, 0.625 of the cap, or
+    # psi_L would stop turning; a cap at or under that: no wait at all
+    assert turn_wait_scale(here, north, math.radians(-90.0), True, ref, 6.0) == pytest.approx(0.625)
+    assert turn_wait_scale(here, north, math.radians(-90.0), True, ref, 3.0) == 1.0
 
 
 def test_the_formation_turns_before_the_leader_runs_down_the_new_leg():
