@@ -239,10 +239,10 @@ class ReferenceParams:
     leader_wait_m: float = 0.0
     leader_wait_span_m: float = 5.0
     leader_wait_floor: float = 0.2
-    # [add] the leader waits for the formation to turn (gcs_swarm.guidance.leader_wait): its speed cap falls
-    # once psi_L lags the direction to its waypoint by more than turn_wait_deg, linearly over
-    # turn_wait_span_deg down to turn_wait_floor x v_xy_leader (above heading_min_speed, or psi_L stops
-    # turning); 0 = off
+    # [add] at a corner of its route the leader waits for the formation to turn (guidance.leader_wait): its
+    # speed cap falls once psi_L lags the direction to its waypoint by more than turn_wait_deg, linearly over
+    # turn_wait_span_deg down to turn_wait_floor x its cap, never under 1.25 x heading_min_speed (or psi_L
+    # stops turning); 0 = off
     turn_wait_deg: float = 20.0
     turn_wait_span_deg: float = 30.0
     turn_wait_floor: float = 0.4
