@@ -9,9 +9,6 @@ vehicle that drops out and comes back; once with the constant and once with the 
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,10 +17,10 @@ from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.inversion import thrust_vector
 from gcs_swarm.guidance.params import G, SeparationParams
+from tests.gcs_swarm.guidance.interpreted import interpreted_arrays
 
 TICKS = 300
 DT = 0.02
-ROOT = Path(__file__).resolve().parents[3]
 
 
 def fly(mode: str) -> np.ndarray:
@@ -67,20 +64,14 @@ def fly(mode: str) -> np.ndarray:
 
 
 def test_compiled_and_interpreted_guidance_give_the_same_commands(tmp_path: Path) -> None:
-    """Exactly the same bits (the kernels use no transcendental function of libm: numba's and CPython's
-    sqrt and hypot are both correctly rounded, and every cos, sin, arctan2, arcsin and power is numpy's,
-    called on the same arrays in both processes)."""
+    """Exactly the same bits: numba's and CPython's sqrt and hypot are both correctly rounded; the cos, sin,
+    arctan2 and arcsin between the kernels are numpy's, called on the same arrays in both processes; and the
+    powers and atan2 inside kernels (the obstacle repulsion's rho^n, psi_L's heading_step) are libm's pow and
+    atan2 in both, compiled or not."""
     compiled = {mode: fly(mode) for mode in ("constant", "formula")}
-    out = tmp_path / "interpreted.npz"
-    script = (
-        "import numpy as np, numba, sys\n"
-        "assert numba.config.DISABLE_JIT\n"
-        "from tests.gcs_swarm.guidance.test_interpreted_tick import fly\n"
-        "np.savez(sys.argv[1], **{mode: fly(mode) for mode in ('constant', 'formula')})\n"
-    )
-    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
-    subprocess.run([sys.executable, "-c", script, str(out)], check=True, cwd=ROOT, env=env, timeout=120)
-    interpreted = np.load(out)
+    every_mode = "{mode: fly(mode) for mode in ('constant', 'formula')}"
+    module = "tests.gcs_swarm.guidance.test_interpreted_tick"
+    interpreted = interpreted_arrays(module, every_mode, tmp_path / "interpreted.npz", 120)
     for mode, commands in compiled.items():
         assert np.isfinite(commands[:, [0, 1, 2, 4]]).sum() > 0.9 * commands[:, [0, 1, 2, 4]].size
         assert commands.tobytes() == interpreted[mode].tobytes(), mode

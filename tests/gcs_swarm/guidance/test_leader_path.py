@@ -5,9 +5,6 @@ the leader's own reference then flies, and the look-ahead uses it; compiled and 
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,11 +14,11 @@ from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.leader_path import leader_stalls, leader_steps, predict_leader_path, resample
 from gcs_swarm.guidance.params import FieldParams, ReferenceParams, ReshapeParams
 from swarm_common.obstacle_shapes import pack_shapes
+from tests.gcs_swarm.guidance.interpreted import interpreted_arrays
 
 GOAL = np.array([[200.0, 0.0, 10.0]])
 OBSTACLE_C = np.array([[60.0, 2.0, 10.0]])  # 2 m left of the leader's straight line, in its way
 OBSTACLE_R = np.array([4.0])
-ROOT = Path(__file__).resolve().parents[3]
 
 
 def _controller(
@@ -231,16 +228,8 @@ def test_compiled_and_interpreted_predictions_are_the_same_bits(tmp_path: Path) 
         waypoints = compiled[f"{name} steps waypoints"]
         assert waypoints[0] == 0 and waypoints[-1] == 1 and len(waypoints) < 600
     assert compiled["iaapf stalls"][0]  # and a stall in front of the gap
-    out = tmp_path / "interpreted.npz"
-    script = (
-        "import numpy as np, numba, sys\n"
-        "assert numba.config.DISABLE_JIT\n"
-        "from tests.gcs_swarm.guidance.test_leader_path import predictions\n"
-        "np.savez(sys.argv[1], **predictions())\n"
-    )
-    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
-    subprocess.run([sys.executable, "-c", script, str(out)], check=True, cwd=ROOT, env=env, timeout=300)
-    interpreted = np.load(out)
+    module = "tests.gcs_swarm.guidance.test_leader_path"
+    interpreted = interpreted_arrays(module, "predictions()", tmp_path / "interpreted.npz", 300)
     assert sorted(interpreted.files) == sorted(compiled)
     for key, values in compiled.items():
         assert values.dtype == interpreted[key].dtype and values.tobytes() == interpreted[key].tobytes(), key
