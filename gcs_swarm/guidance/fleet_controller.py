@@ -281,9 +281,6 @@ class FleetController:
         self.waypoint_index = 0
         self.route_points = self.waypoints  # (R, 3) ENU m: the leader's route, via points among its waypoints
         self.route_legs = np.arange(len(wp))  # (R,) the index of the waypoint each route point's leg ends at
-        self.route_ends = (
-            self.waypoints
-        )  # (R, 3) that waypoint: the adaptive factor's destination (spec 6a.8)
         self.route_index = 0  # into route_points: the point the leader flies to
         self.route_stale = True  # the route is rebuilt, and its first leg planned, at the next tick
 
@@ -336,7 +333,6 @@ class FleetController:
         self.route_legs = np.concatenate(
             [self.route_legs[:k], np.full(len(via), self.route_legs[k]), self.route_legs[k:]]
         )
-        self.route_ends = np.ascontiguousarray(self.waypoints[self.route_legs])
         self.detours.append(Detour(t, int(self.route_legs[k]), via))
         corners = ", ".join(f"({x:.0f}, {y:.0f})" for x, y in via[:, :2])
         self.events.append(
@@ -555,7 +551,6 @@ class FleetController:
         new_leg = self.route_stale
         if self.route_stale:  # from the waypoint flown to, no via points yet
             self.route_points, self.route_legs = self.waypoints, np.arange(len(self.waypoints))
-            self.route_ends = self.waypoints
             self.route_index, self.route_stale = self.waypoint_index, False
         self.route_index, goal_dist = waypoint_ahead(
             self.route_points, self.route_index, p_lead, self.reference.waypoint_radius
@@ -608,7 +603,7 @@ class FleetController:
         cos_l, sin_l = np.cos(psi_l), np.sin(psi_l)
         targets, v_ff, a_ff, dest = formation_targets(
             heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
-            int(lead), goal, self.route_ends[self.route_index], destinations, *self.shapes,
+            int(lead), goal, self.waypoints[self.waypoint_index], destinations, *self.shapes,
         )  # fmt: skip
         for motion, ff in ((offset_rate, v_ff), (offset_accel, a_ff)):  # the slots' own motion, leader frame
             if motion is not None and motion.any():
