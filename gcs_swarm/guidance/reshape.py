@@ -63,7 +63,8 @@ SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
 PACE_MARGIN_M_S = 1.5
 WIDEN_MARGIN_M = 1.0  # m more than clearance_m a wider shape must keep to be taken (no flapping at the edge)
 CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
-MOVE_SAMPLE_S = 0.25  # s between the moments of a move checked for clearance (move_clearance)
+MOVE_SAMPLE_S = 0.25  # s between the moments of a move checked for clearance (move_is_clear)
+CLEARANCE_TOLERANCE_M = 1e-6  # m a slot's clearance may round below its start's and still count as kept
 # the leader's way ahead for a length m: points (P, 3) ENU m, the formation's heading there (P,) rad, their
 # travel from the leader (P,) m (route_samples, gcs_swarm.guidance.leader_path)
 Route = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -452,13 +453,15 @@ class FormationShaper:
             self.waiting_move = cached if settled else None
         return replace(cached[1], t0=t)
 
-    def move_clearance(
+    def move_is_clear(
         self, move: SlotMove, route: Route, speed: float, centres: np.ndarray, radii: np.ndarray,
         shapes: ShapeArrays = NO_SHAPES,
-    ) -> float:  # fmt: skip
-        """Smallest distance m from a moving slot to an obstacle surface while `move` runs, the leader going
-        on along `route` at `speed` m/s (stopping where it ends): the slots of a tail still short of a gap
-        must not cut through its sides on their way to a wider shape. Sampled every MOVE_SAMPLE_S; inf
+    ) -> bool:  # fmt: skip
+        """Whether, while `move` runs with the leader going on along `route` at `speed` m/s (stopping where it
+        ends), every slot keeps clearance_m from every obstacle surface or, where a slot is closer already at
+        the move's start, as much as the closest slot has then: the slots of a tail still short of a gap must
+        not cut through its sides on their way to a wider shape, and a column whose tail came to rest in an
+        obstacle's margin may still open out of it past that obstacle. Sampled every MOVE_SAMPLE_S; True
         without obstacles."""
         moments = np.linspace(0.0, move.duration, max(2, math.ceil(move.duration / MOVE_SAMPLE_S) + 1))
         travel = speed * moments
@@ -468,7 +471,7 @@ class FormationShaper:
         rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
         which = np.arange(len(moments), dtype=np.int64)
         gaps = shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii, *shapes)
-        return float(gaps.min(initial=math.inf))
+        return bool(gaps.min() >= min(self.params.clearance_m, gaps[0]) - CLEARANCE_TOLERANCE_M)
 
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
@@ -514,9 +517,7 @@ class FormationShaper:
                 self.wider_since = t
             if t - self.wider_since >= self.params.restore_after_s:
                 move = self._widening(best, t)
-                if self.move_clearance(move, route, speed, *every, shapes) >= (
-                    self.params.clearance_m
-                ):  # the way there is clear too
+                if self.move_is_clear(move, route, speed, *every, shapes):  # the way there too
                     self.wider_since = None
                     self._change_to(best, move.start, t, move=move)
         else:

@@ -253,6 +253,61 @@ def test_a_column_whose_tail_is_short_of_a_gap_waits_to_open_until_the_way_is_cl
         assert gap.min() >= PARAMS.clearance_m - 1e-6, t
 
 
+def _standing_route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The leader's way ahead when it holds at (0, 0, 10) heading east: one point."""
+    return np.array([[0.0, 0.0, 10.0]]), np.zeros(1), np.zeros(1)
+
+
+@pytest.mark.parametrize(
+    ("start_x", "end", "clear"),
+    [
+        (-28.0, (-20.0, 0.0), True),  # 2 m from the surface, moving straight away from it
+        (-28.0, (-28.0, 10.0), True),  # 2 m, moving sideways: the sphere is right behind, so farther
+        (-28.0, (-29.5, 0.0), False),  # 2 m, backing to 0.5 m: closer than it already was
+        (-20.0, (-25.0, 0.0), True),  # 10 m, ending 5 m off: clearance_m (4) kept
+        (-20.0, (-28.0, 0.0), False),  # 10 m, ending 2 m off: inside clearance_m
+    ],
+)
+def test_a_move_is_clear_if_no_slot_comes_closer_than_clearance_m_or_than_it_already_was(start_x, end, clear):
+    """One follower slot moving straight along +-x / y in the leader frame, the leader holding at (0, 0, 10)
+    heading east, a sphere of radius 1 m at (-31, 0, 10): a slot at x = -28 is 2 m from its surface (inside
+    PARAMS.clearance_m, 4 m), one at x = -20 is 10 m. A move may take a slot out of the margin or along it,
+    never deeper into it; a slot outside the margin must stay outside it."""
+    shaper = FormationShaper(PARAMS, np.zeros((2, 3)), 0, 4.0)
+    start, stop = np.zeros((2, 3)), np.zeros((2, 3))
+    start[1] = [start_x, 0.0, 0.0]
+    stop[1] = [end[0], end[1], 0.0]
+    move = plan_move(start, stop, np.ones(2, dtype=bool), 0.0, PARAMS.speed_m_s)
+    sphere = np.array([[-31.0, 0.0, 10.0]]), np.array([1.0])
+    assert shaper.move_is_clear(move, _standing_route, 0.0, *sphere) is clear
+
+
+def test_a_column_whose_tail_came_to_rest_in_an_obstacles_margin_still_opens_at_the_goal():
+    """The leader holds at its last waypoint (0, 0, 10) heading east with a column 7 m apart behind it; a
+    sphere of radius 1 m right behind the tail slot (-28, 0) leaves it 2 m from the surface, inside
+    clearance_m (4 m). The mission's line (slots abeam the leader, 31 m or more from the sphere) fits there,
+    and every way from the column to the line takes the tail forward or sideways, away from the sphere: the
+    formation re-forms once the line has kept fitting for restore_after_s instead of staying a column for
+    good, and no slot gets closer to the sphere than the tail was."""
+    nominal = np.zeros((5, 3))
+    nominal[1:] = formation_offsets("line", 4, 10.0)
+    centres, radii = np.array([[-31.0, 0.0, 10.0]]), np.array([1.0])
+    shaper = FormationShaper(PARAMS, nominal, 0, 4.0)
+    column = len(shaper.shapes) - 1
+    shaper._change_to(column, nominal, -100.0, announce=False)  # settled in the column long before t = 0
+    tail = shaper.flown(0.0)[0][:, 0].min()
+    assert tail == pytest.approx(-28.0)
+    goal = np.array([[0.0, 0.0, 10.0]])
+    for t in np.arange(0.0, PARAMS.restore_after_s + 1.0, PARAMS.decide_every_s):
+        shaper.decide(t, goal[0], 0.0, goal, 10.0, 0.0, centres, radii)
+    assert shaper.current == 0
+    move = shaper.move
+    for t in np.arange(move.t0, move.t0 + move.duration + 0.05, 0.05):
+        slots = shaper.flown(t)[0] + [0.0, 0.0, 10.0]  # leader frame = ENU here (heading east, at origin)
+        gaps = np.linalg.norm(slots[1:] - centres[0], axis=1) - radii[0]
+        assert gaps.min() >= 2.0 - 1e-6
+
+
 def test_a_wider_shape_waits_restore_after_s_before_the_formation_widens():
     centres, radii = _gap_world(12.0)
     shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
