@@ -130,31 +130,36 @@ def time_below(
 
 def formation_schedule(
     flight: dict[str, Any], t: np.ndarray, leader: int, offsets: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Leader (T,) and slot offsets (T, N, 3) in force at each time t (T,) s, from flight.json's
-    formation_timeline (re-forms after a loss, a new leader, live reshapes, degraded widening; NaN rows for
-    vehicles out of the formation); the final `leader`/`offsets` throughout for a flight.json without it."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Leader (T,), slot offsets (T, N, 3) and whether a column's slots followed the leader's path (T,) bool
+    in force at each time t (T,) s, from flight.json's formation_timeline (re-forms after a loss, a new
+    leader, live reshapes, degraded widening; NaN rows for vehicles out of the formation; a column following
+    the path, spec 6a.9); the final `leader`/`offsets` throughout, not following, for a flight.json without
+    it."""
     timeline = flight.get("formation_timeline") or []
     if not timeline:
-        return np.full(len(t), leader), np.broadcast_to(offsets, (len(t),) + offsets.shape)
+        fixed = np.broadcast_to(offsets, (len(t),) + offsets.shape)
+        return np.full(len(t), leader), fixed, np.zeros(len(t), dtype=bool)
     starts = np.array([entry["t"] for entry in timeline], dtype=float)
     leaders = np.array([entry["leader"] for entry in timeline], dtype=int)
     table = np.array(
         [[[np.nan] * 3 if row is None else row for row in entry["offsets"]] for entry in timeline],
         dtype=float,
     )
+    follows = np.array([entry.get("follows_path") is True for entry in timeline], dtype=bool)
     k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(timeline) - 1)
-    return leaders[k], table[k]
+    return leaders[k], table[k], follows[k]
 
 
 def scheduled_formation_error(
     t: np.ndarray, pos: np.ndarray, psi: np.ndarray, flight: dict[str, Any], leader: int, offsets: np.ndarray
 ) -> tuple[metrics.FormationError, np.ndarray]:
     """Spec 10 formation error over t (T,), pos (T, N, 3), with psi_L (T,) rad as flown and the formation in
-    force at each time (`formation_schedule`), and the follower-to-slot error (T, N) m: the same e_F,i before
-    any settling window, NaN for the leader of the moment and for vehicles out of the formation."""
-    leaders, flown = formation_schedule(flight, t, leader, offsets)
-    fe = metrics.formation_error(t, pos, leaders, psi, flown)
+    force at each time (`formation_schedule`; a column that followed the leader's path measured against the
+    path the leader truly flew), and the follower-to-slot error (T, N) m: the same e_F,i before any settling
+    window, NaN for the leader of the moment and for vehicles out of the formation."""
+    leaders, flown, follows = formation_schedule(flight, t, leader, offsets)
+    fe = metrics.formation_error(t, pos, leaders, psi, flown, follows_path=follows)
     err = fe.error.copy()
     err[np.arange(len(t)), leaders] = np.nan  # the leader's own slot is where it is
     return fe, err

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.distance import pdist, squareform
 
+from gcs_swarm.guidance.column_path import slots_along_path
 from gcs_swarm.guidance.formation import slot_positions
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, surface_distances
 
@@ -160,17 +161,24 @@ def formation_error(
     psi_leader: np.ndarray,
     offsets: np.ndarray,
     settle_threshold: float = 1.0,
+    follows_path: np.ndarray | None = None,
 ) -> FormationError:
     """e_F,i(t) = |p_i(t) - s_i(t)| with slots from the leader's actual position and psi_L (spec 10).
 
     p (T, N, 3); psi_leader (T,) rad; leader: index, or (T,) indices when the lead passed on; offsets (N, 3)
     leader frame, or (T, N, 3) when the formation changed (NaN rows: a vehicle out of the formation, e.g.
     lost; its error is NaN and left out). Settled when max_i e_F,i <= threshold for the rest of the run.
+    follows_path (T,) bool: where a column's slots followed the leader's actual path instead (spec 6a.9,
+    guidance.column_path.slots_along_path).
     """
     p = np.asarray(p, dtype=float)
     lead = np.broadcast_to(np.asarray(leader, dtype=int), (len(p),))
     p_leader = p[np.arange(len(p)), lead]
     slots = slot_positions(p_leader, psi_leader, offsets)
+    if follows_path is not None and follows_path.any():
+        table = np.broadcast_to(offsets, p.shape)
+        along = slots_along_path(p_leader, np.asarray(psi_leader, dtype=float), lead, table, follows_path)
+        slots = np.where(np.isnan(along), slots, along)
     err = np.linalg.norm(p - slots, axis=-1)
     with np.errstate(invalid="ignore"):
         worst = np.fmax.reduce(err, axis=1)  # NaN only where no vehicle is in the formation

@@ -155,8 +155,9 @@ def write_flight(
                 "t": t,
                 "leader": leader,
                 "offsets": [None if np.isnan(o).any() else o.tolist() for o in offsets],
+                "follows_path": follows,  # the column's slots along the leader's path (spec 6a.9)
             }
-            for t, leader, offsets in result.formation_timeline
+            for t, leader, offsets, follows in result.formation_timeline
         ],
         "wall_duration_s": wall_s,
         "link_stats": link_stats,  # {"vehicles": Fleet.stats(), "forwards": Fleet.forward_stats()}

@@ -117,10 +117,14 @@ def assign_slots_by_travel(
 
 
 def note_formation(
-    timeline: list[tuple[float, int, np.ndarray]], t: float, controller: FleetController, alive: np.ndarray
+    timeline: list[tuple[float, int, np.ndarray, bool]],
+    t: float,
+    controller: FleetController,
+    alive: np.ndarray,
 ) -> None:
     """Append (t, leader, (N, 3) offsets flown (reshaped or not) with degraded widening, NaN rows for the (N,)
-    not `alive`) to the timeline when the formation changed."""
+    not `alive`, whether a column's slots follow the leader's path) to the timeline when the formation
+    changed (following the path or not changes only with the offsets)."""
     offsets = np.where(alive[:, None], controller.flown_offsets * controller.spacing_scale, np.nan)
     if timeline and timeline[-1][1] == controller.leader:
         last = timeline[-1][2]
@@ -129,4 +133,4 @@ def note_formation(
             ((last == offsets) | (np.isnan(last) & np.isnan(offsets))).all()
         ):
             return
-    timeline.append((t, controller.leader, offsets))
+    timeline.append((t, controller.leader, offsets, controller.trail is not None))

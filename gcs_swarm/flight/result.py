@@ -40,8 +40,9 @@ class FlightResult:
     holds: int = 0  # times a vehicle was held for stale telemetry
     max_telemetry_age_s: float = 0.0  # oldest position telemetry of a live vehicle at any formation tick
     params_changed: list[dict[str, object]] = field(default_factory=list)  # flight_params.ParamChange rows
-    # (vehicle time s, leader, (N, 3) slot offsets flown, NaN rows for lost vehicles) at each change
-    formation_timeline: list[tuple[float, int, np.ndarray]] = field(default_factory=list)
+    # (vehicle time s, leader, (N, 3) slot offsets flown, NaN rows for lost vehicles, whether the column's
+    # slots follow the leader's path, guidance.column_path) at each change
+    formation_timeline: list[tuple[float, int, np.ndarray, bool]] = field(default_factory=list)
     # vehicles found flying at the start (`--airborne`): None (none were), "finish" or "land"; and for
     # "land", whether every vehicle was disarmed on the ground at the end
     reattached: str | None = None

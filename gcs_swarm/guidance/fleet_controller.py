@@ -25,11 +25,18 @@ import numpy as np
 
 from gcs_swarm.guidance.attitude_slew import slew_step
 from gcs_swarm.guidance.capability import SpeedEnvelope
+from gcs_swarm.guidance.column_path import LeaderTrail, column_rows, path_motion
 from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.degradation import stale_verdict
 from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_caps, speed_caps_from_table
 from gcs_swarm.guidance.field import attraction, obstacle_repulsion
-from gcs_swarm.guidance.formation import LeaderHeading, check_offsets, formation_targets, leader_course
+from gcs_swarm.guidance.formation import (
+    LeaderHeading,
+    check_offsets,
+    formation_targets,
+    leader_course,
+    rotate_to_world,
+)
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.leader_path import LeaderModel, leader_stalls, predict_leader_path, waypoint_ahead
 from gcs_swarm.guidance.leader_wait import leader_cap_scale, turn_wait_scale
@@ -63,6 +70,8 @@ RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in
 PACE_EVENT_SHARE = 0.1  # a new pace event when the followers' cap moves by more than this share
 RESHAPE_CUSHION_M = 1.0  # m: in a tighter shape, neighbours repel once this much closer than min_spacing_m
 CORNER_TOLERANCE_M = 2.0  # m, how far the leader's route round a gap may stray to bend fewer times
+TRAIL_KEEP_MARGIN_M = 50.0  # m of the leader's path kept beyond its column's length (_follow_path)
+COURSE_MIN_SPEED = 0.5  # m/s: slower, the leader's course gives no along-track acceleration (_follow_path)
 _prepared = False  # every kernel was called once in this process (prepare_kernels)
 
 
@@ -240,6 +249,9 @@ class FleetController:
         self.speed_scale = 1.0
         self.spacing_scale = 1.0
         self.leader_speed_scale = 1.0  # the leader's cap factor of the latest tick (leader_wait), in (0, 1]
+        self.trail: LeaderTrail | None = None  # the leader's path while the formation is a column
+        self.trail_leader = -1  # the leader whose path `trail` is
+        self.path_pace = math.inf  # m/s, the leader's cap from its column's path (`_follow_path`)
         if dead_gcs is not None and None in (
             dead_gcs.failsafe_timeout_s,
             dead_gcs.brake_accel,
@@ -368,12 +380,13 @@ class FleetController:
     def speed_caps(self) -> np.ndarray:
         """(N,) m/s: each vehicle's horizontal speed cap before the closing-speed and failsafe caps: v_xy
         (leader v_xy_leader x leader_speed_scale) x the degraded-flight speed_scale; the leader's also within
-        the reshape's pace (gcs_swarm.guidance.reshape)."""
+        the reshape's pace (gcs_swarm.guidance.reshape) and a column's pace along the leader's path
+        (`_follow_path`)."""
         cap = self.v_xy_cap * self.speed_scale
         if self.leader_speed_scale < 1.0:
             cap[self.leader] *= self.leader_speed_scale
         if self.shaper is not None:  # [add] the leader gives its followers time to change shape (reshape)
-            cap[self.leader] = min(cap[self.leader], self.shaper.pace_cap)
+            cap[self.leader] = min(cap[self.leader], self.shaper.pace_cap, self.path_pace)
         if self.follower_pace < cap[self.leader]:  # [add] no faster than the slowest follower (capability)
             cap[self.leader] = self.follower_pace
         return cap
@@ -391,6 +404,53 @@ class FleetController:
             self.route_points[self.route_index :], speed_cap, length, SAMPLE_STEP_M, centres, radii,
             self.shapes,
         )  # fmt: skip
+
+    def _follow_path(
+        self, offsets: np.ndarray, offset_rate: np.ndarray | None, offset_accel: np.ndarray | None,
+        targets: np.ndarray, v_ff: np.ndarray, a_ff: np.ndarray,
+    ) -> None:  # fmt: skip
+        """[add] Spec 6a.9: while the offsets flown (N, 3) make a column (column_path.column_rows), each
+        column follower's slot is on the leader's path (`trail`, begun when the column formed), spaced from
+        its neighbours by the chords their distances astern differ by (LeaderTrail.behind). Its feed-forwards
+        are those of a point moving along the path there (column_path.path_motion) at the leader's
+        horizontal speed plus the slot's own rate along the column (offset_rate, leader frame m/s), speeding
+        up as the leader along its course plus offset_accel, and turning as the leader turned there:
+        targets, v_ff, a_ff (N, 3) ENU are changed in place in their horizontal components, the vertical
+        ones stay the leader's. The leader's pace (`path_pace`, m/s) is then what lets every slot go round
+        the bends ahead of it with at most path_turn_accel_m_s2, braking at pace_decel_m_s2
+        (LeaderTrail.pace); inf when not a column. The leader's position is the one measured now (the relay
+        delay of spec 6 applies to the rigid slots only)."""
+        assert self.reshape is not None and self.heading is not None
+        rows = column_rows(offsets)
+        if self.shaper is not None:
+            self.shaper.bent = None
+        if rows is None:
+            self.trail, self.path_pace = None, math.inf
+            return
+        lead, scale = self.leader, self.spacing_scale
+        lags = -offsets[rows, 0] * scale  # m astern
+        p_lead, v_lead = self.last_pos[lead], self.last_vel[lead, :2]
+        keep = float(lags.max()) + TRAIL_KEEP_MARGIN_M
+        a_lead = self.generator.a[lead, :2]
+        if self.trail is None or self.trail_leader != lead:
+            self.trail, self.trail_leader = LeaderTrail(p_lead, v_lead, a_lead, self.heading.psi, keep), lead
+        self.trail.keep_m = max(self.trail.keep_m, keep)
+        self.trail.record(p_lead, v_lead, a_lead)
+        points, v_then, a_then, arcs = self.trail.behind(p_lead, v_lead, a_lead, lags)
+        speed = float(np.hypot(v_lead[0], v_lead[1]))
+        accel = float(a_lead @ v_lead) / speed if speed > COURSE_MIN_SPEED else 0.0
+        along_v = speed + (np.zeros(len(rows)) if offset_rate is None else offset_rate[rows, 0] * scale)
+        along_a = accel + (np.zeros(len(rows)) if offset_accel is None else offset_accel[rows, 0] * scale)
+        targets[rows, :2] = points
+        if self.shaper is not None:  # where a change of shape starts from: these slots, in the leader's frame
+            bent = offsets.copy()
+            away = np.zeros((len(rows), 3))
+            away[:, :2] = (points - p_lead[:2]) / scale
+            bent[rows, :2] = rotate_to_world(away, -self.heading.psi)[:, :2]  # world -> leader frame
+            self.shaper.bent = bent
+        v_ff[rows, :2], a_ff[rows, :2] = path_motion(v_then, a_then, along_v, along_a)
+        turn, brake = self.reshape.path_turn_accel_m_s2, self.reshape.pace_decel_m_s2
+        self.path_pace = self.trail.pace(p_lead, v_lead, a_lead, arcs, turn, brake)
 
     def drain_events(self) -> list[str]:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
@@ -562,7 +622,8 @@ class FleetController:
             goal_dist = float(np.linalg.norm(self.route_points[self.route_index] - p_lead))
         goal = self.route_points[self.route_index]
         course = leader_course(self.generator.v[lead, :2], p_lead, goal, self.reference.heading_from_route)
-        if self.reference.heading_sweep_max > 0.0:  # [add] the farthest slot swings at most this fast
+        if self.reference.heading_sweep_max > 0.0 and self.trail is None:  # [add] the farthest slot swings
+            # at most this fast (not a column following the leader's path: its slots do not swing)
             flown = self.flown_offsets
             reach = float(np.max(np.hypot(flown[:, 0], flown[:, 1]))) * self.spacing_scale
             sweep_rate = self.reference.heading_sweep_max / reach if reach > 0.0 else np.inf
@@ -611,6 +672,8 @@ class FleetController:
                 ff[:, 0] += scaled[:, 0] * cos_l - scaled[:, 1] * sin_l
                 ff[:, 1] += scaled[:, 0] * sin_l + scaled[:, 1] * cos_l
                 ff[:, 2] += scaled[:, 2]
+        if self.reshape is not None and self.reshape.column_follows_path:  # [add] spec 6a.9 (column_path)
+            self._follow_path(offsets, offset_rate, offset_accel, targets, v_ff, a_ff)
         gen = self.generator
         literal = ref.paper_literal & ~self.is_leader
         if ref.paper_literal:

@@ -337,6 +337,14 @@ class ReshapeParams:
     route_round_gaps: bool = True
     gap_clearance_m: float = 7.0  # m
     decide_every_s: float = 0.2  # s between decisions
+    # while the formation is a column, its slots follow the leader's path instead of its heading
+    # (gcs_swarm.guidance.column_path), and the leader flies no faster than lets every slot go round the
+    # bends ahead of it with at most path_turn_accel_m_s2 of centripetal acceleration (braking for them at
+    # pace_decel_m_s2): a follower reaching a bend faster than it can turn would overshoot it. Off by
+    # default: on the generated courses it keeps long columns on their slots round corners but arrives on
+    # fewer courses and later (docs/metrics.md, "A column that follows the leader's path")
+    column_follows_path: bool = False
+    path_turn_accel_m_s2: float = 2.0  # m/s^2, half the reference's accel_xy_max: the rest for tracking
 
     def __post_init__(self) -> None:
         if not (self.clearance_m >= 0 and self.lookahead_s > 0 and self.lookahead_min_m >= 0):
@@ -349,6 +357,8 @@ class ReshapeParams:
             raise ValueError("need gap_clearance_m >= 0")
         if not (self.restore_after_s >= 0 and self.decide_every_s > 0):
             raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
+        if not self.path_turn_accel_m_s2 > 0:
+            raise ValueError("need path_turn_accel_m_s2 > 0")
 
 
 @dataclass(frozen=True)

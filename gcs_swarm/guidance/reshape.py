@@ -377,6 +377,9 @@ class FormationShaper:
         self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
         self.paced_at = -math.inf  # s, when pace_cap was last set
         self.waiting_move: tuple[int, SlotMove] | None = None  # a widening planned, waiting for a clear way
+        # (N, 3) leader-frame m: where a column following the leader's path (column_path) has its slots now,
+        # which is where a change of shape starts from (`start_offsets`); None when the slots are rigid
+        self.bent: np.ndarray | None = None
 
     def _set(self, nominal: np.ndarray) -> None:
         self.shapes = candidate_shapes(nominal, self.leader, self.params)
@@ -392,11 +395,17 @@ class FormationShaper:
     def set_nominal(self, nominal: np.ndarray, leader: int, t: float | None) -> None:
         """A new mission formation (N, 3) around `leader`: flown at once when t is None, else reached from
         the offsets flown now along a reshape that starts at t s."""
-        was = None if t is None else self.flown(t)[0]
+        was = None if t is None else self.start_offsets(t)
         self.leader = leader
         self._set(np.array(nominal, dtype=float))
         if was is not None and t is not None:
             self._change_to(0, was, t, announce=False)
+
+    def start_offsets(self, t: float) -> np.ndarray:
+        """Offsets (N, 3) a change of shape starting at t s starts from: the slots flown, or where a column
+        following the leader's path has them (`bent`), so that the slots do not jump when the change starts
+        and its clearance is checked from where they are."""
+        return self.flown(t)[0] if self.bent is None else self.bent
 
     def flown(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Offsets (N, 3) flown at time t s, their rate of change (N, 3) m/s and its rate (N, 3) m/s^2."""
@@ -444,11 +453,15 @@ class FormationShaper:
 
     def _widening(self, index: int, t: float) -> SlotMove:
         """The move to the wider shape `index` from t: planned once while the slots stand still, then the
-        same move started later (the assignment is the costly part)."""
+        same move started later (the assignment is the costly part); planned afresh each time while a column
+        follows the leader's path (its slots move in the leader's frame)."""
         cached = self.waiting_move
-        if cached is None or cached[0] != index or cached[1].start is not self.move.end:
-            settled = t >= self.move.t0 + self.move.duration
-            now = self.move.end if settled else self.flown(t)[0]
+        if (
+            cached is None or cached[0] != index or cached[1].start is not self.move.end
+            or self.bent is not None
+        ):  # fmt: skip
+            settled = t >= self.move.t0 + self.move.duration and self.bent is None
+            now = self.move.end if settled else self.start_offsets(t)
             cached = (index, self._plan(index, now, t))
             self.waiting_move = cached if settled else None
         return replace(cached[1], t0=t)
@@ -511,7 +524,7 @@ class FormationShaper:
                 best = self.current
         if best > self.current:
             self.wider_since = None
-            self._change_to(best, self.flown(t)[0], t)
+            self._change_to(best, self.start_offsets(t), t)
         elif best < self.current:
             if self.wider_since is None:
                 self.wider_since = t
