@@ -133,4 +133,4 @@ def note_formation(
             ((last == offsets) | (np.isnan(last) & np.isnan(offsets))).all()
         ):
             return
-    timeline.append((t, controller.leader, offsets, controller.trail is not None))
+    timeline.append((t, controller.leader, offsets, controller.follows_path))

@@ -352,6 +352,11 @@ class FleetController:
             f"{self.route_legs[k] + 1}"
         )
 
+    @property
+    def follows_path(self) -> bool:
+        """The column's slots follow the leader's path this tick (spec 6a.9, `_follow_path`)."""
+        return self.trail is not None
+
     def shape_settled(self, t: float) -> bool:
         """No change of the formation's shape is under way at vehicle time t s (the slots stand still in
         the leader's frame): a formation still changing shape has not arrived."""
@@ -622,7 +627,7 @@ class FleetController:
             goal_dist = float(np.linalg.norm(self.route_points[self.route_index] - p_lead))
         goal = self.route_points[self.route_index]
         course = leader_course(self.generator.v[lead, :2], p_lead, goal, self.reference.heading_from_route)
-        if self.reference.heading_sweep_max > 0.0 and self.trail is None:  # [add] the farthest slot swings
+        if self.reference.heading_sweep_max > 0.0 and not self.follows_path:  # [add] the farthest slot swings
             # at most this fast (not a column following the leader's path: its slots do not swing)
             flown = self.flown_offsets
             reach = float(np.max(np.hypot(flown[:, 0], flown[:, 1]))) * self.spacing_scale

@@ -234,7 +234,7 @@ def test_in_flight_a_columns_slots_stay_on_the_path_its_leader_flew_round_a_corn
     flown, slots = [plant.pos[0, :2].copy()], []
     for k in range(int(40.0 / DT)):
         cmd = ctl.tick(k * DT, plant.pos, plant.vel, plant.att, none_c, none_r, active)
-        assert (ctl.trail is not None) == follows  # a column from the start
+        assert ctl.follows_path == follows  # a column from the start
         slots.append(cmd.slots[1:, :2].copy())
         plant.step(cmd, active)
         flown.append(plant.pos[0, :2].copy())
