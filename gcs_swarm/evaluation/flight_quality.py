@@ -16,6 +16,7 @@ from scipy.signal import savgol_filter
 
 from gcs_swarm.evaluation import metrics
 from gcs_swarm.evaluation.metrics import rounded
+from gcs_swarm.guidance.formation import ASSEMBLED_M
 
 CUSP_TURN_DEG = 90.0  # a cusp: the horizontal course turns by more than this ...
 CUSP_WINDOW_S = 1.0  # ... within this long ...
@@ -163,9 +164,6 @@ def scheduled_formation_error(
     err = fe.error.copy()
     err[np.arange(len(t)), leaders] = np.nan  # the leader's own slot is where it is
     return fe, err
-
-
-ASSEMBLED_M = 2.0  # m: the formation has assembled when every follower is this close to its slot
 
 
 def assembled_figures(t: np.ndarray, slot_error: np.ndarray) -> dict[str, Any]:

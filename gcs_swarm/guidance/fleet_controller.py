@@ -35,7 +35,9 @@ from gcs_swarm.guidance.formation import (
     check_offsets,
     formation_targets,
     leader_course,
+    on_slots,
     rotate_to_world,
+    slot_positions,
 )
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
 from gcs_swarm.guidance.leader_path import LeaderModel, leader_stalls, predict_leader_path, waypoint_ahead
@@ -524,6 +526,9 @@ class FleetController:
         self.last_vel = np.where(known[:, None], vel, 0.0)
         self.was_active = known.copy()
         self.last_t = None
+        # every follower has been within ASSEMBLED_M of its slot (on_slots; kept up to date by `tick`)
+        slots = slot_positions(pos[self.leader], yaw[self.leader], self.flown_offsets * self.spacing_scale)
+        self.assembled = on_slots(pos, slots, known & ~self.is_leader)
         self.generator.reset(self.last_pos, self.last_vel)
         self.position_controller.reset(self.n)
         rate = self.heading_rate_max
@@ -644,6 +649,7 @@ class FleetController:
                 t, p_lead, self.heading.psi, self.route_points[self.route_index :], cap_now,
                 float(np.hypot(*self.last_vel[lead, :2])), centres, radii, self.shapes,
                 route=predicted if self.reshape.predict_path else None,
+                assembled=self.assembled,
             )  # fmt: skip
             offsets, offset_rate, offset_accel = self.shaper.flown(t)
             shrink = self.shaper.scale(t)
@@ -671,6 +677,8 @@ class FleetController:
             heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
             int(lead), goal, self.waypoints[self.waypoint_index], destinations, *self.shapes,
         )  # fmt: skip
+        if not self.assembled:  # [add] the formation has assembled once every follower reached its slot
+            self.assembled = on_slots(pos, targets, active & ~self.is_leader)
         for motion, ff in ((offset_rate, v_ff), (offset_accel, a_ff)):  # the slots' own motion, leader frame
             if motion is not None and motion.any():
                 scaled = motion * self.spacing_scale

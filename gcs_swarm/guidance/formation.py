@@ -78,6 +78,17 @@ def rotate_to_world(offsets: np.ndarray, psi: np.ndarray | float) -> np.ndarray:
     return out
 
 
+# m: a formation has assembled once every follower is this close to its slot: the controller's rule (until
+# then a change of shape keeps its slots farthest apart, reshape) and the report's assembly (flight_quality)
+ASSEMBLED_M = 2.0
+
+
+def on_slots(pos: np.ndarray, slots: np.ndarray, rows: np.ndarray) -> bool:
+    """Whether every one of the (N,) bool `rows` stands within ASSEMBLED_M of its slot: positions and slots
+    (N, 3) ENU m."""
+    return bool(np.all(np.linalg.norm(pos[rows] - slots[rows], axis=1) <= ASSEMBLED_M))
+
+
 def slot_positions(p_leader: np.ndarray, psi_leader: np.ndarray | float, offsets: np.ndarray) -> np.ndarray:
     """Slots X_i^s (..., N, 3) from the leader position (..., 3) and heading (...,) (spec 6, Eqs 26-28)."""
     return np.asarray(p_leader, dtype=float)[..., None, :] + rotate_to_world(offsets, psi_leader)

@@ -324,6 +324,11 @@ class ReshapeParams:
     steps: int = 3  # spacings tried between the mission's and min_spacing_m
     column: bool = True  # may fall into a column (line astern) when no narrowed shape fits
     speed_m_s: float = 6.0  # m/s, fastest a slot moves relative to the leader while the shape changes
+    # m, the closest two slots (the leader's among them) may pass in a change for the slots to take the
+    # quickest way (straight, rather than along then across): min_spacing_m less the 1 m by which a tighter
+    # shape's neighbours repel (fleet_controller.RESHAPE_CUSHION_M), so the quicker way does not push its
+    # followers out of their slots
+    move_gap_m: float = 6.0
     # m/s^2, hardest a slot accelerates relative to the leader in a change: with pace_decel_m_s2, within the
     # reference's accel_xy_max (4 m/s^2)
     accel_m_s2: float = 2.0
@@ -349,8 +354,8 @@ class ReshapeParams:
     def __post_init__(self) -> None:
         if not (self.clearance_m >= 0 and self.lookahead_s > 0 and self.lookahead_min_m >= 0):
             raise ValueError("need clearance_m >= 0, lookahead_s > 0 and lookahead_min_m >= 0")
-        if not (self.min_spacing_m > 0 and self.speed_m_s > 0 and self.steps >= 1):
-            raise ValueError("need min_spacing_m > 0, speed_m_s > 0 and steps >= 1")
+        if not (self.min_spacing_m > 0 and self.speed_m_s > 0 and self.steps >= 1 and self.move_gap_m > 0):
+            raise ValueError("need min_spacing_m > 0, speed_m_s > 0, steps >= 1 and move_gap_m > 0")
         if not (self.pace_decel_m_s2 > 0 and self.accel_m_s2 > 0):
             raise ValueError("need pace_decel_m_s2 > 0 and accel_m_s2 > 0")
         if not self.gap_clearance_m >= 0:

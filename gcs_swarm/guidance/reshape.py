@@ -24,11 +24,14 @@ purpose instead, and its followers' slots move with it:
   at the edge of a gap.
 - **Change**: the followers are assigned to the new slots by the shortest longest move
   (gcs_swarm.guidance.slot_assignment), and the slots move from the old to the new offsets straight, or first
-  along the leader's heading and then across it, or the other way round (MOVE_ORDERS): whichever keeps the
-  vehicles farthest apart (a column opening into a line moves across first, each follower still 7 m behind
-  the next, then forward, each in its own lane). Each phase follows a minimum-jerk profile (quintic, zero
-  velocity and acceleration at both ends) as short as lets no slot move faster than speed_m_s nor accelerate
-  harder than accel_m_s2 relative to the leader (`move_duration`).
+  along the leader's heading and then across it, or the other way round (MOVE_ORDERS): the quickest way that
+  keeps the vehicles `move_gap_m` apart (or as far as they stand at its start or end, where that is less),
+  else whichever keeps them farthest apart (a column 7 m apart opening into a line 12 m apart goes straight,
+  its closest pair passing 6.05 m apart; into a line 10 m apart, where straight moves would pass 5.7 m apart,
+  it moves across first, each follower still 7 m behind the next, then forward, each in its own lane). Each
+  phase follows a minimum-jerk profile (quintic, zero velocity and acceleration at both ends) as short as
+  lets no slot move faster than speed_m_s nor accelerate harder than accel_m_s2 relative to the leader
+  (`move_duration`).
   The offsets' rate and acceleration go to the followers as velocity and acceleration feed-forwards.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
   reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
@@ -334,26 +337,38 @@ def closest_pair_along(start: np.ndarray, end: np.ndarray, axes_order: tuple[tup
 
 
 def plan_move(
-    start: np.ndarray, end: np.ndarray, rows: np.ndarray, t0: float, speed: float, accel: float = math.inf
+    start: np.ndarray,
+    end: np.ndarray,
+    rows: np.ndarray,
+    t0: float,
+    speed: float,
+    accel: float = math.inf,
+    keep_apart: float = math.inf,
 ) -> SlotMove:
-    """The move from `start` to `end` (N, 3) among the MOVE_ORDERS that keeps the (N,) bool `rows` (the
-    leader's among them) farthest apart, straight when none does better; each phase lasts the
+    """The move from `start` to `end` (N, 3) among the MOVE_ORDERS: the quickest of those that keep the (N,)
+    bool `rows` (the leader's among them) `keep_apart` m apart, or as far apart as they stand at the start or
+    the end where that is closer; else the one that keeps them farthest apart. Each phase lasts the
     `move_duration` of its longest move at `speed` m/s and `accel` m/s^2."""
-    best_order, best_gap = MOVE_ORDERS["straight"], -math.inf
+    here, there = start[rows], end[rows]
+    floor = min(keep_apart, closest_approach(here, here), closest_approach(there, there))
+    best: tuple[tuple[tuple[int, ...], float], ...] = ()
+    best_rank = (math.inf, math.inf)
     for order in MOVE_ORDERS.values():
-        gap = closest_pair_along(start[rows], end[rows], order)
-        if gap > best_gap + 1e-6:
-            best_order, best_gap = order, gap
-    phases = tuple(
-        (
-            axes,
-            move_duration(
-                float(np.max(np.linalg.norm((end - start)[:, list(axes)], axis=1), initial=0.0)), speed, accel
-            ),
+        phases = tuple(
+            (
+                axes,
+                move_duration(
+                    float(np.max(np.linalg.norm((end - start)[:, list(axes)], axis=1))), speed, accel
+                ),
+            )
+            for axes in order
         )
-        for axes in best_order
-    )
-    return SlotMove(start, end, t0, phases)
+        gap = closest_pair_along(here, there, order)
+        # kept apart: ranked by duration, ahead of every order that is not, ranked by how close they pass
+        rank = (0.0, sum(d for _, d in phases)) if gap >= floor - 1e-6 else (1.0, -gap)
+        if rank < best_rank:
+            best, best_rank = phases, rank
+    return SlotMove(start, end, t0, best)
 
 
 class FormationShaper:
@@ -371,6 +386,7 @@ class FormationShaper:
         self.min_gap = min_gap
         self.hold_m = hold_m
         self.changes: list[ShapeChange] = []  # the changes of shape made; the caller empties it
+        self.assembled = True  # the formation has assembled (`decide`)
         self._set(np.array(nominal, dtype=float))
         self.next_decision = -math.inf
         self.wider_since: float | None = None
@@ -386,10 +402,12 @@ class FormationShaper:
         self.current = 0  # index into shapes of the shape flown (or being formed)
         self.move = SlotMove(nominal, nominal, 0.0, ())
         self.start_scale = self.end_scale = 1.0
-        # m the leader covers at its pace floors while the slowest change from the mission's shape runs
+        # m the leader covers at its pace floors while the slowest change from the mission's shape runs,
+        # assembled or not
         self.committed_m = max(
-            sum(d * floor for d, floor in self._plan(k, nominal, 0.0).phases_left(0.0))
+            sum(d * floor for d, floor in self._plan(k, nominal, 0.0, assembled).phases_left(0.0))
             for k in range(len(self.shapes))
+            for assembled in (True, False)
         )
 
     def set_nominal(self, nominal: np.ndarray, leader: int, t: float | None) -> None:
@@ -424,9 +442,13 @@ class FormationShaper:
         """Name of the shape flown or being formed."""
         return self.shapes[self.current].name
 
-    def _plan(self, index: int, now: np.ndarray, t: float) -> SlotMove:
+    def _plan(self, index: int, now: np.ndarray, t: float, assembled: bool | None = None) -> SlotMove:
         """The move from the offsets `now` (N, 3) to shape `index` starting at t: followers assigned to the
-        new slots by the shortest longest move, the move order that keeps them farthest apart."""
+        new slots by the shortest longest move, the quickest move order that keeps them move_gap_m apart
+        (`plan_move`); before the formation has assembled, the one that keeps them farthest apart (the
+        followers are still flying to their slots, and a quicker sweep of the slots across their way
+        reversed some: spec 6a.4). `assembled`: as if the formation
+        had assembled or not (None: as it has, `self.assembled`)."""
         target = self.shapes[index]
         followers = np.flatnonzero(np.any(target.offsets != 0.0, axis=1))
         end = np.array(target.offsets)
@@ -435,7 +457,9 @@ class FormationShaper:
             end[followers] = target.offsets[followers[order]]
         rows = np.any(now != 0.0, axis=1) | np.any(end != 0.0, axis=1)
         rows[self.leader] = True
-        return plan_move(now, end, rows, t, self.params.speed_m_s, self.params.accel_m_s2)
+        params = self.params
+        keep_apart = params.move_gap_m if (self.assembled if assembled is None else assembled) else math.inf
+        return plan_move(now, end, rows, t, params.speed_m_s, params.accel_m_s2, keep_apart)
 
     def _change_to(
         self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None
@@ -489,16 +513,19 @@ class FormationShaper:
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
         speed: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
-        route: Route | None = None,
+        route: Route | None = None, assembled: bool = True,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
         psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
         spherical obstacles (K, 3), (K,) m and the still cylinders and prisms `shapes` (spec 2.2), along
         `route` (the leader's path predicted, gcs_swarm.guidance.leader_path; None: the straight route
-        through the waypoints, route_samples)."""
+        through the waypoints, route_samples). `assembled`: whether the formation has assembled (every
+        follower reached its slot once; FleetController): until then a change moves its slots the way that
+        keeps them farthest apart, not the quickest (`_plan`)."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
+        self.assembled = assembled
         if route is None:
 
             def route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

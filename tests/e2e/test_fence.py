@@ -48,7 +48,10 @@ def reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, float]:
     run = fly(_mission(folder, "brake"), folder / "reference", timeout_s=300)
     assert run.status == 0, run.output[-2000:]
     flight = json.loads((folder / "reference" / "flight.json").read_text())
-    moments = kill_moments(folder / "reference", flight["t_formation_start"], flight["t_formation_end"])
+    # before the formation starts to change shape for the obstacle: until then every vehicle flies along the
+    # route, which the wind blows along, straight at the obstacle
+    t_end = min([flight["t_formation_end"], *(change["t_s"] for change in flight["reshapes"])])
+    moments = kill_moments(folder / "reference", flight["t_formation_start"], t_end)
     return folder, moments["heading_at_obstacle"]
 
 

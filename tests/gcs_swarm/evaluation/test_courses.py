@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from gcs_swarm.evaluation.courses import FAMILIES, KEEP_OUT_M, course
-from gcs_swarm.evaluation.flight_quality import ASSEMBLED_M, assembled_figures
+from gcs_swarm.evaluation.flight_quality import assembled_figures
+from gcs_swarm.guidance.formation import ASSEMBLED_M
 from gcs_swarm.mission import MissionError, parse_mission
 from gcs_swarm.mission.geometry import mission_offsets
 

@@ -362,11 +362,12 @@ def test_impossible_settings_are_refused(bad):
         ReshapeParams(**bad)
 
 
-def test_a_column_opens_into_a_line_across_first_so_everyone_keeps_the_column_spacing():
+def test_a_column_opens_into_a_line_across_first_where_straight_moves_would_pass_too_close():
     """Column 7 m apart -> line abreast 10 m apart. Moving across first, the followers stay at their column
     places 7 m apart along the heading while they spread, then each moves forward in its own lane 10 m from
     the next (and from the leader's lane), so the closest pair stays 7 m apart; straight diagonal moves would
-    not do as well, so the plan moves across first."""
+    pass 7 x 10 / sqrt(149) = 5.73 m apart, closer than move_gap_m (6 m), so the plan moves across first
+    although straight would be quicker."""
     from gcs_swarm.guidance.reshape import closest_pair_along
 
     column = np.zeros((5, 3))
@@ -374,7 +375,7 @@ def test_a_column_opens_into_a_line_across_first_so_everyone_keeps_the_column_sp
     line = np.zeros((5, 3))
     line[1:] = formation_offsets("line", 4, 10.0)
     rows = np.ones(5, dtype=bool)
-    move = plan_move(column, line, rows, 0.0, 2.5)
+    move = plan_move(column, line, rows, 0.0, 2.5, keep_apart=PARAMS.move_gap_m)
     assert [axes for axes, _ in move.phases] == [(1, 2), (0,)]
     assert closest_pair_along(column, line, ((1, 2), (0,))) == pytest.approx(7.0)
     assert closest_pair_along(column, line, ((0, 1, 2),)) < 7.0
@@ -384,6 +385,36 @@ def test_a_column_opens_into_a_line_across_first_so_everyone_keeps_the_column_sp
     half, rate, _ = move.at(move.phases[0][1])  # the end of the first phase: spread, not yet forward
     np.testing.assert_allclose(half[:, 0], column[:, 0])
     np.testing.assert_allclose(half[:, 1], line[:, 1])
+
+
+@pytest.mark.parametrize("keep_apart, straight", [(6.0, True), (7.0, False)])
+def test_a_move_goes_straight_where_that_keeps_the_slots_far_enough_apart(keep_apart, straight):
+    """Column 7 m apart -> line abreast 12 m apart, the column's followers to y = 12, -12, 24, -24. Straight,
+    two slots whose separation turns from a (along) to b (across) pass at |a| |b| / sqrt(|a|^2 + |b|^2): the
+    closest pair is the leader and the first follower (a = 7, b = 12: 84 / sqrt(193) = 6.05 m). Across then
+    along keeps 7 m; along then across puts every slot on the leader. Straight, the longest move is the tail's
+    (28 m back, 24 m across: sqrt(1360) = 36.9 m), 1.875 x 36.9 / 6 = 11.5 s at 6 m/s (its acceleration,
+    sqrt(5.77 x 36.9 / 2) = 10.3 s, binds less); across then along, 24 m then 28 m, each bound by the
+    acceleration: sqrt(5.77 x 24 / 2) + sqrt(5.77 x 28 / 2) = 8.3 + 9.0 s. So asked to keep 6 m the plan goes
+    straight, asked to keep 7 m across first."""
+    column = np.zeros((5, 3))
+    column[1:, 0] = [-7.0, -14.0, -21.0, -28.0]
+    line = np.zeros((5, 3))
+    line[1:, 1] = [12.0, -12.0, 24.0, -24.0]
+    move = plan_move(column, line, np.ones(5, dtype=bool), 0.0, 6.0, 2.0, keep_apart)
+    if straight:
+        assert [axes for axes, _ in move.phases] == [(0, 1, 2)]
+        assert move.duration == pytest.approx(1.875 * math.sqrt(28.0**2 + 24.0**2) / 6.0)
+    else:
+        assert [axes for axes, _ in move.phases] == [(1, 2), (0,)]
+        assert move.duration == pytest.approx(
+            math.sqrt(MIN_JERK_PEAK_ACCEL * 24.0 / 2.0) + math.sqrt(MIN_JERK_PEAK_ACCEL * 28.0 / 2.0)
+        )
+    gaps = [
+        float(np.min(np.linalg.norm(o[:, None] - o[None], axis=-1)[np.triu_indices(5, 1)]))
+        for o in (move.at(t)[0] for t in np.linspace(0.0, move.duration, 2001))
+    ]
+    assert min(gaps) == pytest.approx(84.0 / math.sqrt(193.0) if straight else 7.0, abs=1e-3)
 
 
 def _line(followers: int, spacing: float) -> np.ndarray:
@@ -481,3 +512,39 @@ def test_the_leaders_pace_cap_falls_no_faster_than_pace_decel():
         if math.isfinite(after):  # from the cap before, or from 10 m/s (the leader's speed) when none bound
             start = before if math.isfinite(before) else 10.0
             assert start - after <= params.pace_decel_m_s2 * (t1 - t0) + 1e-9, t1
+
+
+@pytest.mark.parametrize("on_slots", [False, True])
+def test_until_the_formation_has_assembled_a_change_keeps_the_slots_farthest_apart(on_slots):
+    """A line abreast of four 12 m apart, a gap 16 m wide 60 m ahead: the column fits it, the line does not,
+    and the first decision starts the change. Assembled (followers on their line slots from the start), it
+    goes the quickest way that keeps move_gap_m: straight, one phase. Not yet assembled (followers still in
+    their launch row 5 m behind the leader, 7-25 m from their slots), the way that keeps the slots farthest
+    apart, as a moment's sweep of the slots across the followers' way reversed some on the generated courses:
+    along, then across, its closest pair passing farther apart than straight, and longer."""
+    from gcs_swarm.guidance.reshape import closest_pair_along
+    from tests.gcs_swarm.guidance.test_fleet_controller import DT, PointMassFleet
+
+    line = _line(4, 12.0)
+    centres, radii = _gap_world(16.0, x=60.0)
+    ctl = FleetController(5, 0, line, np.array([[300.0, 0.0, 10.0]]), control_dt=DT, reshape=PARAMS)
+    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
+    start = line.copy() if on_slots else launch_row
+    plant = PointMassFleet(start + np.array([0.0, 0.0, 10.0]))
+    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
+    assert ctl.assembled is on_slots
+    active = np.ones(5, dtype=bool)
+    for k in range(int(1.0 / DT)):
+        cmd = ctl.tick(k * DT, plant.pos, plant.vel, plant.att, centres, radii, active)
+        plant.step(cmd, active)
+    assert ctl.assembled is on_slots
+    shaper = ctl.shaper
+    assert shaper is not None and shaper.shape_name == "column"
+    move = shaper.move
+    straight = closest_pair_along(move.start, move.end, ((0, 1, 2),))
+    if on_slots:
+        assert [axes for axes, _ in move.phases] == [(0, 1, 2)]
+        assert straight >= PARAMS.move_gap_m
+    else:
+        assert [axes for axes, _ in move.phases] == [(0, 2), (1,)]
+        assert closest_pair_along(move.start, move.end, ((0, 2), (1,))) > straight
