@@ -220,6 +220,8 @@ def whole_flight_figures(
     cusps = [cusp_times(ts, vs[:, i, :2]) for i in range(pos.shape[1])]
     out["cusps"] = [len(c) for c in cusps]
     out["cusps_total"] = int(sum(out["cusps"]))
+    # when they happened, s since the formation's start, per vehicle: where to look in the figures
+    out["cusp_times_s"] = [[rounded(c - window[0], 2) for c in times] for times in cusps]
     jerk = true_jerk(ts, vs)
     if np.isfinite(jerk).any():
         per = [

@@ -21,6 +21,7 @@ WHOLE_FLIGHT_RESULT_KEYS = (  # ... and these of report.json's whole_flight (doc
     "slot_error_rms_m",
     "slot_error_max_m",
     "cusps_total",
+    "cusp_times_s",
     "max_tilt_command_rate_rad_s",
     "pitch_command_chatter_max_rad",
     "min_separation_whole_flight_m",

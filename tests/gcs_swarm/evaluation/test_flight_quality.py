@@ -129,6 +129,25 @@ def test_whole_flight_figures_of_a_known_flight():
     assert out["leader_path_ratio"] == pytest.approx(99.8 / 100.0, rel=1e-3)  # flies 99.8 m of 100 in 9.98 s
 
 
+def test_the_cusps_are_timed_from_the_formations_start():
+    """Formation flight from t = 2 s; the follower reverses in 0.5 s at 5 m/s from t = 6 s, the leader flies
+    straight. The follower's course has turned 90 deg at 6.25 s, so the first 1 s window across more than 90
+    deg starts at t_j = 5.25 s (to within a sample): one cusp, timed 3.25 s after the formation's start."""
+    t = np.arange(0, 10, DT)
+    vel = np.zeros((len(t), 2, 3))
+    vel[:, 0, 0] = 5.0
+    heading = np.clip((t - 6.0) / 0.5, 0.0, 1.0) * math.pi
+    vel[:, 1, :2] = course(t, heading, 5.0)
+    pos = np.cumsum(vel, axis=0) * DT
+    out = fq.whole_flight_figures(
+        t, pos, vel, None, np.array([[0.0, 0, 0], [50.0, 0, 0]]), 0,
+        (2.0, 10.0), np.array([0.0, 0.0]), (0.0, 10.0), None, ["lead", "f"],
+    )  # fmt: skip
+    assert out["cusps"] == [0, 1]
+    (only,) = out["cusp_times_s"][1]
+    assert out["cusp_times_s"][0] == [] and only == pytest.approx(3.25, abs=DT)
+
+
 def test_jerk_of_a_vehicle_with_a_gap_is_fitted_on_each_stretch():
     """v_x = t^3 m/s: the jerk d^2v/dt^2 = 6 t, which the cubic Savitzky-Golay fit gives exactly. Vehicle 1
     has no velocity (a truth gap: NaN) for 1 s in the middle and for a stretch of 3 samples (too short: NaN),
