@@ -447,8 +447,8 @@ class FormationShaper:
         new slots by the shortest longest move, the quickest move order that keeps them move_gap_m apart
         (`plan_move`); before the formation has assembled, the one that keeps them farthest apart (the
         followers are still flying to their slots, and a quicker sweep of the slots across their way
-        reversed some: spec 6a.4). `assembled`: as if the formation
-        had assembled or not (None: as it has, `self.assembled`)."""
+        reversed some: spec 6a.4). `assembled`: as if the formation had assembled or not (None: as it
+        has, `self.assembled`)."""
         target = self.shapes[index]
         followers = np.flatnonzero(np.any(target.offsets != 0.0, axis=1))
         end = np.array(target.offsets)
