@@ -54,7 +54,13 @@ from gcs_swarm.guidance.params import (
     SMCParams,
 )
 from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
-from gcs_swarm.guidance.reshape import SAMPLE_STEP_M, FormationShaper, ShapeChange, shape_clearance
+from gcs_swarm.guidance.reshape import (
+    SAMPLE_STEP_M,
+    FormationShaper,
+    ShapeChange,
+    shape_clearance,
+    shape_repulsion_range,
+)
 from gcs_swarm.guidance.route_plan import Detour, detour
 from gcs_swarm.guidance.separation import (
     closing_deceleration,
@@ -70,7 +76,6 @@ from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
 NO_ROWS = np.zeros((0, 3))
 RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in a reshape
 PACE_EVENT_SHARE = 0.1  # a new pace event when the followers' cap moves by more than this share
-RESHAPE_CUSHION_M = 1.0  # m: in a tighter shape, neighbours repel once this much closer than min_spacing_m
 CORNER_TOLERANCE_M = 2.0  # m, how far the leader's route round a gap may stray to bend fewer times
 TRAIL_KEEP_MARGIN_M = 50.0  # m of the leader's path kept beyond its column's length (_follow_path)
 COURSE_MIN_SPEED = 0.5  # m/s: slower, the leader's course gives no along-track acceleration (_follow_path)
@@ -702,9 +707,9 @@ class FleetController:
         d_emg, s_s = (sep.d_emg, sep.s_s) if wide == 1.0 else (sep.d_emg * wide, sep.s_s * wide)
         d_max = self.d_max * wide
         if shrink < 1.0:  # a tighter shape: its neighbours are not repelled out of their slots
-            assert self.reshape is not None
-            cushion = self.reshape.min_spacing_m - RESHAPE_CUSHION_M
-            d_max = min(self.d_max, max(self.d_max * shrink, cushion)) * wide
+            assert self.reshape is not None and self.shaper is not None
+            spacing, tightest = self.shaper.spacing, self.reshape.min_spacing_m
+            d_max = shape_repulsion_range(self.d_max, spacing, shrink, tightest) * wide
         known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
         f_uav, emergency = uav_repulsion(
             p_r, self.last_pos, self.last_vel, known, gen.v, float(ref.brake_accel), self.field, d_max,

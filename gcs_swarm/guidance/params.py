@@ -326,7 +326,7 @@ class ReshapeParams:
     speed_m_s: float = 6.0  # m/s, fastest a slot moves relative to the leader while the shape changes
     # m, the closest two slots (the leader's among them) may pass in a change for the slots to take the
     # quickest way (straight, rather than along then across): min_spacing_m less the 1 m by which a tighter
-    # shape's neighbours repel (fleet_controller.RESHAPE_CUSHION_M), so the quicker way does not push its
+    # shape's neighbours repel (reshape.RESHAPE_CUSHION_M), so the quicker way does not push its
     # followers out of their slots
     move_gap_m: float = 6.0
     # m/s^2, hardest a slot accelerates relative to the leader in a change: with pace_decel_m_s2, within the

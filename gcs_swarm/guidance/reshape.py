@@ -61,6 +61,7 @@ from swarm_common.jit import kernel
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, surface
 
 SAMPLE_STEP_M = 2.0  # m between look-ahead samples along the leader's route
+RESHAPE_CUSHION_M = 1.0  # m: in the tightest shape, neighbours repel once this much closer than min_spacing_m
 # m/s: while slots fall back in the formation, the leader keeps above the peak rate at which they do, less
 # this, so a follower whose slot falls back drifts backwards at under the 2 m/s of a cusp (metrics.md)
 PACE_MARGIN_M_S = 1.5
@@ -121,12 +122,29 @@ def nearest_slot_spacing(offsets: np.ndarray, rows: np.ndarray) -> float:
     return float(d.min())
 
 
+def shape_spacing(offsets: np.ndarray, leader: int) -> float:
+    """m, the nearest distance between two slots of the (N, 3) offsets, the `leader`'s among them (followers'
+    rows: the non-zero ones); inf for fewer than two."""
+    rows = np.any(offsets != 0.0, axis=1)
+    rows[leader] = True
+    return nearest_slot_spacing(offsets, rows)
+
+
+def shape_repulsion_range(d_max: float, spacing: float, scale: float, min_spacing: float) -> float:
+    """m, the inter-UAV repulsion range in a shape of spacing `scale` < 1 of the mission's, whose nearest
+    slots are `spacing` m apart (spec 6a.6): the mission's spacing, or D_max `d_max` m where that is less,
+    times the scale, so that neighbours standing on their tighter slots are at most at the range's edge and
+    not pushed out of them; never under `min_spacing` (min_spacing_m) less RESHAPE_CUSHION_M nor over
+    D_max."""
+    return min(d_max, max(min(d_max, spacing) * scale, min_spacing - RESHAPE_CUSHION_M))
+
+
 def candidate_shapes(nominal: np.ndarray, leader: int, params: ReshapeParams) -> list[Shape]:
     """The candidates of the module docstring for the mission's offsets `nominal` (N, 3), widest first."""
     rows = np.any(nominal != 0.0, axis=1)
     rows[leader] = True
     followers = np.flatnonzero(rows & (np.arange(len(nominal)) != leader))
-    spacing = nearest_slot_spacing(nominal, rows)
+    spacing = shape_spacing(nominal, leader)
     shapes = [Shape("formation", nominal, 1.0)]
     if not followers.size or not math.isfinite(spacing):
         return shapes
@@ -399,6 +417,7 @@ class FormationShaper:
 
     def _set(self, nominal: np.ndarray) -> None:
         self.shapes = candidate_shapes(nominal, self.leader, self.params)
+        self.spacing = shape_spacing(nominal, self.leader)  # m, the mission's shape's nearest slots
         self.current = 0  # index into shapes of the shape flown (or being formed)
         self.move = SlotMove(nominal, nominal, 0.0, ())
         self.start_scale = self.end_scale = 1.0

@@ -548,3 +548,21 @@ def test_until_the_formation_has_assembled_a_change_keeps_the_slots_farthest_apa
     else:
         assert [axes for axes, _ in move.phases] == [(0, 2), (1,)]
         assert closest_pair_along(move.start, move.end, ((0, 2), (1,))) > straight
+
+
+@pytest.mark.parametrize(
+    "d_max, spacing, scale, expected",
+    [
+        (10.0, 10.0, 0.8, 8.0),  # the quickstart's V 10 m apart at 80 %: neighbours 8 m apart, the range 8 m
+        (10.0, 10.0, 0.5, 6.0),  # 5 m apart would be under min_spacing_m (7) less the 1 m cushion: 6 m
+        # legs2-10: a grid 8.106 m apart in a column 7 m apart (scale 7 / 8.106); the range was 10 x scale =
+        # 8.64 m, so the first follower, on its slot 7 m astern, pushed the leader 1.2 m past its goal
+        (10.0, 8.106, 7.0 / 8.106, 7.0),
+        (10.0, 14.0, 0.9, 9.0),  # a spacing over D_max: D_max scaled, 9 m (neighbours 12.6 m apart, beyond)
+    ],
+)
+def test_a_tighter_shapes_repulsion_range_is_its_own_spacing_at_most(d_max, spacing, scale, expected):
+    """Spec 6a.6: min(D_max, max(min(D_max, L) s, min_spacing_m - 1)), L the mission's nearest spacing."""
+    from gcs_swarm.guidance.reshape import shape_repulsion_range
+
+    assert shape_repulsion_range(d_max, spacing, scale, 7.0) == pytest.approx(expected)
