@@ -40,7 +40,14 @@ from gcs_swarm.guidance.formation import (
     slot_positions,
 )
 from gcs_swarm.guidance.inversion import THRUST_MODES, invert
-from gcs_swarm.guidance.leader_path import LeaderModel, leader_stalls, predict_leader_path, waypoint_ahead
+from gcs_swarm.guidance.leader_path import (
+    LeaderModel,
+    leader_aim,
+    leader_stalls,
+    predict_leader_path,
+    switch_radius,
+    waypoint_ahead,
+)
 from gcs_swarm.guidance.leader_wait import leader_cap_scale, turn_wait_scale
 from gcs_swarm.guidance.params import (
     CapabilityParams,
@@ -277,6 +284,7 @@ class FleetController:
         self.leader_model = LeaderModel(
             self.generator.config, self.field, float(self.d_g), float(self.reference.brake_accel),
             float(self.reference.waypoint_radius), bool(self.reference.heading_from_route),
+            math.radians(self.reference.aim_turn_rate_deg),
         )  # fmt: skip
         self.envelope = (
             None if pace is None or not pace.enabled else SpeedEnvelope(n, pace, self.limits.tilt_max, g)
@@ -414,7 +422,7 @@ class FleetController:
         return predict_leader_path(
             self.leader_model, gen.p[lead], gen.v[lead], gen.a[lead], self.heading,
             self.route_points[self.route_index :], speed_cap, length, SAMPLE_STEP_M, centres, radii,
-            self.shapes,
+            self.shapes, self.aim_bearing,
         )  # fmt: skip
 
     def _follow_path(
@@ -547,6 +555,7 @@ class FleetController:
             filter_s=ref.heading_filter_s,
             gain=ref.heading_gain,
         )
+        self.aim_bearing = math.nan  # rad, the leader's aim (leader_aim); none yet
         self.relay = LeaderRelay(self.delays, self._leader_state())
 
     def _leader_state(self) -> np.ndarray:
@@ -627,15 +636,19 @@ class FleetController:
         if self.route_stale:  # from the waypoint flown to, no via points yet
             self.route_points, self.route_legs = self.waypoints, np.arange(len(self.waypoints))
             self.route_index, self.route_stale = self.waypoint_index, False
-        self.route_index, goal_dist = waypoint_ahead(
-            self.route_points, self.route_index, p_lead, self.reference.waypoint_radius
-        )
+        v_ref, aim_rate = self.generator.v[lead], math.radians(self.reference.aim_turn_rate_deg)
+        radius = switch_radius(
+            self.route_points, self.route_index, v_ref[0], v_ref[1], self.reference.waypoint_radius, aim_rate,
+            float(self.d_g),
+        )  # fmt: skip
+        self.route_index, goal_dist = waypoint_ahead(self.route_points, self.route_index, p_lead, radius)
         new_leg |= int(self.route_legs[self.route_index]) != self.waypoint_index
         self.waypoint_index = int(self.route_legs[self.route_index])
         if new_leg:  # [add] round a gap the formation cannot fly (route_plan)
             self._plan_leg(t, centres, radii)
             goal_dist = float(np.linalg.norm(self.route_points[self.route_index] - p_lead))
         goal = self.route_points[self.route_index]
+        aim, self.aim_bearing = leader_aim(p_lead, goal, self.aim_bearing, aim_rate * dt, self.d_g)
         course = leader_course(self.generator.v[lead, :2], p_lead, goal, self.reference.heading_from_route)
         if self.reference.heading_sweep_max > 0.0 and not self.follows_path:  # [add] the farthest slot swings
             # at most this fast (not a column following the leader's path: its slots do not swing)
@@ -682,6 +695,7 @@ class FleetController:
             heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
             int(lead), goal, self.waypoints[self.waypoint_index], destinations, *self.shapes,
         )  # fmt: skip
+        targets[lead] = aim  # its attraction and stopping curve; its field's destination stays the waypoint
         if not self.assembled:  # [add] the formation has assembled once every follower reached its slot
             self.assembled = on_slots(pos, targets, active & ~self.is_leader)
         for motion, ff in ((offset_rate, v_ff), (offset_accel, a_ff)):  # the slots' own motion, leader frame

@@ -17,7 +17,8 @@ ended at the stall would find no obstacle beyond it, and a formation narrowed fo
 front of it.
 
 The stepping is one compiled kernel (`leader_flight`, swarm_common.jit) over the laws the tick itself calls,
-each written once: the waypoint switch (`waypoint_ahead`), the braking look-ahead and the reference step
+each written once: the waypoint switch (`waypoint_ahead` within `switch_radius`), the leader's aim at its
+waypoint (`leader_aim`, spec 8a.10), the braking look-ahead and the reference step
 (reference.py), the field (field.attraction_force, field.obstacle_repulsion_force) and psi_L
 (formation.leader_course, formation.heading_step); with NUMBA_DISABLE_JIT=1 the same code runs as plain
 Python and gives the same path (tests/gcs_swarm/guidance/test_leader_path.py).
@@ -46,6 +47,7 @@ from gcs_swarm.guidance.reshape import route_samples
 from swarm_common.jit import kernel
 from swarm_common.numpy_rules import norm3
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
+from swarm_common.rotations import wrap_pi_float
 
 PREDICT_DT_S = 0.1  # s, the prediction's step
 # steps allowed per metre asked at the speed cap, and at least MIN_STEPS: a leader slowed by its field or
@@ -69,11 +71,57 @@ def waypoint_ahead(waypoints: np.ndarray, index: int, p: np.ndarray, radius: flo
     return index, distance
 
 
+@kernel
+def switch_radius(
+    waypoints: np.ndarray, index: int, vx: float, vy: float, radius: float, aim_turn_rate: float, most: float
+) -> float:
+    """m: how near the leader moves on from waypoint `index` of waypoints (W, 3) ENU m to the next (spec 8a.10
+    [add], `waypoint_ahead`): `radius`, or with an aim turning at aim_turn_rate rad/s > 0 (`leader_aim`) at a
+    corner, where the arc the leader flies at its reference speed (vx, vy) m/s (radius speed / rate) meets the
+    next leg, so that it flies by on an arc round the corner instead of beyond it: the tangent length
+    (speed / rate) tan(theta / 2) of a turn by theta (the angle between that velocity and the next leg),
+    at most `most` m, never under `radius`. `radius` itself at the last waypoint."""
+    last = waypoints.shape[0] - 1
+    if aim_turn_rate <= 0.0 or index >= last:
+        return radius
+    leg_x = waypoints[index + 1, 0] - waypoints[index, 0]
+    leg_y = waypoints[index + 1, 1] - waypoints[index, 1]
+    leg, speed = np.hypot(leg_x, leg_y), np.hypot(vx, vy)
+    if leg <= 0.0 or speed <= 0.0:
+        return radius
+    cos_turn = min(max((vx * leg_x + vy * leg_y) / (leg * speed), -1.0), 1.0)
+    tangent = speed / aim_turn_rate * math.tan(0.5 * math.acos(cos_turn))
+    return max(radius, min(tangent, most))
+
+
+@kernel
+def leader_aim(
+    p: np.ndarray, goal: np.ndarray, bearing: float, max_turn: float, hold_distance: float
+) -> tuple[np.ndarray, float]:
+    """Where the leader's attraction pulls it (spec 8a.10 [add]: a fly-by corner): its waypoint goal (3,) ENU
+    m as seen from p (3,) along a bearing (rad, from East) that turns at most max_turn rad toward the true one
+    from `bearing`, its value at the previous step, at the waypoint's own horizontal distance and height; the
+    waypoint itself (and its true bearing) when max_turn <= 0, when `bearing` is not finite (no previous
+    step), or within hold_distance m of it, where the attraction steers the leader onto its goal. Returns the
+    aim (3,) and its bearing rad in [-pi, pi). Compiled: the tick calls it, and so does `leader_flight`."""
+    to_x, to_y = goal[0] - p[0], goal[1] - p[1]
+    across = np.hypot(to_x, to_y)
+    true = math.atan2(to_y, to_x)
+    aim = goal.copy()
+    if max_turn <= 0.0 or not math.isfinite(bearing) or across <= hold_distance:
+        return aim, true
+    turn = wrap_pi_float(true - bearing)
+    turned = wrap_pi_float(bearing + min(max(turn, -max_turn), max_turn))
+    aim[0], aim[1] = p[0] + across * math.cos(turned), p[1] + across * math.sin(turned)
+    return aim, turned
+
+
 @dataclass(frozen=True)
 class LeaderModel:
     """What the prediction flies: the leader's reference settings (ReferenceGenerator.config), its field,
     the attraction's segment boundary d_g m, the braking look-ahead's deceleration m/s^2 (0: at the point),
-    the waypoint switch radius m and whether psi_L follows the route (ReferenceParams)."""
+    the waypoint switch radius m, whether psi_L follows the route and how fast its aim turns, rad/s
+    (`leader_aim`; 0: off) (ReferenceParams)."""
 
     config: ReferenceConfig
     field: FieldParams
@@ -81,6 +129,7 @@ class LeaderModel:
     brake_accel: float
     waypoint_radius: float
     heading_from_route: bool
+    aim_turn_rate: float = 0.0
 
 
 class LeaderSteps(NamedTuple):
@@ -102,19 +151,21 @@ def leader_flight(
     radii: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, k_att: float,
     d_g: float, segmented: bool, l0: float, l_min: float, adaptive: bool, k_rep: float, n_exp: float,
     rho_eps: float, circulation: float, obstacle_vertical: float, brake_accel: float, waypoint_radius: float,
-    from_route: bool, ref_gain: float, v_z: float, stop_accel: float, k_v: float, jerk_max: float,
-    has_z_min: bool, z_min: float, jerk_max_z: float, a_z: float, tau_v: float, a_xy_max: float,
-    a_xy_evasive: float, jerk_xy_evasive: float, jerk_z_evasive: float,
+    from_route: bool, aim_bearing: float, aim_turn_rate: float, ref_gain: float, v_z: float,
+    stop_accel: float, k_v: float, jerk_max: float, has_z_min: bool, z_min: float, jerk_max_z: float,
+    a_z: float, tau_v: float, a_xy_max: float, a_xy_evasive: float, jerk_xy_evasive: float,
+    jerk_z_evasive: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:  # fmt: skip
     """The leader's reference (spec 8 steps 2-5) flown forward alone from p, v, a (3,) (ENU m, m/s, m/s^2)
     with psi_L's state psi rad, rate rad/s, low-passed course (fx, fy) m/s (`filtered`: there is one) and
-    settings (`heading_step`'s), through the waypoints (W, 3) from the first (`waypoint_ahead`, switch radius
-    waypoint_radius m) at up to speed_cap m/s, among spheres centres (K, 3), radii (K,) and the shapes
-    packed as kinds, params, vertices, for at most `steps` steps of PREDICT_DT_S. The field's settings are
-    AttractionConfig's (k_att .. segmented) and RepulsionConfig's (l0 .. obstacle_vertical), the braking
-    look-ahead's deceleration brake_accel m/s^2, `from_route` psi_L's course (`leader_course`), the rest
-    ReferenceConfig's (its `gain` as ref_gain). Each step: the waypoint, the field at the reference (the
-    obstacles along its braking path), psi_L, then the reference step.
+    settings (`heading_step`'s), through the waypoints (W, 3) from the first (`waypoint_ahead`, moving on
+    within `switch_radius` of waypoint_radius m) at up to speed_cap m/s, among spheres centres (K, 3), radii
+    (K,) and the shapes packed as kinds, params, vertices, for at most `steps` steps of PREDICT_DT_S. The
+    field's settings are AttractionConfig's (k_att .. segmented) and RepulsionConfig's (l0 ..
+    obstacle_vertical), the braking look-ahead's deceleration brake_accel m/s^2, `from_route` psi_L's course
+    (`leader_course`), the aim's bearing rad at the start (NaN: none yet) and turn rate rad/s (`leader_aim`),
+    the rest ReferenceConfig's (its `gain` as ref_gain). Each step: the waypoint and the aim at it, the field
+    at the reference (the obstacles along its braking path), psi_L, then the reference step.
 
     Returns the arrays of LeaderSteps, `steps` rows each, and the number S of rows filled: the steps end
     early after the one whose horizontal travel reaches `length` m, or once the leader has stopped
@@ -126,18 +177,20 @@ def leader_flight(
     distances = np.empty(steps)
     travel = np.empty(steps)
     ps, vs, accel = np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3))
-    goal = np.empty((1, 3))
+    goal, aimed = np.empty((1, 3)), np.empty((1, 3))
     for d in range(3):
         ps[0, d], vs[0, d], accel[0, d] = p[d], v[d], a[d]
     rows, evasive, zero = np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_), np.zeros((1, 3))
     cap = np.full(1, speed_cap)
     index, last, covered, count = 0, waypoints.shape[0] - 1, 0.0, 0
     for step in range(steps):
-        index, distance = waypoint_ahead(waypoints, index, ps[0], waypoint_radius)
+        radius = switch_radius(waypoints, index, vs[0, 0], vs[0, 1], waypoint_radius, aim_turn_rate, d_g)
+        index, distance = waypoint_ahead(waypoints, index, ps[0], radius)
+        aim, aim_bearing = leader_aim(ps[0], waypoints[index], aim_bearing, aim_turn_rate * PREDICT_DT_S, d_g)
         for d in range(3):
-            goal[0, d] = waypoints[index, d]
+            goal[0, d], aimed[0, d] = waypoints[index, d], aim[d]
         ahead = leash_and_lookahead(ps, vs, ps, rows, math.inf, brake_accel)
-        force = attraction_force(ps, goal, k_att, d_g, segmented) + obstacle_repulsion_force(
+        force = attraction_force(ps, aimed, k_att, d_g, segmented) + obstacle_repulsion_force(
             ps, ahead, goal, centres, radii, kinds, params, vertices, l0, l_min, adaptive, k_rep, n_exp,
             rho_eps, circulation, obstacle_vertical,
         )  # fmt: skip
@@ -149,7 +202,7 @@ def leader_flight(
         filtered = True
         was_x, was_y = ps[0, 0], ps[0, 1]
         accel, ps, vs = reference_step(
-            ps, vs, accel, force, zero, zero, goal, cap, rows, evasive, PREDICT_DT_S, ref_gain, v_z,
+            ps, vs, accel, force, zero, zero, aimed, cap, rows, evasive, PREDICT_DT_S, ref_gain, v_z,
             stop_accel, k_v, jerk_max, has_z_min, z_min, jerk_max_z, a_z, tau_v, a_xy_max, a_xy_evasive,
             jerk_xy_evasive, jerk_z_evasive,
         )  # fmt: skip
@@ -168,19 +221,22 @@ def leader_flight(
 def leader_steps(
     model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading,
     waypoints: np.ndarray, speed_cap: float, steps: int, length: float, centres: np.ndarray,
-    radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
+    radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES, aim_bearing: float = math.nan,
 ) -> LeaderSteps:  # fmt: skip
-    """The leader's reference flown forward (`leader_flight`) from p, v, a (3,) (ENU m, m/s, m/s^2) and psi_L
-    as `heading` stands (not changed) through the waypoints (W, 3) at up to speed_cap m/s among spheres
-    centres (K, 3), radii (K,) and `shapes`, for at most `steps` steps of PREDICT_DT_S, ending after the
-    step whose horizontal travel reaches `length` m (math.inf: no such end) or once it has stopped at its
-    last waypoint."""
+    """The leader's reference flown forward (`leader_flight`) from p, v, a (3,) (ENU m, m/s, m/s^2), psi_L
+    as `heading` stands (not changed) and its aim's bearing rad (`leader_aim`; NaN: none yet) through the
+    waypoints (W, 3) at up to speed_cap m/s among spheres centres (K, 3), radii (K,) and `shapes`, for at
+    most `steps` steps of PREDICT_DT_S, ending after the step whose horizontal travel reaches `length` m
+    (math.inf: no such end) or once it has stopped at its last waypoint."""
     fx, fy = heading.v_filtered if heading.v_filtered is not None else (0.0, 0.0)
     p, v, a = (np.ascontiguousarray(x, dtype=float).reshape(3) for x in (p, v, a))
     start = (p, v, a, float(heading.psi), float(heading.rate), heading.v_filtered is not None, fx, fy)
     course = (np.ascontiguousarray(waypoints, dtype=float), float(speed_cap), int(steps), float(length))
     obstacles = (np.ascontiguousarray(centres, dtype=float), np.ascontiguousarray(radii, dtype=float))
-    leader = (float(model.brake_accel), float(model.waypoint_radius), bool(model.heading_from_route))
+    leader = (
+        float(model.brake_accel), float(model.waypoint_radius), bool(model.heading_from_route),
+        float(aim_bearing), float(model.aim_turn_rate),
+    )  # fmt: skip
     args = (
         *start, *heading.settings(), *course, *obstacles, *shapes, *attraction_config(model.field, model.d_g),
         *repulsion_config(model.field), *leader, *model.config,
@@ -198,16 +254,16 @@ def _step_budget(length: float, speed_cap: float) -> int:
 def predict_leader_path(
     model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading,
     waypoints: np.ndarray, speed_cap: float, length: float, step_m: float, centres: np.ndarray,
-    radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
+    radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES, aim_bearing: float = math.nan,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """The leader's path (`leader_steps`) from its reference state p, v, a (3,)
-    and heading through the waypoints (W, 3) still ahead at up to speed_cap m/s, among spheres centres (K, 3),
-    radii (K,) and `shapes`, for `length` m of horizontal travel (where the leader stops short, on along the
-    straight route: module docstring): points (P, 3), the formation's heading there (P,) rad and their travel
-    from p (P,) m, one every step_m, the first p itself with the present heading."""
+    """The leader's path (`leader_steps`) from its reference state p, v, a (3,), heading and aim's bearing rad
+    (`leader_aim`; NaN: none yet) through the waypoints (W, 3) still ahead at up to speed_cap m/s, among
+    spheres centres (K, 3), radii (K,) and `shapes`, for `length` m of horizontal travel (where the leader
+    stops short, on along the straight route: module docstring): points (P, 3), the formation's heading there
+    (P,) rad and their travel from p (P,) m, one every step_m, the first p itself with the present heading."""
     steps = _step_budget(length, speed_cap)
     flight = leader_steps(
-        model, p, v, a, heading, waypoints, speed_cap, steps, length, centres, radii, shapes
+        model, p, v, a, heading, waypoints, speed_cap, steps, length, centres, radii, shapes, aim_bearing
     )
     track = np.vstack([np.asarray(p, dtype=float).reshape(1, 3), flight.positions])
     courses = np.concatenate([[heading.psi], flight.headings])

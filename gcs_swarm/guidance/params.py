@@ -246,6 +246,9 @@ class ReferenceParams:
     turn_wait_deg: float = 20.0
     turn_wait_span_deg: float = 30.0
     turn_wait_floor: float = 0.4
+    # [add] deg/s: the leader's aim at its waypoint turns at most this fast (spec 8a.10, leader_aim), so at a
+    # corner of its route it flies by on a curve instead of braking into a turn on the spot; 0 = off
+    aim_turn_rate_deg: float = 30.0
 
     def __post_init__(self) -> None:
         for name in ("k_v", "tau_v", "leash", "heading_rate_max_deg", "waypoint_radius", "accel_xy_max"):
@@ -271,6 +274,8 @@ class ReferenceParams:
             raise ValueError(
                 "need turn_wait_deg >= 0 (0: off), turn_wait_span_deg > 0 and 0 < turn_wait_floor <= 1"
             )
+        if not self.aim_turn_rate_deg >= 0:
+            raise ValueError("aim_turn_rate_deg must be >= 0 (0: off)")
 
 
 @dataclass(frozen=True)
@@ -473,6 +478,7 @@ PAPER_PLAIN: dict[str, dict[str, float]] = {
         "heading_from_route": False,
         "heading_sweep_max": 0.0,
         "turn_wait_deg": 0.0,
+        "aim_turn_rate_deg": 0.0,
     },
     "limits": {"tilt_rate_max_deg": 0.0},
     "control.smc": {"drag_adaptation": 0.0},

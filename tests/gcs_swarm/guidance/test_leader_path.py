@@ -8,10 +8,20 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
+from gcs_swarm.evaluation.flight_quality import CUSP_WINDOW_S
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
-from gcs_swarm.guidance.leader_path import leader_stalls, leader_steps, predict_leader_path, resample
+from gcs_swarm.guidance.leader_path import (
+    PREDICT_DT_S,
+    leader_aim,
+    leader_stalls,
+    leader_steps,
+    predict_leader_path,
+    resample,
+    switch_radius,
+)
 from gcs_swarm.guidance.params import FieldParams, ReferenceParams, ReshapeParams
 from swarm_common.obstacle_shapes import pack_shapes
 from tests.gcs_swarm.guidance.interpreted import interpreted_arrays
@@ -79,6 +89,112 @@ def test_predicted_path_is_the_path_the_leader_flies() -> None:
     # psi_L steers to the waypoint (heading_from_route), not along the swerve
     bearing = np.arctan2(GOAL[0, 1] - points[:, 1], GOAL[0, 0] - points[:, 0])
     assert np.max(np.abs(headings - bearing)) < math.radians(3.0)
+
+
+def test_the_aim_turns_at_most_its_rate_toward_the_waypoint() -> None:
+    p, goal = np.array([0.0, 0.0, 10.0]), np.array([0.0, 30.0, 12.0])  # due North, 30 m away, 2 m up
+    step = math.radians(1.0)
+    aim, bearing = leader_aim(p, goal, 0.0, step, 10.0)  # the aim was East: it turns 1 deg toward North
+    assert math.isclose(bearing, step)  # (wrapped into [-pi, pi): equal to rounding)
+    assert np.allclose(aim, [30.0 * math.cos(step), 30.0 * math.sin(step), 12.0])  # same distance and height
+    aim, bearing = leader_aim(p, goal, math.radians(89.5), step, 10.0)  # within one step: the waypoint
+    assert math.isclose(bearing, math.pi / 2) and np.allclose(aim, goal)
+    aim, bearing = leader_aim(p, goal, math.radians(-170.0), step, 10.0)  # the short way round: clockwise
+    assert math.isclose(bearing, math.radians(-171.0))
+    for held in (
+        leader_aim(p, goal, 0.0, step, 30.5),  # within the hold distance: the waypoint itself
+        leader_aim(p, goal, math.nan, step, 10.0),  # no bearing yet
+        leader_aim(p, goal, 0.0, 0.0, 10.0),  # off
+    ):
+        assert np.array_equal(held[0], goal) and held[1] == math.pi / 2
+
+
+def test_the_switch_radius_is_where_an_arc_at_the_aims_rate_meets_the_next_leg() -> None:
+    # a corner of 90 deg at (100, 0), then North; at 5 m/s and 0.5 rad/s the arc's radius is 10 m, and its
+    # tangent length 10 tan(45 deg) = 10 m; at 60 deg, 10 tan(30 deg)
+    route = np.array([[100.0, 0.0, 10.0], [100.0, 100.0, 10.0]])
+    assert math.isclose(switch_radius(route, 0, 5.0, 0.0, 5.0, 0.5, 20.0), 10.0)
+    sixty = np.array([[100.0, 0.0, 10.0], [150.0, 50.0 * math.sqrt(3.0), 10.0]])
+    assert math.isclose(switch_radius(sixty, 0, 5.0, 0.0, 5.0, 0.5, 20.0), 10.0 * math.tan(math.radians(30)))
+    assert math.isclose(switch_radius(route, 0, 5.0, 0.0, 5.0, 0.5, 8.0), 8.0)  # at most `most`
+    assert switch_radius(route, 0, 2.0, 0.0, 5.0, 0.5, 20.0) == 5.0  # 4 m: never under the radius
+    assert switch_radius(route, 0, 5.0, 0.0, 5.0, 0.0, 20.0) == 5.0  # the aim does not turn: the radius
+    assert switch_radius(route, 1, 5.0, 0.0, 5.0, 0.5, 20.0) == 5.0  # the last waypoint
+    assert switch_radius(route, 0, 0.0, 0.0, 5.0, 0.5, 20.0) == 5.0  # at rest
+
+
+def test_a_negative_aim_turn_rate_is_refused() -> None:
+    with pytest.raises(ValueError, match="aim_turn_rate_deg must be >= 0"):
+        ReferenceParams(aim_turn_rate_deg=-1.0)
+
+
+def _corner_flight(
+    aim_turn_rate_deg: float, turn_wait_deg: float = 20.0
+) -> tuple[np.ndarray, np.ndarray, FleetController]:
+    """The leader alone, tracking its reference perfectly, along a route that turns right by 90 deg at
+    (60, 0): its reference positions and velocities (T, 3) every tick for 14 s, and the controller at the
+    start (for a prediction)."""
+    route = np.array([[60.0, 0.0, 10.0], [60.0, -80.0, 10.0]])
+    reference = ReferenceParams(aim_turn_rate_deg=aim_turn_rate_deg, turn_wait_deg=turn_wait_deg)
+    ctl = FleetController(1, 0, np.zeros((1, 3)), route, z_min=1.0, reference=reference)
+    ctl.reset(np.array([[0.0, 0.0, 10.0]]), np.zeros((1, 3)), np.zeros(1))
+    start = FleetController(1, 0, np.zeros((1, 3)), route, z_min=1.0, reference=reference)
+    start.reset(np.array([[0.0, 0.0, 10.0]]), np.zeros((1, 3)), np.zeros(1))
+    positions, velocities = [], []
+    for k in range(round(14.0 / ctl.control_dt)):
+        pos, vel = ctl.generator.p.copy(), ctl.generator.v.copy()
+        no_obstacles = (np.zeros((0, 3)), np.zeros(0))
+        ctl.tick(k * ctl.control_dt, pos, vel, np.zeros((1, 3)), *no_obstacles, np.ones(1, bool))
+        positions.append(ctl.generator.p[0].copy())
+        velocities.append(ctl.generator.v[0].copy())
+    return np.array(positions), np.array(velocities), start
+
+
+def _largest_turn_in_a_window(velocities: np.ndarray, dt: float) -> float:
+    """deg: the most the horizontal course of velocities (T, 3), one row every dt s, turns within
+    CUSP_WINDOW_S (the cusp count's window)."""
+    course = np.unwrap(np.arctan2(velocities[:, 1], velocities[:, 0]))
+    span = round(CUSP_WINDOW_S / dt)
+    return float(np.degrees(np.max(np.abs(course[span:] - course[:-span]))))
+
+
+def test_a_turning_aim_takes_the_corner_on_a_curve() -> None:
+    # Aim off: the leader brakes into the corner along its stopping curve and its course turns 90 deg at
+    # the bottom of the braking, fast. Aim at 30 deg/s: the attraction turns no faster than that, so the
+    # course does not either, bar the reference's lag catching up, and the leader, which began to turn
+    # before braking down to the corner, is never as slow in the turn.
+    sharp, sharp_v, _ = _corner_flight(0.0)
+    curve, curve_v, _ = _corner_flight(30.0)
+    dt = FleetController(1, 0, np.zeros((1, 3)), GOAL).control_dt
+    assert _largest_turn_in_a_window(curve_v, dt) <= 1.5 * 30.0 < _largest_turn_in_a_window(sharp_v, dt)
+    turning = np.abs(np.arctan2(curve_v[:, 1], curve_v[:, 0])) > math.radians(5.0)
+    turning &= np.arctan2(curve_v[:, 1], curve_v[:, 0]) > math.radians(-85.0)
+    slowest_sharp = np.min(np.hypot(*sharp_v[(sharp[:, 0] > 50.0) & (sharp[:, 1] > -10.0), :2].T))
+    assert np.min(np.hypot(*curve_v[turning, :2].T)) > slowest_sharp
+    # Aim off, the leader moves on within the switch radius of the corner (60, 0) and turns there. With it,
+    # the leader moves on where an arc at its speed and the aim's rate meets the next leg, at most d_g
+    # (10 m) short of the corner, and turns inside the corner: never beyond it, nor farther inside than the
+    # chord from (50, 0) to (60, -10), 10 / sqrt(2) m from it.
+    corner = np.array([60.0, 0.0])
+    assert np.min(np.hypot(*(sharp[:, :2] - corner).T)) < ReferenceParams().waypoint_radius
+    assert curve[:, 0].max() < 60.0 + 0.1
+    assert 1.0 < np.min(np.hypot(*(curve[:, :2] - corner).T)) < 10.0 / math.sqrt(2.0)
+
+
+def test_the_prediction_turns_its_aim_as_the_leader_does() -> None:
+    # (without the turn wait, which slows the leader in the turn and which the prediction does not fly)
+    flown, _, start = _corner_flight(30.0, turn_wait_deg=0.0)
+    gen = start.generator
+    assert start.heading is not None
+    travel = float(np.sum(np.hypot(*np.diff(flown[:, :2], axis=0).T)))
+    points, _, _ = predict_leader_path(
+        start.leader_model, gen.p[0], gen.v[0], gen.a[0], start.heading, start.waypoints, 10.0, travel, 2.0,
+        np.zeros((0, 3)), np.zeros(0), aim_bearing=start.aim_bearing,
+    )  # fmt: skip
+    assert points[:, 1].min() < -20.0  # round the corner
+    # it moves on to the next leg at a step of its own (PREDICT_DT_S), up to one step's travel at the speed
+    # cap after the ticks did
+    assert np.max(_distance_to_polyline(points, flown)) < PREDICT_DT_S * 10.0
 
 
 def test_prediction_ends_where_the_leader_stops() -> None:
@@ -179,7 +295,8 @@ def test_the_leader_flown_forward_keeps_to_its_speed_cap_and_stops_at_its_goal()
 
 def predictions() -> dict[str, np.ndarray]:
     """Every array the prediction gives on scenes that take each branch: spheres and packed shapes, the IAAPF
-    and the APF, psi_L's low-pass and angle shaping on and off, a waypoint switch, a stop at the goal, a
+    and the APF, psi_L's low-pass and angle shaping on and off, the leader's aim turning and not, a waypoint
+    switch, a stop at the goal, a
     stall in front of a gap (leader_stalls) and a straight continuation past it."""
     shapes = pack_shapes(
         cylinders=[((110.0, 14.0), 3.0, 0.0, 30.0)],
@@ -189,7 +306,7 @@ def predictions() -> dict[str, np.ndarray]:
     route = np.array([[80.0, 30.0, 12.0], [200.0, 0.0, 10.0]])
     out: dict[str, np.ndarray] = {}
     scenes = [
-        ("iaapf", FieldParams(), ReferenceParams(heading_filter_s=0.5)),
+        ("iaapf", FieldParams(), ReferenceParams(heading_filter_s=0.5, aim_turn_rate_deg=30.0)),
         (
             "apf",
             FieldParams(method="apf"),
@@ -205,7 +322,7 @@ def predictions() -> dict[str, np.ndarray]:
         assert heading is not None
         flight = leader_steps(
             model, gen.p[0], gen.v[0], gen.a[0], heading, route, 9.0, 600, math.inf, OBSTACLE_C, OBSTACLE_R,
-            shapes,
+            shapes, ctl.aim_bearing,
         )  # fmt: skip
         for field_name, values in flight._asdict().items():
             out[f"{name} steps {field_name}"] = values
