@@ -695,7 +695,6 @@ class FleetController:
             heard, cos_l, sin_l, offsets, float(self.spacing_scale), centres, radii, float(ref.slot_margin),
             int(lead), goal, self.waypoints[self.waypoint_index], destinations, *self.shapes,
         )  # fmt: skip
-        targets[lead] = aim  # its attraction and stopping curve; its field's destination stays the waypoint
         if not self.assembled:  # [add] the formation has assembled once every follower reached its slot
             self.assembled = on_slots(pos, targets, active & ~self.is_leader)
         for motion, ff in ((offset_rate, v_ff), (offset_accel, a_ff)):  # the slots' own motion, leader frame
@@ -729,7 +728,9 @@ class FleetController:
             p_r, self.last_pos, self.last_vel, known, gen.v, float(ref.brake_accel), self.field, d_max,
             sep.mode == "formula", min(d_emg, d_max), sep.a_e, s_s,
         )  # fmt: skip
-        force = attraction(p_r, targets, self.field, self.d_g) + f_obs + f_uav
+        pulled = targets.copy()  # the leader's attraction and stopping curve pull toward its aim (spec 8a.10)
+        pulled[lead] = aim
+        force = attraction(p_r, pulled, self.field, self.d_g) + f_obs + f_uav
 
         # Steps 3-5 (or the paper-literal follower reference)
         speed_cap = self.speed_caps()
@@ -747,7 +748,7 @@ class FleetController:
                 fs.clearance, float(fs.brake_jerk or 0.0), self.shapes,
             )  # fmt: skip
             speed_cap = np.minimum(speed_cap, caps)
-        x_d, xd_dot, xd_ddot = gen.step(force, v_ff, speed_cap, dt, active, a_ff, targets, emergency)
+        x_d, xd_dot, xd_ddot = gen.step(force, v_ff, speed_cap, dt, active, a_ff, pulled, emergency)
         if ref.paper_literal:
             lit = paper_literal_reference(targets, v_ff, f_obs + f_uav, self.field.k_att, self.field.l0)
             for arr, lit_arr in zip((x_d, xd_dot, xd_ddot), lit, strict=True):
