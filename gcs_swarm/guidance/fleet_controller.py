@@ -45,7 +45,6 @@ from gcs_swarm.guidance.leader_path import (
     leader_aim,
     leader_stalls,
     predict_leader_path,
-    switch_radius,
     waypoint_ahead,
 )
 from gcs_swarm.guidance.leader_wait import leader_cap_scale, turn_wait_scale
@@ -637,11 +636,10 @@ class FleetController:
             self.route_points, self.route_legs = self.waypoints, np.arange(len(self.waypoints))
             self.route_index, self.route_stale = self.waypoint_index, False
         v_ref, aim_rate = self.generator.v[lead], math.radians(self.reference.aim_turn_rate_deg)
-        radius = switch_radius(
-            self.route_points, self.route_index, v_ref[0], v_ref[1], self.reference.waypoint_radius, aim_rate,
-            float(self.d_g),
+        self.route_index, goal_dist = waypoint_ahead(
+            self.route_points, self.route_index, p_lead, v_ref[0], v_ref[1], self.reference.waypoint_radius,
+            aim_rate, float(self.d_g),
         )  # fmt: skip
-        self.route_index, goal_dist = waypoint_ahead(self.route_points, self.route_index, p_lead, radius)
         new_leg |= int(self.route_legs[self.route_index]) != self.waypoint_index
         self.waypoint_index = int(self.route_legs[self.route_index])
         if new_leg:  # [add] round a gap the formation cannot fly (route_plan)

@@ -17,7 +17,7 @@ ended at the stall would find no obstacle beyond it, and a formation narrowed fo
 front of it.
 
 The stepping is one compiled kernel (`leader_flight`, swarm_common.jit) over the laws the tick itself calls,
-each written once: the waypoint switch (`waypoint_ahead` within `switch_radius`), the leader's aim at its
+each written once: the waypoint switch (`waypoint_ahead`, within `switch_radius`), the leader's aim at its
 waypoint (`leader_aim`, spec 8a.10), the braking look-ahead and the reference step
 (reference.py), the field (field.attraction_force, field.obstacle_repulsion_force) and psi_L
 (formation.leader_course, formation.heading_step); with NUMBA_DISABLE_JIT=1 the same code runs as plain
@@ -60,27 +60,15 @@ STALL_S = 6.0  # s: ... for this long, far from it, is held by its field (leader
 
 
 @kernel
-def waypoint_ahead(waypoints: np.ndarray, index: int, p: np.ndarray, radius: float) -> tuple[int, float]:
-    """The leader's waypoint (spec 6 [add]): the index into waypoints (W, 3) it flies to from p (3,) ENU m,
-    moving on from `index` to the next once within `radius` m (never past the last), and its distance m.
-    Compiled: the tick calls it, and so does `leader_flight`."""
-    distance = norm3(waypoints[index, 0] - p[0], waypoints[index, 1] - p[1], waypoints[index, 2] - p[2])
-    if distance < radius and index < waypoints.shape[0] - 1:
-        index += 1
-        distance = norm3(waypoints[index, 0] - p[0], waypoints[index, 1] - p[1], waypoints[index, 2] - p[2])
-    return index, distance
-
-
-@kernel
 def switch_radius(
     waypoints: np.ndarray, index: int, vx: float, vy: float, radius: float, aim_turn_rate: float, most: float
 ) -> float:
     """m: how near the leader moves on from waypoint `index` of waypoints (W, 3) ENU m to the next (spec 8a.10
-    [add], `waypoint_ahead`): `radius`, or with an aim turning at aim_turn_rate rad/s > 0 (`leader_aim`) at a
-    corner, where the arc the leader flies at its reference speed (vx, vy) m/s (radius speed / rate) meets the
-    next leg, so that it flies by on an arc round the corner instead of beyond it: the tangent length
-    (speed / rate) tan(theta / 2) of a turn by theta (the angle between that velocity and the next leg),
-    at most `most` m, never under `radius`. `radius` itself at the last waypoint."""
+    [add]; `waypoint_ahead` asks): `radius`, or with an aim turning at aim_turn_rate rad/s > 0 (`leader_aim`)
+    at a corner, where the arc the leader flies at its reference speed (vx, vy) m/s (radius speed / rate)
+    meets the next leg, so that it flies by on an arc round the corner instead of beyond it: the tangent
+    length (speed / rate) tan(theta / 2) of a turn by theta (the angle between that velocity and the next
+    leg), at most `most` m, never under `radius`. `radius` itself at the last waypoint."""
     last = waypoints.shape[0] - 1
     if aim_turn_rate <= 0.0 or index >= last:
         return radius
@@ -92,6 +80,23 @@ def switch_radius(
     cos_turn = min(max((vx * leg_x + vy * leg_y) / (leg * speed), -1.0), 1.0)
     tangent = speed / aim_turn_rate * math.tan(0.5 * math.acos(cos_turn))
     return max(radius, min(tangent, most))
+
+
+@kernel
+def waypoint_ahead(
+    waypoints: np.ndarray, index: int, p: np.ndarray, vx: float, vy: float, radius: float,
+    aim_turn_rate: float, most: float,
+) -> tuple[int, float]:  # fmt: skip
+    """The leader's waypoint (spec 6 [add]): the index into waypoints (W, 3) it flies to from p (3,) ENU m,
+    moving on from `index` to the next once within `switch_radius` of it (never past the last), and its
+    distance m; the leader's reference velocity (vx, vy) m/s, its aim's turn rate rad/s and the switch radius
+    `radius` and `most` m go to `switch_radius`. Compiled: the tick calls it, and so does `leader_flight`."""
+    distance = norm3(waypoints[index, 0] - p[0], waypoints[index, 1] - p[1], waypoints[index, 2] - p[2])
+    within = switch_radius(waypoints, index, vx, vy, radius, aim_turn_rate, most)
+    if distance < within and index < waypoints.shape[0] - 1:
+        index += 1
+        distance = norm3(waypoints[index, 0] - p[0], waypoints[index, 1] - p[1], waypoints[index, 2] - p[2])
+    return index, distance
 
 
 @kernel
@@ -158,8 +163,8 @@ def leader_flight(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:  # fmt: skip
     """The leader's reference (spec 8 steps 2-5) flown forward alone from p, v, a (3,) (ENU m, m/s, m/s^2)
     with psi_L's state psi rad, rate rad/s, low-passed course (fx, fy) m/s (`filtered`: there is one) and
-    settings (`heading_step`'s), through the waypoints (W, 3) from the first (`waypoint_ahead`, moving on
-    within `switch_radius` of waypoint_radius m) at up to speed_cap m/s, among spheres centres (K, 3), radii
+    settings (`heading_step`'s), through the waypoints (W, 3) from the first (`waypoint_ahead` from
+    waypoint_radius m) at up to speed_cap m/s, among spheres centres (K, 3), radii
     (K,) and the shapes packed as kinds, params, vertices, for at most `steps` steps of PREDICT_DT_S. The
     field's settings are AttractionConfig's (k_att .. segmented) and RepulsionConfig's (l0 ..
     obstacle_vertical), the braking look-ahead's deceleration brake_accel m/s^2, `from_route` psi_L's course
@@ -184,8 +189,9 @@ def leader_flight(
     cap = np.full(1, speed_cap)
     index, last, covered, count = 0, waypoints.shape[0] - 1, 0.0, 0
     for step in range(steps):
-        radius = switch_radius(waypoints, index, vs[0, 0], vs[0, 1], waypoint_radius, aim_turn_rate, d_g)
-        index, distance = waypoint_ahead(waypoints, index, ps[0], radius)
+        index, distance = waypoint_ahead(
+            waypoints, index, ps[0], vs[0, 0], vs[0, 1], waypoint_radius, aim_turn_rate, d_g
+        )
         aim, aim_bearing = leader_aim(ps[0], waypoints[index], aim_bearing, aim_turn_rate * PREDICT_DT_S, d_g)
         for d in range(3):
             goal[0, d], aimed[0, d] = waypoints[index, d], aim[d]
