@@ -107,7 +107,8 @@ def leader_aim(
     m as seen from p (3,) along a bearing (rad, from East) that turns at most max_turn rad toward the true one
     from `bearing`, its value at the previous step, at the waypoint's own horizontal distance and height; the
     waypoint itself (and its true bearing) when max_turn <= 0, when `bearing` is not finite (no previous
-    step), or within hold_distance m of it, where the attraction steers the leader onto its goal. Returns the
+    step), within hold_distance m of it, where the attraction steers the leader onto its goal, or once the
+    bearing has caught up with the true one (the waypoint exactly, not to rounding). Returns the
     aim (3,) and its bearing rad in [-pi, pi). Compiled: the tick calls it, and so does `leader_flight`."""
     to_x, to_y = goal[0] - p[0], goal[1] - p[1]
     across = np.hypot(to_x, to_y)
@@ -116,6 +117,8 @@ def leader_aim(
     if max_turn <= 0.0 or not math.isfinite(bearing) or across <= hold_distance:
         return aim, true
     turn = wrap_pi_float(true - bearing)
+    if abs(turn) <= max_turn:  # caught up: the waypoint itself, exactly
+        return aim, true
     turned = wrap_pi_float(bearing + min(max(turn, -max_turn), max_turn))
     aim[0], aim[1] = p[0] + across * math.cos(turned), p[1] + across * math.sin(turned)
     return aim, turned

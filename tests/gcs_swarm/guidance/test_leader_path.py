@@ -97,8 +97,8 @@ def test_the_aim_turns_at_most_its_rate_toward_the_waypoint() -> None:
     aim, bearing = leader_aim(p, goal, 0.0, step, 10.0)  # the aim was East: it turns 1 deg toward North
     assert math.isclose(bearing, step)  # (wrapped into [-pi, pi): equal to rounding)
     assert np.allclose(aim, [30.0 * math.cos(step), 30.0 * math.sin(step), 12.0])  # same distance and height
-    aim, bearing = leader_aim(p, goal, math.radians(89.5), step, 10.0)  # within one step: the waypoint
-    assert math.isclose(bearing, math.pi / 2) and np.allclose(aim, goal)
+    aim, bearing = leader_aim(p, goal, math.radians(89.5), step, 10.0)  # within one step: the waypoint,
+    assert bearing == math.pi / 2 and np.array_equal(aim, goal)  # exactly (not p + 30 m along pi / 2)
     aim, bearing = leader_aim(p, goal, math.radians(-170.0), step, 10.0)  # the short way round: clockwise
     assert math.isclose(bearing, math.radians(-171.0))
     for held in (
