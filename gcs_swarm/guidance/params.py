@@ -340,6 +340,11 @@ class ReshapeParams:
     # m/s^2, fastest the leader's pace cap falls while the shape changes (the followers brake with it)
     pace_decel_m_s2: float = 1.5
     restore_after_s: float = 1.5  # s a wider shape must keep fitting before the formation widens to it
+    # a wider shape that does not fit where the leader is may still be taken when it fits from where the
+    # leader will be once the move to it is over (flying on at its speed, the route straight meanwhile) and
+    # the way there keeps clearance_m + 1 m: a column passing its last obstacle opens out behind it instead
+    # of after it has left it a formation's length behind (reshape, spec 6a.3). False: from where it is now
+    widen_after_move: bool = True
     # the leader's route goes round clusters of still obstacles that close a gap narrower than
     # 2 x gap_clearance_m plus the narrowest shape's width (gcs_swarm.guidance.route_plan): with the field's
     # defaults a leader's reference stalls in front of a 12 m gap between two spheres of 6-10 m and passes a

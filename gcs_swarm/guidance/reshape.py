@@ -21,7 +21,11 @@ purpose instead, and its followers' slots move with it:
   CLEARER_M more than the shape flown; else the shape flown is kept (a formation never widens while nothing
   fits). Narrower than the shape flown: at once; wider: once it
   has kept fitting, with WIDEN_MARGIN_M more clearance, for `restore_after_s`, so the formation does not flap
-  at the edge of a gap.
+  at the edge of a gap. With `widen_after_move`, a wider shape that does not fit where the leader is
+  counts as fitting when it fits from where the leader will be once the move to it is over, where the route
+  runs straight meanwhile (`straight_for`), and its way there keeps clearance_m + WIDEN_MARGIN_M
+  (`clear_floor`); such a widening under way is judged from its move's end and given up when the rest of
+  its way no longer keeps the clearance it was planned with, less OPENING_SLACK_M.
 - **Change**: the followers are assigned to the new slots by the shortest longest move
   (gcs_swarm.guidance.slot_assignment), and the slots move from the old to the new offsets straight, or first
   along the leader's heading and then across it, or the other way round (MOVE_ORDERS): the quickest way that
@@ -67,8 +71,12 @@ RESHAPE_CUSHION_M = 1.0  # m: in the tightest shape, neighbours repel once this 
 PACE_MARGIN_M_S = 1.5
 WIDEN_MARGIN_M = 1.0  # m more than clearance_m a wider shape must keep to be taken (no flapping at the edge)
 CLEARER_M = 1.0  # m more clearance a shape needs to be taken when no shape fits
-MOVE_SAMPLE_S = 0.25  # s between the moments of a move checked for clearance (move_is_clear)
+MOVE_SAMPLE_S = 0.25  # s between the moments of a move checked for clearance (clear_floor)
 CLEARANCE_TOLERANCE_M = 1e-6  # m a slot's clearance may round below its start's and still count as kept
+# m a widening under way may come closer to an obstacle than it was planned to before it is given up: the
+# leader does not fly on at exactly the speed the plan assumed
+OPENING_SLACK_M = 1.0
+EARLY_TURN_MAX_RAD = math.radians(20.0)  # rad the route may turn while a widening judged early runs
 # the leader's way ahead for a length m: points (P, 3) ENU m, the formation's heading there (P,) rad, their
 # travel from the leader (P,) m (route_samples, gcs_swarm.guidance.leader_path)
 Route = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -229,6 +237,19 @@ def clearance_along(
     followers = np.flatnonzero(np.any(offsets != 0.0, axis=1))
     which = np.zeros(len(points), dtype=np.int64)
     return shape_clearance(offsets[None], which, followers, points, headings, centres, radii, *shapes)
+
+
+def straight_for(headings: np.ndarray, along: np.ndarray, distance: float) -> bool:
+    """Whether the formation's heading (P,) rad along the route turns by at most EARLY_TURN_MAX_RAD over
+    its first `distance` m (`along` (P,) m): a widening is judged from its move's end only where the leader
+    flies on straight meanwhile (in a turn its slots sweep while they move, faster than a follower flies)."""
+    ahead = np.unwrap(headings[along <= distance + 1e-9])
+    return bool(len(ahead) < 2 or np.ptp(ahead) <= EARLY_TURN_MAX_RAD)
+
+
+def keeps_clear(gaps: np.ndarray, floor: float) -> bool:
+    """Whether the slot clearances (M,) m of a move's moments stay at or above `floor` m (to rounding)."""
+    return bool(gaps.min() >= floor - CLEARANCE_TOLERANCE_M)
 
 
 def min_jerk(tau: float) -> tuple[float, float, float]:
@@ -410,7 +431,7 @@ class FormationShaper:
         self.wider_since: float | None = None
         self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
         self.paced_at = -math.inf  # s, when pace_cap was last set
-        self.waiting_move: tuple[int, SlotMove] | None = None  # a widening planned, waiting for a clear way
+        self.waiting_moves: dict[int, SlotMove] = {}  # widenings planned, by shape, waiting for a clear way
         # (N, 3) leader-frame m: where a column following the leader's path (column_path) has its slots now,
         # which is where a change of shape starts from (`start_offsets`); None when the slots are rigid
         self.bent: np.ndarray | None = None
@@ -419,6 +440,10 @@ class FormationShaper:
         self.shapes = candidate_shapes(nominal, self.leader, self.params)
         self.spacing = shape_spacing(nominal, self.leader)  # m, the mission's shape's nearest slots
         self.current = 0  # index into shapes of the shape flown (or being formed)
+        self.opening_early = (
+            False  # the move under way is a widening started before its shape fitted (`decide`)
+        )
+        self.opening_floor = 0.0  # m, the least slot clearance that move was planned to keep
         self.move = SlotMove(nominal, nominal, 0.0, ())
         self.start_scale = self.end_scale = 1.0
         # m the leader covers at its pace floors while the slowest change from the mission's shape runs,
@@ -487,7 +512,8 @@ class FormationShaper:
         by `_plan`, when given)."""
         self.start_scale, self.end_scale = self.scale(t), self.shapes[index].scale
         self.move = move if move is not None else self._plan(index, now, t)
-        self.waiting_move = None
+        self.waiting_moves = {}
+        self.opening_early = False
         if announce:
             change = "restored" if index == 0 else "narrows" if index > self.current else "widens"
             shape = self.shapes[index]
@@ -498,36 +524,49 @@ class FormationShaper:
         """The move to the wider shape `index` from t: planned once while the slots stand still, then the
         same move started later (the assignment is the costly part); planned afresh each time while a column
         follows the leader's path (its slots move in the leader's frame)."""
-        cached = self.waiting_move
-        if (
-            cached is None or cached[0] != index or cached[1].start is not self.move.end
-            or self.bent is not None
-        ):  # fmt: skip
+        cached = self.waiting_moves.get(index)
+        if cached is None or cached.start is not self.move.end or self.bent is not None:
             settled = t >= self.move.t0 + self.move.duration and self.bent is None
             now = self.move.end if settled else self.start_offsets(t)
-            cached = (index, self._plan(index, now, t))
-            self.waiting_move = cached if settled else None
-        return replace(cached[1], t0=t)
+            cached = self._plan(index, now, t)
+            if settled:
+                self.waiting_moves[index] = cached
+            else:
+                self.waiting_moves.pop(index, None)
+        return replace(cached, t0=t)
 
-    def move_is_clear(
+    def clear_floor(
         self, move: SlotMove, route: Route, speed: float, centres: np.ndarray, radii: np.ndarray,
-        shapes: ShapeArrays = NO_SHAPES,
-    ) -> bool:  # fmt: skip
-        """Whether, while `move` runs with the leader going on along `route` at `speed` m/s (stopping where it
-        ends), every slot keeps clearance_m from every obstacle surface or, where a slot is closer already at
-        the move's start, as much as the closest slot has then: the slots of a tail still short of a gap must
-        not cut through its sides on their way to a wider shape, and a column whose tail came to rest in an
-        obstacle's margin may still open out of it past that obstacle. Sampled every MOVE_SAMPLE_S; True
-        without obstacles."""
-        moments = np.linspace(0.0, move.duration, max(2, math.ceil(move.duration / MOVE_SAMPLE_S) + 1))
+        shapes: ShapeArrays = NO_SHAPES, early: bool = False,
+    ) -> float | None:  # fmt: skip
+        """The least clearance m every slot keeps from every obstacle surface while `move` runs with the
+        leader going on along `route` at `speed` m/s (stopping where it ends), if it keeps it, else None:
+        clearance_m or, where a slot is closer already at the move's start, as much as the closest slot has
+        then (the slots of a tail still short of a gap must not cut through its sides on their way to a wider
+        shape, and a column whose tail came to rest in an obstacle's margin may still open out of it past
+        that obstacle); `early`, a widening judged from its move's end (`decide`): clearance_m +
+        WIDEN_MARGIN_M the whole way, as much as a shape that fits where the leader is keeps. Sampled every
+        MOVE_SAMPLE_S; clearance_m without obstacles."""
+        gaps = self._move_gaps(move, route, speed, centres, radii, shapes, move.t0)
+        clearance = self.params.clearance_m
+        floor = clearance + WIDEN_MARGIN_M if early else min(clearance, float(gaps[0]))
+        return floor if keeps_clear(gaps, floor) else None
+
+    def _move_gaps(
+        self, move: SlotMove, route: Route, speed: float, centres: np.ndarray, radii: np.ndarray,
+        shapes: ShapeArrays, since: float,
+    ) -> np.ndarray:  # fmt: skip
+        """Smallest slot clearance (M,) m at each moment of `move` from `since` s to its end, every
+        MOVE_SAMPLE_S, with the leader going on along `route` at `speed` m/s (`clear_floor`)."""
+        left = max(move.t0 + move.duration - since, 0.0)
+        moments = np.linspace(0.0, left, max(2, math.ceil(left / MOVE_SAMPLE_S) + 1))
         travel = speed * moments
         points, headings, along = route(float(travel[-1]))
         at = np.minimum(np.searchsorted(along, travel), len(along) - 1)
-        offsets = np.stack([move.at(move.t0 + m)[0] for m in moments])
+        offsets = np.stack([move.at(since + m)[0] for m in moments])
         rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
         which = np.arange(len(moments), dtype=np.int64)
-        gaps = shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii, *shapes)
-        return bool(gaps.min() >= min(self.params.clearance_m, gaps[0]) - CLEARANCE_TOLERANCE_M)
+        return shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii, *shapes)
 
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
@@ -551,15 +590,51 @@ class FormationShaper:
                 return route_samples(p_leader, psi_leader, waypoints, length, self.hold_m)
 
         length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap + self.committed_m)
-        points, headings, along = route(length)
+        # [add] a wider shape that does not fit where the leader is may still be flown once the move to it is
+        # over: it must fit from where the leader will be then on, for the look-ahead, and the way there must
+        # keep clearance_m + WIDEN_MARGIN_M (widen_after_move; spec 6a.3)
+        widenings = (
+            {k: self._widening(k, t) for k in range(self.current)} if self.params.widen_after_move else {}
+        )
+        skips = {k: speed * move.duration for k, move in widenings.items()}  # m the leader flies meanwhile
+        left = self.move.t0 + self.move.duration - t
+        opening = self.opening_early and left > 0.0  # an early widening under way: judged the same way
+        if opening:
+            skips[self.current] = speed * left
+        longest = length + max(skips.values(), default=0.0)
+        every_point, every_heading, every_along = route(longest)
+        seen = every_along <= length + 1e-9
+        points, headings, along = every_point[seen], every_heading[seen], every_along[seen]
         reach = max(float(np.max(np.linalg.norm(s.offsets, axis=1))) for s in self.shapes)
-        near = np.linalg.norm(centres - p_leader, axis=1) - radii <= length + reach + self.params.clearance_m
+        near = np.linalg.norm(centres - p_leader, axis=1) - radii <= longest + reach + self.params.clearance_m
         every = centres, radii
         centres, radii = centres[near], radii[near]  # only obstacles a slot can come near in the look-ahead
-        best, best_gap, gaps = 0, -math.inf, {}
+
+        def fit_after(offsets: np.ndarray, travel: float) -> float:
+            """The clearance m of `offsets` along the look-ahead from `travel` m on (or the route's end)."""
+            start = min(travel, float(every_along[-1]))
+            ahead = (every_along >= start - 1e-9) & (every_along <= start + length + 1e-9)
+            check = every_point[ahead], every_heading[ahead]
+            return float(clearance_along(offsets, *check, centres, radii, shapes).min())
+
+        best, best_gap, gaps, early_floors = 0, -math.inf, {}, {}
         for k, shape in enumerate(self.shapes):
             gaps[k] = float(clearance_along(shape.offsets, points, headings, centres, radii, shapes).min())
-            if gaps[k] >= self.params.clearance_m + (WIDEN_MARGIN_M if k < self.current else 0.0):
+            need = self.params.clearance_m + (WIDEN_MARGIN_M if k < self.current else 0.0)
+            if k < self.current and gaps[k] < need and k in skips:
+                if straight_for(every_heading, every_along, skips[k]):  # in a turn, slots sweep as they move
+                    after = fit_after(shape.offsets, skips[k])
+                    floor = None
+                    if after >= need:
+                        floor = self.clear_floor(widenings[k], route, speed, *every, shapes, early=True)
+                    if floor is not None:
+                        gaps[k], early_floors[k] = after, floor
+            elif k == self.current and opening:  # from the move's end, the rest of its way clear as planned
+                rest = self._move_gaps(self.move, route, speed, *every, shapes, t)
+                gaps[k] = fit_after(shape.offsets, skips[k])
+                if not keeps_clear(rest, self.opening_floor - OPENING_SLACK_M):
+                    gaps[k] = min(gaps[k], float(rest.min()))
+            if gaps[k] >= need:
                 best = k
                 break
             if gaps[k] > best_gap + 1e-9:
@@ -575,10 +650,13 @@ class FormationShaper:
             if self.wider_since is None:
                 self.wider_since = t
             if t - self.wider_since >= self.params.restore_after_s:
-                move = self._widening(best, t)
-                if self.move_is_clear(move, route, speed, *every, shapes):  # the way there too
+                move = widenings[best] if best in widenings else self._widening(best, t)
+                early = best in early_floors
+                floor = early_floors[best] if early else self.clear_floor(move, route, speed, *every, shapes)
+                if floor is not None:  # the way there keeps clear too
                     self.wider_since = None
                     self._change_to(best, move.start, t, move=move)
+                    self.opening_early, self.opening_floor = early, floor
         else:
             self.wider_since = None
         self._pace(t, speed, points, headings, along, centres, radii, shapes)

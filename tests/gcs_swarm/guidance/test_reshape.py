@@ -3,6 +3,7 @@ choice and the smooth change, on hand-built worlds whose answers follow from the
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import replace
 
@@ -25,6 +26,7 @@ from gcs_swarm.guidance.reshape import (
     plan_move,
     route_samples,
     shape_clearance,
+    straight_for,
 )
 from swarm_common.obstacle_shapes import NO_SHAPES, pack_shapes
 
@@ -253,6 +255,79 @@ def test_a_column_whose_tail_is_short_of_a_gap_waits_to_open_until_the_way_is_cl
         assert gap.min() >= PARAMS.clearance_m - 1e-6, t
 
 
+def _restore_x(widen_after_move: bool) -> tuple[float, float, FormationShaper]:
+    """The V of four 10 m apart flown east at 10 m/s through the 12 m gap at x = 60 (_fly_shaper): the
+    leader's x when the V is restored, and the smallest distance m from a flown slot to a sphere's surface
+    with the leader at x >= 40 (from where the shape flown must fit through the gap)."""
+    centres, radii = _gap_world(12.0)
+    shaper = FormationShaper(replace(PARAMS, widen_after_move=widen_after_move), _v(), 0, 4.0)
+    steps = _fly_shaper(shaper, centres, radii, -100.0, 200.0)
+    restored = [c.t for c in shaper.changes if c.change == "restored"]
+    assert len(restored) == 1
+    x_at = {round(t, 6): x for t, x, *_ in steps}
+    worst = min(
+        float(
+            (
+                np.linalg.norm((np.array([x, 0.0, 10.0]) + offsets[1:])[:, None] - centres[None], axis=-1)
+                - radii
+            ).min()
+        )
+        for _, x, offsets, *_ in steps
+        if x >= 40.0
+    )
+    return x_at[round(restored[0], 6)], worst, shaper
+
+
+def test_a_formation_past_its_last_obstacle_opens_out_as_soon_as_the_move_keeps_clear():
+    """Judged from where the leader is, the V is restored only once it fits there, its arms (15 m back and
+    abeam) clear of both spheres by clearance_m + WIDEN_MARGIN_M (5 m): the leader some 40 m past the gap.
+    Judged from where the leader will be when the move to it is over (widen_after_move, the default), it
+    opens once the way there has kept clearance_m + 1 m for restore_after_s: more than 10 m sooner, while
+    the V itself would still not fit where the leader then is, and no flown slot comes closer than
+    clearance_m (4 m) to a sphere."""
+    late, worst_late, _ = _restore_x(False)
+    early, worst_early, shaper = _restore_x(True)
+    assert early <= late - 10.0
+    v_there = np.array([early, 0.0, 10.0]) + _v()[1:]
+    centres, radii = _gap_world(12.0)
+    gaps = np.linalg.norm(v_there[:, None] - centres[None], axis=-1) - radii
+    assert gaps.min() < PARAMS.clearance_m + 1.0  # the V does not fit where the leader is when it opens
+    assert min(worst_late, worst_early) >= PARAMS.clearance_m - 1e-6
+
+
+def test_a_widening_under_way_is_given_up_when_an_obstacle_appears_on_its_way():
+    """The V opening out early past the gap (as above), flown until just after it starts opening: at the
+    next decision, with the leader flown on at 10 m/s, it keeps opening; but a sphere of radius 2 m
+    appearing where the slot that moves farthest will be halfway through the rest of the move (with the
+    leader where it will be then) makes the formation narrow again at once, rather than open into it."""
+    early, _, _ = _restore_x(True)
+    centres, radii = _gap_world(12.0)
+    shaper = FormationShaper(replace(PARAMS, widen_after_move=True), _v(), 0, 4.0)
+    steps = _fly_shaper(shaper, centres, radii, -100.0, early + 1.0)
+    t_last, x_last = steps[-1][0], steps[-1][1]
+    move = shaper.move
+    t_next = shaper.next_decision
+    x_next = x_last + 10.0 * (t_next - t_last)
+    assert shaper.current == 0 and shaper.opening_early and t_next < move.t0 + move.duration
+    t_mid = 0.5 * (t_next + move.t0 + move.duration)  # halfway through the rest of the move
+    row = int(np.argmax(np.linalg.norm(move.end - move.start, axis=1)))  # the slot that moves farthest
+    in_the_way = np.array([x_next + 10.0 * (t_mid - t_next), 0.0, 10.0]) + move.at(t_mid)[0][row]
+    east = np.array([[400.0, 0.0, 10.0]])
+    for extra, keeps_opening in ((None, True), (in_the_way, False)):
+        probe = copy.deepcopy(shaper)
+        c, r = (centres, radii) if extra is None else (np.vstack([centres, extra]), np.append(radii, 2.0))
+        probe.decide(t_next, np.array([x_next, 0.0, 10.0]), 0.0, east, 10.0, 10.0, c, r)
+        assert (probe.current == 0) is keeps_opening
+
+
+def test_the_route_is_straight_while_its_heading_turns_at_most_20_deg():
+    along = np.array([0.0, 2.0, 4.0, 6.0])
+    headings = np.array([0.0, 0.1, 0.2, 0.5])  # rad: 11.5 deg over the first 4 m, 28.6 deg over 6 m
+    assert straight_for(headings, along, 4.0)
+    assert not straight_for(headings, along, 6.0)
+    assert straight_for(np.array([3.1, -3.1, 3.12]), along[:3], 6.0)  # across +-pi: a turn of 0.08 rad
+
+
 def _standing_route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The leader's way ahead when it holds at (0, 0, 10) heading east: one point."""
     return np.array([[0.0, 0.0, 10.0]]), np.zeros(1), np.zeros(1)
@@ -279,7 +354,7 @@ def test_a_move_is_clear_if_no_slot_comes_closer_than_clearance_m_or_than_it_alr
     stop[1] = [end[0], end[1], 0.0]
     move = plan_move(start, stop, np.ones(2, dtype=bool), 0.0, PARAMS.speed_m_s)
     sphere = np.array([[-31.0, 0.0, 10.0]]), np.array([1.0])
-    assert shaper.move_is_clear(move, _standing_route, 0.0, *sphere) is clear
+    assert (shaper.clear_floor(move, _standing_route, 0.0, *sphere) is not None) is clear
 
 
 def test_a_column_whose_tail_came_to_rest_in_an_obstacles_margin_still_opens_at_the_goal():
