@@ -440,9 +440,8 @@ class FormationShaper:
         self.shapes = candidate_shapes(nominal, self.leader, self.params)
         self.spacing = shape_spacing(nominal, self.leader)  # m, the mission's shape's nearest slots
         self.current = 0  # index into shapes of the shape flown (or being formed)
-        self.opening_early = (
-            False  # the move under way is a widening started before its shape fitted (`decide`)
-        )
+        # the move under way is a widening started before its shape fitted where the leader was (`decide`)
+        self.opening_early = False
         self.opening_floor = 0.0  # m, the least slot clearance that move was planned to keep
         self.move = SlotMove(nominal, nominal, 0.0, ())
         self.start_scale = self.end_scale = 1.0
