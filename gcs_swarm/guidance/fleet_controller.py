@@ -373,8 +373,13 @@ class FleetController:
 
     def shape_settled(self, t: float) -> bool:
         """No change of the formation's shape is under way at vehicle time t s (the slots stand still in
-        the leader's frame): a formation still changing shape has not arrived."""
-        return self.shaper is None or t >= self.shaper.move.t0 + self.shaper.move.duration
+        the leader's frame) nor, with reshape.arrive_in_shape, due (a wider shape fits and its way is
+        clear): a formation still changing shape, or about to re-form, has not arrived."""
+        if self.shaper is None:
+            return True
+        assert self.reshape is not None
+        due = self.reshape.arrive_in_shape and self.shaper.widening_due
+        return t >= self.shaper.move.t0 + self.shaper.move.duration and not due
 
     def set_leader_speed(self, speed: float) -> None:
         """The leader's horizontal speed cap (m/s, > 0, at most limits.v_xy_leader) from now on: a leg's."""

@@ -25,7 +25,9 @@ purpose instead, and its followers' slots move with it:
   counts as fitting when it fits from where the leader will be once the move to it is over, where the route
   runs straight meanwhile (`straight_for`), and its way there keeps clearance_m + WIDEN_MARGIN_M
   (`clear_floor`); such a widening under way is judged from its move's end and given up when the rest of
-  its way no longer keeps the clearance it was planned with, less OPENING_SLACK_M.
+  its way no longer keeps the clearance it was planned with, less OPENING_SLACK_M. A wider shape that fits
+  and whose way is not found blocked is `widening_due`: the runner's arrival waits for it
+  (reshape.arrive_in_shape, FleetController.shape_settled).
 - **Change**: the followers are assigned to the new slots by the shortest longest move
   (gcs_swarm.guidance.slot_assignment), and the slots move from the old to the new offsets straight, or first
   along the leader's heading and then across it, or the other way round (MOVE_ORDERS): the quickest way that
@@ -428,7 +430,8 @@ class FormationShaper:
         self.assembled = True  # the formation has assembled (`decide`)
         self._set(np.array(nominal, dtype=float))
         self.next_decision = -math.inf
-        self.wider_since: float | None = None
+        self.wider_since: float | None = None  # s, since when a wider shape has fitted (restore_after_s)
+        self.widen_blocked = False  # a wider shape is due but the way to it is not clear (`widening_due`)
         self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
         self.paced_at = -math.inf  # s, when pace_cap was last set
         self.waiting_moves: dict[int, SlotMove] = {}  # widenings planned, by shape, waiting for a clear way
@@ -479,6 +482,12 @@ class FormationShaper:
             return self.end_scale
         lam = min_jerk((t - self.move.t0) / duration)[0]
         return self.start_scale + lam * (self.end_scale - self.start_scale)
+
+    @property
+    def widening_due(self) -> bool:
+        """At the last decision a wider shape fitted and the way to it was not found blocked: unless the
+        obstacles move, the formation will widen (the arrival waits for it: FleetController.shape_settled)."""
+        return self.wider_since is not None and not self.widen_blocked
 
     @property
     def shape_name(self) -> str:
@@ -642,6 +651,7 @@ class FormationShaper:
             # one flown; never a wider one (a column stalled in front of a gap widened into it)
             if not (best > self.current and best_gap > max(0.0, gaps[self.current] + CLEARER_M)):
                 best = self.current
+        self.widen_blocked = False
         if best > self.current:
             self.wider_since = None
             self._change_to(best, self.start_offsets(t), t)
@@ -656,6 +666,8 @@ class FormationShaper:
                     self.wider_since = None
                     self._change_to(best, move.start, t, move=move)
                     self.opening_early, self.opening_floor = early, floor
+                else:
+                    self.widen_blocked = True
         else:
             self.wider_since = None
         self._pace(t, speed, points, headings, along, centres, radii, shapes)

@@ -383,6 +383,67 @@ def test_a_column_whose_tail_came_to_rest_in_an_obstacles_margin_still_opens_at_
         assert gaps.min() >= 2.0 - 1e-6
 
 
+def _column_at_goal(centres: np.ndarray, radii: np.ndarray) -> tuple[FormationShaper, list[bool]]:
+    """A line of four 10 m apart flown as a column 7 m apart, settled, the leader holding at its last
+    waypoint (0, 0, 10) heading east among spheres (K, 3), (K,): decisions every decide_every_s for
+    restore_after_s + 1 s; the shaper and whether a widening was due after each."""
+    nominal = np.zeros((5, 3))
+    nominal[1:] = formation_offsets("line", 4, 10.0)
+    shaper = FormationShaper(PARAMS, nominal, 0, 4.0)
+    shaper._change_to(len(shaper.shapes) - 1, nominal, -100.0, announce=False)
+    goal = np.array([[0.0, 0.0, 10.0]])
+    due = []
+    for t in np.arange(0.0, PARAMS.restore_after_s + 1.0, PARAMS.decide_every_s):
+        shaper.decide(t, goal[0], 0.0, goal, 10.0, 0.0, centres, radii)
+        due.append(shaper.widening_due)
+    return shaper, due
+
+
+def test_a_widening_is_due_while_a_wider_shape_fits_at_the_goal_until_it_starts():
+    """No obstacle: the line fits at once, so a widening is due from the first decision (the runner's
+    arrival waits for it, FleetController.shape_settled) until restore_after_s has passed and the move to
+    the line starts; then the move is under way and nothing more is due."""
+    far = np.array([[1000.0, 0.0, 10.0]]), np.array([1.0])
+    shaper, due = _column_at_goal(*far)
+    waits = math.ceil(PARAMS.restore_after_s / PARAMS.decide_every_s - 1e-9)  # decisions before it starts
+    assert due[:waits] == [True] * waits
+    assert not any(due[waits + 1 :])
+    assert shaper.current == 0 and shaper.move.duration > 0.0
+
+
+def test_a_widening_whose_every_way_is_blocked_is_not_due_so_the_formation_still_arrives():
+    """Spheres of radius 1 m 9 m to either side of the column, level with its third and fourth slots
+    (x = -21, -28): each slot is 8 m or more from them (clearance_m is 4 m), and the line abeam the leader
+    fits, but the move to it (across, then along: straight moves would pass closer than move_gap_m to each
+    other) sweeps the tail slots sideways past the spheres, 2.5 m from their surfaces. The line stays due
+    while it waits restore_after_s, then is found blocked: nothing is due and the column stays, so the
+    runner's arrival is not held for good."""
+    centres = np.array([[-24.5, 9.0, 10.0], [-24.5, -9.0, 10.0]])
+    shaper, due = _column_at_goal(centres, np.array([1.0, 1.0]))
+    assert due[0]
+    assert shaper.current == len(shaper.shapes) - 1
+    assert shaper.widen_blocked and not shaper.widening_due
+
+
+def test_the_fleet_has_not_arrived_while_a_widening_is_due_unless_arrive_in_shape_is_off():
+    """FleetController.shape_settled: false while a widening is due and reshape.arrive_in_shape is on (the
+    default), true when it is off; false in both while a move is under way."""
+    far = np.array([[1000.0, 0.0, 10.0]]), np.array([1.0])
+    shaper, _ = _column_at_goal(*far)
+    column = len(shaper.shapes) - 1
+    for arrive_in_shape in (True, False):
+        ctl = FleetController.__new__(FleetController)  # only the two attributes shape_settled reads
+        ctl.reshape = replace(PARAMS, arrive_in_shape=arrive_in_shape)
+        ctl.shaper = copy.deepcopy(shaper)
+        ctl.shaper._change_to(column, ctl.shaper.shapes[column].offsets, -100.0, announce=False)
+        ctl.shaper.wider_since = 0.0  # the line has fitted since t = 0: due
+        assert ctl.shape_settled(1.0) is (not arrive_in_shape)
+        ctl.shaper.wider_since = None
+        assert ctl.shape_settled(1.0)
+        ctl.shaper._change_to(0, ctl.shaper.shapes[column].offsets, 1.0, announce=False)
+        assert not ctl.shape_settled(1.5)
+
+
 def test_a_wider_shape_waits_restore_after_s_before_the_formation_widens():
     centres, radii = _gap_world(12.0)
     shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
