@@ -345,9 +345,9 @@ class ReshapeParams:
     # the way there keeps clearance_m + 1 m: a column passing its last obstacle opens out behind it instead
     # of after it has left it a formation's length behind (reshape, spec 6a.3). False: from where it is now
     widen_after_move: bool = True
-    # the formation has not arrived while a wider shape fits and is due (it re-forms at the goal when the
-    # mission's shape fits there, instead of ending the flight as a column); false: arrival waits only for a
-    # change of shape under way (reshape, spec 6a.3)
+    # the formation has not arrived while a wider shape fits and the way to it is not found blocked (it
+    # re-forms at the goal when the mission's shape fits there and its way is clear, instead of ending the
+    # flight as a column); false: arrival waits only for a change of shape under way (reshape, spec 6a.3)
     arrive_in_shape: bool = True
     # the leader's route goes round clusters of still obstacles that close a gap narrower than
     # 2 x gap_clearance_m plus the narrowest shape's width (gcs_swarm.guidance.route_plan): with the field's

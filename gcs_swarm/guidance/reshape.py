@@ -431,7 +431,7 @@ class FormationShaper:
         self._set(np.array(nominal, dtype=float))
         self.next_decision = -math.inf
         self.wider_since: float | None = None  # s, since when a wider shape has fitted (restore_after_s)
-        self.widen_blocked = False  # a wider shape is due but the way to it is not clear (`widening_due`)
+        self.widen_blocked = False  # a wider shape fits but the way to it was found blocked (`widening_due`)
         self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
         self.paced_at = -math.inf  # s, when pace_cap was last set
         self.waiting_moves: dict[int, SlotMove] = {}  # widenings planned, by shape, waiting for a clear way
