@@ -21,17 +21,69 @@ rest drives along it:
     v_cap(u) = w.u + sqrt((f g tan theta_max)^2 - (c w_perp)^2) / c
 
 and the leader's cap is the smallest v_cap of the followers the estimate trusts, along the leader's heading.
-The remaining (1 - f) of the tilt is what a follower has to catch up and correct. Shapes: N vehicles; ENU.
+The remaining (1 - f) of the tilt is what a follower has to catch up and correct.
+
+The leader's acceleration is bounded the same way (`AccelBudget`, `within_budget`): a follower keeping its
+slot must make the leader's horizontal acceleration a at the leader's velocity v, which takes the thrust
+U_xy = a + c (v - w); the leader's reference acceleration is held inside the disc
+
+    |a + c (v - w)| <= f_a g tan(theta_max)
+
+of its slowest follower (the one whose v_cap sets the speed cap), f_a = `accel_tilt_share` (1 by default:
+the tilt limit itself; at f_a = f the leader could neither speed up nor turn at v_cap, measured worse on a
+slow airframe, docs/metrics.md). Braking gets the drag besides.
+Shapes: N vehicles; ENU.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from gcs_swarm.guidance.inversion import thrust_vector
 from gcs_swarm.guidance.params import CapabilityParams
+from swarm_common.jit import kernel
+
+
+class AccelBudget(NamedTuple):
+    """One vehicle's horizontal acceleration budget (module docstring): |a + drag v - drag_wind| <= budget."""
+
+    drag: float  # 1/s, c
+    drag_wind_x: float  # m/s^2, c w_x (ENU)
+    drag_wind_y: float  # m/s^2, c w_y
+    budget: float  # m/s^2, f g tan(theta_max); inf: no budget
+
+
+NO_BUDGET = AccelBudget(0.0, 0.0, 0.0, math.inf)
+
+
+@kernel
+def within_budget(
+    a_x: float, a_y: float, v_x: float, v_y: float, drag: float, drag_wind_x: float, drag_wind_y: float,
+    budget: float,
+) -> tuple[float, float]:  # fmt: skip
+    """The horizontal acceleration (a_x, a_y) m/s^2 of a reference moving at (v_x, v_y) m/s, brought into
+    the disc |a + drag v - drag_wind| <= budget (`AccelBudget`; spec 6b): shortened along its own direction
+    to the disc's edge, so the reference is not pushed sideways; when even a = 0 lies outside (the reference
+    faster than the follower can fly), moved straight toward the disc's centre drag_wind - drag v, which
+    brakes it. Unchanged inside the disc or when budget is inf."""
+    if not budget < math.inf:
+        return a_x, a_y
+    centre_x, centre_y = drag_wind_x - drag * v_x, drag_wind_y - drag * v_y
+    off_x, off_y = a_x - centre_x, a_y - centre_y
+    size = np.hypot(off_x, off_y)
+    if size <= budget:
+        return a_x, a_y
+    centre_sq = centre_x * centre_x + centre_y * centre_y
+    if centre_sq <= budget * budget:  # k a on the edge: k^2 |a|^2 - 2 k a.C + |C|^2 - budget^2 = 0
+        along = a_x * centre_x + a_y * centre_y
+        a_sq = a_x * a_x + a_y * a_y
+        k = (along + math.sqrt(along * along - a_sq * (centre_sq - budget * budget))) / a_sq
+        return k * a_x, k * a_y
+    scale = budget / size
+    return centre_x + off_x * scale, centre_y + off_y * scale
 
 
 class SpeedEnvelope:
@@ -42,6 +94,7 @@ class SpeedEnvelope:
         self.params = params
         self.g = g
         self.thrust_xy = params.tilt_share * g * math.tan(tilt_max)  # m/s^2, f g tan(theta_max)
+        self.accel_xy = params.accel_tilt_share * g * math.tan(tilt_max)  # m/s^2, f_a g tan(theta_max)
         self.normal = np.zeros((n, 3, 3))  # forgotten sums of the normal equations (A^T A)
         self.moment = np.zeros((n, 3))  # ... and A^T r
         self.weight = np.zeros(n)  # forgotten sample count
@@ -118,6 +171,22 @@ class SpeedEnvelope:
         across = cw @ np.array([-u[1], u[0]])  # c (w . u_perp)
         drive = np.sqrt(np.maximum(self.thrust_xy**2 - across**2, 0.0))
         return (along + drive) / c
+
+    def slowest(self, heading: float, followers: np.ndarray) -> int | None:
+        """The index of the (N,) bool `followers` with the smallest top speed along `heading` rad among those
+        whose fit is trusted; None when none is."""
+        speeds = np.where(followers, self.top_speeds(heading), np.nan)
+        return None if np.isnan(speeds).all() else int(np.nanargmin(speeds))
+
+    def accel_budget(self, heading: float, followers: np.ndarray) -> AccelBudget:
+        """The leader's acceleration budget (module docstring): the disc of the slowest of the (N,) bool
+        `followers` along `heading` rad (`slowest`); NO_BUDGET when no fit is trusted or accel_tilt_share is
+        0."""
+        row = self.slowest(heading, followers)
+        if row is None or self.params.accel_tilt_share == 0:
+            return NO_BUDGET
+        c, cw_x, cw_y = (float(x) for x in self.theta[row])
+        return AccelBudget(c, cw_x, cw_y, float(self.accel_xy))
 
     def leader_cap(self, heading: float, followers: np.ndarray) -> float:
         """m/s: the smallest top speed along `heading` rad of the (N,) bool `followers` whose fit is trusted;

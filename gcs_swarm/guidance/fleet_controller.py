@@ -24,7 +24,7 @@ from functools import partial
 import numpy as np
 
 from gcs_swarm.guidance.attitude_slew import slew_step
-from gcs_swarm.guidance.capability import SpeedEnvelope
+from gcs_swarm.guidance.capability import NO_BUDGET, AccelBudget, SpeedEnvelope
 from gcs_swarm.guidance.column_path import LeaderTrail, column_rows, path_motion
 from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.degradation import stale_verdict
@@ -59,7 +59,7 @@ from gcs_swarm.guidance.params import (
     SeparationParams,
     SMCParams,
 )
-from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, paper_literal_reference
+from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, no_budgets, paper_literal_reference
 from gcs_swarm.guidance.reshape import (
     SAMPLE_STEP_M,
     FormationShaper,
@@ -289,6 +289,7 @@ class FleetController:
             None if pace is None or not pace.enabled else SpeedEnvelope(n, pace, self.limits.tilt_max, g)
         )
         self.follower_pace = math.inf  # m/s, the leader's cap from its followers' top speeds (`envelope`)
+        self.leader_budget = NO_BUDGET  # the leader's acceleration budget from its slowest follower (spec 6b)
         self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
         self.detours: list[Detour] = []  # legs planned round a gap (`drain_detours`)
         self.names = names if len(names) == n else tuple(f"vehicle {i + 1}" for i in range(n))
@@ -426,7 +427,7 @@ class FleetController:
         return predict_leader_path(
             self.leader_model, gen.p[lead], gen.v[lead], gen.a[lead], self.heading,
             self.route_points[self.route_index :], speed_cap, length, SAMPLE_STEP_M, centres, radii,
-            self.shapes, self.aim_bearing,
+            self.shapes, self.aim_bearing, self.leader_budget,
         )  # fmt: skip
 
     def _follow_path(
@@ -507,8 +508,8 @@ class FleetController:
         self.follower_pace = cap
         binds, bound = cap < nominal, was < nominal
         if binds and (not bound or abs(cap - was) > PACE_EVENT_SHARE * was):
-            speeds = self.envelope.top_speeds(self.heading.psi)
-            slowest = int(np.nanargmin(np.where(followers, speeds, np.nan)))
+            slowest = self.envelope.slowest(self.heading.psi, followers)
+            assert slowest is not None  # a finite cap comes from a trusted fit
             self.events.append(
                 f"t={t:.2f} s pace: leader capped at {cap:.1f} m/s, what {self.names[slowest]} flies at "
                 f"{self.envelope.params.tilt_share:.0%} tilt against its measured drag "
@@ -519,6 +520,25 @@ class FleetController:
             self.events.append(f"t={t:.2f} s pace: every follower can fly the leader's {nominal:.1f} m/s")
         if not binds:
             self.follower_pace = math.inf
+        budget = self.envelope.accel_budget(self.heading.psi, followers)
+        if budget != self.leader_budget:
+            if math.isinf(budget.budget) != math.isinf(self.leader_budget.budget):
+                self.events.append(self._budget_event(t, budget, followers))
+            self.leader_budget = budget
+
+    def _budget_event(self, t: float, budget: AccelBudget, followers: np.ndarray) -> str:
+        """The event line of the leader's acceleration budget starting (from the slowest of the (N,) bool
+        followers) or ending (no follower's fit trusted)."""
+        assert self.envelope is not None and self.heading is not None
+        if math.isinf(budget.budget):
+            return f"t={t:.2f} s pace: leader's acceleration free again (no follower's drag fit trusted)"
+        slowest = self.envelope.slowest(self.heading.psi, followers)
+        assert slowest is not None
+        share = self.envelope.params.accel_tilt_share
+        return (
+            f"t={t:.2f} s pace: leader accelerates within what {self.names[slowest]} can at {share:.0%} tilt "
+            f"against its measured drag {budget.drag:.2f} 1/s"
+        )
 
     def _checked_targets(self, targets: np.ndarray) -> np.ndarray:
         arr = _as_array("follower_targets", targets, (self.n, 3))
@@ -751,7 +771,9 @@ class FleetController:
                 fs.clearance, float(fs.brake_jerk or 0.0), self.shapes,
             )  # fmt: skip
             speed_cap = np.minimum(speed_cap, caps)
-        x_d, xd_dot, xd_ddot = gen.step(force, v_ff, speed_cap, dt, active, a_ff, pulled, emergency)
+        budgets = no_budgets(self.n)
+        budgets[lead] = self.leader_budget
+        x_d, xd_dot, xd_ddot = gen.step(force, v_ff, speed_cap, dt, active, a_ff, pulled, emergency, budgets)
         if ref.paper_literal:
             lit = paper_literal_reference(targets, v_ff, f_obs + f_uav, self.field.k_att, self.field.l0)
             for arr, lit_arr in zip((x_d, xd_dot, xd_ddot), lit, strict=True):

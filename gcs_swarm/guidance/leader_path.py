@@ -34,6 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gcs_swarm.guidance.capability import NO_BUDGET, AccelBudget
 from gcs_swarm.guidance.field import (
     attraction_config,
     attraction_force,
@@ -159,9 +160,9 @@ def leader_flight(
     radii: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, k_att: float,
     d_g: float, segmented: bool, l0: float, l_min: float, adaptive: bool, k_rep: float, n_exp: float,
     rho_eps: float, circulation: float, obstacle_vertical: float, brake_accel: float, waypoint_radius: float,
-    from_route: bool, aim_bearing: float, aim_turn_rate: float, ref_gain: float, v_z: float,
-    stop_accel: float, k_v: float, jerk_max: float, has_z_min: bool, z_min: float, jerk_max_z: float,
-    a_z: float, tau_v: float, a_xy_max: float, a_xy_evasive: float, jerk_xy_evasive: float,
+    from_route: bool, aim_bearing: float, aim_turn_rate: float, budgets: np.ndarray, ref_gain: float,
+    v_z: float, stop_accel: float, k_v: float, jerk_max: float, has_z_min: bool, z_min: float,
+    jerk_max_z: float, a_z: float, tau_v: float, a_xy_max: float, a_xy_evasive: float, jerk_xy_evasive: float,
     jerk_z_evasive: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:  # fmt: skip
     """The leader's reference (spec 8 steps 2-5) flown forward alone from p, v, a (3,) (ENU m, m/s, m/s^2)
@@ -172,8 +173,9 @@ def leader_flight(
     field's settings are AttractionConfig's (k_att .. segmented) and RepulsionConfig's (l0 ..
     obstacle_vertical), the braking look-ahead's deceleration brake_accel m/s^2, `from_route` psi_L's course
     (`leader_course`), the aim's bearing rad at the start (NaN: none yet) and turn rate rad/s (`leader_aim`),
-    the rest ReferenceConfig's (its `gain` as ref_gain). Each step: the waypoint and the aim at it, the field
-    at the reference (the obstacles along its braking path), psi_L, then the reference step.
+    its acceleration budget (1, 4) (`reference_step`'s budgets), the rest ReferenceConfig's (its `gain` as
+    ref_gain). Each step: the waypoint and the aim at it, the field at the reference (the obstacles along its
+    braking path), psi_L, then the reference step.
 
     Returns the arrays of LeaderSteps, `steps` rows each, and the number S of rows filled: the steps end
     early after the one whose horizontal travel reaches `length` m, or once the leader has stopped
@@ -211,7 +213,7 @@ def leader_flight(
         filtered = True
         was_x, was_y = ps[0, 0], ps[0, 1]
         accel, ps, vs = reference_step(
-            ps, vs, accel, force, zero, zero, aimed, cap, rows, evasive, PREDICT_DT_S, ref_gain, v_z,
+            ps, vs, accel, force, zero, zero, aimed, cap, rows, evasive, budgets, PREDICT_DT_S, ref_gain, v_z,
             stop_accel, k_v, jerk_max, has_z_min, z_min, jerk_max_z, a_z, tau_v, a_xy_max, a_xy_evasive,
             jerk_xy_evasive, jerk_z_evasive,
         )  # fmt: skip
@@ -231,9 +233,11 @@ def leader_steps(
     model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading,
     waypoints: np.ndarray, speed_cap: float, steps: int, length: float, centres: np.ndarray,
     radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES, aim_bearing: float = math.nan,
+    budget: AccelBudget = NO_BUDGET,
 ) -> LeaderSteps:  # fmt: skip
     """The leader's reference flown forward (`leader_flight`) from p, v, a (3,) (ENU m, m/s, m/s^2), psi_L
-    as `heading` stands (not changed) and its aim's bearing rad (`leader_aim`; NaN: none yet) through the
+    as `heading` stands (not changed), its aim's bearing rad (`leader_aim`; NaN: none yet) and its
+    acceleration budget (capability.AccelBudget, held as it is now) through the
     waypoints (W, 3) at up to speed_cap m/s among spheres centres (K, 3), radii (K,) and `shapes`, for at
     most `steps` steps of PREDICT_DT_S, ending after the step whose horizontal travel reaches `length` m
     (math.inf: no such end) or once it has stopped at its last waypoint."""
@@ -244,7 +248,7 @@ def leader_steps(
     obstacles = (np.ascontiguousarray(centres, dtype=float), np.ascontiguousarray(radii, dtype=float))
     leader = (
         float(model.brake_accel), float(model.waypoint_radius), bool(model.heading_from_route),
-        float(aim_bearing), float(model.aim_turn_rate),
+        float(aim_bearing), float(model.aim_turn_rate), np.array([budget], dtype=float),
     )  # fmt: skip
     args = (
         *start, *heading.settings(), *course, *obstacles, *shapes, *attraction_config(model.field, model.d_g),
@@ -264,16 +268,19 @@ def predict_leader_path(
     model: LeaderModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, heading: LeaderHeading,
     waypoints: np.ndarray, speed_cap: float, length: float, step_m: float, centres: np.ndarray,
     radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES, aim_bearing: float = math.nan,
+    budget: AccelBudget = NO_BUDGET,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """The leader's path (`leader_steps`) from its reference state p, v, a (3,), heading and aim's bearing rad
-    (`leader_aim`; NaN: none yet) through the waypoints (W, 3) still ahead at up to speed_cap m/s, among
-    spheres centres (K, 3), radii (K,) and `shapes`, for `length` m of horizontal travel (where the leader
-    stops short, on along the straight route: module docstring): points (P, 3), the formation's heading there
-    (P,) rad and their travel from p (P,) m, one every step_m, the first p itself with the present heading."""
+    """The leader's path (`leader_steps`) from its reference state p, v, a (3,), heading, aim's bearing rad
+    (`leader_aim`; NaN: none yet) and acceleration budget (capability.AccelBudget) through the waypoints
+    (W, 3) still ahead at up to speed_cap m/s, among spheres centres (K, 3), radii (K,) and `shapes`, for
+    `length` m of horizontal travel (where the leader stops short, on along the straight route: module
+    docstring): points (P, 3), the formation's heading there (P,) rad and their travel from p (P,) m, one
+    every step_m, the first p itself with the present heading."""
     steps = _step_budget(length, speed_cap)
     flight = leader_steps(
-        model, p, v, a, heading, waypoints, speed_cap, steps, length, centres, radii, shapes, aim_bearing
-    )
+        model, p, v, a, heading, waypoints, speed_cap, steps, length, centres, radii, shapes, aim_bearing,
+        budget,
+    )  # fmt: skip
     track = np.vstack([np.asarray(p, dtype=float).reshape(1, 3), flight.positions])
     courses = np.concatenate([[heading.psi], flight.headings])
     travel = np.concatenate([[0.0], flight.travel])

@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gcs_swarm.guidance.capability import within_budget
 from gcs_swarm.guidance.params import FieldParams, G, Limits, ReferenceParams
 from gcs_swarm.guidance.shaping import shape_vel_accel, shape_vel_accel_xy
 from swarm_common.jit import kernel
@@ -36,6 +37,13 @@ def paper_literal_reference(
     over = size > l0
     shift[over] *= (l0 / size[over])[:, None]
     return slots + shift, np.array(slot_vel, dtype=float), np.zeros_like(slots)
+
+
+def no_budgets(n: int) -> np.ndarray:
+    """(n, 4): `reference_step`'s budgets for n rows none of which has an acceleration budget."""
+    budgets = np.zeros((n, 4))
+    budgets[:, 3] = math.inf
+    return budgets
 
 
 class ReferenceConfig(NamedTuple):
@@ -87,14 +95,16 @@ def leash_and_lookahead(
 @kernel
 def reference_step(
     p: np.ndarray, v: np.ndarray, a_prev: np.ndarray, force: np.ndarray, v_ff: np.ndarray, a_ff: np.ndarray,
-    targets: np.ndarray, v_xy_max: np.ndarray, rows: np.ndarray, evasive: np.ndarray, dt: float,
+    targets: np.ndarray, v_xy_max: np.ndarray, rows: np.ndarray, evasive: np.ndarray, budgets: np.ndarray,
+    dt: float,
     gain: float, v_z: float, stop_accel: float, k_v: float, jerk_max: float, has_z_min: bool, z_min: float,
     jerk_max_z: float, a_z: float, tau_v: float, a_xy_max: float, a_xy_evasive: float, jerk_xy_evasive: float,
     jerk_z_evasive: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Steps 3-5 from the reference state p, v, a_prev (N, 3), the field force (N, 3) at p, the feed-forwards
     v_ff, a_ff (N, 3), the attraction targets (N, 3), the horizontal speed caps v_xy_max (N,) m/s, the (N,)
-    bool rows to advance, the (N,) bool `evasive` rows and dt s: the desired acceleration a_r (N, 3) of this
+    bool rows to advance, the (N,) bool `evasive` rows, each row's acceleration budget (N, 4) (the fields of
+    capability.AccelBudget; budget inf: none) and dt s: the desired acceleration a_r (N, 3) of this
     instant (a_prev in rows not advanced) and the next reference state p, v (N, 3) (p, v themselves in rows
     not advanced). The settings are ReferenceConfig's fields (called with *config); ReferenceGenerator
     documents the rules."""
@@ -158,6 +168,10 @@ def reference_step(
                 jerk_xy, dt,
             )  # fmt: skip
             a2 = shape_vel_accel(c2, a_ff[i, 2], v[i, 2], a_prev[i, 2], a_z, jerk_z, dt)
+        if rows[i] and not evasive[i]:  # [add] within what the slowest follower can make (spec 6b)
+            a0, a1 = within_budget(
+                a0, a1, v[i, 0], v[i, 1], budgets[i, 0], budgets[i, 1], budgets[i, 2], budgets[i, 3]
+            )
         w0, w1, w2 = v[i, 0] + a0 * dt, v[i, 1] + a1 * dt, v[i, 2] + a2 * dt  # step 5
         q0, q1, q2 = p[i, 0] + w0 * dt, p[i, 1] + w1 * dt, p[i, 2] + w2 * dt
         if has_z_min and q2 < z_min:
@@ -193,7 +207,9 @@ class ReferenceGenerator:
     demand; > 0 [add]: ArduPilot's jerk-limited shaping (gcs_swarm.guidance.shaping) with the feed-forward
     a_ff, within accel_xy_max (the rest of the tilt is for drag and wind). Rows in an emergency separation
     (`evasive`, spec 4 Eq 19) are shaped with the whole tilt's acceleration and `evasive_jerk_max`: comfort
-    never slows a vehicle getting out of the way. Step 5: v_r += a_r dt, p_r += v_r dt.
+    never slows a vehicle getting out of the way. [add] A row with an acceleration budget (the leader, spec
+    6b) keeps its horizontal a_r within what its slowest follower can make at its speed
+    (capability.within_budget). Step 5: v_r += a_r dt, p_r += v_r dt.
 
     [add] The position controller gets the reference of the current instant, not the one integrated to
     t + dt (spec 8 step 7 after step 5): otherwise a moving slot leaves a steady v dt offset (0.2 m at
@@ -253,18 +269,22 @@ class ReferenceGenerator:
         a_ff: np.ndarray | None = None,
         targets: np.ndarray | None = None,
         evasive: np.ndarray | None = None,
+        budgets: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Steps 3-5 for the (N,) bool-selected vehicles from the field force (N, 3) at the current reference
         points, the velocity feed-forward (N, 3), horizontal speed caps (N,) m/s, the acceleration
         feed-forward a_ff (N, 3) m/s^2 (None: zero), the attraction targets (N, 3) m for the stopping curve
-        (None: none) and the (N,) bool evasive rows (None: none): returns the desired state (p_r, v_r, a_r)
-        of this instant (each (N, 3)) and advances the state by dt s for the next tick."""
+        (None: none), the (N,) bool evasive rows (None: none) and the acceleration budgets (N, 4)
+        (capability.AccelBudget's fields; None: none): returns the desired state (p_r, v_r, a_r) of this
+        instant (each (N, 3)) and advances the state by dt s for the next tick."""
         n = len(force)
         a_ff = np.zeros((n, 3)) if a_ff is None else a_ff
         evasive = np.zeros(n, dtype=bool) if evasive is None else evasive
+        budgets = no_budgets(n) if budgets is None else budgets
         targets = self.p if targets is None else targets  # its own point: no stopping curve
         p, v = self.p, self.v
         self.a, self.p, self.v = reference_step(
-            p, v, self.a, force, v_ff, a_ff, targets, v_xy_max, rows, evasive, float(dt), *self.config
-        )
+            p, v, self.a, force, v_ff, a_ff, targets, v_xy_max, rows, evasive, budgets, float(dt),
+            *self.config,
+        )  # fmt: skip
         return p, v, self.a

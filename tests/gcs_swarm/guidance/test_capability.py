@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from gcs_swarm.guidance.capability import SpeedEnvelope
+from gcs_swarm.guidance.capability import NO_BUDGET, AccelBudget, SpeedEnvelope, within_budget
 from gcs_swarm.guidance.fleet_controller import FleetController
-from gcs_swarm.guidance.params import PAPER_PLAIN, CapabilityParams, G
+from gcs_swarm.guidance.params import PAPER_PLAIN, CapabilityParams, G, Limits, ReferenceParams
+from gcs_swarm.guidance.reference import ReferenceGenerator, no_budgets
 
 PARAMS = CapabilityParams()
 TILT_MAX = math.radians(35.0)
@@ -87,20 +88,101 @@ def test_the_leader_is_capped_by_its_slowest_follower_and_the_event_says_so():
     """Three vehicles: the leader and a fast follower (sitl-sim's airframe, top speed 17 m/s at 70 % of the
     tilt) and a slow one (c = 1.0: g tan 35 0.7 / 1.0 = 4.8 m/s in calm air). After the fits settle, the
     leader's cap is the slow follower's top speed, not v_xy_leader (10 m/s), and one event names it."""
-    drag = np.array([0.278, 0.278, 1.0])
-    offsets = np.array([[0.0, 0.0, 0.0], [-10.0, 10.0, 0.0], [-10.0, -10.0, 0.0]])
-    ctl = FleetController(3, 0, offsets, np.array([[500.0, 0.0, 10.0]]), pace=PARAMS, names=("a", "b", "c"))
-    pos = offsets + np.array([0.0, 0.0, 10.0])
-    ctl.reset(pos, np.zeros((3, 3)), np.zeros(3))
-    active = np.ones(3, dtype=bool)
-    no_obstacles = np.zeros((0, 3)), np.zeros(0)
-    for t, vel, att in telemetry(drag, np.zeros(2), 30.0):
-        ctl.tick(t, pos, vel, att, *no_obstacles, active)
+    ctl = slow_follower_controller(PARAMS)
     expected = PARAMS.tilt_share * G * math.tan(TILT_MAX) / 1.0
     assert ctl.speed_caps()[0] == pytest.approx(expected, rel=0.05)
     events = [e for e in ctl.drain_events() if "pace" in e]
     assert events and "leader capped at" in events[0] and "what c flies" in events[0]
     assert ctl.drain_events() == []
+
+
+def slow_follower_controller(pace: CapabilityParams) -> FleetController:
+    """The leader "a", a follower "b" with sitl-sim's drag and a slow follower "c" (c = 1.0 1/s), weaving
+    through 30 s of telemetry (`telemetry`) while the positions stay put."""
+    drag = np.array([0.278, 0.278, 1.0])
+    offsets = np.array([[0.0, 0.0, 0.0], [-10.0, 10.0, 0.0], [-10.0, -10.0, 0.0]])
+    ctl = FleetController(3, 0, offsets, np.array([[500.0, 0.0, 10.0]]), pace=pace, names=("a", "b", "c"))
+    pos = offsets + np.array([0.0, 0.0, 10.0])
+    ctl.reset(pos, np.zeros((3, 3)), np.zeros(3))
+    active = np.ones(3, dtype=bool)
+    for t, vel, att in telemetry(drag, np.zeros(2), 30.0):
+        ctl.tick(t, pos, vel, att, np.zeros((0, 3)), np.zeros(0), active)
+    return ctl
+
+
+def test_the_leaders_acceleration_budget_is_its_slowest_followers_and_the_event_says_so():
+    """The slow follower's disc: drag 1.0 1/s, no wind, radius accel_tilt_share g tan 35 = 6.87 m/s^2 (the
+    tilt limit itself by default); one event names it, after the speed cap's. With accel_tilt_share 0 the
+    leader keeps no budget."""
+    ctl = slow_follower_controller(PARAMS)
+    budget = ctl.leader_budget
+    assert budget.drag == pytest.approx(1.0, rel=0.03)
+    assert abs(budget.drag_wind_x) < 0.05 and abs(budget.drag_wind_y) < 0.05
+    assert budget.budget == pytest.approx(G * math.tan(TILT_MAX))
+    events = [e for e in ctl.drain_events() if "pace" in e]
+    assert "leader accelerates within what c can at 100% tilt against its measured drag 1.00 1/s" in events[1]
+    off = slow_follower_controller(CapabilityParams(accel_tilt_share=0.0))
+    assert off.leader_budget == NO_BUDGET
+    assert not any("accelerates within" in e for e in off.drain_events())
+
+
+@pytest.mark.parametrize(
+    ("accel", "expected"),
+    [
+        ((3.0, 0.0), (1.0, 0.0)),  # ahead: the thrust a + c v = 7 is cut to 5 along the same line
+        ((0.0, 4.0), (0.0, 3.0)),  # across: shortened to 3, where the thrust (4, 3) has length 5
+        ((-2.0, 1.0), (-2.0, 1.0)),  # braking: the drag helps, thrust |(2, 1)| inside
+        ((-8.0, 0.0), (-8.0, 0.0)),  # hard braking: thrust 4 the other way, inside
+    ],
+)
+def test_within_budget_by_the_thrust_a_follower_needs(accel, expected):
+    """Drag 1 1/s, no wind, moving east at 4 m/s, budget 5 m/s^2: the thrust per unit mass a follower needs to
+    make the acceleration a at this velocity is a + c v; it may be at most 5, and the acceleration keeps its
+    direction. Hand values, and the result's thrust checked directly."""
+    a_x, a_y = within_budget(accel[0], accel[1], 4.0, 0.0, 1.0, 0.0, 0.0, 5.0)
+    assert (a_x, a_y) == pytest.approx(expected)
+    assert math.hypot(a_x + 4.0, a_y) <= 5.0 + 1e-12
+    assert within_budget(30.0, 0.0, 4.0, 0.0, *NO_BUDGET) == (30.0, 0.0)
+
+
+def test_a_reference_faster_than_its_follower_can_fly_is_braked():
+    """At 6 m/s east with drag 1 1/s the follower would need thrust 6 > 5 just to hold the speed: whatever is
+    asked (here nothing), the reference brakes, by 1 m/s^2, the least that brings the thrust within 5."""
+    assert within_budget(0.0, 0.0, 6.0, 0.0, 1.0, 0.0, 0.0, 5.0) == pytest.approx((-1.0, 0.0))
+    assert within_budget(2.0, 0.0, 6.0, 0.0, 1.0, 0.0, 0.0, 5.0) == pytest.approx((-1.0, 0.0))
+
+
+def test_a_budgeted_reference_needs_no_more_thrust_of_its_follower_than_the_budget():
+    """A reference set off toward a point 400 m east at the leader's 10 m/s cap: a follower with drag
+    c = 0.5 1/s in a 3 m/s north wind, keeping pace with it, needs the thrust a + c (v - w). With the budget
+    (f g tan 35 deg at f = 0.7: 4.81 m/s^2) it never needs more than that; without, it needs more (the
+    reference accelerates at up to accel_xy_max = 4 m/s^2 with the drag besides). With the budget the
+    reference comes up to the follower's top speed east with the wind abeam, where the drag c |v - w| takes
+    the whole budget: sqrt(4.81^2 - (0.5 3)^2) / 0.5 = 9.1 m/s, and no further."""
+    c, wind = 0.5, np.array([0.0, 3.0])
+    radius = 0.7 * G * math.tan(TILT_MAX)
+    target = np.array([[400.0, 0.0, 10.0]])
+    needs = {}
+    for budgeted in (True, False):
+        gen = ReferenceGenerator(ReferenceParams(), Limits(), k_att=1.0)
+        gen.reset(np.array([[0.0, 0.0, 10.0]]), np.zeros((1, 3)))
+        budgets = no_budgets(1)
+        if budgeted:
+            budgets[0] = AccelBudget(c, c * wind[0], c * wind[1], radius)
+        thrust, speeds = [], []
+        for _ in range(1500):  # 30 s
+            force = 1.0 * (target - gen.p)  # the attraction's pull, unit gain: a demand well over the cap
+            p, v, a = gen.step(force, np.zeros((1, 3)), np.array([10.0]), 0.02, np.ones(1, dtype=bool),
+                               budgets=budgets)  # fmt: skip
+            thrust.append(np.hypot(*(a[0, :2] + c * (v[0, :2] - wind))))
+            speeds.append(np.hypot(*v[0, :2]))
+        needs[budgeted] = max(thrust)
+        if budgeted:
+            top = math.sqrt(radius**2 - (c * wind[1]) ** 2) / c
+            assert max(speeds) <= top + 1e-6
+            assert speeds[-1] == pytest.approx(top, rel=0.02)
+    assert needs[True] <= radius + 1e-9
+    assert needs[False] > radius + 0.5
 
 
 def test_paper_plain_turns_the_pace_off():
@@ -111,7 +193,15 @@ def test_paper_plain_turns_the_pace_off():
 
 
 @pytest.mark.parametrize(
-    "bad", [{"tilt_share": 0.0}, {"tilt_share": 1.5}, {"memory_s": 0.0}, {"min_samples": 1}]
+    "bad",
+    [
+        {"tilt_share": 0.0},
+        {"tilt_share": 1.5},
+        {"memory_s": 0.0},
+        {"min_samples": 1},
+        {"accel_tilt_share": 0.5},  # under tilt_share: a leader at its cap would have to brake
+        {"accel_tilt_share": 1.2},
+    ],
 )
 def test_impossible_settings_are_refused(bad):
     with pytest.raises(ValueError):
