@@ -62,6 +62,7 @@ def _compare_run(label: str, run_dir: Path, mission: Any) -> figures.CompareRun 
         offsets=np.array(flight["offsets"], dtype=float),
         leader=mission.leader_index,
         t0=float(t0 if t0 is not None else (traj.t[0] if len(traj.t) else 0.0)),
+        flight=flight,
     )
 
 

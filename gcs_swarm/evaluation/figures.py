@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gcs_swarm.evaluation import flight_quality, metrics, signals
+from gcs_swarm.evaluation import flight_quality, signals
 from gcs_swarm.evaluation.site_drawing import draw_site, has_site
 
 if TYPE_CHECKING:
@@ -402,14 +402,17 @@ class CompareRun:
     label: str
     traj: Trajectories
     commands: CommandLog | None
-    offsets: np.ndarray  # (N, 3) m, leader frame
+    offsets: np.ndarray  # (N, 3) m, leader frame, the mission's (flight.json "offsets")
     leader: int
     t0: float  # s, formation start
+    flight: dict[str, Any]  # the run's flight.json (its formation_timeline: the slots of the moment)
 
 
-def formation_error_series(run: CompareRun) -> tuple[np.ndarray, np.ndarray] | None:
-    """Time since the formation start (T,) s and the worst formation error max_i e_F,i (T,) m (spec 10),
-    over the formation phase; None without a record (no psi_L) or without followers."""
+def slot_error_series(run: CompareRun) -> tuple[np.ndarray, np.ndarray] | None:
+    """Time since the formation start (T,) s and the worst follower-to-slot error (T,) m over the formation
+    phase, against the slots of the moment (flight_quality.scheduled_formation_error: reshaped, re-formed or
+    the mission's, as the report and the benchmarks measure it); None without a record (no psi_L) or without
+    followers."""
     if run.commands is None or len(run.offsets) < 2:
         return None
     sel = (run.traj.t >= run.t0) & (run.traj.t <= run.commands.t[-1])
@@ -417,12 +420,15 @@ def formation_error_series(run: CompareRun) -> tuple[np.ndarray, np.ndarray] | N
     if len(t) == 0:
         return None
     psi = signals.held_at(run.commands.t, run.commands.psi_l, t)
-    return t - run.t0, metrics.formation_error(t, p, run.leader, psi, run.offsets).error.max(axis=1)
+    _, err = flight_quality.scheduled_formation_error(t, p, psi, run.flight, run.leader, run.offsets)
+    with np.errstate(invalid="ignore"):
+        return t - run.t0, np.fmax.reduce(err, axis=1)
 
 
 def plot_compare(runs: list[CompareRun], goal: np.ndarray, path: Path) -> bool:
     """Overlaid leader paths (top view, obstacles of the first run), minimum inter-vehicle distance and the
-    worst formation error over time, one colour per variant; False without matplotlib."""
+    worst follower-to-slot error over time (`slot_error_series`), one colour per variant; False without
+    matplotlib."""
     plt = pyplot()
     if plt is None or not runs:
         return False
@@ -437,7 +443,7 @@ def plot_compare(runs: list[CompareRun], goal: np.ndarray, path: Path) -> bool:
         if run.traj.pos.shape[1] > 1:
             d, _ = _pair_distances(run.traj)
             ax2.plot(run.traj.t[s] - run.t0, d.min(axis=1)[s], lw=0.9, label=run.label)
-        series = formation_error_series(run)
+        series = slot_error_series(run)
         if series is not None:
             ss = _every(len(series[0]))
             ax3.plot(series[0][ss], series[1][ss], lw=0.9, label=run.label)
@@ -445,7 +451,7 @@ def plot_compare(runs: list[CompareRun], goal: np.ndarray, path: Path) -> bool:
     ax1.set_aspect("equal", adjustable="datalim")
     ax1.set(xlabel="East x (m)", ylabel="North y (m)", title="Leader paths")
     ax2.set(xlabel="time since formation start (s)", ylabel="m", title="Minimum inter-vehicle distance")
-    ax3.set(xlabel="time since formation start (s)", ylabel="m", title="Formation error max_i e_F,i")
+    ax3.set(xlabel="time since formation start (s)", ylabel="m", title="Worst follower-to-slot error")
     for ax in (ax1, ax2, ax3):
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=7, loc="best")
