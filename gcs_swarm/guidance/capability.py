@@ -53,7 +53,7 @@ class AccelBudget(NamedTuple):
     drag: float  # 1/s, c
     drag_wind_x: float  # m/s^2, c w_x (ENU)
     drag_wind_y: float  # m/s^2, c w_y
-    budget: float  # m/s^2, f g tan(theta_max); inf: no budget
+    budget: float  # m/s^2, f_a g tan(theta_max); inf: no budget
 
 
 NO_BUDGET = AccelBudget(0.0, 0.0, 0.0, math.inf)
