@@ -751,6 +751,16 @@ class FleetController:
             p_r, self.last_pos, self.last_vel, known, gen.v, float(ref.brake_accel), self.field, d_max,
             sep.mode == "formula", min(d_emg, d_max), sep.a_e, s_s,
         )  # fmt: skip
+        # [add] spec 4: D_Emg also where the vehicles are. A vehicle at its tilt limit lags its reference by
+        # up to the leash, so two vehicles can close within D_Emg while each reference stays clear of the
+        # other (slow airframe, legs2-3: 1.54 m, no emergency). Such a vehicle takes the pair forces there.
+        f_here, near = uav_repulsion(
+            self.last_pos, self.last_pos, self.last_vel, known, self.last_vel, 0.0, self.field, d_max,
+            sep.mode == "formula", min(d_emg, d_max), sep.a_e, s_s,
+        )  # fmt: skip
+        lagging = near & ~emergency
+        f_uav[lagging] = f_here[lagging]
+        emergency |= near
         pulled = targets.copy()  # the leader's attraction and stopping curve pull toward its aim (spec 8a.10)
         pulled[lead] = aim
         force = attraction(p_r, pulled, self.field, self.d_g) + f_obs + f_uav

@@ -271,3 +271,23 @@ def test_bad_inputs_give_clear_errors():
         ctl.tick(0.0, pos, zero, zero, np.zeros((1, 3)), -np.ones(1), on)
     with pytest.raises(ValueError, match="leader"):
         ctl.reset(np.full((n, 3), np.nan), zero, np.zeros(n))
+
+
+def test_vehicles_within_d_emg_are_in_emergency_though_their_references_are_clear():
+    """Two vehicles 2 m apart (under D_Emg = 3 m), side by side, whose references have run 5 m ahead of them
+    (a vehicle at its tilt limit, its reference on the leash): each reference is sqrt(5^2 + 2^2) = 5.4 m from
+    the other vehicle, so only the vehicles' own distance shows the emergency (spec 4, Eq 19). Both are
+    flagged, and the pair is pushed apart vertically, the larger index up (Eq 18)."""
+    offsets = np.array([[0.0, 0.0, 0.0], [0.0, 10.0, 0.0]])
+    ctl = make(2, offsets=offsets)
+    pos = np.array([[0.0, 0.0, 20.0], [0.0, 2.0, 20.0]])
+    vel = np.array([[4.0, 0.0, 0.0], [4.0, 0.0, 0.0]])
+    ctl.reset(pos, vel, np.zeros(2))
+    ahead = pos + np.array([5.0, 0.0, 0.0])
+    ctl.generator.reset(ahead, vel)
+    no_obstacles = np.zeros((0, 3)), np.zeros(0)
+    cmd = ctl.tick(0.02, pos, vel, np.zeros((2, 3)), *no_obstacles, np.ones(2, dtype=bool))
+    reference_distance = np.linalg.norm(ahead[0] - pos[1])
+    assert reference_distance > 5.0 > ctl.separation.d_emg
+    assert cmd.emergency.tolist() == [True, True]
+    assert cmd.field_force[1, 2] > 0.0 > cmd.field_force[0, 2]
