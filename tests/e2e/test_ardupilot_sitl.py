@@ -59,7 +59,6 @@ def test_three_stock_arducopters_fly_the_formation(tmp_path: Path) -> None:
         stop_vehicles(procs)
     output = proc.stdout + proc.stderr
     assert proc.returncode == 0, output[-3000:]
-    assert "waiting for" in output  # preflight said what it waited for while the EKFs started
     report = json.loads((run_dir / "report.json").read_text())
     assert report["reached"] and report["collisions"] == 0 and report["safety_events"] == []
     assert report["source"] == "telemetry"  # no simulator of ours: the vehicles' own reports

@@ -107,8 +107,14 @@ def test_ready_needs_a_position_estimate_and_prearm_health(simulator, fleet_of) 
     link = fleet.vehicle("lead")
     fleet.run([link.parameters.op_set("FENCE_TYPE", 4)])  # a fence without zones fails pre-arm
     fleet.run([link.parameters.op_set("FENCE_ENABLE", 1)])
+    heard: list[str] = []
     with pytest.raises(LinkError, match="^not ready to fly after 8 s: lead: pre-arm checks failing"):
-        fleet.wait_ready(timeout_s=8.0)  # the estimate is there after 5 s; pre-arm still fails
+        fleet.wait_ready(timeout_s=8.0, progress=heard.append, progress_period_s=1.0)  # the estimate is
+        # there after 5 s; pre-arm still fails
+    # the operator hears why every second of vehicle time: first the estimate, then the pre-arm check
+    assert len(heard) >= 7, heard
+    assert heard[0].startswith("waiting for lead: no usable position estimate"), heard
+    assert heard[-1].startswith("waiting for lead: pre-arm checks failing"), heard
     fleet.run([link.parameters.op_set("FENCE_ENABLE", 0)])
     fleet.wait_ready(timeout_s=3.0)
     assert fleet.ready.tolist() == [True]
