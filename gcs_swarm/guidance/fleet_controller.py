@@ -402,6 +402,17 @@ class FleetController:
         self.last_pos[row] = _as_array("pos", pos, (3,))
         self.last_vel[row] = _as_array("vel", vel, (3,))
 
+    def _closing_caps(self, known: np.ndarray, d_emg: float, s_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) m/s: nobody closes on another faster than it could stop (separation.closing_speed_caps, from
+        the measured positions and velocities; `known` (N,) rows have them), short of d_emg m (s_s m in
+        formula mode), and the (N,) bool rows capped on a collision course; inf and none when the cap is
+        off."""
+        if not self.closing_accel > 0.0:
+            return np.full(self.n, np.inf), np.zeros(self.n, dtype=bool)
+        gap = d_emg if self.separation.mode == "constant" else s_s
+        radius = closing_range(gap, self.closing_accel, float(np.max(self.v_xy_cap)))
+        return closing_speed_caps(self.last_pos, self.last_vel, known, float(gap), self.closing_accel, radius)
+
     def speed_caps(self) -> np.ndarray:
         """(N,) m/s: each vehicle's horizontal speed cap before the closing-speed and failsafe caps: v_xy
         (leader v_xy_leader x leader_speed_scale) x the degraded-flight speed_scale; the leader's also within
@@ -733,20 +744,26 @@ class FleetController:
         if ref.paper_literal:
             gen.reset_rows(literal & active, pos, vel)
 
-        # Step 6 (leash) then step 2: the field at the reference points (obstacles along their braking paths);
-        # the other vehicles repel from where they are (or were).
-        ahead = gen.leash_and_lookahead(pos, active)
-        p_r = gen.p
-        f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, self.field, shapes=self.shapes)
         wide = self.spacing_scale
         sep = self.separation
         d_emg, s_s = (sep.d_emg, sep.s_s) if wide == 1.0 else (sep.d_emg * wide, sep.s_s * wide)
+        known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
+        closing_caps, on_course = self._closing_caps(known, d_emg, s_s)
+        # Step 6 (leash) then step 2: the field at the reference points (obstacles along their braking paths);
+        # the other vehicles repel from where they are (or were). [add] A vehicle closing on another faster
+        # than its closing-speed cap allows, on a course that would pass within d_emg + 1 m, has its reference
+        # held closing_leash_m from it, so that the cap brakes the vehicle and not only a reference up to the
+        # leash ahead of it.
+        leash = np.full(self.n, float(ref.leash))
+        leash[on_course] = min(float(ref.leash), sep.closing_leash_m)
+        ahead = gen.leash_and_lookahead(pos, active, leash)
+        p_r = gen.p
+        f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, self.field, shapes=self.shapes)
         d_max = self.d_max * wide
         if shrink < 1.0:  # a tighter shape: its neighbours are not repelled out of their slots
             assert self.reshape is not None and self.shaper is not None
             spacing, tightest = self.shaper.spacing, self.reshape.min_spacing_m
             d_max = shape_repulsion_range(self.d_max, spacing, shrink, tightest) * wide
-        known = np.asarray(np.isfinite(self.last_pos).all(axis=1))
         f_uav, emergency = uav_repulsion(
             p_r, self.last_pos, self.last_vel, known, gen.v, float(ref.brake_accel), self.field, d_max,
             sep.mode == "formula", min(d_emg, d_max), sep.a_e, s_s,
@@ -766,14 +783,7 @@ class FleetController:
         force = attraction(p_r, pulled, self.field, self.d_g) + f_obs + f_uav
 
         # Steps 3-5 (or the paper-literal follower reference)
-        speed_cap = self.speed_caps()
-        if self.closing_accel > 0.0:  # nobody closes on another faster than it could stop
-            gap = d_emg if sep.mode == "constant" else s_s
-            radius = closing_range(gap, self.closing_accel, float(np.max(self.v_xy_cap)))
-            caps = closing_speed_caps(
-                self.last_pos, self.last_vel, known, float(gap), self.closing_accel, radius
-            )
-            speed_cap = np.minimum(speed_cap, caps)
+        speed_cap = np.minimum(self.speed_caps(), closing_caps)
         if self.dead_gcs is not None and self.dead_gcs.speed_scheduling:
             fs = self.dead_gcs
             caps = failsafe_speed_caps(

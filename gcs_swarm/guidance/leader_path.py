@@ -193,6 +193,7 @@ def leader_flight(
     rows, evasive, zero = np.ones(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_), np.zeros((1, 3))
     cap = np.full(1, speed_cap)
     index, last, covered, count = 0, waypoints.shape[0] - 1, 0.0, 0
+    no_leash = np.full(ps.shape[0], math.inf)  # the predicted reference is its own vehicle
     for step in range(steps):
         index, distance = waypoint_ahead(
             waypoints, index, ps[0], vs[0, 0], vs[0, 1], waypoint_radius, aim_turn_rate, d_g
@@ -200,7 +201,7 @@ def leader_flight(
         aim, aim_bearing = leader_aim(ps[0], waypoints[index], aim_bearing, aim_turn_rate * PREDICT_DT_S, d_g)
         for d in range(3):
             goal[0, d], aimed[0, d] = waypoints[index, d], aim[d]
-        ahead = leash_and_lookahead(ps, vs, ps, rows, math.inf, brake_accel)
+        ahead = leash_and_lookahead(ps, vs, ps, rows, no_leash, brake_accel)
         force = attraction_force(ps, aimed, k_att, d_g, segmented) + obstacle_repulsion_force(
             ps, ahead, goal, centres, radii, kinds, params, vertices, l0, l_min, adaptive, k_rep, n_exp,
             rho_eps, circulation, obstacle_vertical,

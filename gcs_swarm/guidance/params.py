@@ -81,10 +81,18 @@ class SeparationParams:
     # passed 1.3 m from its leader, on 11 deg 0.9 m (g tan 11 deg is 1.9 m/s^2). 0.3 leaves 35 deg's 2 m/s^2
     # as it is. 0 = no such bound
     closing_brake_tilt_share: float = 0.3
+    # m [add]: while a vehicle's closing-speed cap binds (it closes faster than the cap allows) and the pair,
+    # flying on, would pass within d_emg + 1 m (separation.closing_speed_caps), its reference is held this
+    # close to it (spec 8 step 6's leash, which is reference.leash otherwise), so the cap brakes the vehicle
+    # itself: a vehicle at its tilt limit trails its reference by up to the 5 m leash and would fly on at
+    # full tilt toward a reference that has already slowed (17 deg tilt limit: 2.34 m, under D_Emg)
+    closing_leash_m: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.closing_brake_accel >= 0:
             raise ValueError("closing_brake_accel must be >= 0 (0 turns the closing-speed cap off)")
+        if not self.closing_leash_m >= 0:
+            raise ValueError("closing_leash_m must be >= 0")
         if not 0 <= self.closing_brake_tilt_share <= 1:
             raise ValueError("closing_brake_tilt_share must lie in [0, 1] (0: no bound by the tilt limit)")
         if self.mode not in ("constant", "formula"):

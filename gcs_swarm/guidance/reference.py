@@ -68,19 +68,19 @@ class ReferenceConfig(NamedTuple):
 
 @kernel
 def leash_and_lookahead(
-    p: np.ndarray, v: np.ndarray, pos: np.ndarray, rows: np.ndarray, leash: float, brake_accel: float
+    p: np.ndarray, v: np.ndarray, pos: np.ndarray, rows: np.ndarray, leash: np.ndarray, brake_accel: float
 ) -> np.ndarray:
-    """Step 6, then where the field is felt: references p (N, 3) farther than `leash` m from their vehicle
-    pos (N, 3) are put back on that sphere, in place, for the (N,) bool rows; returns the braking points
-    (N, 3) p + v |v| / (2 a_b) [add] (v (N, 3) the reference velocities, a_b = brake_accel m/s^2), where
-    each reference would stop if it braked now, so that a reference meets the strong part of a repulsion no
-    faster than it can brake; p itself when brake_accel <= 0 (spec 8 step 2)."""
+    """Step 6, then where the field is felt: references p (N, 3) farther than their `leash` (N,) m from
+    their vehicle pos (N, 3) are put back on that sphere, in place, for the (N,) bool rows; returns the
+    braking points (N, 3) p + v |v| / (2 a_b) [add] (v (N, 3) the reference velocities, a_b = brake_accel
+    m/s^2), where each reference would stop if it braked now, so that a reference meets the strong part of
+    a repulsion no faster than it can brake; p itself when brake_accel <= 0 (spec 8 step 2)."""
     n = p.shape[0]
     for i in range(n):
         g0, g1, g2 = p[i, 0] - pos[i, 0], p[i, 1] - pos[i, 1], p[i, 2] - pos[i, 2]
         dist = norm3(g0, g1, g2)
-        if rows[i] and dist > leash:
-            scale = leash / dist
+        if rows[i] and dist > leash[i]:
+            scale = leash[i] / dist
             p[i, 0], p[i, 1], p[i, 2] = pos[i, 0] + g0 * scale, pos[i, 1] + g1 * scale, pos[i, 2] + g2 * scale
     if brake_accel <= 0.0:
         return p
@@ -252,12 +252,14 @@ class ReferenceGenerator:
         self.v[rows] = vel[rows]
         self.a[rows] = 0.0
 
-    def leash_and_lookahead(self, pos: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """Step 6 for the (N,) bool rows (references farther than `leash` m from their vehicle pos (N, 3)
-        go back on that sphere), then the points (N, 3) where the field is felt (`leash_and_lookahead`)."""
-        return leash_and_lookahead(
-            self.p, self.v, pos, rows, float(self.params.leash), float(self.params.brake_accel)
-        )
+    def leash_and_lookahead(
+        self, pos: np.ndarray, rows: np.ndarray, leash: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Step 6 for the (N,) bool rows (references farther than their leash (N,) m, default the params'
+        `leash` for every row, from their vehicle pos (N, 3) go back on that sphere), then the points (N, 3)
+        where the field is felt (`leash_and_lookahead`)."""
+        leash = np.full(len(pos), float(self.params.leash)) if leash is None else leash
+        return leash_and_lookahead(self.p, self.v, pos, rows, leash, float(self.params.brake_accel))
 
     def step(
         self,

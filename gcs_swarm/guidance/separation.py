@@ -290,17 +290,22 @@ def uav_forces(
 @kernel
 def closing_speed_caps(
     pos: np.ndarray, vel: np.ndarray, valid: np.ndarray, d_emg: float, accel: float, radius: float
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """(N,) m/s horizontal speed caps [add]: vehicle i closing on vehicle j at c = (v_i - v_j) . u_ij
     (u_ij the unit vector from i to j) faster than it could stop at `accel` m/s^2 before d_emg + 1 m,
     c > sqrt(2 accel (d - d_emg - 1)), is capped at |v_i,xy| - (c - that), but only while its own velocity
     points at j (v_i . u_ij > 0): the vehicle behind slows down, the one ahead is left alone. inf where
     nothing closes in; rows not `valid` (N,) or not finite are skipped; pairs farther apart than `radius`
-    m (closing_range) are not checked. pos, vel (N, 3) ENU."""
+    m (closing_range) are not checked. pos, vel (N, 3) ENU.
+
+    Also the (N,) bool rows `on_course` whose cap comes from a pair that, flying on at their velocities,
+    would pass closer than d_emg + 1 m (their closest approach in 3D): a cap on two vehicles that close
+    in but would pass wide of each other only keeps their closing speed within what they could stop from."""
     n = pos.shape[0]
     caps = np.full(n, np.inf)
+    on_course = np.zeros(n, dtype=np.bool_)
     if n < 2 or accel <= 0:
-        return caps
+        return caps, on_course
     rows = np.empty(n, dtype=np.intp)
     m = 0
     for r in range(n):
@@ -331,7 +336,12 @@ def closing_speed_caps(
         if own > 0.0 and excess > 0.0:
             speed = np.hypot(vel[i, 0], vel[i, 1])
             caps[i] = minimum(caps[i], maximum(speed - excess, 0.0))
-    return caps
+            w0, w1, w2 = vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1], vel[i, 2] - vel[j, 2]
+            t_cpa = dot3(r0, r1, r2, w0, w1, w2) / dot3(w0, w1, w2, w0, w1, w2)  # > 0: they close in
+            m0, m1, m2 = r0 - w0 * t_cpa, r1 - w1 * t_cpa, r2 - w2 * t_cpa
+            if dot3(m0, m1, m2, m0, m1, m2) < (d_emg + CLOSING_MARGIN_M) ** 2:
+                on_course[i] = True
+    return caps, on_course
 
 
 def uav_repulsion(

@@ -106,13 +106,14 @@ def test_closing_speed_cap_slows_the_vehicle_behind_only() -> None:
     vel = np.array([[20.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, -5.0, 0.0]])  # the third: far, not in range
     radius = closing_range(3.0, 2.0, 20.0)  # 3 + 1 + 40^2 / 4 = 404 m, at most 200 m
     assert radius == CLOSING_RANGE_MAX_M
-    caps = closing_speed_caps(pos, vel, np.ones(3, dtype=bool), 3.0, 2.0, radius)
+    caps, on_course = closing_speed_caps(pos, vel, np.ones(3, dtype=bool), 3.0, 2.0, radius)
     assert caps[0] == pytest.approx(18.0)
     assert np.isinf(caps[1]) and np.isinf(caps[2])
+    assert on_course.tolist() == [True, False, False]  # straight at it: they would meet
     # slow enough, or unknown, or out of range: no cap
-    assert np.isinf(closing_speed_caps(pos, vel * 0.3, np.ones(3, dtype=bool), 3.0, 2.0, radius)).all()
-    assert np.isinf(closing_speed_caps(pos, vel, np.array([True, False, True]), 3.0, 2.0, radius)).all()
-    assert np.isinf(closing_speed_caps(pos, vel, np.ones(3, dtype=bool), 3.0, 2.0, 19.9)).all()
+    assert np.isinf(closing_speed_caps(pos, vel * 0.3, np.ones(3, dtype=bool), 3.0, 2.0, radius)[0]).all()
+    assert np.isinf(closing_speed_caps(pos, vel, np.array([True, False, True]), 3.0, 2.0, radius)[0]).all()
+    assert np.isinf(closing_speed_caps(pos, vel, np.ones(3, dtype=bool), 3.0, 2.0, 19.9)[0]).all()
     assert closing_range(3.0, 2.0, 2.0) == pytest.approx(3.0 + 1.0 + 16.0 / 4.0)
 
 
@@ -137,6 +138,20 @@ def test_the_arducopter_brake_distance_from_10_m_s():
     """Module docstring: from 10 m/s with A = 7.5 m/s^2, J = 5 m/s^3 about 20 m, not the 6.7 m of a
     constant deceleration (a real ArduCopter SITL quad stopped from 10.1 m/s in 20.4 m)."""
     assert float(brake_distance(10.0, A, J)) == pytest.approx(20.0, abs=1.0)
+
+
+def test_a_capped_pair_passing_wide_is_not_on_a_collision_course() -> None:
+    """The one ahead 5 m to the side: closing at 10 x 20 / sqrt(20^2 + 5^2) = 9.70 m/s, more than the
+    sqrt(2 * 2 * (20.62 - 4)) = 8.15 m/s the cap allows, so the one behind is capped at 20 - 1.55 = 18.45
+    m/s; flying on they would pass 5 m apart, outside d_emg + 1 m = 4 m, so not on a collision course. At
+    3.5 m to the side they would pass within it."""
+    vel = np.array([[20.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+    for side, expected in ((5.0, False), (3.5, True)):
+        pos = np.array([[0.0, 0.0, 10.0], [20.0, side, 10.0]])
+        caps, on_course = closing_speed_caps(pos, vel, np.ones(2, dtype=bool), 3.0, 2.0, 100.0)
+        d = math.hypot(20.0, side)
+        assert caps[0] == pytest.approx(20.0 - (10.0 * 20.0 / d - math.sqrt(4.0 * (d - 4.0))))
+        assert on_course.tolist() == [expected, False]
 
 
 def test_the_closing_deceleration_is_what_the_tilt_limit_allows() -> None:

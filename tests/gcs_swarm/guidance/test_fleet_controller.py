@@ -273,6 +273,35 @@ def test_bad_inputs_give_clear_errors():
         ctl.reset(np.full((n, 3), np.nan), zero, np.zeros(n))
 
 
+@pytest.mark.parametrize("closing_leash", [1.0, 0.0])
+def test_a_vehicle_closing_too_fast_has_its_reference_held_at_its_closing_leash(closing_leash):
+    """Vehicle 1 is 7 m from vehicle 0 (hovering) and flies at it at 6 m/s. The closing-speed cap (2 m/s^2
+    at 35 deg, 1 m outside D_Emg = 3 m) allows sqrt(2 x 2 x (7 - 4)) = 3.46 m/s, so it binds. Vehicle 1's
+    reference, run 5 m ahead of it sideways, is put back onto the closing leash round vehicle 1
+    (closing_leash_m), so that the cap brakes the vehicle itself. With the
+    closing leash as long as the leash (5 m) the reference stays where it was; vehicle 0, which closes on
+    nobody, keeps its reference."""
+    offsets = np.array([[0.0, 0.0, 0.0], [0.0, -10.0, 0.0]])
+    ctl = make(2, offsets=offsets, separation=SeparationParams(closing_leash_m=closing_leash))
+    free = make(2, offsets=offsets, separation=SeparationParams(closing_leash_m=5.0))
+    pos = np.array([[0.0, 0.0, 20.0], [0.0, -7.0, 20.0]])
+    vel = np.array([[0.0, 0.0, 0.0], [0.0, 6.0, 0.0]])
+    ahead = pos + np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    no_obstacles = np.zeros((0, 3)), np.zeros(0)
+    refs = []
+    for c in (ctl, free):
+        c.reset(pos, vel, np.zeros(2))
+        c.generator.reset(ahead, vel)
+        cmd = c.tick(0.02, pos, vel, np.zeros((2, 3)), *no_obstacles, np.ones(2, dtype=bool))
+        refs.append(cmd.ref_pos)
+    held, kept = refs
+    np.testing.assert_allclose(held[1], [closing_leash, -7.0, 20.0], atol=1e-12)
+    np.testing.assert_allclose(kept[1], [5.0, -7.0, 20.0], atol=1e-12)
+    np.testing.assert_allclose(held[0], kept[0], atol=1e-12)
+    with pytest.raises(ValueError, match="closing_leash_m"):
+        SeparationParams(closing_leash_m=-1.0)
+
+
 def test_vehicles_within_d_emg_are_in_emergency_though_their_references_are_clear():
     """Two vehicles 2 m apart (under D_Emg = 3 m), side by side, whose references have run 5 m ahead of them
     (a vehicle at its tilt limit, its reference on the leash): each reference is sqrt(5^2 + 2^2) = 5.4 m from
