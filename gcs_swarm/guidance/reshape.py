@@ -679,8 +679,10 @@ class FormationShaper:
         """The leader's speed cap while the slots move (`pace_cap`): the shape flown now must not reach the
         first place along the route where it does not fit before the change is done, so the leader covers at
         most that distance in the change's remaining phases, each at least at its floor (`pace_speed`; module
-        docstring, Pace); inf otherwise. The cap falls from the leader's `speed` m/s (or the cap before) no
-        faster than pace_decel_m_s2, so that followers whose slots brake with the leader can brake as fast."""
+        docstring, Pace); inf otherwise. The cap falls from the leader's `speed` m/s, or from the cap before
+        where that is lower, no faster than pace_decel_m_s2, so that followers whose slots brake with the
+        leader can brake as fast; a cap before that lay above the leader's speed (a change with room to
+        spare) does not delay the braking."""
         phases = self.move.phases_left(t)
         cap = math.inf
         if phases and self.current != 0:
@@ -689,7 +691,7 @@ class FormationShaper:
             if len(tight):
                 cap = max(phases[0][1], pace_speed(phases, float(along[tight[0]])))
         if math.isfinite(cap):
-            start = self.pace_cap if math.isfinite(self.pace_cap) else speed
+            start = min(self.pace_cap, speed)
             elapsed = t - self.paced_at if math.isfinite(self.paced_at) else self.params.decide_every_s
             cap = max(cap, start - self.params.pace_decel_m_s2 * elapsed)
         self.pace_cap, self.paced_at = cap, t

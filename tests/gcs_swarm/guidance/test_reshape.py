@@ -645,9 +645,35 @@ def test_the_leaders_pace_cap_falls_no_faster_than_pace_decel():
         t += 0.02
     assert min(cap for _, cap in decisions) < 5.0
     for (t0, before), (t1, after) in zip(decisions, decisions[1:], strict=False):
-        if math.isfinite(after):  # from the cap before, or from 10 m/s (the leader's speed) when none bound
-            start = before if math.isfinite(before) else 10.0
+        if math.isfinite(after):  # from the leader's speed (10 m/s, or the cap before where that bound it)
+            start = min(before, 10.0)
             assert start - after <= params.pace_decel_m_s2 * (t1 - t0) + 1e-9, t1
+
+
+def test_a_pace_cap_above_the_leaders_speed_does_not_delay_its_braking():
+    """The same line and gap. A change with room to spare leaves a pace cap above the leader's speed (on
+    gap-8 of the generated courses a narrowing to 60 % left 20.5 m/s, and the column decided 0.2 s later
+    needed 6 m/s): the next cap falls from the leader's speed, exactly as when the cap before was that speed,
+    not from the cap before (from 20.5 m/s at pace_decel_m_s2 the cap stayed above the leader's 10 m/s for
+    7 s, and the leader reached the gap with the column half formed)."""
+    centres, radii = _gap_world(16.0, x=80.0)
+    params = replace(PARAMS, speed_m_s=2.5)
+    shaper = FormationShaper(params, _line(4, 12.0), 0, 4.0)
+    wp, x, t = np.array([[400.0, 0.0, 10.0]]), -60.0, 0.0
+    while not shaper.pace_cap < 10.0:  # fly at 10 m/s until the pace binds
+        shaper.decide(t, np.array([x, 0.0, 10.0]), 0.0, wp, 10.0, 10.0, centres, radii)
+        x += 10.0 * 0.02
+        t += 0.02
+        assert x < 80.0
+    t = shaper.next_decision
+    capped = {}
+    for before in (10.0, 25.0):
+        twin = copy.deepcopy(shaper)
+        twin.pace_cap = before
+        twin.decide(t, np.array([x, 0.0, 10.0]), 0.0, wp, 10.0, 10.0, centres, radii)
+        capped[before] = twin.pace_cap
+    assert capped[25.0] == capped[10.0]
+    assert capped[25.0] < 10.0
 
 
 @pytest.mark.parametrize("on_slots", [False, True])
