@@ -23,6 +23,7 @@ CUSP_WINDOW_S = 1.0  # ... within this long ...
 CUSP_MIN_SPEED = 2.0  # m/s ... while the speed is above this at both ends
 JERK_WINDOW_S = 0.25  # s, Savitzky-Golay window of the jerk estimate (cubic fit of the true velocity)
 JERK_MIN_SAMPLES = 7  # samples: a shorter stretch of velocity gives no jerk estimate
+SHAPE_AT_REST_S = 0.5  # s: the formation's shape is at rest where no change of it is recorded this close
 
 
 def cusp_times(t: np.ndarray, vel_xy: np.ndarray) -> list[float]:
@@ -184,6 +185,31 @@ def assembled_figures(t: np.ndarray, slot_error: np.ndarray) -> dict[str, Any]:
         "slot_error_assembled_rms_m": rounded(float(np.sqrt(np.mean(err * err)))) if err.size else None,
         "slot_error_assembled_max_m": rounded(float(err.max())) if err.size else None,
     }
+
+
+def shape_at_rest(flight: dict[str, Any], t: np.ndarray) -> np.ndarray:
+    """(T,) bool at the times t (T,) s: flight.json's formation_timeline records no change of the formation
+    within SHAPE_AT_REST_S of t (a change of shape under way records one every control tick; its first entry,
+    the formation's start, is not a change); all true for a flight.json without it."""
+    t = np.asarray(t, dtype=float)
+    timeline = flight.get("formation_timeline") or []
+    changes = np.array([entry["t"] for entry in timeline[1:]], dtype=float)
+    before = np.searchsorted(changes, t - SHAPE_AT_REST_S, side="right")
+    after = np.searchsorted(changes, t + SHAPE_AT_REST_S, side="right")
+    return np.asarray(after == before)
+
+
+def shape_formed(t: np.ndarray, slot_error: np.ndarray, at_rest: np.ndarray) -> dict[str, Any]:
+    """`shape_formed_s`: from t[0] until every follower is within ASSEMBLED_M of its slot at a moment when the
+    formation's shape is at rest (`at_rest` (T,) bool, `shape_at_rest`) for the first time, None if never;
+    from the follower-to-slot error (T, N) m (NaN: the leader, vehicles out of the formation) at times t (T,)
+    s. Where the formation changes shape before it has assembled (a change may start where the followers
+    stand, spec 6a.4), `assembly_s` is when every follower is first on the slots of that moment, and this is
+    when the shape they were moving to was formed (docs/metrics.md)."""
+    with np.errstate(invalid="ignore"):
+        worst = np.fmax.reduce(slot_error, axis=1) if slot_error.shape[1] else np.zeros(len(t))
+    formed = np.flatnonzero((worst <= ASSEMBLED_M) & at_rest)
+    return {"shape_formed_s": rounded(float(t[formed[0]] - t[0]), 2) if len(formed) else None}
 
 
 def whole_flight_figures(

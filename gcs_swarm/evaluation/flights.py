@@ -29,6 +29,7 @@ WHOLE_FLIGHT_RESULT_KEYS = (  # ... and these of report.json's whole_flight (doc
     "assembly_s",
     "slot_error_assembled_rms_m",
     "slot_error_assembled_max_m",
+    "shape_formed_s",
     "leader_path_ratio",
 )
 

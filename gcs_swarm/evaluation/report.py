@@ -164,6 +164,10 @@ def _report_from(
         None if commands is None else _commands_between(commands, t_first, t_arrival),
         names,
     )
+    if slot_error is not None and len(tw):
+        window = (tw >= t_first) & (tw <= t_arrival)
+        at_rest = flight_quality.shape_at_rest(flight, tw[window])
+        whole |= flight_quality.shape_formed(tw[window], slot_error[window], at_rest)
     safety_events = []
     if crashed_any.any():
         safety_events.append(
@@ -256,6 +260,10 @@ WHOLE_FLIGHT_KEYS = (
     "slot_error_rms_m",
     "slot_error_p95_m",
     "slot_error_max_m",
+    "assembly_s",
+    "slot_error_assembled_rms_m",
+    "slot_error_assembled_max_m",
+    "shape_formed_s",
     "cusps",
     "max_tilt_command_rate_rad_s",
     "max_yaw_command_rate_rad_s",

@@ -488,6 +488,18 @@ class FleetController:
         turn, brake = self.reshape.path_turn_accel_m_s2, self.reshape.pace_decel_m_s2
         self.path_pace = self.trail.pace(p_lead, v_lead, a_lead, arcs, turn, brake)
 
+    def _standing_offsets(self, t: float, p_lead: np.ndarray) -> np.ndarray:
+        """(N, 3) leader-frame m, before the degraded widening: where the followers in the formation stand
+        now relative to the leader at p_lead (3,) ENU m and heading psi_L (FormationShaper.decide's
+        `standing`); the offsets flown at t s for the leader's row and the rows out of the formation or
+        without a position."""
+        assert self.shaper is not None and self.heading is not None
+        flown = self.shaper.flown(t)[0]
+        world = self.last_pos - p_lead
+        here = rotate_to_world(world, -self.heading.psi) / self.spacing_scale  # world -> leader frame
+        known = np.isfinite(here).all(axis=1) & np.any(flown != 0.0, axis=1)
+        return np.where(known[:, None], here, flown)
+
     def drain_events(self) -> list[str]:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
         shape come apart, from `drain_shape_changes`."""
@@ -697,11 +709,12 @@ class FleetController:
             assert self.reshape is not None
             cap_now = float(self.v_xy_cap[lead] * self.speed_scale)
             predicted = partial(self._leader_path_ahead, cap_now, centres, radii)
+            standing = None if self.assembled else self._standing_offsets(t, p_lead)
             self.shaper.decide(
                 t, p_lead, self.heading.psi, self.route_points[self.route_index :], cap_now,
                 float(np.hypot(*self.last_vel[lead, :2])), centres, radii, self.shapes,
                 route=predicted if self.reshape.predict_path else None,
-                assembled=self.assembled,
+                assembled=self.assembled, standing=standing,
             )  # fmt: skip
             offsets, offset_rate, offset_accel = self.shaper.flown(t)
             shrink = self.shaper.scale(t)

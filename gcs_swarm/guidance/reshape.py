@@ -514,11 +514,13 @@ class FormationShaper:
         return plan_move(now, end, rows, t, params.speed_m_s, params.accel_m_s2, keep_apart)
 
     def _change_to(
-        self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None
-    ) -> None:
+        self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None,
+        start_scale: float | None = None,
+    ) -> None:  # fmt: skip
         """Start moving the slots from the offsets `now` (N, 3) to shape `index` at t (along `move`, planned
-        by `_plan`, when given)."""
-        self.start_scale, self.end_scale = self.scale(t), self.shapes[index].scale
+        by `_plan`, when given), the spacing scale from `start_scale` (None: the scale flown at t)."""
+        self.start_scale = self.scale(t) if start_scale is None else start_scale
+        self.end_scale = self.shapes[index].scale
         self.move = move if move is not None else self._plan(index, now, t)
         self.waiting_moves = {}
         self.opening_early = False
@@ -579,7 +581,7 @@ class FormationShaper:
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
         speed: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
-        route: Route | None = None, assembled: bool = True,
+        route: Route | None = None, assembled: bool = True, standing: np.ndarray | None = None,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
         psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
@@ -587,7 +589,9 @@ class FormationShaper:
         `route` (the leader's path predicted, gcs_swarm.guidance.leader_path; None: the straight route
         through the waypoints, route_samples). `assembled`: whether the formation has assembled (every
         follower reached its slot once; FleetController): until then a change moves its slots the way that
-        keeps them farthest apart, not the quickest (`_plan`)."""
+        keeps them farthest apart, not the quickest (`_plan`). `standing` (N, 3) leader-frame m: where the
+        followers stand now, given before the formation has assembled: a narrowing starts from there, not
+        from the slots they are still flying to (spec 6a.4), its spacing scale from theirs."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
@@ -654,7 +658,11 @@ class FormationShaper:
         self.widen_blocked = False
         if best > self.current:
             self.wider_since = None
-            self._change_to(best, self.start_offsets(t), t)
+            if standing is None:
+                self._change_to(best, self.start_offsets(t), t)
+            else:  # the repulsion range starts at the spacing they stand at (spec 6a.6)
+                start_scale = min(1.0, shape_spacing(standing, self.leader) / self.spacing)
+                self._change_to(best, standing, t, start_scale=start_scale)
         elif best < self.current:
             if self.wider_since is None:
                 self.wider_since = t

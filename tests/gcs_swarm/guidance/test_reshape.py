@@ -677,14 +677,15 @@ def test_a_pace_cap_above_the_leaders_speed_does_not_delay_its_braking():
 
 
 @pytest.mark.parametrize("on_slots", [False, True])
-def test_until_the_formation_has_assembled_a_change_keeps_the_slots_farthest_apart(on_slots):
+def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_stand(on_slots):
     """A line abreast of four 12 m apart, a gap 16 m wide 60 m ahead: the column fits it, the line does not,
-    and the first decision starts the change. Assembled (followers on their line slots from the start), it
-    goes the quickest way that keeps move_gap_m: straight, one phase. Not yet assembled (followers still in
-    their launch row 5 m behind the leader, 7-25 m from their slots), the way that keeps the slots farthest
-    apart, as a moment's sweep of the slots across the followers' way reversed some on the generated courses:
-    along, then across, its closest pair passing farther apart than straight, and longer."""
-    from gcs_swarm.guidance.reshape import closest_pair_along
+    and the first decision (the first tick) starts the change. Assembled (followers on their line slots from
+    the start), the slots move from the line the quickest way that keeps move_gap_m: straight, one phase,
+    at the line's spacing (scale 1). Not yet assembled (followers still in their launch row 5 m behind the
+    leader, 4 m apart, 7-25 m from their line slots), the slots start where the followers stand, not from
+    the line they were flying to (spec 6a.4): the move's start is the launch row, its spacing scale 4 / 12
+    (so the repulsion range starts at min_spacing_m - 1 m, spec 6a.6, not at D_max), and the followers,
+    on the slots of that moment, have assembled."""
     from tests.gcs_swarm.guidance.test_fleet_controller import DT, PointMassFleet
 
     line = _line(4, 12.0)
@@ -696,20 +697,18 @@ def test_until_the_formation_has_assembled_a_change_keeps_the_slots_farthest_apa
     ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
     assert ctl.assembled is on_slots
     active = np.ones(5, dtype=bool)
-    for k in range(int(1.0 / DT)):
-        cmd = ctl.tick(k * DT, plant.pos, plant.vel, plant.att, centres, radii, active)
-        plant.step(cmd, active)
-    assert ctl.assembled is on_slots
+    cmd = ctl.tick(0.0, plant.pos, plant.vel, plant.att, centres, radii, active)
     shaper = ctl.shaper
     assert shaper is not None and shaper.shape_name == "column"
     move = shaper.move
-    straight = closest_pair_along(move.start, move.end, ((0, 1, 2),))
+    np.testing.assert_allclose(move.start, start, atol=1e-9)
+    np.testing.assert_allclose(cmd.slots[1:], start[1:] + np.array([0.0, 0.0, 10.0]), atol=1e-9)  # followers
+    assert shaper.start_scale == pytest.approx(1.0 if on_slots else 4.0 / 12.0)
     if on_slots:
         assert [axes for axes, _ in move.phases] == [(0, 1, 2)]
-        assert straight >= PARAMS.move_gap_m
-    else:
-        assert [axes for axes, _ in move.phases] == [(0, 2), (1,)]
-        assert closest_pair_along(move.start, move.end, ((0, 2), (1,))) > straight
+    plant.step(cmd, active)
+    ctl.tick(DT, plant.pos, plant.vel, plant.att, centres, radii, active)
+    assert ctl.assembled
 
 
 @pytest.mark.parametrize(
