@@ -59,3 +59,16 @@ def test_the_summary_counts_the_courses_the_paper_never_arrived_on():
     assert cells[header.index("time_ratio_to_paper")].endswith("(2/3)")
     assert cells[header.index("of which paper never arrived")] == "1"
     assert cells[header.index("reached")] == "2"
+
+
+def test_the_summary_reports_when_the_shape_was_formed_beside_the_bounds():
+    """shape_formed_s has no bound: median / 90th percentile / worst of the flights that have it (4 and 8 s:
+    6, 4 + 0.9 x 4 = 7.6 and 8 s) and how many lack it (one never formed its shape)."""
+    results = [
+        _row("smooth", 40.0, seed) | {"shape_formed_s": formed}
+        for seed, formed in enumerate((4.0, 8.0, None))
+    ]
+    table = summarise(results, ["legs2"]).splitlines()
+    header = [cell.strip() for cell in table[0].strip("|").split("|")]
+    cells = [cell.strip() for cell in table[2].strip("|").split("|")]
+    assert cells[header.index("shape_formed_s")] == "6.00 / 7.60 / 8.00 (1 none)"
