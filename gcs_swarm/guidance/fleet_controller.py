@@ -709,7 +709,7 @@ class FleetController:
             assert self.reshape is not None
             cap_now = float(self.v_xy_cap[lead] * self.speed_scale)
             predicted = partial(self._leader_path_ahead, cap_now, centres, radii)
-            standing = None if self.assembled else self._standing_offsets(t, p_lead)
+            standing = None if self.assembled else partial(self._standing_offsets, t, p_lead)
             self.shaper.decide(
                 t, p_lead, self.heading.psi, self.route_points[self.route_index :], cap_now,
                 float(np.hypot(*self.last_vel[lead, :2])), centres, radii, self.shapes,

@@ -581,7 +581,7 @@ class FormationShaper:
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
         speed: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
-        route: Route | None = None, assembled: bool = True, standing: np.ndarray | None = None,
+        route: Route | None = None, assembled: bool = True, standing: Callable[[], np.ndarray] | None = None,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
         psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
@@ -589,9 +589,10 @@ class FormationShaper:
         `route` (the leader's path predicted, gcs_swarm.guidance.leader_path; None: the straight route
         through the waypoints, route_samples). `assembled`: whether the formation has assembled (every
         follower reached its slot once; FleetController): until then a change moves its slots the way that
-        keeps them farthest apart, not the quickest (`_plan`). `standing` (N, 3) leader-frame m: where the
-        followers stand now, given before the formation has assembled: a narrowing starts from there, not
-        from the slots they are still flying to (spec 6a.4), its spacing scale from theirs."""
+        keeps them farthest apart, not the quickest (`_plan`). `standing`, given before the formation has
+        assembled: where the followers stand now, (N, 3) leader-frame m, asked for only when the formation
+        narrows: the narrowing starts from there, not from the slots they are still flying to (spec 6a.4),
+        its spacing scale from theirs."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
@@ -661,8 +662,9 @@ class FormationShaper:
             if standing is None:
                 self._change_to(best, self.start_offsets(t), t)
             else:  # the repulsion range starts at the spacing they stand at (spec 6a.6)
-                start_scale = min(1.0, shape_spacing(standing, self.leader) / self.spacing)
-                self._change_to(best, standing, t, start_scale=start_scale)
+                stand = standing()
+                start_scale = min(1.0, shape_spacing(stand, self.leader) / self.spacing)
+                self._change_to(best, stand, t, start_scale=start_scale)
         elif best < self.current:
             if self.wider_since is None:
                 self.wider_since = t
