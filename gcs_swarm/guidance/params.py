@@ -357,6 +357,11 @@ class ReshapeParams:
     # re-forms at the goal when the mission's shape fits there and its way is clear, instead of ending the
     # flight as a column); false: arrival waits only for a change of shape under way (reshape, spec 6a.3)
     arrive_in_shape: bool = True
+    # deg between the turns about the leader tried at the goal, where the leader hovers with psi_L held: a
+    # formation whose shape does not fit beside the obstacles there settles in the widest candidate that
+    # fits, least turned (reshape, spec 6a.3: on two generated courses a column's tail stood beside the last
+    # obstacle, its followers held off their slots until the time limit); 0: never turned
+    goal_turn_step_deg: float = 15.0
     # the leader's route goes round clusters of still obstacles that close a gap narrower than
     # 2 x gap_clearance_m plus the narrowest shape's width (gcs_swarm.guidance.route_plan): with the field's
     # defaults a leader's reference stalls in front of a 12 m gap between two spheres of 6-10 m and passes a
@@ -386,6 +391,8 @@ class ReshapeParams:
             raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
         if not self.path_turn_accel_m_s2 > 0:
             raise ValueError("need path_turn_accel_m_s2 > 0")
+        if not 0 <= self.goal_turn_step_deg <= 180:
+            raise ValueError("need 0 <= goal_turn_step_deg <= 180")
 
 
 @dataclass(frozen=True)

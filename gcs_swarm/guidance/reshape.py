@@ -28,6 +28,12 @@ purpose instead, and its followers' slots move with it:
   its way no longer keeps the clearance it was planned with, less OPENING_SLACK_M. A wider shape that fits
   and whose way is not found blocked is `widening_due`: the runner's arrival waits for it
   (reshape.arrive_in_shape, FleetController.shape_settled).
+- **At the goal** (the leader within GOAL_RADIUS_M of its last waypoint, where it hovers with psi_L held):
+  the shape flown and the narrower candidates turned about the leader by every `goal_turn_step_deg` as well
+  (`turned`), so that a formation whose shape does not fit beside the obstacles there (a column whose tail
+  trails back past the last obstacle) settles in one that does, instead of its followers being held off
+  their slots by the repulsion until the time limit; the widest that fits, least turned, and a change to it
+  only where its move keeps the clearance the slots have at its start (`_decide_at_goal`, spec 6a.3).
 - **Change**: the followers are assigned to the new slots by the shortest longest move
   (gcs_swarm.guidance.slot_assignment), and the slots move from the old to the new offsets straight, or first
   along the leader's heading and then across it, or the other way round (MOVE_ORDERS): the quickest way that
@@ -79,6 +85,9 @@ CLEARANCE_TOLERANCE_M = 1e-6  # m a slot's clearance may round below its start's
 # leader does not fly on at exactly the speed the plan assumed
 OPENING_SLACK_M = 1.0
 EARLY_TURN_MAX_RAD = math.radians(20.0)  # rad the route may turn while a widening judged early runs
+GOAL_RADIUS_M = 2.0  # m from its last waypoint within which the leader is at its goal (`_decide_at_goal`)
+# moves planned and checked for clearance at the goal per decision (the costly part of a decision there)
+GOAL_CHECKS_PER_DECISION = 1
 # the leader's way ahead for a length m: points (P, 3) ENU m, the formation's heading there (P,) rad, their
 # travel from the leader (P,) m (route_samples, gcs_swarm.guidance.leader_path)
 Route = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -87,13 +96,16 @@ Route = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
 @dataclass(frozen=True)
 class ShapeChange:
     """One change of the formation's shape, for the flight's events, flight.json and the report: at vehicle
-    time `t` s the formation `change`s ("narrows", "widens" or "restored": back to the mission's own shape)
-    to the candidate `shape` (Shape.name) at spacing `scale` of the mission's."""
+    time `t` s the formation `change`s ("narrows", "widens", "turns": the same candidate turned otherwise
+    about the leader, or "restored": back to the mission's own shape, unturned) to the candidate `shape`
+    (Shape.name, with its turn: `turned_name`) at spacing `scale` of the mission's, turned by `turn_deg`
+    deg about the leader (counter-clockwise seen from above; non-zero only at the goal)."""
 
     t: float
     change: str
     shape: str
     scale: float
+    turn_deg: float = 0.0
 
     @property
     def sentence(self) -> str:
@@ -103,12 +115,13 @@ class ShapeChange:
         return f"t={self.t:.2f} s formation {self.change}: {self.shape}"
 
     def as_json(self) -> dict[str, float | str]:
-        """flight.json's "reshapes" row: t_s, change, shape, scale."""
+        """flight.json's "reshapes" row: t_s, change, shape, scale, turn_deg."""
         return {
             "t_s": round(self.t, 3),
             "change": self.change,
             "shape": self.shape,
             "scale": round(self.scale, 4),
+            "turn_deg": round(self.turn_deg, 1),
         }
 
 
@@ -119,6 +132,33 @@ class Shape:
     name: str
     offsets: np.ndarray
     scale: float
+
+
+def turned(offsets: np.ndarray, angle: float) -> np.ndarray:
+    """Leader-frame offsets (N, 3) m turned by `angle` rad about the leader's vertical axis (counter-clockwise
+    seen from above: a slot astern, (-7, 0, 0), turned by +90 deg lies at (0, -7, 0), to the right)."""
+    c, s = math.cos(angle), math.sin(angle)
+    out = np.array(offsets, dtype=float)
+    out[:, 0] = offsets[:, 0] * c - offsets[:, 1] * s
+    out[:, 1] = offsets[:, 0] * s + offsets[:, 1] * c
+    return out
+
+
+def turned_name(name: str, angle: float) -> str:
+    """A candidate's name with its turn at the goal: "column", "column turned -30 deg"."""
+    degrees = round(math.degrees(angle))
+    return name if degrees == 0 else f"{name} turned {degrees:+d} deg"
+
+
+def goal_turns(step_deg: float) -> np.ndarray:
+    """The turns (T,) rad tried at the goal, least first, every `step_deg` deg (0: none but 0): for 15 deg,
+    0, +15, -15, +30, ..., +165, -165, 180 deg."""
+    if step_deg <= 0.0:
+        return np.zeros(1)
+    steps = [0.0]
+    for k in range(1, math.ceil(180.0 / step_deg - 1e-9)):
+        steps += [k * step_deg, -k * step_deg]
+    return np.radians(np.array([*steps, 180.0]))
 
 
 def nearest_slot_spacing(offsets: np.ndarray, rows: np.ndarray) -> float:
@@ -443,6 +483,10 @@ class FormationShaper:
         self.shapes = candidate_shapes(nominal, self.leader, self.params)
         self.spacing = shape_spacing(nominal, self.leader)  # m, the mission's shape's nearest slots
         self.current = 0  # index into shapes of the shape flown (or being formed)
+        self.turn = 0.0  # rad, that shape's turn about the leader (non-zero only at the goal)
+        # (shape index, turn) whose move from the shape flown at the goal was found to pass closer to an
+        # obstacle than allowed (`_decide_at_goal`); forgotten when the shape flown changes
+        self.goal_blocked: set[tuple[int, float]] = set()
         # the move under way is a widening started before its shape fitted where the leader was (`decide`)
         self.opening_early = False
         self.opening_floor = 0.0  # m, the least slot clearance that move was planned to keep
@@ -491,22 +535,24 @@ class FormationShaper:
 
     @property
     def shape_name(self) -> str:
-        """Name of the shape flown or being formed."""
-        return self.shapes[self.current].name
+        """Name of the shape flown or being formed, with its turn at the goal."""
+        return turned_name(self.shapes[self.current].name, self.turn)
 
-    def _plan(self, index: int, now: np.ndarray, t: float, assembled: bool | None = None) -> SlotMove:
-        """The move from the offsets `now` (N, 3) to shape `index` starting at t: followers assigned to the
-        new slots by the shortest longest move, the quickest move order that keeps them move_gap_m apart
-        (`plan_move`); before the formation has assembled, the one that keeps them farthest apart (the
-        followers are still flying to their slots, and a quicker sweep of the slots across their way
-        reversed some: spec 6a.4). `assembled`: as if the formation had assembled or not (None: as it
-        has, `self.assembled`)."""
-        target = self.shapes[index]
-        followers = np.flatnonzero(np.any(target.offsets != 0.0, axis=1))
-        end = np.array(target.offsets)
+    def _plan(
+        self, index: int, now: np.ndarray, t: float, assembled: bool | None = None, turn: float = 0.0
+    ) -> SlotMove:
+        """The move from the offsets `now` (N, 3) to shape `index`, turned by `turn` rad about the leader
+        (`turned`), starting at t: followers assigned to the new slots by the shortest longest move, the
+        quickest move order that keeps them move_gap_m apart (`plan_move`); before the formation has
+        assembled, the one that keeps them farthest apart (the followers are still flying to their slots, and
+        a quicker sweep of the slots across their way reversed some: spec 6a.4). `assembled`: as if the
+        formation had assembled or not (None: as it has, `self.assembled`)."""
+        target = turned(self.shapes[index].offsets, turn)
+        followers = np.flatnonzero(np.any(target != 0.0, axis=1))
+        end = np.array(target)
         if followers.size > 1:
-            order, _ = assign_moves(now[followers], target.offsets[followers], self.min_gap)
-            end[followers] = target.offsets[followers[order]]
+            order, _ = assign_moves(now[followers], target[followers], self.min_gap)
+            end[followers] = target[followers[order]]
         rows = np.any(now != 0.0, axis=1) | np.any(end != 0.0, axis=1)
         rows[self.leader] = True
         params = self.params
@@ -515,20 +561,26 @@ class FormationShaper:
 
     def _change_to(
         self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None,
-        start_scale: float | None = None,
+        start_scale: float | None = None, turn: float = 0.0,
     ) -> None:  # fmt: skip
-        """Start moving the slots from the offsets `now` (N, 3) to shape `index` at t (along `move`, planned
-        by `_plan`, when given), the spacing scale from `start_scale` (None: the scale flown at t)."""
+        """Start moving the slots from the offsets `now` (N, 3) to shape `index` turned by `turn` rad at t
+        (along `move`, planned by `_plan` with that turn, when given), the spacing scale from `start_scale`
+        (None: the scale flown at t)."""
         self.start_scale = self.scale(t) if start_scale is None else start_scale
         self.end_scale = self.shapes[index].scale
-        self.move = move if move is not None else self._plan(index, now, t)
+        self.move = move if move is not None else self._plan(index, now, t, turn=turn)
         self.waiting_moves = {}
+        self.goal_blocked = set()
         self.opening_early = False
         if announce:
-            change = "restored" if index == 0 else "narrows" if index > self.current else "widens"
+            if index == 0 and turn == 0.0:
+                change = "restored"
+            else:
+                change = "narrows" if index > self.current else "widens" if index < self.current else "turns"
             shape = self.shapes[index]
-            self.changes.append(ShapeChange(t, change, shape.name, shape.scale))
-        self.current = index
+            name = turned_name(shape.name, turn)
+            self.changes.append(ShapeChange(t, change, name, shape.scale, math.degrees(turn)))
+        self.current, self.turn = index, turn
 
     def _widening(self, index: int, t: float) -> SlotMove:
         """The move to the wider shape `index` from t: planned once while the slots stand still, then the
@@ -602,6 +654,14 @@ class FormationShaper:
             def route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 return route_samples(p_leader, psi_leader, waypoints, length, self.hold_m)
 
+        goal = np.asarray(waypoints[-1], dtype=float)
+        if len(waypoints) == 1 and math.hypot(*(goal - p_leader)[:2]) <= GOAL_RADIUS_M:
+            self._decide_at_goal(t, goal, psi_leader, route, speed, centres, radii, shapes)
+            self.pace_cap, self.paced_at = math.inf, t  # the leader hovers on its goal: nothing to pace
+            return
+        self.goal_blocked = set()
+        if self.turn != 0.0:  # the leader left its goal (a console goto): its shape, unturned, at once
+            self._change_to(self.current, self.start_offsets(t), t)
         length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap + self.committed_m)
         # [add] a wider shape that does not fit where the leader is may still be flown once the move to it is
         # over: it must fit from where the leader will be then on, for the look-ahead, and the way there must
@@ -681,6 +741,73 @@ class FormationShaper:
         else:
             self.wider_since = None
         self._pace(t, speed, points, headings, along, centres, radii, shapes)
+
+    def _decide_at_goal(
+        self, t: float, goal: np.ndarray, psi_leader: float, route: Route, speed: float, centres: np.ndarray,
+        radii: np.ndarray, shapes: ShapeArrays,
+    ) -> None:  # fmt: skip
+        """The shape at the goal (module docstring), with the leader hovering at `goal` (3,) ENU m, psi_L
+        `psi_leader` rad, flying at `speed` m/s now along `route`, among spheres (K, 3), (K,) m and `shapes`:
+        the candidates no wider than the shape flown turned by every goal_turns about the leader, the wider
+        ones unturned (re-forming into a turned wider shape at the goal took 6-49 s more on 27 of 60 generated
+        courses, spec 6a.3), in that order (widest first, least turned first). While the shape flown
+        keeps clearance_m from every obstacle surface, the first wider one that keeps 1 m more (a formation
+        that fits is not turned again for less turn); while it does not, the first that fits, or where none
+        does the one with the most clearance, if that clears the
+        obstacles by CLEARER_M more than the shape flown. A wider one once it has kept fitting for
+        restore_after_s; any only if its move keeps clear (`clear_floor`, the leader going on along `route`),
+        else the next (a way found blocked is not checked again until the shape flown changes), at most
+        GOAL_CHECKS_PER_DECISION moves checked per decision. As away from the goal, a widening is due
+        (`widening_due`) only until the way to the widest that fits is found blocked: the arrival does
+        not wait while the narrower ones are checked."""
+        turns = goal_turns(self.params.goal_turn_step_deg)
+        keys = [
+            (k, float(turn))
+            for k in range(len(self.shapes))
+            for turn in turns
+            if k >= self.current or turn == 0
+        ]
+        offsets = np.stack([turned(self.shapes[k].offsets, turn) for k, turn in keys])
+        rows = np.flatnonzero(np.any(offsets != 0.0, axis=(0, 2)))
+        which = np.arange(len(keys), dtype=np.int64)
+        points, headings = np.repeat(goal[None, :], len(keys), axis=0), np.full(len(keys), psi_leader)
+        gaps = shape_clearance(offsets, which, rows, points, headings, centres, radii, *shapes)
+        flown = keys.index((self.current, self.turn))
+        need = [self.params.clearance_m + (WIDEN_MARGIN_M if k < self.current else 0.0) for k, _ in keys]
+        fits = [j for j in range(len(keys)) if gaps[j] >= need[j]]
+        if gaps[flown] >= need[flown]:
+            order = [j for j in fits if keys[j][0] < self.current]
+        elif fits:
+            order = fits
+        else:
+            clearest = int(np.argmax(gaps))
+            order = [clearest] if gaps[clearest] > max(0.0, gaps[flown] + CLEARER_M) else []
+        wider_fits = self.widen_blocked = False
+        checks = 0
+        for j in order:
+            k, turn = keys[j]
+            wider = k < self.current
+            wider_fits |= wider
+            if keys[j] in self.goal_blocked:
+                self.widen_blocked |= wider
+                continue
+            if wider:
+                if self.wider_since is None:
+                    self.wider_since = t
+                if t - self.wider_since < self.params.restore_after_s:
+                    return  # a wider shape is due: the arrival waits for it
+            if checks == GOAL_CHECKS_PER_DECISION:  # the rest at the next decisions
+                return
+            checks += 1
+            move = self._plan(k, self.start_offsets(t), t, turn=turn)
+            if self.clear_floor(move, route, speed, centres, radii, shapes) is not None:
+                self.wider_since = None
+                self._change_to(k, move.start, t, move=move, turn=turn)
+                return
+            self.goal_blocked.add(keys[j])
+            self.widen_blocked |= wider
+        if not wider_fits:
+            self.wider_since = None
 
     def _pace(
         self, t: float, speed: float, points: np.ndarray, headings: np.ndarray, along: np.ndarray,

@@ -383,13 +383,15 @@ def test_a_column_whose_tail_came_to_rest_in_an_obstacles_margin_still_opens_at_
         assert gaps.min() >= 2.0 - 1e-6
 
 
-def _column_at_goal(centres: np.ndarray, radii: np.ndarray) -> tuple[FormationShaper, list[bool]]:
+def _column_at_goal(
+    centres: np.ndarray, radii: np.ndarray, params: ReshapeParams = PARAMS
+) -> tuple[FormationShaper, list[bool]]:
     """A line of four 10 m apart flown as a column 7 m apart, settled, the leader holding at its last
     waypoint (0, 0, 10) heading east among spheres (K, 3), (K,): decisions every decide_every_s for
     restore_after_s + 1 s; the shaper and whether a widening was due after each."""
     nominal = np.zeros((5, 3))
     nominal[1:] = formation_offsets("line", 4, 10.0)
-    shaper = FormationShaper(PARAMS, nominal, 0, 4.0)
+    shaper = FormationShaper(params, nominal, 0, 4.0)
     shaper._change_to(len(shaper.shapes) - 1, nominal, -100.0, announce=False)
     goal = np.array([[0.0, 0.0, 10.0]])
     due = []
@@ -417,9 +419,9 @@ def test_a_widening_whose_every_way_is_blocked_is_not_due_so_the_formation_still
     fits, but the move to it (across, then along: straight moves would pass closer than move_gap_m to each
     other) sweeps the tail slots sideways past the spheres, 2.5 m from their surfaces. The line stays due
     while it waits restore_after_s, then is found blocked: nothing is due and the column stays, so the
-    runner's arrival is not held for good."""
+    runner's arrival is not held for good. (No turns at the goal: turned, the line has a clear way.)"""
     centres = np.array([[-24.5, 9.0, 10.0], [-24.5, -9.0, 10.0]])
-    shaper, due = _column_at_goal(centres, np.array([1.0, 1.0]))
+    shaper, due = _column_at_goal(centres, np.array([1.0, 1.0]), replace(PARAMS, goal_turn_step_deg=0.0))
     assert due[0]
     assert shaper.current == len(shaper.shapes) - 1
     assert shaper.widen_blocked and not shaper.widening_due
@@ -442,6 +444,74 @@ def test_the_fleet_has_not_arrived_while_a_widening_is_due_unless_arrive_in_shap
         assert ctl.shape_settled(1.0)
         ctl.shaper._change_to(0, ctl.shaper.shapes[column].offsets, 1.0, announce=False)
         assert not ctl.shape_settled(1.5)
+
+
+def _column_beside_obstacles_at_goal(step_deg: float) -> tuple[FormationShaper, np.ndarray, np.ndarray]:
+    """The column of `_column_at_goal` (slots 7, 14, 21, 28 m astern of the leader holding at (0, 0, 10)
+    heading east) with a sphere of radius 1 m at (-28, -3), 2 m from its tail slot, and a sphere of radius
+    1000 m whose surface runs 4.5 m to the right of the leader's line (centre (0, -1004.5)): decisions for
+    restore_after_s + 1 s with turns every `step_deg` deg at the goal; the shaper and the two spheres."""
+    centres = np.array([[-28.0, -3.0, 10.0], [0.0, -1004.5, 10.0]])
+    radii = np.array([1.0, 1000.0])
+    nominal = np.zeros((5, 3))
+    nominal[1:] = formation_offsets("line", 4, 10.0)
+    params = replace(PARAMS, goal_turn_step_deg=step_deg)
+    shaper = FormationShaper(params, nominal, 0, 4.0)
+    shaper._change_to(len(shaper.shapes) - 1, nominal, -100.0, announce=False)
+    goal = np.array([[0.0, 0.0, 10.0]])
+    for t in np.arange(0.0, PARAMS.restore_after_s + 1.0, PARAMS.decide_every_s):
+        shaper.decide(t, goal[0], 0.0, goal, 10.0, 0.0, centres, radii)
+    return shaper, centres, radii
+
+
+def test_a_column_whose_tail_stands_beside_an_obstacle_at_the_goal_turns_to_where_it_fits():
+    """`_column_beside_obstacles_at_goal`, worked by hand (clearance_m 4 m, 5 m for a wider shape):
+    - every line or narrowed line, however turned, has one slot on the right of the leader's line or on
+      it, within 4.5 + 0.2 m of the big sphere (|x| <= 20 m: its surface bulges at most 20^2 / 2009 m), so
+      none fits; nor does the column unturned (its tail 2 m from the small sphere);
+    - turned +15 deg (counter-clockwise) the tail slot swings right to (-27.05, -7.25), inside the big
+      sphere; turned -15 deg it swings left to (-27.05, 7.25), 9.29 m from the small sphere's surface and its
+      other slots farther, so the column turned -15 deg is the least turned that fits;
+    - its move (each slot straight to its turned place, the tail 2 x 28 sin 7.5 deg = 7.31 m, neighbours
+      at least 7 cos 7.5 deg = 6.94 m apart) takes the tail away from the small sphere, so it keeps the 2 m
+      it starts with.
+    The formation turns at once (no wider shape), the event says so, and no slot comes closer than 2 m."""
+    shaper, centres, radii = _column_beside_obstacles_at_goal(15.0)
+    column = len(shaper.shapes) - 1
+    assert shaper.current == column and shaper.turn == pytest.approx(math.radians(-15.0))
+    (change,) = shaper.changes
+    assert change.t == 0.0 and change.change == "turns" and change.turn_deg == pytest.approx(-15.0)
+    assert change.sentence == "t=0.00 s formation turns: column turned -15 deg"
+    assert change.as_json()["turn_deg"] == -15.0
+    assert shaper.shape_name == "column turned -15 deg"
+    move = shaper.move
+    end = shaper.flown(move.t0 + move.duration)[0]
+    c, s = math.cos(math.radians(15)), math.sin(math.radians(15))
+    expected = [(-7 * k * c, 7 * k * s) for k in range(1, 5)]
+    assert sorted(map(tuple, end[1:, :2].round(2))) == sorted(tuple(np.round(e, 2)) for e in expected)
+    for t in np.arange(move.t0, move.t0 + move.duration + 0.05, 0.05):
+        slots = shaper.flown(t)[0][1:] + [0.0, 0.0, 10.0]  # leader frame = ENU here (heading east, at origin)
+        assert (np.linalg.norm(slots - centres[0], axis=1) - radii[0]).min() >= 2.0 - 1e-6
+    assert not shaper.widening_due
+
+
+def test_with_no_turns_at_the_goal_the_column_stays_beside_the_obstacle():
+    """goal_turn_step_deg 0: the same world, nothing fits, and no unturned shape clears the obstacles by
+    CLEARER_M more than the column (every line reaches into the big sphere), so the column stays as it is."""
+    shaper, _, _ = _column_beside_obstacles_at_goal(0.0)
+    assert shaper.current == len(shaper.shapes) - 1 and shaper.turn == 0.0 and not shaper.changes
+
+
+def test_a_formation_turned_at_the_goal_is_unturned_as_soon_as_the_leader_leaves_it():
+    """A console goto after the turn above: the leader 50 m from its new waypoint, out in the open to the
+    north-west (no obstacle within reach of any slot); the first decision unturns the column at once (the
+    turn is for the goal only), and the wider shapes follow as they fit."""
+    shaper, centres, radii = _column_beside_obstacles_at_goal(15.0)
+    t = shaper.move.t0 + shaper.move.duration + 1.0
+    here, far = np.array([-500.0, 500.0, 10.0]), np.array([[-550.0, 500.0, 10.0]])
+    shaper.decide(t, here, math.pi, far, 10.0, 0.0, centres, radii)
+    assert shaper.turn == 0.0
+    assert shaper.changes[-1].change == "turns" and shaper.changes[-1].shape == "column"
 
 
 def test_a_wider_shape_waits_restore_after_s_before_the_formation_widens():
