@@ -22,7 +22,9 @@ def test_a_shape_change_reads_as_the_event_line_and_as_a_flight_json_row():
         "t=20.00 s formation widens: formation x0.71",
         "t=31.46 s formation restored",
     ]
-    assert CHANGES[2].as_json() == {"t_s": 31.457, "change": "restored", "shape": "formation", "scale": 1.0}
+    assert CHANGES[2].as_json() == {
+        "t_s": 31.457, "change": "restored", "shape": "formation", "scale": 1.0, "turn_deg": 0.0
+    }  # fmt: skip
 
 
 def test_report_md_lists_every_change_of_shape_and_the_figure_marks_them():
