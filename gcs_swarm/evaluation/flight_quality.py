@@ -23,7 +23,7 @@ CUSP_WINDOW_S = 1.0  # ... within this long ...
 CUSP_MIN_SPEED = 2.0  # m/s ... while the speed is above this at both ends
 JERK_WINDOW_S = 0.25  # s, Savitzky-Golay window of the jerk estimate (cubic fit of the true velocity)
 JERK_MIN_SAMPLES = 7  # samples: a shorter stretch of velocity gives no jerk estimate
-SHAPE_AT_REST_S = 0.5  # s: the formation's shape is at rest where no change of it is recorded this close
+SHAPE_AT_REST_S = 0.5  # s: the formation's shape is at rest where no change of it is recorded this soon after
 
 
 def cusp_times(t: np.ndarray, vel_xy: np.ndarray) -> list[float]:
@@ -189,12 +189,13 @@ def assembled_figures(t: np.ndarray, slot_error: np.ndarray) -> dict[str, Any]:
 
 def shape_at_rest(flight: dict[str, Any], t: np.ndarray) -> np.ndarray:
     """(T,) bool at the times t (T,) s: flight.json's formation_timeline records no change of the formation
-    within SHAPE_AT_REST_S of t (a change of shape under way records one every control tick; its first entry,
-    the formation's start, is not a change); all true for a flight.json without it."""
+    in (t, t + SHAPE_AT_REST_S] (a change of shape under way records one every control tick, the last where
+    the slots reach their new places, so the shape is at rest from that entry on; its first entry, the
+    formation's start, is not a change); all true for a flight.json without it."""
     t = np.asarray(t, dtype=float)
     timeline = flight.get("formation_timeline") or []
     changes = np.array([entry["t"] for entry in timeline[1:]], dtype=float)
-    before = np.searchsorted(changes, t - SHAPE_AT_REST_S, side="right")
+    before = np.searchsorted(changes, t, side="right")
     after = np.searchsorted(changes, t + SHAPE_AT_REST_S, side="right")
     return np.asarray(after == before)
 

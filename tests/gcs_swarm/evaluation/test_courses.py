@@ -93,23 +93,24 @@ def test_assembled_figures_start_when_every_follower_is_first_within_two_metres(
 
 
 def test_the_shape_is_formed_once_every_follower_is_on_its_slot_with_no_change_of_shape_under_way():
-    """The formation starts at t = 0 and changes shape from 1 s to 3 s (a timeline entry every 0.02 s):
-    with SHAPE_AT_REST_S = 0.5 s its shape is at rest up to 0.5 s before the first entry of the change and
-    from 0.5 s after its last (t < 0.5 and t >= 3.5 at these samples). The follower is within 2 m of the
-    slots of the moment from 0.5 s on, but 2.5 m off at 3.5 s: assembled at 0.5 s, its shape formed at 4 s.
-    A flight without a timeline is at rest throughout."""
+    """The formation starts at t = 0 and changes shape from 1 s to 3 s (a timeline entry every 0.02 s, the
+    last at 3 s where the slots reach their new places): with SHAPE_AT_REST_S = 0.5 s its shape is at rest
+    up to 0.5 s before the first entry of the change and from its last on (t < 0.5 and t >= 3 at these
+    samples: a formation that has just finished a change is at rest, one about to start one is not). The
+    follower is within 2 m of the slots of the moment from 0.5 s on, but 2.5 m off at 3 s: assembled at
+    0.5 s, its shape formed at 3.5 s. A flight without a timeline is at rest throughout."""
     assert fq.SHAPE_AT_REST_S == 0.5
     start = {"t": 0.0, "leader": 0, "offsets": [[0, 0, 0], [-7, 0, 0]]}
     moving = [{"t": 1.0 + 0.02 * k, "leader": 0, "offsets": [[0, 0, 0], [-7, k, 0]]} for k in range(101)]
     flight = {"formation_timeline": [start, *moving]}
     t = np.arange(0.0, 6.0, 0.5)
     at_rest = fq.shape_at_rest(flight, t)
-    np.testing.assert_array_equal(at_rest, (t < 0.5) | (t >= 3.5))
+    np.testing.assert_array_equal(at_rest, (t < 0.5) | (t >= 3.0))
     follower = np.where(t < 0.5, 5.0, 1.0)
-    follower[t == 3.5] = 2.5
+    follower[t == 3.0] = 2.5
     err = np.column_stack([np.full(len(t), np.nan), follower])
     assert assembled_figures(t, err)["assembly_s"] == 0.5
-    assert fq.shape_formed(t, err, at_rest) == {"shape_formed_s": 4.0}
+    assert fq.shape_formed(t, err, at_rest) == {"shape_formed_s": 3.5}
     assert fq.shape_at_rest({}, t).all()
     assert fq.shape_formed(t, np.column_stack([np.full(len(t), np.nan), np.full(len(t), 3.0)]), at_rest) == {
         "shape_formed_s": None
