@@ -256,6 +256,7 @@ class FleetController:
         )
         self.tilt_rate_max = np.deg2rad(self.limits.tilt_rate_max_deg)  # rad/s, <= 0: no slew limit
         self.heading_rate_max = float(np.deg2rad(self.reference.heading_rate_max_deg))  # rad/s, psi_L's limit
+        self.heading_accel_max = float(np.deg2rad(self.reference.heading_accel_max_deg))  # rad/s^2
         self.heading: LeaderHeading | None = None
         self.last_t: float | None = None  # s, the previous tick's time
         self.relay: LeaderRelay | None = None
@@ -598,7 +599,7 @@ class FleetController:
             ref.heading_min_speed,
             rate,
             self.d_g,
-            accel_max=np.deg2rad(ref.heading_accel_max_deg),
+            accel_max=self.heading_accel_max,
             filter_s=ref.heading_filter_s,
             gain=ref.heading_gain,
         )
@@ -696,12 +697,17 @@ class FleetController:
         goal = self.route_points[self.route_index]
         aim, self.aim_bearing = leader_aim(p_lead, goal, self.aim_bearing, aim_rate * dt, self.d_g)
         course = leader_course(self.generator.v[lead, :2], p_lead, goal, self.reference.heading_from_route)
-        if self.reference.heading_sweep_max > 0.0 and not self.follows_path:  # [add] the farthest slot swings
-            # at most this fast (not a column following the leader's path: its slots do not swing)
+        sweep_max, sweep_accel = self.reference.heading_sweep_max, self.reference.heading_sweep_accel
+        if (sweep_max > 0.0 or sweep_accel > 0.0) and not self.follows_path:  # [add] the farthest slot swings
+            # at most this fast, and speeds its swing up at most this hard (not a column following the
+            # leader's path: its slots do not swing)
             flown = self.flown_offsets
             reach = float(np.max(np.hypot(flown[:, 0], flown[:, 1]))) * self.spacing_scale
-            sweep_rate = self.reference.heading_sweep_max / reach if reach > 0.0 else np.inf
-            self.heading.rate_max = min(self.heading_rate_max, sweep_rate)
+            per_reach = 1.0 / reach if reach > 0.0 else np.inf  # 1/m
+            if sweep_max > 0.0:
+                self.heading.rate_max = min(self.heading_rate_max, sweep_max * per_reach)
+            if sweep_accel > 0.0 and self.heading_accel_max > 0.0:  # (0: psi_L's rate steps, spec 6)
+                self.heading.accel_max = min(self.heading_accel_max, sweep_accel * per_reach)
         self.heading.update(course, goal_dist, dt)
         ref = self.reference
         offsets, offset_rate, offset_accel, shrink = self.offsets, None, None, 1.0

@@ -218,3 +218,34 @@ def test_the_formation_turns_before_the_leader_runs_down_the_new_leg():
                 up_the_leg[wait] = pos[0, 1]
                 break
     assert up_the_leg[20.0] < 40.0 < up_the_leg[0.0]
+
+
+@pytest.mark.parametrize("sweep_accel", [0.0, 1.0])
+def test_the_formations_turn_speeds_up_no_harder_than_its_tail_can_follow(sweep_accel):
+    """The column of 4 above (its tail 21 m astern) flies east and turns north at its waypoint. psi_L's turn
+    rate changes by at most heading_accel_max_deg (20 deg/s^2 = 0.349 rad/s^2) and, with heading_sweep_accel
+    1 m/s^2, by at most 1 / 21 = 0.0476 rad/s^2, so that the tail slot's swing round the leader speeds up
+    and slows down by at most 1 m/s^2; without it the turn starts at the full 0.349 rad/s^2, 7.3 m/s^2 at
+    the tail. Either way psi_L ends up north."""
+    n = 4
+    offsets = np.zeros((n, 3))
+    offsets[1:, 0] = [-7.0, -14.0, -21.0]
+    route = np.array([[60.0, 0.0, 20.0], [60.0, 200.0, 20.0]])
+    reference = ReferenceParams(heading_sweep_accel=sweep_accel)
+    ctl = FleetController(n, 0, offsets, route, reference=reference, control_dt=DT)
+    pos = slot_positions(np.array([0.0, 0.0, 20.0]), 0.0, offsets)
+    ctl.reset(pos, np.zeros((n, 3)), np.zeros(n))
+    rates = []
+    for k in range(int(60.0 / DT)):
+        ctl.tick(
+            k * DT, pos, ctl.generator.v, np.zeros((n, 3)), np.zeros((0, 3)), np.zeros(0), np.ones(n, bool)
+        )
+        pos = ctl.generator.p.copy()
+        assert ctl.heading is not None
+        rates.append(ctl.heading.rate)
+    turn_accel = np.max(np.abs(np.diff(rates))) / DT
+    if sweep_accel > 0.0:
+        assert turn_accel <= sweep_accel / 21.0 + 1e-9
+    else:
+        assert turn_accel == pytest.approx(math.radians(20.0))
+    assert ctl.heading.psi == pytest.approx(math.pi / 2, abs=math.radians(1.0))
