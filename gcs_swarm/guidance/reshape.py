@@ -30,7 +30,8 @@ purpose instead, and its followers' slots move with it:
   (reshape.arrive_in_shape, FleetController.shape_settled).
 - **At the goal** (the leader within GOAL_RADIUS_M of its last waypoint, where it hovers with psi_L held):
   the shape flown and the narrower candidates turned about the leader by every `goal_turn_step_deg` as well
-  (`turned`), so that a formation whose shape does not fit beside the obstacles there (a column whose tail
+  (`rotate_to_world`: counter-clockwise seen from above, so a slot astern turned by +90 deg lies to the
+  right), so that a formation whose shape does not fit beside the obstacles there (a column whose tail
   trails back past the last obstacle) settles in one that does, instead of its followers being held off
   their slots by the repulsion until the time limit; the widest that fits, least turned, and a change to it
   only where its move keeps the clearance the slots have at its start (`_decide_at_goal`, spec 6a.3).
@@ -66,7 +67,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gcs_swarm.guidance.formation import formation_offsets
+from gcs_swarm.guidance.formation import formation_offsets, rotate_to_world
 from gcs_swarm.guidance.params import ReshapeParams
 from gcs_swarm.guidance.slot_assignment import assign_moves, closest_approach
 from swarm_common.jit import kernel
@@ -132,16 +133,6 @@ class Shape:
     name: str
     offsets: np.ndarray
     scale: float
-
-
-def turned(offsets: np.ndarray, angle: float) -> np.ndarray:
-    """Leader-frame offsets (N, 3) m turned by `angle` rad about the leader's vertical axis (counter-clockwise
-    seen from above: a slot astern, (-7, 0, 0), turned by +90 deg lies at (0, -7, 0), to the right)."""
-    c, s = math.cos(angle), math.sin(angle)
-    out = np.array(offsets, dtype=float)
-    out[:, 0] = offsets[:, 0] * c - offsets[:, 1] * s
-    out[:, 1] = offsets[:, 0] * s + offsets[:, 1] * c
-    return out
 
 
 def turned_name(name: str, angle: float) -> str:
@@ -542,12 +533,12 @@ class FormationShaper:
         self, index: int, now: np.ndarray, t: float, assembled: bool | None = None, turn: float = 0.0
     ) -> SlotMove:
         """The move from the offsets `now` (N, 3) to shape `index`, turned by `turn` rad about the leader
-        (`turned`), starting at t: followers assigned to the new slots by the shortest longest move, the
-        quickest move order that keeps them move_gap_m apart (`plan_move`); before the formation has
+        (`rotate_to_world`), starting at t: followers assigned to the new slots by the shortest longest move,
+        the quickest move order that keeps them move_gap_m apart (`plan_move`); before the formation has
         assembled, the one that keeps them farthest apart (the followers are still flying to their slots, and
         a quicker sweep of the slots across their way reversed some: spec 6a.4). `assembled`: as if the
         formation had assembled or not (None: as it has, `self.assembled`)."""
-        target = turned(self.shapes[index].offsets, turn)
+        target = rotate_to_world(self.shapes[index].offsets, turn)
         followers = np.flatnonzero(np.any(target != 0.0, axis=1))
         end = np.array(target)
         if followers.size > 1:
@@ -767,7 +758,7 @@ class FormationShaper:
             for turn in turns
             if k >= self.current or turn == 0
         ]
-        offsets = np.stack([turned(self.shapes[k].offsets, turn) for k, turn in keys])
+        offsets = np.stack([rotate_to_world(self.shapes[k].offsets, turn) for k, turn in keys])
         rows = np.flatnonzero(np.any(offsets != 0.0, axis=(0, 2)))
         which = np.arange(len(keys), dtype=np.int64)
         points, headings = np.repeat(goal[None, :], len(keys), axis=0), np.full(len(keys), psi_leader)
