@@ -741,16 +741,15 @@ class FormationShaper:
         `psi_leader` rad, flying at `speed` m/s now along `route`, among spheres (K, 3), (K,) m and `shapes`:
         the candidates no wider than the shape flown turned by every goal_turns about the leader, the wider
         ones unturned (re-forming into a turned wider shape at the goal took 6-49 s more on 27 of 60 generated
-        courses, spec 6a.3), in that order (widest first, least turned first). While the shape flown
-        keeps clearance_m from every obstacle surface, the first wider one that keeps 1 m more (a formation
-        that fits is not turned again for less turn); while it does not, the first that fits, or where none
-        does the one with the most clearance, if that clears the
-        obstacles by CLEARER_M more than the shape flown. A wider one once it has kept fitting for
-        restore_after_s; any only if its move keeps clear (`clear_floor`, the leader going on along `route`),
-        else the next (a way found blocked is not checked again until the shape flown changes), at most
-        GOAL_CHECKS_PER_DECISION moves checked per decision. As away from the goal, a widening is due
-        (`widening_due`) only until the way to the widest that fits is found blocked: the arrival does
-        not wait while the narrower ones are checked."""
+        courses, spec 6a.3), in that order (widest first, least turned first). While the shape flown keeps
+        clearance_m from every obstacle surface, the first wider one that keeps 1 m more (a formation that
+        fits is not turned again for less turn); while it does not, the first that fits, or where none does
+        the one with the most clearance, if that clears the obstacles by CLEARER_M more than the shape flown.
+        A wider one once it has kept fitting for restore_after_s; any only if its move keeps clear
+        (`clear_floor`, the leader going on along `route`), else the next (a way found blocked is not checked
+        again until the shape flown changes), at most GOAL_CHECKS_PER_DECISION moves checked per decision.
+        As away from the goal, a widening is due (`widening_due`) only until the way to the widest that fits
+        is found blocked: the arrival does not wait while the narrower ones are checked."""
         turns = goal_turns(self.params.goal_turn_step_deg)
         keys = [
             (k, float(turn))
