@@ -3,11 +3,11 @@ spec 3), 3-D, for N points at once; the potentials whose gradients these forces 
 iaapf.py.
 
 Obstacle terms are evaluated for the (vehicle, obstacle) pairs whose evaluation point lies within l0 of the
-obstacle's surface. With `ahead` [add], the evaluation point of obstacle k for vehicle i is the point of the
-segment q[i] -> ahead[i] (the reference's braking path, gcs_swarm.guidance.reference) nearest to k's surface
-(a sphere's: nearest its centre; a cylinder's or prism's: swarm_common.obstacle_shapes.segment_nearest):
-an obstacle ahead is felt as soon as the vehicle could no longer stop short of it, one alongside or behind
-exactly as at q.
+obstacle's surface ([add] a follower's: within its slot's clearance less a margin, `slot_ranges`). With
+`ahead` [add], the evaluation point of obstacle k for vehicle i is the point of the segment q[i] -> ahead[i]
+(the reference's braking path, gcs_swarm.guidance.reference) nearest to k's surface (a sphere's: nearest
+its centre; a cylinder's or prism's: swarm_common.obstacle_shapes.segment_nearest): an obstacle ahead is
+felt as soon as the vehicle could no longer stop short of it, one alongside or behind exactly as at q.
 
 The pairs and the forces are compiled kernels (swarm_common.jit), joined by the kernel
 `obstacle_repulsion_force`, which the tick (through `obstacle_repulsion`, the settings from FieldParams) and
@@ -89,20 +89,24 @@ def attraction_force(
 @kernel
 def obstacle_pairs(
     q: np.ndarray, ahead: np.ndarray, dest: np.ndarray, centres: np.ndarray, radii: np.ndarray, l0: float,
-    l_min: float, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    l_min: float, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, ranges: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The (vehicle, obstacle) pairs whose evaluation point (module docstring; ahead = q: q itself) is within
-    l0 m of the surface, in (i, k) order, the spheres centres (K, 3), radii (K,) first, then the packed shapes
-    kinds, params, vertices (swarm_common.obstacle_shapes, spec 2.2): the vehicle index i (P,),
-    l = max(surface distance, l_min) (P,), the unit vectors n_o (P, 3) (a sphere's centre -> point, +z on the
-    centre, spec 2.1; a shape's outward normal at its point nearest the evaluation point) and n_g point ->
-    dest[i] (P, 3) (zero at dest), and rho (P,) the point's distance to dest[i] (spec 3.2)."""
+    the pair's influence distance of the surface, in (i, k) order, the spheres centres (K, 3), radii (K,)
+    first, then the packed shapes kinds, params, vertices (swarm_common.obstacle_shapes, spec 2.2): the
+    vehicle index i (P,), l = max(surface distance, l_min) (P,), the unit vectors n_o (P, 3) (a sphere's
+    centre -> point, +z on the centre, spec 2.1; a shape's outward normal at its point nearest the
+    evaluation point) and n_g point -> dest[i] (P, 3) (zero at dest), rho (P,) the point's distance to
+    dest[i] (spec 3.2) and the pair's influence distance (P,) m: ranges[i, k] ((N, K + S) m, `slot_ranges`),
+    or l0 for every pair when `ranges` has no rows."""
     n, k_obs = q.shape[0], radii.shape[0]
     k_all = k_obs + kinds.shape[0]
     size = n * k_all
+    per_pair = ranges.shape[0] > 0
     vehicle = np.empty(size, dtype=np.intp)
     l_out = np.empty(size)
     rho_out = np.empty(size)
+    range_out = np.empty(size)
     n_o = np.empty((size, 3))
     n_g = np.empty((size, 3))
     p = 0
@@ -111,6 +115,7 @@ def obstacle_pairs(
         g0, g1, g2 = ahead[i, 0] - s0, ahead[i, 1] - s1, ahead[i, 2] - s2
         length_sq = dot3(g0, g1, g2, g0, g1, g2)
         for k in range(k_all):
+            reach = ranges[i, k] if per_pair else l0
             if k < k_obs:
                 c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
                 along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
@@ -120,14 +125,15 @@ def obstacle_pairs(
             else:
                 shape = k - k_obs
                 # the surface distance is 1-Lipschitz: no point of the segment is nearer than this
-                if surface(s0, s1, s2, shape, kinds, params, vertices)[0] - math.sqrt(length_sq) > l0:
+                if surface(s0, s1, s2, shape, kinds, params, vertices)[0] - math.sqrt(length_sq) > reach:
                     continue
                 frac = segment_nearest(s0, s1, s2, s0 + g0, s1 + g1, s2 + g2, shape, kinds, params, vertices)
                 a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
                 raw, o0, o1, o2 = surface(a0, a1, a2, shape, kinds, params, vertices)
-            if not raw <= l0:
+            if not raw <= reach:
                 continue
             vehicle[p] = i
+            range_out[p] = reach
             l_out[p] = maximum(raw, l_min)
             n_o[p, 0], n_o[p, 1], n_o[p, 2] = o0, o1, o2
             e0, e1, e2 = dest[i, 0] - a0, dest[i, 1] - a1, dest[i, 2] - a2
@@ -136,17 +142,17 @@ def obstacle_pairs(
             n_g[p, 0], n_g[p, 1], n_g[p, 2] = e0 / div, e1 / div, e2 / div
             rho_out[p] = rho
             p += 1
-    return vehicle[:p], l_out[:p], n_o[:p], n_g[:p], rho_out[:p]
+    return vehicle[:p], l_out[:p], n_o[:p], n_g[:p], rho_out[:p], range_out[:p]
 
 
 @kernel
 def obstacle_forces(
     n: int, vehicle: np.ndarray, l: np.ndarray, n_o: np.ndarray, n_g: np.ndarray, rho: np.ndarray,
-    adaptive: bool, k_rep: float, l0: float, n_exp: float, rho_eps: float, circulation: float,
+    l0: np.ndarray, adaptive: bool, k_rep: float, n_exp: float, rho_eps: float, circulation: float,
     obstacle_vertical: float,
 ) -> np.ndarray:  # fmt: skip
     """The summed obstacle repulsion (n, 3) on n points of the pairs of `obstacle_pairs` (n in the formulas
-    below is the exponent n_exp; rho^n is libm's pow).
+    below is the exponent n_exp; rho^n is libm's pow; l0 (P,) m each pair's influence distance).
 
     `adaptive` (IAAPF, spec 3.2 Eqs 10-12): F*_rep1 = k_rep (1/l - 1/l0) rho^n / l^2 along n_o plus
     F*_rep2 = 0.5 n k_rep (1/l - 1/l0)^2 rho^(n-1) along n_g (0 closer than rho_eps to dest); else (APF,
@@ -161,11 +167,11 @@ def obstacle_forces(
     force = np.zeros((n, 3))
     bracket_scale = 0.5 * n_exp * k_rep
     for p in range(vehicle.shape[0]):
-        lp = l[p]
+        lp, l0p = l[p], l0[p]
         o0, o1, o2 = n_o[p, 0], n_o[p, 1], n_o[p, 2]
         g0, g1, g2 = n_g[p, 0], n_g[p, 1], n_g[p, 2]
         if adaptive:
-            bracket = 1.0 / lp - 1.0 / l0 if lp <= l0 else 0.0
+            bracket = 1.0 / lp - 1.0 / l0p if lp <= l0p else 0.0
             rho_n = rho[p] ** n_exp  # libm's pow both compiled and interpreted (a numpy scalar's **)
             f1 = k_rep * bracket * rho_n / (lp * lp)
             if rho[p] < rho_eps:
@@ -174,7 +180,7 @@ def obstacle_forces(
                 f2 = bracket_scale * bracket * bracket * rho_n / rho[p]
             x0, x1, x2 = f1 * o0 + f2 * g0, f1 * o1 + f2 * g1, f1 * o2 + f2 * g2
         else:
-            f1 = k_rep * (1.0 / lp - 1.0 / l0) / (lp * lp) if lp <= l0 else 0.0
+            f1 = k_rep * (1.0 / lp - 1.0 / l0p) / (lp * lp) if lp <= l0p else 0.0
             x0, x1, x2 = f1 * o0, f1 * o1, f1 * o2
         if circulation > 0.0:
             r0, r1, r2 = -o1, o0, 0.0  # right of the travel, -n_o
@@ -205,20 +211,55 @@ def obstacle_forces(
 @kernel
 def obstacle_repulsion_force(
     q: np.ndarray, ahead: np.ndarray, dest: np.ndarray, centres: np.ndarray, radii: np.ndarray,
-    kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, l0: float, l_min: float, adaptive: bool,
-    k_rep: float, n_exp: float, rho_eps: float, circulation: float, obstacle_vertical: float,
+    kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, ranges: np.ndarray, l0: float, l_min: float,
+    adaptive: bool, k_rep: float, n_exp: float, rho_eps: float, circulation: float, obstacle_vertical: float,
 ) -> np.ndarray:  # fmt: skip
     """Summed obstacle repulsion (N, 3) at the points q (N, 3), evaluated along the segments to `ahead`
     (N, 3) (q itself: at q), with the adaptive factor's destinations dest (N, 3), of the spheres centres
-    (K, 3), radii (K,) and the shapes packed as kinds, params, vertices (spec 2.2): `obstacle_pairs`, then
-    `obstacle_forces`. The settings are RepulsionConfig's fields (called with *repulsion_config(...))."""
-    vehicle, l, n_o, n_g, rho = obstacle_pairs(
-        q, ahead, dest, centres, radii, l0, l_min, kinds, params, vertices
+    (K, 3), radii (K,) and the shapes packed as kinds, params, vertices (spec 2.2), each (point, obstacle)
+    pair within its influence distance ranges (N, K + S) m (no rows: l0 for all, `slot_ranges`):
+    `obstacle_pairs`, then `obstacle_forces`. The settings are RepulsionConfig's fields (called with
+    *repulsion_config(...))."""
+    vehicle, l, n_o, n_g, rho, reach = obstacle_pairs(
+        q, ahead, dest, centres, radii, l0, l_min, kinds, params, vertices, ranges
     )
     return obstacle_forces(
-        q.shape[0], vehicle, l, n_o, n_g, rho, adaptive, k_rep, l0, n_exp, rho_eps, circulation,
+        q.shape[0], vehicle, l, n_o, n_g, rho, reach, adaptive, k_rep, n_exp, rho_eps, circulation,
         obstacle_vertical,
     )  # fmt: skip
+
+
+@kernel
+def slot_ranges(
+    slots: np.ndarray, followers: np.ndarray, centres: np.ndarray, radii: np.ndarray, kinds: np.ndarray,
+    params: np.ndarray, vertices: np.ndarray, l0: float, margin: float, floor: float,
+) -> np.ndarray:  # fmt: skip
+    """[add] Each follower's influence distance (N, K + S) m from each obstacle (the spheres centres (K, 3),
+    radii (K,) first, then the packed shapes): its slot's (slots (N, 3) ENU m) clearance from the obstacle's
+    surface less `margin` m, within [floor, l0]; l0 in the rows not among the (N,) bool `followers`.
+
+    The paper's repulsion reaches l0 = 20 m from every surface with a gain that grows with the distance to
+    the destination (rho^n): 50-100 m from the goal, a follower 10 m from a surface is pushed off at the
+    equivalent of 20 m/s, so a follower whose slot passes 10 m from an obstacle flies metres wide of it. A
+    follower whose slot clears an obstacle needs its repulsion only once it strays more than `margin` m
+    toward it; within `floor` m of a surface every vehicle feels it whatever its slot does."""
+    n, k_obs = slots.shape[0], radii.shape[0]
+    k_all = k_obs + kinds.shape[0]
+    out = np.full((n, k_all), l0)
+    for i in range(n):
+        if not followers[i]:
+            continue
+        s0, s1, s2 = slots[i, 0], slots[i, 1], slots[i, 2]
+        for k in range(k_all):
+            if k < k_obs:
+                clear = sphere_surface(s0, s1, s2, centres[k, 0], centres[k, 1], centres[k, 2], radii[k])[0]
+            else:
+                clear = surface(s0, s1, s2, k - k_obs, kinds, params, vertices)[0]
+            out[i, k] = clip_to_scalars(clear - margin, floor, l0)
+    return out
+
+
+NO_RANGES = np.zeros((0, 0))  # `obstacle_repulsion_force`'s ranges when every pair reaches l0
 
 
 def obstacle_repulsion(
@@ -230,12 +271,14 @@ def obstacle_repulsion(
     fp: FieldParams,
     circulation: float | None = None,
     shapes: ShapeArrays = NO_SHAPES,
+    ranges: np.ndarray = NO_RANGES,
 ) -> np.ndarray:
     """Summed obstacle repulsion (N, 3) at the points q (N, 3) of the method fp.law, evaluated along the
     segments to `ahead` (N, 3) (q itself: at q), with the adaptive factor's destinations dest (N, 3); K
-    spheres centres (K, 3), radii (K,) and the cylinders and prisms `shapes` (spec 2.2). `circulation`
-    overrides fp.circulation (the 2-D planner: 0)."""
-    args = (q, ahead, dest, centres, radii, *shapes, *repulsion_config(fp, circulation))
+    spheres centres (K, 3), radii (K,) and the cylinders and prisms `shapes` (spec 2.2); each pair within
+    ranges (N, K + S) m (`slot_ranges`; no rows: fp.l0). `circulation` overrides fp.circulation (the 2-D
+    planner: 0)."""
+    args = (q, ahead, dest, centres, radii, *shapes, ranges, *repulsion_config(fp, circulation))
     return obstacle_repulsion_force(*args)
 
 

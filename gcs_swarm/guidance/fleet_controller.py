@@ -29,7 +29,7 @@ from gcs_swarm.guidance.column_path import LeaderTrail, column_rows, path_motion
 from gcs_swarm.guidance.controller import PositionController
 from gcs_swarm.guidance.degradation import stale_verdict
 from gcs_swarm.guidance.failsafe_speed import brake_distances, failsafe_speed_caps, speed_caps_from_table
-from gcs_swarm.guidance.field import attraction, obstacle_repulsion
+from gcs_swarm.guidance.field import NO_RANGES, attraction, obstacle_repulsion, slot_ranges
 from gcs_swarm.guidance.formation import (
     LeaderHeading,
     check_offsets,
@@ -777,7 +777,15 @@ class FleetController:
         leash[on_course] = min(float(ref.leash), sep.closing_leash_m)
         ahead = gen.leash_and_lookahead(pos, active, leash)
         p_r = gen.p
-        f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, self.field, shapes=self.shapes)
+        fp = self.field
+        ranges = NO_RANGES
+        if fp.slot_range:  # [add] a follower on a slot clear of an obstacle is not pushed off it (field)
+            followers = active & ~self.is_leader
+            ranges = slot_ranges(
+                targets, followers, centres, radii, *self.shapes, fp.l0, fp.slot_range_margin,
+                fp.slot_range_floor,
+            )  # fmt: skip
+        f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, fp, shapes=self.shapes, ranges=ranges)
         d_max = self.d_max * wide
         if shrink < 1.0:  # a tighter shape: its neighbours are not repelled out of their slots
             assert self.reshape is not None and self.shaper is not None

@@ -36,6 +36,7 @@ import numpy as np
 
 from gcs_swarm.guidance.capability import NO_BUDGET, AccelBudget
 from gcs_swarm.guidance.field import (
+    NO_RANGES,
     attraction_config,
     attraction_force,
     obstacle_repulsion_force,
@@ -203,8 +204,8 @@ def leader_flight(
             goal[0, d], aimed[0, d] = waypoints[index, d], aim[d]
         ahead = leash_and_lookahead(ps, vs, ps, rows, no_leash, brake_accel)
         force = attraction_force(ps, aimed, k_att, d_g, segmented) + obstacle_repulsion_force(
-            ps, ahead, goal, centres, radii, kinds, params, vertices, l0, l_min, adaptive, k_rep, n_exp,
-            rho_eps, circulation, obstacle_vertical,
+            ps, ahead, goal, centres, radii, kinds, params, vertices, NO_RANGES, l0, l_min, adaptive, k_rep,
+            n_exp, rho_eps, circulation, obstacle_vertical,
         )  # fmt: skip
         course_x, course_y = leader_course(vs[0, :2], ps[0], goal[0], from_route)
         psi, rate, fx, fy = heading_step(

@@ -38,15 +38,23 @@ class FieldParams:
     rho_eps: float = 1e-3  # m, F*_rep2 is zero closer than this to the goal (spec 3.2)
     obstacle_vertical: float = 0.25  # weight of the vertical obstacle repulsion [add]; 1 = the paper's
     circulation: float = 0.6  # tangential share of an obstacle-ahead repulsion [add]; 0 = the paper's
+    # [add] a follower feels an obstacle within its slot's clearance from it less slot_range_margin (m), not
+    # less than slot_range_floor (m) nor more than l0 (gcs_swarm.guidance.field.slot_ranges); false: every
+    # vehicle within l0 (the paper's)
+    slot_range: bool = True
+    slot_range_margin: float = 3.0
+    slot_range_floor: float = 10.0
 
     def __post_init__(self) -> None:
         self.law  # noqa: B018 - refuses an unknown method now
         for name in ("k_att", "l0", "n", "l_min", "rho_eps"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"field parameter {name} must be > 0")
-        for name in ("k_rep", "k_uav", "circulation", "obstacle_vertical"):
+        for name in ("k_rep", "k_uav", "circulation", "obstacle_vertical", "slot_range_margin"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"field parameter {name} must be >= 0")
+        if not 0 < self.slot_range_floor <= self.l0:
+            raise ValueError("field parameter slot_range_floor must lie in (0, l0]")
         if not 0 < self.n_uav < 2:
             raise ValueError("n_uav must lie in (0, 2) so the inter-UAV force stays repulsive (spec 4)")
         if self.d_g is not None and not self.d_g > 0:
@@ -506,7 +514,7 @@ class DeadGcsParams:
 # (sections 3-8): the `paper` variant of `gcs-swarm compare` flies these, and tests of the plain equations use
 # them. Keys are mission-file paths.
 PAPER_PLAIN: dict[str, dict[str, float]] = {
-    "guidance": {"circulation": 0.0, "obstacle_vertical": 1.0},
+    "guidance": {"circulation": 0.0, "obstacle_vertical": 1.0, "slot_range": False},
     "guidance.reference": {
         "jerk_max": 0.0,
         "brake_accel": 0.0,
