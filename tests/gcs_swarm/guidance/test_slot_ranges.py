@@ -17,10 +17,8 @@ RADII = np.array([5.0])
 
 
 def ranges_of(slots, followers, shapes=NO_SHAPES, margin=3.0, floor=5.0):
-    return slot_ranges(
-        np.asarray(slots, dtype=float), np.asarray(followers, dtype=bool), CENTRES, RADII, *shapes, L0, margin,
-        floor,
-    )  # fmt: skip
+    slots, followers = np.asarray(slots, dtype=float), np.asarray(followers, dtype=bool)
+    return slot_ranges(slots, followers, CENTRES, RADII, *shapes, L0, margin, floor)
 
 
 def test_a_followers_range_is_its_slots_clearance_less_the_margin_within_floor_and_l0():
