@@ -242,7 +242,7 @@ def slot_ranges(
     the destination (rho^n): 50-100 m from the goal, a follower 10 m from a surface is pushed off at the
     equivalent of 20 m/s, so a follower whose slot passes 10 m from an obstacle flies metres wide of it. A
     follower whose slot clears an obstacle needs its repulsion only once it strays more than `margin` m
-    toward it; within `floor` m of a surface every vehicle feels it whatever its slot does."""
+    toward it; within `floor` m of a surface every follower feels it whatever its slot does."""
     n, k_obs = slots.shape[0], radii.shape[0]
     k_all = k_obs + kinds.shape[0]
     out = np.full((n, k_all), l0)
