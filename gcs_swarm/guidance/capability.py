@@ -23,6 +23,10 @@ rest drives along it:
 and the leader's cap is the smallest v_cap of the followers the estimate trusts, along the leader's heading.
 The remaining (1 - f) of the tilt is what a follower has to catch up and correct.
 
+The same v_cap at the share `own_tilt_share`, along each vehicle's own heading (`top_speeds` with one heading
+per vehicle), caps that vehicle's own reference (fleet_controller), so that no reference asks for a speed its
+vehicle cannot fly with thrust to spare for steering.
+
 The leader's acceleration is bounded the same way (`AccelBudget`, `within_budget`): a follower keeping its
 slot must make the leader's horizontal acceleration a at the leader's velocity v, which takes the thrust
 U_xy = a + c (v - w); the leader's reference acceleration is held inside the disc
@@ -93,6 +97,7 @@ class SpeedEnvelope:
         """`n` vehicles, `tilt_max` rad the tilt limit, g m/s^2."""
         self.params = params
         self.g = g
+        self.tilt_max = tilt_max
         self.thrust_xy = params.tilt_share * g * math.tan(tilt_max)  # m/s^2, f g tan(theta_max)
         self.accel_xy = params.accel_tilt_share * g * math.tan(tilt_max)  # m/s^2, f_a g tan(theta_max)
         self.normal = np.zeros((n, 3, 3))  # forgotten sums of the normal equations (A^T A)
@@ -162,14 +167,16 @@ class SpeedEnvelope:
         """(N,) 1/s: the fitted linear drag per unit mass c (NaN where not trusted)."""
         return self.theta[:, 0]
 
-    def top_speeds(self, heading: float) -> np.ndarray:
-        """(N,) m/s: v_cap along the unit heading (rad, ENU) at tilt_share of the tilt limit (module
-        docstring); NaN where the fit is not trusted, 0 where the wind across takes the whole share."""
+    def top_speeds(self, heading: float | np.ndarray, tilt_share: float | None = None) -> np.ndarray:
+        """(N,) m/s: v_cap along the unit heading (rad, ENU; one for all, or (N,) one per vehicle) at
+        `tilt_share` of the tilt limit (None: params.tilt_share; module docstring); NaN where the fit is not
+        trusted, 0 where the wind across takes the whole share."""
         c, cw = self.theta[:, 0], self.theta[:, 1:]
-        u = np.array([math.cos(heading), math.sin(heading)])
-        along = cw @ u  # c (w . u)
-        across = cw @ np.array([-u[1], u[0]])  # c (w . u_perp)
-        drive = np.sqrt(np.maximum(self.thrust_xy**2 - across**2, 0.0))
+        thrust = self.thrust_xy if tilt_share is None else tilt_share * self.g * math.tan(self.tilt_max)
+        u_x, u_y = np.cos(heading), np.sin(heading)
+        along = cw[:, 0] * u_x + cw[:, 1] * u_y  # c (w . u)
+        across = cw[:, 1] * u_x - cw[:, 0] * u_y  # c (w . u_perp), u_perp = (-u_y, u_x)
+        drive = np.sqrt(np.maximum(thrust**2 - across**2, 0.0))
         return (along + drive) / c
 
     def slowest(self, heading: float, followers: np.ndarray) -> int | None:

@@ -81,6 +81,7 @@ from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
 
 NO_ROWS = np.zeros((0, 3))
 RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in a reshape
+OWN_CAP_MIN_SPEED_M_S = 0.5  # m/s: a slower reference has no heading to cap its speed along
 PACE_EVENT_SHARE = 0.1  # a new pace event when the followers' cap moves by more than this share
 CORNER_TOLERANCE_M = 2.0  # m, how far the leader's route round a gap may stray to bend fewer times
 TRAIL_KEEP_MARGIN_M = 50.0  # m of the leader's path kept beyond its column's length (_follow_path)
@@ -418,7 +419,8 @@ class FleetController:
         """(N,) m/s: each vehicle's horizontal speed cap before the closing-speed and failsafe caps: v_xy
         (leader v_xy_leader x leader_speed_scale) x the degraded-flight speed_scale; the leader's also within
         the reshape's pace (gcs_swarm.guidance.reshape) and a column's pace along the leader's path
-        (`_follow_path`)."""
+        (`_follow_path`); every vehicle's within what it flies itself at own_tilt_share of its tilt limit
+        (`_own_top_speeds`)."""
         cap = self.v_xy_cap * self.speed_scale
         if self.leader_speed_scale < 1.0:
             cap[self.leader] *= self.leader_speed_scale
@@ -426,7 +428,20 @@ class FleetController:
             cap[self.leader] = min(cap[self.leader], self.shaper.pace_cap, self.path_pace)
         if self.follower_pace < cap[self.leader]:  # [add] no faster than the slowest follower (capability)
             cap[self.leader] = self.follower_pace
+        if self.envelope is not None and self.envelope.params.own_tilt_share > 0:  # [add] nor than itself
+            cap = np.minimum(cap, self._own_top_speeds())
         return cap
+
+    def _own_top_speeds(self) -> np.ndarray:
+        """(N,) m/s: what each vehicle flies at own_tilt_share of its tilt limit against its fitted drag,
+        along its reference's horizontal velocity (capability.SpeedEnvelope.top_speeds); inf where the fit is
+        not trusted or the reference is slower than OWN_CAP_MIN_SPEED_M_S."""
+        assert self.envelope is not None
+        v = self.generator.v
+        heading = np.arctan2(v[:, 1], v[:, 0])
+        caps = self.envelope.top_speeds(heading, self.envelope.params.own_tilt_share)
+        moving = np.hypot(v[:, 0], v[:, 1]) >= OWN_CAP_MIN_SPEED_M_S
+        return np.where(moving & np.isfinite(caps), np.maximum(caps, 0.0), np.inf)
 
     def _leader_path_ahead(
         self, speed_cap: float, centres: np.ndarray, radii: np.ndarray, length: float

@@ -416,7 +416,8 @@ class CapabilityParams:
     """The leader's pace from what its followers can fly, measured from their telemetry in flight [add]
     (gcs_swarm.guidance.capability; docs/iaapf-smc-spec.md section 6b): the leader cruises no faster than the
     slowest follower flies at `tilt_share` of the tilt limit against its fitted drag and the wind, and
-    accelerates no harder than `accel_tilt_share` of it leaves that follower at the leader's speed."""
+    accelerates no harder than `accel_tilt_share` of it leaves that follower at the leader's speed; no
+    vehicle's reference flies faster than that vehicle itself does at `own_tilt_share`."""
 
     enabled: bool = True  # false: the leader's cap is limits.v_xy_leader alone (the paper)
     # share of the tilt limit a follower spends to keep the leader's cruise; the rest is for catching up
@@ -428,6 +429,9 @@ class CapabilityParams:
     # share of the tilt limit's horizontal thrust that the leader's acceleration and the drag at its speed may
     # take of that follower (capability.AccelBudget); 1: the tilt limit itself; 0: no acceleration budget
     accel_tilt_share: float = 1.0
+    # share of the tilt limit at which a vehicle's reference may fly against that vehicle's own fitted drag;
+    # the rest is left for steering (0: no such cap)
+    own_tilt_share: float = 0.9
 
     def __post_init__(self) -> None:
         if not 0 < self.tilt_share <= 1:
@@ -438,6 +442,8 @@ class CapabilityParams:
             raise ValueError("need min_samples >= 3 and min_spread_m_s > 0")
         if not (self.accel_tilt_share == 0 or self.tilt_share <= self.accel_tilt_share <= 1):
             raise ValueError("accel_tilt_share must be 0 (off) or lie in [tilt_share, 1]")
+        if not (self.own_tilt_share == 0 or self.tilt_share <= self.own_tilt_share <= 1):
+            raise ValueError("own_tilt_share must be 0 (off) or lie in [tilt_share, 1]")
 
 
 FENCE_ACTIONS = ("brake", "land", "rtl", "report")  # safety.dead_gcs.fence.action -> FENCE_ACTION 4, 2, 1, 0

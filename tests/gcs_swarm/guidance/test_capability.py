@@ -72,6 +72,12 @@ def test_top_speed_is_where_the_drag_takes_the_tilt_share_of_the_thrust():
         assert balance == pytest.approx(PARAMS.tilt_share * G * math.tan(TILT_MAX), rel=0.05)
     # a tail wind adds to the top speed: slower into the wind (heading west)
     assert (envelope.top_speeds(math.pi) < speeds).all()
+    # one heading per vehicle and another share: the same balance, vehicle 0 north, vehicle 1 south-west
+    headings = np.array([math.pi / 2, -3 * math.pi / 4])
+    own = envelope.top_speeds(headings, tilt_share=0.9)
+    for c, v, psi in zip(drag, own, headings, strict=True):
+        u = np.array([math.cos(psi), math.sin(psi)])
+        assert c * np.linalg.norm(v * u - wind) == pytest.approx(0.9 * G * math.tan(TILT_MAX), rel=0.05)
 
 
 def test_no_cap_until_the_fit_has_seen_enough_speeds():
@@ -201,8 +207,50 @@ def test_paper_plain_turns_the_pace_off():
         {"min_samples": 1},
         {"accel_tilt_share": 0.5},  # under tilt_share: a leader at its cap would have to brake
         {"accel_tilt_share": 1.2},
+        {"own_tilt_share": 0.5},  # under tilt_share: a follower could not keep the leader's cruise
+        {"own_tilt_share": 1.1},
     ],
 )
 def test_impossible_settings_are_refused(bad):
     with pytest.raises(ValueError):
         CapabilityParams(**bad)
+
+
+def closed_loop(pace: CapabilityParams, behind_m: float, seconds: float) -> list[float]:
+    """`slow_follower_controller`'s fleet with its fitted drags, then the slow follower "c" put `behind_m` m
+    west of where it was, every reference started at rest at its vehicle, and every vehicle flying its
+    reference exactly for `seconds` s (its next state the reference's state integrated over the tick, its
+    attitude the one whose thrust makes the reference's acceleration against its drag, as in `telemetry`);
+    the horizontal speeds of c's reference, one per tick."""
+    ctl = slow_follower_controller(pace)
+    drag = np.array([0.278, 0.278, 1.0])
+    pos = np.array([[0.0, 0.0, 10.0], [-10.0, 10.0, 10.0], [-10.0 - behind_m, -10.0, 10.0]])
+    vel = np.zeros((3, 3))
+    ctl.generator.reset(pos, vel)
+    att = np.zeros((3, 3))
+    active = np.ones(3, dtype=bool)
+    speeds = []
+    dt = 0.02
+    for k in range(int(seconds / dt)):
+        cmd = ctl.tick(30.0 + k * dt, pos, vel, att, np.zeros((0, 3)), np.zeros(0), active)
+        speeds.append(float(np.hypot(*cmd.ref_vel[2, :2])))
+        thrust = cmd.ref_acc[:, :2] + drag[:, None] * cmd.ref_vel[:, :2]
+        pitch = np.arctan(thrust[:, 0] / G)
+        roll = np.arctan(-thrust[:, 1] * np.cos(pitch) / G)
+        att = np.stack([roll, pitch, np.zeros(3)], axis=1)
+        vel = cmd.ref_vel + cmd.ref_acc * dt
+        pos = cmd.ref_pos + vel * dt
+    return speeds
+
+
+def test_no_reference_runs_faster_than_its_own_vehicle_flies_at_own_tilt_share():
+    """The slow follower c (drag 1.0 1/s, calm air) 40 m behind its slot flies at most
+    own_tilt_share g tan 35 / c = 0.9 x 6.87 / 1.0 = 6.18 m/s (the drag then takes that share of the tilt
+    limit's thrust), where a reference without the cap runs on toward v_xy (20 m/s) and leaves the vehicle
+    behind on the leash."""
+    top = PARAMS.own_tilt_share * G * math.tan(TILT_MAX) / 1.0
+    capped = closed_loop(PARAMS, 40.0, 12.0)
+    assert max(capped) <= top * 1.03
+    assert capped[-1] >= top * 0.97  # it does catch up at that speed
+    free = closed_loop(CapabilityParams(own_tilt_share=0.0), 40.0, 12.0)
+    assert max(free) > top + 2.0
