@@ -5,8 +5,9 @@ N = 9, 100, 1000 with K = 10 and 100.
 
 The fleet flies a grid formation with 9 m spacing (inside D_max = 10 m, so the inter-UAV term is active);
 obstacles are spread over the fleet's area, so many vehicle-obstacle pairs are inside l0 = 20 m. The
-controller is configured as the bundled missions fly it: an altitude floor and the dead-GCS speed scheduling
-on. Prints a Markdown table: median per tick over repeats, with the spread (min..max of the repeat medians).
+controller is configured as the bundled missions fly it: an altitude floor, the dead-GCS speed scheduling
+and the pace from the vehicles' drag (guidance.pace) on. Prints a Markdown table: median per tick over
+repeats, with the spread (min..max of the repeat medians).
 
     python benchmarks/bench_guidance.py [--repeats 7] [--ticks 50] [--quick] [--max-n 1000]
 
@@ -35,7 +36,7 @@ import numpy as np
 import gcs_swarm
 from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
-from gcs_swarm.guidance.params import DeadGcsParams, FieldParams, G
+from gcs_swarm.guidance.params import CapabilityParams, DeadGcsParams, FieldParams, G
 from gcs_swarm.link.attitude_commands import attitude_commands
 from gcs_swarm.link.autopilots import ARDUPILOT
 from gcs_swarm.link.command_limits import CommandLimits
@@ -52,9 +53,10 @@ def scenario(n: int, k: int, seed: int = 0, guidance: dict[str, ModuleType] | No
     offsets[1:] = formation_offsets("grid", n - 1, SPACING)
     controller_class = FleetController if guidance is None else guidance["fleet_controller"].FleetController
     dead_gcs_class = DeadGcsParams if guidance is None else guidance["params"].DeadGcsParams
+    pace_class = CapabilityParams if guidance is None else guidance["params"].CapabilityParams
     ctl = controller_class(
         n, 0, offsets, np.array([[5000.0, 0.0, 50.0]]), control_dt=DT, z_min=5.0,
-        dead_gcs=dead_gcs_class(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0),
+        dead_gcs=dead_gcs_class(failsafe_timeout_s=3.0, brake_accel=2.5, brake_jerk=5.0), pace=pace_class(),
     )  # fmt: skip
     pos = offsets + np.array([0.0, 0.0, 50.0]) + rng.normal(0.0, 0.5, (n, 3))
     vel = np.tile([8.0, 0.0, 0.0], (n, 1)) + rng.normal(0.0, 0.3, (n, 3))
