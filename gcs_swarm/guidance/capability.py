@@ -27,6 +27,11 @@ The same v_cap at the share `own_tilt_share`, along each vehicle's own heading (
 per vehicle), caps that vehicle's own reference (fleet_controller), so that no reference asks for a speed its
 vehicle cannot fly with thrust to spare for steering.
 
+Opt-in (`start_lead_m_s` > 0): until a follower's drag has been `measured` (`ever_measured`), the leader
+flies no faster than lets that follower's slot run ahead of it by more than `start_lead_m_s` along psi_L,
+never under a floor that lets psi_L turn (`start_cap`): a leader that knows nothing yet of its followers
+would otherwise cruise away at its own top speed from a follower still hovering.
+
 The leader's acceleration is bounded the same way (`AccelBudget`, `within_budget`): a follower keeping its
 slot must make the leader's horizontal acceleration a at the leader's velocity v, which takes the thrust
 U_xy = a + c (v - w); the leader's reference acceleration is held inside the disc
@@ -109,6 +114,9 @@ class SpeedEnvelope:
         self.last_vel = np.full((n, 3), np.nan)
         self.last_axis = np.full((n, 3), np.nan)
         self.theta = np.full((n, 3), np.nan)  # (c 1/s, c w_x, c w_y m/s^2); NaN until trusted
+        # (N,) bool: the fit has been `measured` at some time (it may fall back under min_spread_m_s in a long
+        # steady cruise, when the samples that spread it are forgotten)
+        self.ever_measured = np.zeros(n, dtype=bool)
 
     def update(self, t: float, vel: np.ndarray, att: np.ndarray, active: np.ndarray) -> bool:
         """Take a sample at t s from measured vel (N, 3) m/s and att (N, 3) roll, pitch, yaw rad of the
@@ -152,8 +160,15 @@ class SpeedEnvelope:
         mean = self.v_sum / w[:, None]
         return np.sqrt(np.maximum(self.v2_sum / w - np.einsum("ka,ka->k", mean, mean), 0.0))
 
+    @property
+    def measured(self) -> np.ndarray:
+        """(N,) bool: the fit has min_samples and velocities spread by min_spread_m_s (whether or not it
+        found a drag)."""
+        return (self.weight >= self.params.min_samples) & (self.spread() >= self.params.min_spread_m_s)
+
     def _solve(self) -> bool:
-        ready = (self.weight >= self.params.min_samples) & (self.spread() >= self.params.min_spread_m_s)
+        ready = self.measured
+        self.ever_measured |= ready
         theta = np.full_like(self.theta, np.nan)
         if ready.any():
             theta[ready] = np.linalg.solve(self.normal[ready], self.moment[ready][..., None])[..., 0]
@@ -194,6 +209,21 @@ class SpeedEnvelope:
             return NO_BUDGET
         c, cw_x, cw_y = (float(x) for x in self.theta[row])
         return AccelBudget(c, cw_x, cw_y, float(self.accel_xy))
+
+    def start_cap(
+        self, vel: np.ndarray, heading: float, slot_rate: np.ndarray, followers: np.ndarray, floor: float
+    ) -> float:
+        """m/s: the leader's cap until the drag of each of the (N,) bool `followers` has been `measured`
+        (`ever_measured`), so that no such follower's slot runs ahead of it along `heading` rad by more than
+        params.start_lead_m_s: its speed along the heading (vel (N, 3) m/s ENU) less its slot's own rate along
+        it (`slot_rate` (N,) m/s, the slot's motion in the leader's frame, forward positive), plus
+        start_lead_m_s, the smallest over those followers, at least `floor`; inf when every follower has been
+        measured or the cap is off."""
+        rows = followers & ~self.ever_measured & np.isfinite(vel[:, :2]).all(axis=1)
+        if self.params.start_lead_m_s == 0 or not rows.any():
+            return math.inf
+        along = vel[rows, 0] * math.cos(heading) + vel[rows, 1] * math.sin(heading) - slot_rate[rows]
+        return max(floor, float(along.min()) + self.params.start_lead_m_s)
 
     def leader_cap(self, heading: float, followers: np.ndarray) -> float:
         """m/s: the smallest top speed along `heading` rad of the (N,) bool `followers` whose fit is trusted;

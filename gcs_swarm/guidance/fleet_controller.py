@@ -47,7 +47,7 @@ from gcs_swarm.guidance.leader_path import (
     predict_leader_path,
     waypoint_ahead,
 )
-from gcs_swarm.guidance.leader_wait import leader_cap_scale, turn_wait_scale
+from gcs_swarm.guidance.leader_wait import TURNING_MARGIN, leader_cap_scale, turn_wait_scale
 from gcs_swarm.guidance.params import (
     CapabilityParams,
     DeadGcsParams,
@@ -291,6 +291,7 @@ class FleetController:
             None if pace is None or not pace.enabled else SpeedEnvelope(n, pace, self.limits.tilt_max, g)
         )
         self.follower_pace = math.inf  # m/s, the leader's cap from its followers' top speeds (`envelope`)
+        self.start_pace = math.inf  # m/s, the leader's cap until its followers' drag is measured (`envelope`)
         self.leader_budget = NO_BUDGET  # the leader's acceleration budget from its slowest follower (spec 6b)
         self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
         self.detours: list[Detour] = []  # legs planned round a gap (`drain_detours`)
@@ -428,6 +429,8 @@ class FleetController:
             cap[self.leader] = min(cap[self.leader], self.shaper.pace_cap, self.path_pace)
         if self.follower_pace < cap[self.leader]:  # [add] no faster than the slowest follower (capability)
             cap[self.leader] = self.follower_pace
+        if self.start_pace < cap[self.leader]:  # [add] nor, before it is measured, than it flies (capability)
+            cap[self.leader] = self.start_pace
         if self.envelope is not None and self.envelope.params.own_tilt_share > 0:  # [add] nor than itself
             cap = np.minimum(cap, self._own_top_speeds())
         return cap
@@ -564,6 +567,20 @@ class FleetController:
             if math.isinf(budget.budget) != math.isinf(self.leader_budget.budget):
                 self.events.append(self._budget_event(t, budget, followers))
             self.leader_budget = budget
+
+    def _update_start_pace(
+        self, t: float, vel: np.ndarray, active: np.ndarray, offset_rate: np.ndarray | None
+    ) -> None:
+        """The leader's cap until its active followers' drag is measured (capability.SpeedEnvelope.start_cap,
+        spec 6b), from their measured vel (N, 3) m/s and their slots' own rate (N, 3) leader-frame m/s (None:
+        the slots stand still in the leader's frame), and an event when it ends."""
+        assert self.envelope is not None and self.heading is not None
+        floor = TURNING_MARGIN * self.reference.heading_min_speed  # psi_L turns above heading_min_speed only
+        forward = np.zeros(self.n) if offset_rate is None else offset_rate[:, 0] * self.spacing_scale
+        cap = self.envelope.start_cap(vel, self.heading.psi, forward, active & ~self.is_leader, floor)
+        if math.isinf(cap) and not math.isinf(self.start_pace):
+            self.events.append(f"t={t:.2f} s pace: every follower's drag measured, the start's cap is off")
+        self.start_pace = cap
 
     def _budget_event(self, t: float, budget: AccelBudget, followers: np.ndarray) -> str:
         """The event line of the leader's acceleration budget starting (from the slowest of the (N,) bool
@@ -740,6 +757,8 @@ class FleetController:
             offsets, offset_rate, offset_accel = self.shaper.flown(t)
             shrink = self.shaper.scale(t)
         self.flown_offsets = offsets
+        if self.envelope is not None and self.envelope.params.start_lead_m_s > 0:  # [add] opt-in: no faster
+            self._update_start_pace(t, vel, active, offset_rate)  # than unmeasured followers fly
         if ref.leader_wait_m > 0.0:  # [add] the leader waits for followers behind their slots (leader_wait)
             self.leader_speed_scale = leader_cap_scale(
                 self.last_pos, lead, offsets * self.spacing_scale, self.heading.psi,

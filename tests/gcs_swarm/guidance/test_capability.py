@@ -13,6 +13,7 @@ from gcs_swarm.guidance.params import PAPER_PLAIN, CapabilityParams, G, Limits, 
 from gcs_swarm.guidance.reference import ReferenceGenerator, no_budgets
 
 PARAMS = CapabilityParams()
+START_CAP = CapabilityParams(start_lead_m_s=2.0)  # the start's cap, off by default
 TILT_MAX = math.radians(35.0)
 
 
@@ -41,8 +42,10 @@ def telemetry(drag: np.ndarray, wind: np.ndarray, seconds: float, rate_hz: float
         t += step
 
 
-def fitted(drag: np.ndarray, wind: np.ndarray, seconds: float = 40.0) -> SpeedEnvelope:
-    envelope = SpeedEnvelope(len(drag), PARAMS, TILT_MAX, G)
+def fitted(
+    drag: np.ndarray, wind: np.ndarray, seconds: float = 40.0, params: CapabilityParams = PARAMS
+) -> SpeedEnvelope:
+    envelope = SpeedEnvelope(len(drag), params, TILT_MAX, G)
     active = np.ones(len(drag), dtype=bool)
     for t, vel, att in telemetry(drag, wind, seconds):
         envelope.update(t, vel, att, active)
@@ -209,6 +212,7 @@ def test_paper_plain_turns_the_pace_off():
         {"accel_tilt_share": 1.2},
         {"own_tilt_share": 0.5},  # under tilt_share: a follower could not keep the leader's cruise
         {"own_tilt_share": 1.1},
+        {"start_lead_m_s": -1.0},
     ],
 )
 def test_impossible_settings_are_refused(bad):
@@ -254,3 +258,69 @@ def test_no_reference_runs_faster_than_its_own_vehicle_flies_at_own_tilt_share()
     assert capped[-1] >= top * 0.97  # it does catch up at that speed
     free = closed_loop(CapabilityParams(own_tilt_share=0.0), 40.0, 12.0)
     assert max(free) > top + 2.0
+
+
+def test_until_a_followers_drag_is_measured_the_leader_keeps_within_start_lead_of_it():
+    """Heading east, start_lead_m_s 2: followers flying (4, 0) and (1.5, 3) m/s are 4 and 1.5 m/s along the
+    heading, so no slot may run ahead of its follower by more than 2 m/s: the leader's cap is 1.5 + 2 = 3.5
+    m/s; if the slower one's slot falls back in the formation at 1 m/s, the leader may fly 1 m/s faster (4.5);
+    one flying west at 2 m/s allows 0 (the floor, when there is one); the leader's own row and followers whose
+    drag is measured do not count."""
+    envelope = SpeedEnvelope(4, START_CAP, TILT_MAX, G)
+    vel = np.array([[9.0, 0.0, 0.0], [4.0, 0.0, 0.0], [1.5, 3.0, 0.0], [-2.0, 0.0, 0.0]])
+    still = np.zeros(4)
+    followers = np.array([False, True, True, False])
+    assert envelope.start_cap(vel, 0.0, still, followers, 0.0) == pytest.approx(3.5)
+    falling_back = np.array([0.0, 0.0, -1.0, 0.0])
+    assert envelope.start_cap(vel, 0.0, falling_back, followers, 0.0) == pytest.approx(4.5)
+    followers[3] = True
+    assert envelope.start_cap(vel, 0.0, still, followers, 0.0) == pytest.approx(0.0)
+    assert envelope.start_cap(vel, 0.0, still, followers, 3.75) == pytest.approx(3.75)
+    off = SpeedEnvelope(4, PARAMS, TILT_MAX, G)  # the default: off
+    assert off.start_cap(vel, 0.0, still, followers, 3.75) == math.inf
+    measured = fitted(np.array([0.278, 0.278, 1.0, 1.0]), np.zeros(2), params=START_CAP)
+    assert measured.measured.all()
+    assert measured.start_cap(vel, 0.0, still, followers, 3.75) == math.inf
+    # a long steady cruise forgets the samples that spread the fit; the cap stays off all the same
+    active = np.ones(4, dtype=bool)
+    for k in range(1000):
+        measured.update(40.0 + 0.2 * k, np.tile([5.0, 0.0, 0.0], (4, 1)), np.zeros((4, 3)), active)
+    assert not measured.measured.any()
+    assert measured.start_cap(vel, 0.0, still, followers, 3.75) == math.inf
+
+
+def leader_ahead_of_hovering_followers(pace: CapabilityParams, seconds: float) -> list[float]:
+    """The leader "a" flying its reference exactly toward a goal 500 m east (the vehicle's next state the
+    reference's, integrated over the tick), its followers "b" and "c" hovering where they started, for
+    `seconds` s; the leader's reference speeds, one per tick."""
+    offsets = np.array([[0.0, 0.0, 0.0], [-10.0, 10.0, 0.0], [-10.0, -10.0, 0.0]])
+    ctl = FleetController(3, 0, offsets, np.array([[500.0, 0.0, 10.0]]), pace=pace, names=("a", "b", "c"))
+    pos = offsets + np.array([0.0, 0.0, 10.0])
+    vel = np.zeros((3, 3))
+    ctl.reset(pos, vel, np.zeros(3))
+    active = np.ones(3, dtype=bool)
+    speeds, dt = [], 0.02
+    for k in range(int(seconds / dt)):
+        cmd = ctl.tick(k * dt, pos, vel, np.zeros((3, 3)), np.zeros((0, 3)), np.zeros(0), active)
+        speeds.append(float(np.hypot(*cmd.ref_vel[0, :2])))
+        vel[0], pos[0] = cmd.ref_vel[0], cmd.ref_pos[0] + cmd.ref_vel[0] * dt
+    return speeds
+
+
+def test_a_leader_does_not_run_away_from_followers_whose_drag_is_not_measured():
+    """Followers still hovering (no drag fit yet, 0 m/s along the heading): the leader's reference stays at
+    the floor TURNING_MARGIN x heading_min_speed = 1.25 x 3 = 3.75 m/s (start_lead_m_s 2 is less), where with
+    the cap off it is at v_xy_leader (10 m/s) within 8 s (accelerating at accel_xy_max, 4 m/s^2)."""
+    floor = 1.25 * ReferenceParams().heading_min_speed
+    held = leader_ahead_of_hovering_followers(START_CAP, 8.0)
+    assert max(held) <= floor + 0.05
+    assert held[-1] >= floor - 0.05
+    free = leader_ahead_of_hovering_followers(PARAMS, 8.0)  # the default: off
+    assert free[-1] >= Limits().v_xy_leader - 0.05
+
+
+def test_the_start_cap_ends_once_every_followers_drag_is_measured_and_the_event_says_so():
+    ctl = slow_follower_controller(START_CAP)
+    assert ctl.start_pace == math.inf
+    events = [e for e in ctl.drain_events() if "start" in e]
+    assert len(events) == 1 and "every follower's drag measured" in events[0]
