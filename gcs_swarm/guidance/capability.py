@@ -27,10 +27,11 @@ The same v_cap at the share `own_tilt_share`, along each vehicle's own heading (
 per vehicle), caps that vehicle's own reference (fleet_controller), so that no reference asks for a speed its
 vehicle cannot fly with thrust to spare for steering.
 
-Opt-in (`start_lead_m_s` > 0): until a follower's drag has been `measured` (`ever_measured`), the leader
-flies no faster than lets that follower's slot run ahead of it by more than `start_lead_m_s` along psi_L,
-never under a floor that lets psi_L turn (`start_cap`): a leader that knows nothing yet of its followers
-would otherwise cruise away at its own top speed from a follower still hovering.
+Until a follower's drag has been `measured` (`ever_measured`), the leader flies no faster than lets that
+follower's slot run ahead of it by more than `start_lead_m_s` along psi_L, never under a floor that lets
+psi_L turn (`start_cap`): a leader that knows nothing yet of its followers would otherwise cruise away at its
+own top speed from a follower still hovering. (The fleet controller does not apply it to a formation that
+starts in flight.)
 
 The leader's acceleration is bounded the same way (`AccelBudget`, `within_budget`): a follower keeping its
 slot must make the leader's horizontal acceleration a at the leader's velocity v, which takes the thrust

@@ -292,6 +292,8 @@ class FleetController:
         )
         self.follower_pace = math.inf  # m/s, the leader's cap from its followers' top speeds (`envelope`)
         self.start_pace = math.inf  # m/s, the leader's cap until its followers' drag is measured (`envelope`)
+        self.started_in_flight = False  # the leader was faster than the start cap's floor when the formation
+        # started (`reset`): its followers are flying already, and the start's cap does not apply
         self.leader_budget = NO_BUDGET  # the leader's acceleration budget from its slowest follower (spec 6b)
         self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
         self.detours: list[Detour] = []  # legs planned round a gap (`drain_detours`)
@@ -622,6 +624,9 @@ class FleetController:
         # every follower has been within ASSEMBLED_M of its slot (on_slots; kept up to date by `tick`)
         slots = slot_positions(pos[self.leader], yaw[self.leader], self.flown_offsets * self.spacing_scale)
         self.assembled = on_slots(pos, slots, known & ~self.is_leader)
+        turning = TURNING_MARGIN * self.reference.heading_min_speed
+        self.started_in_flight = bool(np.hypot(*vel[self.leader, :2]) > turning)
+        self.start_pace = math.inf  # (the next tick sets the start's cap again where it applies)
         self.generator.reset(self.last_pos, self.last_vel)
         self.position_controller.reset(self.n)
         rate = self.heading_rate_max
@@ -757,8 +762,9 @@ class FleetController:
             offsets, offset_rate, offset_accel = self.shaper.flown(t)
             shrink = self.shaper.scale(t)
         self.flown_offsets = offsets
-        if self.envelope is not None and self.envelope.params.start_lead_m_s > 0:  # [add] opt-in: no faster
-            self._update_start_pace(t, vel, active, offset_rate)  # than unmeasured followers fly
+        start_cap_on = self.envelope is not None and self.envelope.params.start_lead_m_s > 0
+        if start_cap_on and not self.started_in_flight:  # [add] no faster than followers not yet measured fly
+            self._update_start_pace(t, vel, active, offset_rate)
         if ref.leader_wait_m > 0.0:  # [add] the leader waits for followers behind their slots (leader_wait)
             self.leader_speed_scale = leader_cap_scale(
                 self.last_pos, lead, offsets * self.spacing_scale, self.heading.psi,

@@ -435,11 +435,10 @@ class CapabilityParams:
     # m/s: until a follower's drag has been measured (its fit has min_samples and min_spread_m_s), the leader
     # flies no faster than lets that follower's slot run ahead of it by more than this along psi_L, never
     # under 1.25 x heading_min_speed: a follower still hovering is not left behind by a leader cruising at a
-    # speed it may not reach (real PX4 SIH: 9-12 m slot errors in the first 10 s). 0: no such cap. Off by
-    # default: at 2 it held real PX4 SIH to 0.8-1.0 m RMS and 64 of the 80 generated courses at every bound
-    # (61 without), but slowed the bundled paper missions' moving start, where the followers stand far ahead
-    # of their slots (docs/metrics.md, "The start: no faster than the followers fly")
-    start_lead_m_s: float = 0.0
+    # speed it may not reach (real PX4 SIH: 9-12 m slot errors in the first 10 s). Not for a formation that
+    # starts with its leader faster than that floor (its followers fly already). 0: no such cap
+    # (docs/metrics.md, "The start: no faster than the followers fly")
+    start_lead_m_s: float = 2.0
 
     def __post_init__(self) -> None:
         if not self.start_lead_m_s >= 0:

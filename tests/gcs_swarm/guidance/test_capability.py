@@ -13,7 +13,8 @@ from gcs_swarm.guidance.params import PAPER_PLAIN, CapabilityParams, G, Limits, 
 from gcs_swarm.guidance.reference import ReferenceGenerator, no_budgets
 
 PARAMS = CapabilityParams()
-START_CAP = CapabilityParams(start_lead_m_s=2.0)  # the start's cap, off by default
+START_CAP = CapabilityParams(start_lead_m_s=2.0)  # the start's cap, as by default
+NO_START_CAP = CapabilityParams(start_lead_m_s=0.0)
 TILT_MAX = math.radians(35.0)
 
 
@@ -276,7 +277,7 @@ def test_until_a_followers_drag_is_measured_the_leader_keeps_within_start_lead_o
     followers[3] = True
     assert envelope.start_cap(vel, 0.0, still, followers, 0.0) == pytest.approx(0.0)
     assert envelope.start_cap(vel, 0.0, still, followers, 3.75) == pytest.approx(3.75)
-    off = SpeedEnvelope(4, PARAMS, TILT_MAX, G)  # the default: off
+    off = SpeedEnvelope(4, NO_START_CAP, TILT_MAX, G)
     assert off.start_cap(vel, 0.0, still, followers, 3.75) == math.inf
     measured = fitted(np.array([0.278, 0.278, 1.0, 1.0]), np.zeros(2), params=START_CAP)
     assert measured.measured.all()
@@ -289,14 +290,18 @@ def test_until_a_followers_drag_is_measured_the_leader_keeps_within_start_lead_o
     assert measured.start_cap(vel, 0.0, still, followers, 3.75) == math.inf
 
 
-def leader_ahead_of_hovering_followers(pace: CapabilityParams, seconds: float) -> list[float]:
+def leader_ahead_of_hovering_followers(
+    pace: CapabilityParams, seconds: float, leader_speed: float = 0.0
+) -> list[float]:
     """The leader "a" flying its reference exactly toward a goal 500 m east (the vehicle's next state the
-    reference's, integrated over the tick), its followers "b" and "c" hovering where they started, for
-    `seconds` s; the leader's reference speeds, one per tick."""
+    reference's, integrated over the tick), from `leader_speed` m/s east when the formation starts, its
+    followers "b" and "c" hovering where they started, for `seconds` s; the leader's reference speeds, one per
+    tick."""
     offsets = np.array([[0.0, 0.0, 0.0], [-10.0, 10.0, 0.0], [-10.0, -10.0, 0.0]])
     ctl = FleetController(3, 0, offsets, np.array([[500.0, 0.0, 10.0]]), pace=pace, names=("a", "b", "c"))
     pos = offsets + np.array([0.0, 0.0, 10.0])
     vel = np.zeros((3, 3))
+    vel[0, 0] = leader_speed
     ctl.reset(pos, vel, np.zeros(3))
     active = np.ones(3, dtype=bool)
     speeds, dt = [], 0.02
@@ -315,8 +320,22 @@ def test_a_leader_does_not_run_away_from_followers_whose_drag_is_not_measured():
     held = leader_ahead_of_hovering_followers(START_CAP, 8.0)
     assert max(held) <= floor + 0.05
     assert held[-1] >= floor - 0.05
-    free = leader_ahead_of_hovering_followers(PARAMS, 8.0)  # the default: off
+    free = leader_ahead_of_hovering_followers(NO_START_CAP, 8.0)
     assert free[-1] >= Limits().v_xy_leader - 0.05
+
+
+def test_the_start_cap_does_not_apply_to_a_formation_that_starts_in_flight():
+    """The leader flying 6 m/s east when the formation starts, faster than the cap's floor (1.25 x 3 = 3.75
+    m/s; the bundled paper missions start in flight), its followers hovering: no start cap, the leader
+    speeds up to v_xy_leader (10 m/s) as with the cap off. At 3 m/s, under the floor, the cap holds it
+    there."""
+    in_flight = leader_ahead_of_hovering_followers(START_CAP, 8.0, leader_speed=6.0)
+    free = leader_ahead_of_hovering_followers(NO_START_CAP, 8.0, leader_speed=6.0)
+    assert in_flight == free
+    assert in_flight[-1] >= Limits().v_xy_leader - 0.05
+    floor = 1.25 * ReferenceParams().heading_min_speed
+    slow = leader_ahead_of_hovering_followers(START_CAP, 8.0, leader_speed=3.0)
+    assert max(slow) <= floor + 0.05
 
 
 def test_the_start_cap_ends_once_every_followers_drag_is_measured_and_the_event_says_so():
