@@ -577,12 +577,17 @@ class FleetController:
         spec 6b), from their measured vel (N, 3) m/s and their slots' own rate (N, 3) leader-frame m/s (None:
         the slots stand still in the leader's frame), and an event when it ends."""
         assert self.envelope is not None and self.heading is not None
-        floor = TURNING_MARGIN * self.reference.heading_min_speed  # psi_L turns above heading_min_speed only
         forward = np.zeros(self.n) if offset_rate is None else offset_rate[:, 0] * self.spacing_scale
-        cap = self.envelope.start_cap(vel, self.heading.psi, forward, active & ~self.is_leader, floor)
+        followers = active & ~self.is_leader
+        cap = self.envelope.start_cap(vel, self.heading.psi, forward, followers, self._start_cap_floor())
         if math.isinf(cap) and not math.isinf(self.start_pace):
             self.events.append(f"t={t:.2f} s pace: every follower's drag measured, the start's cap is off")
         self.start_pace = cap
+
+    def _start_cap_floor(self) -> float:
+        """m/s: the start's cap never holds the leader under this (psi_L turns above heading_min_speed only),
+        nor applies to a formation whose leader is faster than this when it starts (spec 6b)."""
+        return TURNING_MARGIN * self.reference.heading_min_speed
 
     def _budget_event(self, t: float, budget: AccelBudget, followers: np.ndarray) -> str:
         """The event line of the leader's acceleration budget starting (from the slowest of the (N,) bool
@@ -624,8 +629,7 @@ class FleetController:
         # every follower has been within ASSEMBLED_M of its slot (on_slots; kept up to date by `tick`)
         slots = slot_positions(pos[self.leader], yaw[self.leader], self.flown_offsets * self.spacing_scale)
         self.assembled = on_slots(pos, slots, known & ~self.is_leader)
-        turning = TURNING_MARGIN * self.reference.heading_min_speed
-        self.started_in_flight = bool(np.hypot(*vel[self.leader, :2]) > turning)
+        self.started_in_flight = bool(np.hypot(*vel[self.leader, :2]) > self._start_cap_floor())
         self.start_pace = math.inf  # (the next tick sets the start's cap again where it applies)
         self.generator.reset(self.last_pos, self.last_vel)
         self.position_controller.reset(self.n)
