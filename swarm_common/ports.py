@@ -5,7 +5,11 @@ from __future__ import annotations
 import random
 import socket
 
-PORT_RANGE = (20000, 60000)  # where probed blocks start
+# where probed blocks lie: under the ephemeral ports the operating system gives to sockets that do not bind
+# one themselves (Linux 32768-60999, Windows and macOS 49152-65535), so that a block found free is not taken
+# by another process's outgoing socket before the caller binds it (a test's simulator failed so, with another
+# build running beside it); only another caller of this function can still race for it
+PORT_RANGE = (20000, 32768)
 PORT_TRIES = 200
 
 

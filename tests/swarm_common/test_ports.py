@@ -22,6 +22,14 @@ def test_free_udp_base_gives_bindable_ports() -> None:
             s.close()
 
 
+def test_blocks_lie_under_the_ephemeral_ports_that_outgoing_sockets_get() -> None:
+    """Linux hands unbound sockets ports from 32768 up (ip_local_port_range's default; Windows and macOS
+    from 49152), so no block may reach them."""
+    for _ in range(200):
+        base = free_udp_base(9)
+        assert 20000 <= base and base + 8 < 32768
+
+
 @pytest.mark.parametrize("count", [0, 70000])
 def test_a_block_that_cannot_exist_is_a_clear_error(count: int) -> None:
     with pytest.raises(ValueError, match=f"a block of {count} UDP ports cannot be found"):
