@@ -37,14 +37,16 @@ purpose instead, and its followers' slots move with it:
   only where its move keeps the clearance the slots have at its start (`_decide_at_goal`, spec 6a.3).
 - **Change**: the followers are assigned to the new slots by the shortest longest move
   (gcs_swarm.guidance.slot_assignment), and the slots move from the old to the new offsets straight, or first
-  along the leader's heading and then across it, or the other way round (MOVE_ORDERS): the quickest way that
-  keeps the vehicles `move_gap_m` apart (or as far as they stand at its start or end, where that is less),
-  else whichever keeps them farthest apart (a column 7 m apart opening into a line 12 m apart goes straight,
-  its closest pair passing 6.05 m apart; into a line 10 m apart, where straight moves would pass 5.7 m apart,
-  it moves across first, each follower still 7 m behind the next, then forward, each in its own lane). Each
-  phase follows a minimum-jerk profile (quintic, zero velocity and acceleration at both ends) as short as
-  lets no slot move faster than speed_m_s nor accelerate harder than accel_m_s2 relative to the leader
-  (`move_duration`).
+  along the leader's heading and then across it, or the other way round, the second phase starting when the
+  first ends or while it still runs (MOVE_ORDERS, MOVE_OVERLAPS): the quickest way that keeps the vehicles
+  `move_gap_m` apart (or as far as they stand at its start or end, where that is less), else whichever keeps
+  them farthest apart (a column 7 m apart opening into a line 12 m apart goes straight, its closest pair
+  passing 6.05 m apart; into a line 10 m apart, where straight moves would pass 5.7 m apart, it spreads
+  across first, each follower still 7 m behind the next, and moves forward, each in its own lane, from a
+  quarter of the way across). Each phase follows a minimum-jerk profile (quintic, zero velocity and
+  acceleration at both ends) as short as lets no slot move faster than speed_m_s nor accelerate harder than
+  accel_m_s2 relative to the leader (`move_duration`); where two phases overlap, both stretched in time until
+  their combined rate and acceleration keep those bounds too (`timed_phases`).
   The offsets' rate and acceleration go to the followers as velocity and acceleration feed-forwards.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
   reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
@@ -62,8 +64,9 @@ spacing of the flown shape over the mission's (1 unreshaped); the inter-UAV repu
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -89,6 +92,7 @@ EARLY_TURN_MAX_RAD = math.radians(20.0)  # rad the route may turn while a wideni
 GOAL_RADIUS_M = 2.0  # m from its last waypoint within which the leader is at its goal (`_decide_at_goal`)
 # moves planned and checked for clearance at the goal per decision (the costly part of a decision there)
 GOAL_CHECKS_PER_DECISION = 1
+FloatOrArray = TypeVar("FloatOrArray", float, np.ndarray)
 # the leader's way ahead for a length m: points (P, 3) ENU m, the formation's heading there (P,) rad, their
 # travel from the leader (P,) m (route_samples, gcs_swarm.guidance.leader_path)
 Route = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -285,9 +289,10 @@ def keeps_clear(gaps: np.ndarray, floor: float) -> bool:
     return bool(gaps.min() >= floor - CLEARANCE_TOLERANCE_M)
 
 
-def min_jerk(tau: float) -> tuple[float, float, float]:
-    """The quintic 10 t^3 - 15 t^4 + 6 t^5 and its first and second derivatives at tau in [0, 1] (clipped)."""
-    tau = min(max(tau, 0.0), 1.0)
+def min_jerk(tau: FloatOrArray) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray]:
+    """The quintic 10 t^3 - 15 t^4 + 6 t^5 and its first and second derivatives at tau in [0, 1] (clipped),
+    elementwise for an array of tau."""
+    tau = np.clip(tau, 0.0, 1.0)
     return (
         tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau),
         30.0 * tau * tau * (1.0 - tau) ** 2,
@@ -309,64 +314,98 @@ def move_duration(distance: float, speed: float, accel: float) -> float:
     return max(MIN_JERK_PEAK_RATE * distance / speed, math.sqrt(MIN_JERK_PEAK_ACCEL * distance / accel))
 
 
-# The ways the slots may move from one shape to another: which axes of the leader frame move in each phase, in
-# order (the vertical moves with the first phase).
-MOVE_ORDERS: dict[str, tuple[tuple[int, ...], ...]] = {
-    "straight": ((0, 1, 2),),
-    "along, then across": ((0, 2), (1,)),
-    "across, then along": ((1, 2), (0,)),
-}
+def _move_orders() -> dict[str, tuple[tuple[tuple[int, ...], float], ...]]:
+    orders: dict[str, tuple[tuple[tuple[int, ...], float], ...]] = {"straight": (((0, 1, 2), 0.0),)}
+    for first, second, names in (((0, 2), (1,), ("along", "across")), ((1, 2), (0,), ("across", "along"))):
+        for share in MOVE_OVERLAPS:
+            later = "then" if share == 1.0 else f"from {share:.0%}"
+            name = f"{names[0]}, {later} {names[1]}"
+            orders[name] = ((first, 0.0), (second, share))
+    return orders
+
+
+# Where the second phase of a two-phase move starts, as a share of the first phase's duration: 1, once the
+# first is over; less, while it still runs, so that the slots cut the corner (a column opening into a V at
+# its goal took 16 s along then across, docs/metrics.md)
+MOVE_OVERLAPS = (1.0, 0.75, 0.5, 0.25)
+# The ways the slots may move from one shape to another: which axes of the leader frame move in each phase
+# (the vertical moves with the first phase), and when each phase starts, as a share of the duration of the
+# phase before it
+MOVE_ORDERS: dict[str, tuple[tuple[tuple[int, ...], float], ...]] = _move_orders()
+# before the formation has assembled, a change's phases do not overlap (`FormationShaper._plan`): its slots
+# start where the followers stand, and a quicker change lets the leader speed up sooner while they still
+# converge on them (gap-16: a column of six formed in 9.9 s instead of 13.7 s met a gap 20 m wide at 10 m/s,
+# its tail 21 m off its slot; docs/metrics.md)
+UNASSEMBLED_ORDERS = tuple(order for order in MOVE_ORDERS.values() if all(s == 1.0 for _, s in order[1:]))
+OVERLAP_SAMPLES = 128  # moments of each stretch of a move in which two phases run together, sampled
+# the stretch of overlapping phases is this much longer than their sampled peaks ask for: the true peak
+# lies between two samples, within 1e-4 of the larger one at OVERLAP_SAMPLES (tests/gcs_swarm/guidance)
+PEAK_SAMPLING_MARGIN = 1.001
 
 
 @dataclass(frozen=True)
 class SlotMove:
-    """The slots moving from `start` to `end` (N, 3) leader-frame m from t0 s: in each phase the `axes` of
-    that phase go from where they are to `end` along a minimum-jerk profile of its `duration` s."""
+    """The slots moving from `start` to `end` (N, 3) leader-frame m from t0 s: in each phase, `begin` s after
+    t0, that phase's `axes` go from `start` to `end` along a minimum-jerk profile of its `duration` s. Each
+    axis moves in one phase; phases may overlap."""
 
     start: np.ndarray
     end: np.ndarray
     t0: float
-    phases: tuple[tuple[tuple[int, ...], float], ...]
+    phases: tuple[tuple[tuple[int, ...], float, float], ...]  # (axes, begin s, duration s)
 
     @property
     def duration(self) -> float:
         """s, the whole move."""
-        return sum(d for _, d in self.phases)
+        return max((begin + d for _, begin, d in self.phases), default=0.0)
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Offsets (N, 3) at time t s, their rate (N, 3) m/s and their acceleration (N, 3) m/s^2."""
-        offsets, rate, accel = self.start.copy(), np.zeros_like(self.start), np.zeros_like(self.start)
-        elapsed = t - self.t0
-        for axes, duration in self.phases:
+        offsets, rate, accel = self.along(np.array([t], dtype=float))
+        return offsets[0], rate[0], accel[0]
+
+    def along(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Offsets (T, N, 3) at the (T,) times s, their rate (T, N, 3) m/s and acceleration (T, N, 3)
+        m/s^2."""
+        shape = (len(times), *self.start.shape)
+        offsets = np.broadcast_to(self.start, shape).copy()
+        rate, accel = np.zeros(shape), np.zeros(shape)
+        elapsed = times - self.t0
+        for axes, begin, duration in self.phases:
             cols = list(axes)
-            if duration <= 0.0 or elapsed >= duration:
-                offsets[:, cols] = self.end[:, cols]
-            else:
-                lam, dlam, ddlam = min_jerk(max(elapsed, 0.0) / duration)
-                delta = self.end[:, cols] - self.start[:, cols]
-                offsets[:, cols] = self.start[:, cols] + lam * delta
-                rate[:, cols] = delta * (dlam / duration)
-                accel[:, cols] = delta * (ddlam / duration**2)
-                break
-            elapsed -= duration
+            delta = self.end[:, cols] - self.start[:, cols]
+            if duration <= 0.0:
+                offsets[:, :, cols] = self.end[:, cols]
+                continue
+            lam, dlam, ddlam = min_jerk((elapsed - begin) / duration)
+            offsets[:, :, cols] = self.start[:, cols] + lam[:, None, None] * delta
+            rate[:, :, cols] = (dlam / duration)[:, None, None] * delta
+            accel[:, :, cols] = (ddlam / duration**2)[:, None, None] * delta
         return offsets, rate, accel
 
+    def stretches(self) -> list[tuple[float, float, list[int]]]:
+        """The move cut at every start and end of a phase: (from s, to s after t0, the indices of the phases
+        running throughout), in order."""
+        moving = [(i, begin, begin + d) for i, (_, begin, d) in enumerate(self.phases) if d > 0.0]
+        bounds = sorted({0.0} | {a for _, a, _ in moving} | {b for _, _, b in moving})
+        return [
+            (a, b, [i for i, begin, end in moving if begin <= a and b <= end])
+            for a, b in zip(bounds, bounds[1:], strict=False)
+        ]
+
     def phases_left(self, t: float) -> list[tuple[float, float]]:
-        """The phases not finished at t s, in order: (their time left s, the leader's pace floor m/s in them,
-        `fall_back_floor` of the phase's peak fall-back rate)."""
-        out, start = [], self.t0
-        for axes, duration in self.phases:
-            end = start + duration
-            if duration > 0.0 and t < end:
+        """The stretches of the move (`stretches`) not over at t s, in order: (their time left s, the leader's
+        pace floor m/s in them, `fall_back_floor` of the peak fall-back rate of the phases running then)."""
+        out = []
+        for a, b, running in self.stretches():
+            if t < self.t0 + b:
                 back = 0.0
-                if 0 in axes:  # the peak rate of the longest backward move along the heading (min_jerk)
-                    back = (
-                        MIN_JERK_PEAK_RATE
-                        * float(np.max(self.start[:, 0] - self.end[:, 0], initial=0.0))
-                        / duration
-                    )
-                out.append((end - max(t, start), fall_back_floor(back)))
-            start = end
+                for i in running:
+                    axes, _, duration = self.phases[i]
+                    if 0 in axes:  # the peak rate of the longest backward move along the heading (min_jerk)
+                        fall = float(np.max(self.start[:, 0] - self.end[:, 0], initial=0.0))
+                        back = max(back, MIN_JERK_PEAK_RATE * fall / duration)
+                out.append((self.t0 + b - max(t, self.t0 + a), fall_back_floor(back)))
         return out
 
 
@@ -394,18 +433,51 @@ def pace_speed(phases: list[tuple[float, float]], room: float) -> float:
     return (room - at_floors) / free_time if free_time > 0.0 else 0.0
 
 
-def closest_pair_along(start: np.ndarray, end: np.ndarray, axes_order: tuple[tuple[int, ...], ...]) -> float:
-    """Smallest distance m between two rows of start/end (M, 3) moving phase by phase as `axes_order` says:
-    in each phase that phase's axes move together, proportionally, a straight synchronised move whose
-    closest approach slot_assignment.closest_approach gives exactly."""
-    here, best = start.copy(), math.inf
-    for axes in axes_order:
-        cols = list(axes)
-        there = here.copy()
-        there[:, cols] = end[:, cols]
-        best = min(best, closest_approach(here, there))
-        here = there
+def closest_pair_in(move: SlotMove, rows: np.ndarray) -> float:
+    """Smallest distance m between two of the (N,) bool `rows` while `move` runs: exactly in a stretch in
+    which one phase runs (its axes move together, proportionally: a straight synchronised move, whose closest
+    approach slot_assignment.closest_approach gives), sampled at OVERLAP_SAMPLES moments where two do."""
+    best = math.inf
+    for a, b, running in move.stretches():
+        if len(running) > 1:
+            moments = move.t0 + np.linspace(a, b, OVERLAP_SAMPLES)
+            here = move.along(moments)[0][:, rows]
+            pair = np.linalg.norm(here[:, :, None, :] - here[:, None, :, :], axis=-1)
+            pair[:, np.arange(pair.shape[1]), np.arange(pair.shape[1])] = np.inf
+            best = min(best, float(pair.min()))
+        else:
+            ends = move.along(move.t0 + np.array([a, b]))[0][:, rows]
+            best = min(best, closest_approach(ends[0], ends[1]))
     return best
+
+
+def timed_phases(
+    start: np.ndarray, end: np.ndarray, order: tuple[tuple[tuple[int, ...], float], ...], speed: float,
+    accel: float,
+) -> tuple[tuple[tuple[int, ...], float, float], ...]:  # fmt: skip
+    """The phases (axes, begin s, duration s) of the move start -> end (N, 3) in `order`: each phase as long
+    as the `move_duration` of its longest move, starting its share of the phase before it after that one
+    began; where phases overlap, all of them stretched in time until no slot's combined rate exceeds `speed`
+    m/s nor its acceleration `accel` m/s^2 (a rate scales as 1/stretch, an acceleration as 1/stretch^2)."""
+    phases: list[tuple[tuple[int, ...], float, float]] = []
+    begin = 0.0
+    for axes, share in order:
+        longest = float(np.max(np.linalg.norm((end - start)[:, list(axes)], axis=1)))
+        if phases:
+            begin += share * phases[-1][2]
+        phases.append((axes, begin, move_duration(longest, speed, accel)))
+    move = SlotMove(start, end, 0.0, tuple(phases))
+    overlapped = [(a, b) for a, b, running in move.stretches() if len(running) > 1]
+    if not overlapped:
+        return move.phases
+    moments = np.concatenate([np.linspace(a, b, OVERLAP_SAMPLES) for a, b in overlapped])
+    _, rate, acc = move.along(moments)
+    stretch = max(
+        1.0,
+        PEAK_SAMPLING_MARGIN * float(np.max(np.linalg.norm(rate, axis=-1))) / speed,
+        PEAK_SAMPLING_MARGIN * math.sqrt(float(np.max(np.linalg.norm(acc, axis=-1))) / accel),
+    )
+    return tuple((axes, b * stretch, d * stretch) for axes, b, d in phases)
 
 
 def plan_move(
@@ -416,31 +488,23 @@ def plan_move(
     speed: float,
     accel: float = math.inf,
     keep_apart: float = math.inf,
+    orders: Iterable[tuple[tuple[tuple[int, ...], float], ...]] = MOVE_ORDERS.values(),
 ) -> SlotMove:
-    """The move from `start` to `end` (N, 3) among the MOVE_ORDERS: the quickest of those that keep the (N,)
-    bool `rows` (the leader's among them) `keep_apart` m apart, or as far apart as they stand at the start or
-    the end where that is closer; else the one that keeps them farthest apart. Each phase lasts the
-    `move_duration` of its longest move at `speed` m/s and `accel` m/s^2."""
+    """The move from `start` to `end` (N, 3) among `orders` (`timed_phases`): the quickest of those
+    that keep the (N,) bool `rows` (the leader's among them) `keep_apart` m apart, or as far apart as they
+    stand at the start or the end where that is closer; else the one that keeps them farthest apart."""
     here, there = start[rows], end[rows]
     floor = min(keep_apart, closest_approach(here, here), closest_approach(there, there))
-    best: tuple[tuple[tuple[int, ...], float], ...] = ()
+    best = SlotMove(start, end, t0, ())
     best_rank = (math.inf, math.inf)
-    for order in MOVE_ORDERS.values():
-        phases = tuple(
-            (
-                axes,
-                move_duration(
-                    float(np.max(np.linalg.norm((end - start)[:, list(axes)], axis=1))), speed, accel
-                ),
-            )
-            for axes in order
-        )
-        gap = closest_pair_along(here, there, order)
+    for order in orders:
+        move = SlotMove(start, end, t0, timed_phases(start, end, order, speed, accel))
+        gap = closest_pair_in(move, rows)
         # kept apart: ranked by duration, ahead of every order that is not, ranked by how close they pass
-        rank = (0.0, sum(d for _, d in phases)) if gap >= floor - 1e-6 else (1.0, -gap)
+        rank = (0.0, move.duration) if gap >= floor - 1e-6 else (1.0, -gap)
         if rank < best_rank:
-            best, best_rank = phases, rank
-    return SlotMove(start, end, t0, best)
+            best, best_rank = move, rank
+    return best
 
 
 class FormationShaper:
@@ -536,8 +600,8 @@ class FormationShaper:
         (`rotate_to_world`), starting at t: followers assigned to the new slots by the shortest longest move,
         the quickest move order that keeps them move_gap_m apart (`plan_move`); before the formation has
         assembled, the one that keeps them farthest apart (the followers are still flying to their slots, and
-        a quicker sweep of the slots across their way reversed some: spec 6a.4). `assembled`: as if the
-        formation had assembled or not (None: as it has, `self.assembled`)."""
+        a quicker sweep of the slots across their way reversed some: spec 6a.4), among UNASSEMBLED_ORDERS.
+        `assembled`: as if the formation had assembled or not (None: as it has, `self.assembled`)."""
         target = rotate_to_world(self.shapes[index].offsets, turn)
         followers = np.flatnonzero(np.any(target != 0.0, axis=1))
         end = np.array(target)
@@ -547,8 +611,9 @@ class FormationShaper:
         rows = np.any(now != 0.0, axis=1) | np.any(end != 0.0, axis=1)
         rows[self.leader] = True
         params = self.params
-        keep_apart = params.move_gap_m if (self.assembled if assembled is None else assembled) else math.inf
-        return plan_move(now, end, rows, t, params.speed_m_s, params.accel_m_s2, keep_apart)
+        if self.assembled if assembled is None else assembled:
+            return plan_move(now, end, rows, t, params.speed_m_s, params.accel_m_s2, params.move_gap_m)
+        return plan_move(now, end, rows, t, params.speed_m_s, params.accel_m_s2, orders=UNASSEMBLED_ORDERS)
 
     def _change_to(
         self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None,
@@ -616,7 +681,7 @@ class FormationShaper:
         travel = speed * moments
         points, headings, along = route(float(travel[-1]))
         at = np.minimum(np.searchsorted(along, travel), len(along) - 1)
-        offsets = np.stack([move.at(since + m)[0] for m in moments])
+        offsets = move.along(since + moments)[0]
         rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
         which = np.arange(len(moments), dtype=np.int64)
         return shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii, *shapes)

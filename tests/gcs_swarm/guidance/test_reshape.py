@@ -18,7 +18,9 @@ from gcs_swarm.guidance.reshape import (
     MIN_JERK_PEAK_ACCEL,
     PACE_MARGIN_M_S,
     FormationShaper,
+    SlotMove,
     candidate_shapes,
+    closest_pair_in,
     min_jerk,
     move_duration,
     nearest_slot_spacing,
@@ -28,6 +30,7 @@ from gcs_swarm.guidance.reshape import (
     shape_clearance,
     straight_for,
 )
+from gcs_swarm.guidance.slot_assignment import closest_approach
 from swarm_common.obstacle_shapes import NO_SHAPES, pack_shapes
 
 PARAMS = ReshapeParams(clearance_m=4.0)  # the worlds below are sized for 4 m between slots and surfaces
@@ -568,59 +571,97 @@ def test_impossible_settings_are_refused(bad):
         ReshapeParams(**bad)
 
 
-def test_a_column_opens_into_a_line_across_first_where_straight_moves_would_pass_too_close():
-    """Column 7 m apart -> line abreast 10 m apart. Moving across first, the followers stay at their column
-    places 7 m apart along the heading while they spread, then each moves forward in its own lane 10 m from
-    the next (and from the leader's lane), so the closest pair stays 7 m apart; straight diagonal moves would
-    pass 7 x 10 / sqrt(149) = 5.73 m apart, closer than move_gap_m (6 m), so the plan moves across first
-    although straight would be quicker."""
-    from gcs_swarm.guidance.reshape import closest_pair_along
+def _closest_pair_sampled(move: SlotMove, moments: int = 2001) -> float:
+    """m, the closest two slots of `move` come at any of `moments` evenly spaced moments of it."""
+    gaps = [
+        float(np.min(np.linalg.norm(o[:, None] - o[None], axis=-1)[np.triu_indices(len(o), 1)]))
+        for o in (move.at(t)[0] for t in np.linspace(move.t0, move.t0 + move.duration, moments))
+    ]
+    return min(gaps)
 
+
+def _peaks_sampled(move: SlotMove, moments: int = 2001) -> tuple[float, float]:
+    """The fastest m/s and hardest m/s^2 any slot of `move` moves relative to the leader, sampled."""
+    rates, accels = zip(
+        *(move.at(t)[1:] for t in np.linspace(move.t0, move.t0 + move.duration, moments)), strict=True
+    )
+    return (
+        max(float(np.linalg.norm(r, axis=1).max()) for r in rates),
+        max(float(np.linalg.norm(a, axis=1).max()) for a in accels),
+    )
+
+
+def test_a_column_opens_into_a_line_cutting_the_corner_where_straight_moves_would_pass_too_close():
+    """Column 7 m apart -> line abreast 10 m apart at 2.5 m/s. Straight diagonal moves would pass 7 x 10 /
+    sqrt(149) = 5.73 m apart, closer than move_gap_m (6 m). Across then along keeps them 7 m apart (each
+    spreads to its own lane at its column place, then moves forward in it) but takes 1.875 x 20 / 2.5 +
+    1.875 x 28 / 2.5 = 36 s. The plan starts forward while the slots are still spreading: quicker than that,
+    no closer than move_gap_m, no slot faster than 2.5 m/s, and it ends on the line."""
     column = np.zeros((5, 3))
     column[1:, 0] = [-7.0, -14.0, -21.0, -28.0]
     line = np.zeros((5, 3))
     line[1:] = formation_offsets("line", 4, 10.0)
     rows = np.ones(5, dtype=bool)
+    assert closest_approach(column, line) == pytest.approx(70.0 / math.sqrt(149.0))
     move = plan_move(column, line, rows, 0.0, 2.5, keep_apart=PARAMS.move_gap_m)
-    assert [axes for axes, _ in move.phases] == [(1, 2), (0,)]
-    assert closest_pair_along(column, line, ((1, 2), (0,))) == pytest.approx(7.0)
-    assert closest_pair_along(column, line, ((0, 1, 2),)) < 7.0
-    # each phase lasts 1.875 x its longest move / speed: across 20 m, along 28 m
-    assert [d for _, d in move.phases] == pytest.approx([1.875 * 20 / 2.5, 1.875 * 28 / 2.5])
+    assert len(move.phases) == 2
+    assert move.duration < 1.875 * 20 / 2.5 + 1.875 * 28 / 2.5 - 1.0
+    assert _closest_pair_sampled(move) >= PARAMS.move_gap_m - 1e-6
+    assert _peaks_sampled(move)[0] <= 2.5 + 1e-6
     np.testing.assert_allclose(move.at(move.duration)[0], line)
-    half, rate, _ = move.at(move.phases[0][1])  # the end of the first phase: spread, not yet forward
-    np.testing.assert_allclose(half[:, 0], column[:, 0])
-    np.testing.assert_allclose(half[:, 1], line[:, 1])
+    assert closest_pair_in(move, rows) == pytest.approx(_closest_pair_sampled(move), abs=0.01)
 
 
-@pytest.mark.parametrize("keep_apart, straight", [(6.0, True), (7.0, False)])
-def test_a_move_goes_straight_where_that_keeps_the_slots_far_enough_apart(keep_apart, straight):
+def test_phases_of_a_move_may_overlap_and_each_axis_follows_its_own_profile():
+    """A slot moving 10 m across in 4 s from t0 = 1 s and 20 m along in 5 s from 3 s after t0: at 3 s after
+    t0 the across profile is at tau = 0.75 (min_jerk 0.896) and the along one not started; at 5 s across has
+    arrived and along is at tau = 0.4 (0.317); the move lasts 8 s, and is cut into three stretches, the middle
+    one (3-4 s) with both phases running."""
+    start, end = np.zeros((2, 3)), np.zeros((2, 3))
+    end[1] = [-20.0, 10.0, 0.0]
+    move = SlotMove(start, end, 1.0, (((1, 2), 0.0, 4.0), ((0,), 3.0, 5.0)))
+    assert move.duration == 8.0
+    assert [(a, b, running) for a, b, running in move.stretches()] == [
+        (0.0, 3.0, [0]),
+        (3.0, 4.0, [0, 1]),
+        (4.0, 8.0, [1]),
+    ]
+    at3 = move.at(4.0)[0][1]
+    assert at3 == pytest.approx([0.0, 10.0 * min_jerk(0.75)[0], 0.0])
+    at5, rate5, _ = move.at(6.0)
+    assert at5[1] == pytest.approx([-20.0 * min_jerk(0.4)[0], 10.0, 0.0])
+    assert rate5[1] == pytest.approx([-20.0 * min_jerk(0.4)[1] / 5.0, 0.0, 0.0])
+    # 2 s in, the three stretches are left: 1 s of the first, all of the other two
+    assert [d for d, _ in move.phases_left(3.0)] == pytest.approx([1.0, 1.0, 4.0])
+
+
+@pytest.mark.parametrize("keep_apart", [6.0, 7.0])
+def test_a_move_is_the_quickest_that_keeps_the_slots_far_enough_apart(keep_apart):
     """Column 7 m apart -> line abreast 12 m apart, the column's followers to y = 12, -12, 24, -24. Straight,
     two slots whose separation turns from a (along) to b (across) pass at |a| |b| / sqrt(|a|^2 + |b|^2): the
-    closest pair is the leader and the first follower (a = 7, b = 12: 84 / sqrt(193) = 6.05 m). Across then
-    along keeps 7 m; along then across puts every slot on the leader. Straight, the longest move is the tail's
-    (28 m back, 24 m across: sqrt(1360) = 36.9 m), 1.875 x 36.9 / 6 = 11.5 s at 6 m/s (its acceleration,
-    sqrt(5.77 x 36.9 / 2) = 10.3 s, binds less); across then along, 24 m then 28 m, each bound by the
-    acceleration: sqrt(5.77 x 24 / 2) + sqrt(5.77 x 28 / 2) = 8.3 + 9.0 s. So asked to keep 6 m the plan goes
-    straight, asked to keep 7 m across first."""
+    closest pair is the leader and the first follower (a = 7, b = 12: 84 / sqrt(193) = 6.05 m). Straight, the
+    longest move is the tail's (28 m back, 24 m across: sqrt(1360) = 36.9 m), 1.875 x 36.9 / 6 = 11.5 s at
+    6 m/s (its acceleration, sqrt(5.77 x 36.9 / 2) = 10.3 s, binds less). Across then along keeps 7 m (each
+    slot spreads at its column place, then moves forward in its own lane), 24 m then 28 m, each bound by the
+    acceleration: sqrt(5.77 x 24 / 2) + sqrt(5.77 x 28 / 2) = 8.3 + 9.0 s. Asked to keep 6 m, the plan is no
+    slower than straight; asked to keep 7 m, where straight does not, it keeps 7 m and cuts the corner (its
+    forward moves start before the spreading ends), quicker than across then along. Always within 6 m/s and
+    2 m/s^2."""
     column = np.zeros((5, 3))
     column[1:, 0] = [-7.0, -14.0, -21.0, -28.0]
     line = np.zeros((5, 3))
     line[1:, 1] = [12.0, -12.0, 24.0, -24.0]
+    assert closest_approach(column, line) == pytest.approx(84.0 / math.sqrt(193.0))
     move = plan_move(column, line, np.ones(5, dtype=bool), 0.0, 6.0, 2.0, keep_apart)
-    if straight:
-        assert [axes for axes, _ in move.phases] == [(0, 1, 2)]
-        assert move.duration == pytest.approx(1.875 * math.sqrt(28.0**2 + 24.0**2) / 6.0)
+    if keep_apart == 6.0:
+        assert move.duration <= 1.875 * math.sqrt(28.0**2 + 24.0**2) / 6.0 + 1e-9
     else:
-        assert [axes for axes, _ in move.phases] == [(1, 2), (0,)]
-        assert move.duration == pytest.approx(
-            math.sqrt(MIN_JERK_PEAK_ACCEL * 24.0 / 2.0) + math.sqrt(MIN_JERK_PEAK_ACCEL * 28.0 / 2.0)
-        )
-    gaps = [
-        float(np.min(np.linalg.norm(o[:, None] - o[None], axis=-1)[np.triu_indices(5, 1)]))
-        for o in (move.at(t)[0] for t in np.linspace(0.0, move.duration, 2001))
-    ]
-    assert min(gaps) == pytest.approx(84.0 / math.sqrt(193.0) if straight else 7.0, abs=1e-3)
+        sequential = math.sqrt(MIN_JERK_PEAK_ACCEL * 24.0 / 2.0) + math.sqrt(MIN_JERK_PEAK_ACCEL * 28.0 / 2.0)
+        assert move.duration < sequential - 1.0
+    fastest, hardest = _peaks_sampled(move)
+    assert fastest <= 6.0 + 1e-6 and hardest <= 2.0 + 1e-3
+    assert _closest_pair_sampled(move) >= keep_apart - 1e-3
+    np.testing.assert_allclose(move.at(move.duration)[0], line)
 
 
 def _line(followers: int, spacing: float) -> np.ndarray:
@@ -660,16 +701,18 @@ def test_only_a_phase_in_which_slots_fall_back_has_a_pace_floor():
     rows = np.ones(5, dtype=bool)
     move = plan_move(line, column, rows, 0.0, PARAMS.speed_m_s)
     fastest_back = max(-move.at(t)[1][:, 0].min() for t in np.linspace(0.0, move.duration, 2001))
-    assert fastest_back == pytest.approx(PARAMS.speed_m_s, rel=1e-4)
-    floors = {axes: floor for (axes, _), (_, floor) in zip(move.phases, move.phases_left(0.0), strict=True)}
-    along = next(axes for axes in floors if 0 in axes)
-    assert floors[along] == pytest.approx(fastest_back - PACE_MARGIN_M_S, rel=1e-4)
-    assert all(floor == 0.0 for axes, floor in floors.items() if 0 not in axes)
+    assert 0.0 < fastest_back <= PARAMS.speed_m_s + 1e-3
+    along = next(i for i, (axes, _, _) in enumerate(move.phases) if 0 in axes)
+    floors = [floor for _, floor in move.phases_left(0.0)]
+    for (_, _, running), floor in zip(move.stretches(), floors, strict=True):
+        expected = fastest_back - PACE_MARGIN_M_S if along in running else 0.0
+        assert floor == pytest.approx(expected, rel=1e-4)
+    assert any(floor > 0.0 for floor in floors) and any(floor == 0.0 for floor in floors)
     back = plan_move(column, line, rows, 0.0, PARAMS.speed_m_s)
-    assert [floor for _, floor in back.phases_left(0.0)] == [0.0, 0.0]
-    # halfway through its first phase, only that phase's remaining half and the whole second are left
-    first, second = move.phases[0][1], move.phases[1][1]
-    assert [d for d, _ in move.phases_left(first / 2)] == pytest.approx([first / 2, second])
+    assert all(floor == 0.0 for _, floor in back.phases_left(0.0))
+    # halfway through its first stretch, only that stretch's remaining half and the whole of the rest are left
+    lengths = [b - a for a, b, _ in move.stretches()]
+    assert [d for d, _ in move.phases_left(lengths[0] / 2)] == pytest.approx([lengths[0] / 2, *lengths[1:]])
 
 
 def test_a_line_wider_than_a_gap_is_a_column_before_it_and_no_follower_reverses_at_speed():
@@ -754,8 +797,9 @@ def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_
     at the line's spacing (scale 1). Not yet assembled (followers still in their launch row 5 m behind the
     leader, 4 m apart, 7-25 m from their line slots), the slots start where the followers stand, not from
     the line they were flying to (spec 6a.4): the move's start is the launch row, its spacing scale 4 / 12
-    (so the repulsion range starts at min_spacing_m - 1 m, spec 6a.6, not at D_max), and the followers,
-    on the slots of that moment, have assembled."""
+    (so the repulsion range starts at min_spacing_m - 1 m, spec 6a.6, not at D_max), its phases one after the
+    other (back, then across: the followers still converge on the slots; starting across half way back
+    would be quicker and pass no closer), and the followers, on the slots of that moment, have assembled."""
     from tests.gcs_swarm.guidance.test_fleet_controller import DT, PointMassFleet
 
     line = _line(4, 12.0)
@@ -775,7 +819,10 @@ def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_
     np.testing.assert_allclose(cmd.slots[1:], start[1:] + np.array([0.0, 0.0, 10.0]), atol=1e-9)  # followers
     assert shaper.start_scale == pytest.approx(1.0 if on_slots else 4.0 / 12.0)
     if on_slots:
-        assert [axes for axes, _ in move.phases] == [(0, 1, 2)]
+        assert [axes for axes, _, _ in move.phases] == [(0, 1, 2)]
+    else:  # not yet assembled: one phase after the other, never overlapping
+        ends = [begin + duration for _, begin, duration in move.phases]
+        assert [begin for _, begin, _ in move.phases[1:]] == pytest.approx(ends[:-1])
     plant.step(cmd, active)
     ctl.tick(DT, plant.pos, plant.vel, plant.att, centres, radii, active)
     assert ctl.assembled
