@@ -4,10 +4,8 @@ attitude targets, land; telemetry in the mission frame matches the simulator's g
 from __future__ import annotations
 
 import importlib.util
-import queue
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,6 +20,7 @@ from gcs_swarm.link.fleet import Fleet
 from gcs_swarm.link.streams import STREAM_QUIET_S
 from gcs_swarm.link.vehicle import VehicleConfig
 from swarm_common.ports import free_udp_base
+from tests.process_output import OutputLines
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("sitl_sim.__main__") is None, reason="the sitl_sim simulator is not installed"
@@ -43,18 +42,9 @@ def simulator(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[tuple[
     args += ["--home", home, "--ready-delay", "1", "--truth-log", str(truth), "--lockstep-timeout", "3"]
     args += list(getattr(request, "param", []))
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines: queue.Queue[str] = queue.Queue()
-    reader = threading.Thread(target=lambda: [lines.put(line.strip()) for line in proc.stdout], daemon=True)  # type: ignore[union-attr]
-    reader.start()
+    output = OutputLines(proc)
     try:
-        seen = []
-        while "READY" not in seen:
-            try:
-                seen.append(lines.get(timeout=BOOT_TIMEOUT_S))
-            except queue.Empty:
-                pytest.fail(f"sitl_sim printed no READY within {BOOT_TIMEOUT_S:g} s: {seen}")
-            if proc.poll() is not None and lines.empty():
-                pytest.fail(f"sitl_sim exited with status {proc.returncode}: {seen}")
+        output.wait_for(lambda line: line.strip() == "READY", BOOT_TIMEOUT_S, "READY from sitl_sim")
         yield base, truth
     finally:
         proc.terminate()
@@ -63,7 +53,7 @@ def simulator(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[tuple[
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(timeout=10)
-        reader.join(timeout=5)
+        output.reader.join(timeout=5)
 
 
 def test_fly_and_land_two_vehicles_in_lockstep(simulator: tuple[int, Path], tmp_path: Path) -> None:

@@ -7,10 +7,8 @@ assertion is about time."""
 from __future__ import annotations
 
 import json
-import queue
 import subprocess
 import sys
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -21,6 +19,7 @@ from tests.e2e.flights import MISSIONS, ROOT, fly
 from tests.gcs_swarm.web.browser import WAIT_S, chromium, needs_chromium
 from tests.gcs_swarm.web.browser import page_state as _state
 from tests.gcs_swarm.web.browser import wait_for as _wait
+from tests.process_output import OutputLines
 
 pytestmark = [pytest.mark.e2e, needs_chromium]
 
@@ -44,19 +43,10 @@ def page_url(flown: Path) -> Iterator[str]:
         stderr=subprocess.STDOUT,
         text=True,
     )
-    lines: queue.Queue[str] = queue.Queue()
-
-    def read() -> None:
-        for line in proc.stdout or ():
-            lines.put(line)
-
-    threading.Thread(target=read, daemon=True).start()
+    output = OutputLines(proc)
     try:
-        url = None
-        while url is None:
-            line = lines.get(timeout=WAIT_S)
-            if " at http://" in line:
-                url = line.split(" at ", 1)[1].split()[0]
+        line = output.wait_for(lambda line: " at http://" in line, WAIT_S, "the replay's URL")
+        url = line.split(" at ", 1)[1].split()[0]
         yield url
     finally:
         proc.terminate()

@@ -9,11 +9,9 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import signal
 import subprocess
 import sys
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +21,7 @@ import pytest
 from swarm_common.ports import free_udp_base
 from tests.e2e.flights import MISSIONS, ROOT
 from tests.gcs_swarm.web.browser import WAIT_S, chromium, needs_chromium, page_state, wait_for
+from tests.process_output import OutputLines
 
 pytestmark = [pytest.mark.e2e, needs_chromium]
 
@@ -65,22 +64,10 @@ def test_the_live_page_shows_the_flight_and_acts_only_with_the_token(tmp_path: P
     proc = subprocess.Popen(
         cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True
     )
-    lines: queue.Queue[str] = queue.Queue()
-    output: list[str] = []
-
-    def read() -> None:
-        for line in proc.stdout or ():
-            output.append(line)
-            lines.put(line)
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
+    output = OutputLines(proc)
     try:
-        url = None
-        while url is None:
-            line = lines.get(timeout=WAIT_S)
-            if line.startswith("live page at http://"):
-                url = line.split(" at ", 1)[1].split()[0]
+        line = output.wait_for(lambda line: line.startswith("live page at http://"), WAIT_S, "the page's URL")
+        url = line.split(" at ", 1)[1].split()[0]
         with chromium(tmp_path / "chromium-profile") as browser:
             browser.get(url)
             wait_for(browser, "s.scene !== null && s.frame !== null")
@@ -128,12 +115,11 @@ def test_the_live_page_shows_the_flight_and_acts_only_with_the_token(tmp_path: P
             every = _act(browser, "land", "all", TOKEN)
             assert every["ok"] is True and "landing every vehicle" in every["text"], every
         proc.wait(timeout=300)
-        reader.join(timeout=30)
+        text = output.everything(30.0)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
-    text = "".join(output)
     assert "Traceback" not in text, text[-3000:]
     assert proc.returncode == 0, text[-3000:]
 
