@@ -314,7 +314,15 @@ def move_duration(distance: float, speed: float, accel: float) -> float:
     return max(MIN_JERK_PEAK_RATE * distance / speed, math.sqrt(MIN_JERK_PEAK_ACCEL * distance / accel))
 
 
+# Where the second phase of a two-phase move starts, as a share of the first phase's duration: 1, once the
+# first is over; less, while it still runs, so that the slots cut the corner (a column opening into a V at
+# its goal took 16 s along then across, docs/metrics.md)
+MOVE_OVERLAPS = (1.0, 0.75, 0.5, 0.25)
+
+
 def _move_orders() -> dict[str, tuple[tuple[tuple[int, ...], float], ...]]:
+    """Straight, and along then across or across then along with the second phase starting at each share of
+    MOVE_OVERLAPS, by name."""
     orders: dict[str, tuple[tuple[tuple[int, ...], float], ...]] = {"straight": (((0, 1, 2), 0.0),)}
     for first, second, names in (((0, 2), (1,), ("along", "across")), ((1, 2), (0,), ("across", "along"))):
         for share in MOVE_OVERLAPS:
@@ -324,10 +332,6 @@ def _move_orders() -> dict[str, tuple[tuple[tuple[int, ...], float], ...]]:
     return orders
 
 
-# Where the second phase of a two-phase move starts, as a share of the first phase's duration: 1, once the
-# first is over; less, while it still runs, so that the slots cut the corner (a column opening into a V at
-# its goal took 16 s along then across, docs/metrics.md)
-MOVE_OVERLAPS = (1.0, 0.75, 0.5, 0.25)
 # The ways the slots may move from one shape to another: which axes of the leader frame move in each phase
 # (the vertical moves with the first phase), and when each phase starts, as a share of the duration of the
 # phase before it
@@ -338,8 +342,9 @@ MOVE_ORDERS: dict[str, tuple[tuple[tuple[int, ...], float], ...]] = _move_orders
 # its tail 21 m off its slot; docs/metrics.md)
 UNASSEMBLED_ORDERS = tuple(order for order in MOVE_ORDERS.values() if all(s == 1.0 for _, s in order[1:]))
 OVERLAP_SAMPLES = 128  # moments of each stretch of a move in which two phases run together, sampled
-# the stretch of overlapping phases is this much longer than their sampled peaks ask for: the true peak
-# lies between two samples, within 1e-4 of the larger one at OVERLAP_SAMPLES (tests/gcs_swarm/guidance)
+# the stretch of overlapping phases is this much longer than their sampled peaks ask for, since the true peak
+# lies between two samples (at 64 samples it was up to 6e-5 above the larger one; the tests check the bounds
+# at 2001 moments of the move: tests/gcs_swarm/guidance/test_reshape.py)
 PEAK_SAMPLING_MARGIN = 1.001
 
 
