@@ -87,6 +87,35 @@ def attraction_force(
 
 
 @kernel
+def segment_surface(
+    s0: float, s1: float, s2: float, g0: float, g1: float, g2: float, k: int, centres: np.ndarray,
+    radii: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, reach: float,
+) -> tuple[float, float, float, float, float, float, float]:  # fmt: skip
+    """Obstacle k's surface distance l m at the point of the segment (s0, s1, s2) + f (g0, g1, g2) (ENU m,
+    f in [0, 1]) nearest it, that point (a0, a1, a2) and the unit vector there (o0, o1, o2) (a sphere's
+    centre -> point; a shape's outward normal): (l, a0, a1, a2, o0, o1, o2). Obstacle k is a sphere of
+    centres (K, 3), radii (K,) for k < K, else shape k - K of kinds, params, vertices (spec 2.2); a shape no
+    point of the segment can be within `reach` m of gives l = inf (the rest zero) without the search."""
+    k_obs = radii.shape[0]
+    length_sq = dot3(g0, g1, g2, g0, g1, g2)
+    if k < k_obs:
+        c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
+        along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
+        frac = clip_to_scalars(along / length_sq if length_sq > 0.0 else 0.0, 0.0, 1.0)
+        a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
+        raw, o0, o1, o2 = sphere_surface(a0, a1, a2, c0, c1, c2, radii[k])
+        return raw, a0, a1, a2, o0, o1, o2
+    shape = k - k_obs
+    # the surface distance is 1-Lipschitz: no point of the segment is nearer than this
+    if surface(s0, s1, s2, shape, kinds, params, vertices)[0] - math.sqrt(length_sq) > reach:
+        return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    frac = segment_nearest(s0, s1, s2, s0 + g0, s1 + g1, s2 + g2, shape, kinds, params, vertices)
+    a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
+    raw, o0, o1, o2 = surface(a0, a1, a2, shape, kinds, params, vertices)
+    return raw, a0, a1, a2, o0, o1, o2
+
+
+@kernel
 def obstacle_pairs(
     q: np.ndarray, ahead: np.ndarray, dest: np.ndarray, centres: np.ndarray, radii: np.ndarray, l0: float,
     l_min: float, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, ranges: np.ndarray,
@@ -113,23 +142,11 @@ def obstacle_pairs(
     for i in range(n):
         s0, s1, s2 = q[i, 0], q[i, 1], q[i, 2]
         g0, g1, g2 = ahead[i, 0] - s0, ahead[i, 1] - s1, ahead[i, 2] - s2
-        length_sq = dot3(g0, g1, g2, g0, g1, g2)
         for k in range(k_all):
             reach = ranges[i, k] if per_pair else l0
-            if k < k_obs:
-                c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
-                along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
-                frac = clip_to_scalars(along / length_sq if length_sq > 0.0 else 0.0, 0.0, 1.0)
-                a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
-                raw, o0, o1, o2 = sphere_surface(a0, a1, a2, c0, c1, c2, radii[k])
-            else:
-                shape = k - k_obs
-                # the surface distance is 1-Lipschitz: no point of the segment is nearer than this
-                if surface(s0, s1, s2, shape, kinds, params, vertices)[0] - math.sqrt(length_sq) > reach:
-                    continue
-                frac = segment_nearest(s0, s1, s2, s0 + g0, s1 + g1, s2 + g2, shape, kinds, params, vertices)
-                a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
-                raw, o0, o1, o2 = surface(a0, a1, a2, shape, kinds, params, vertices)
+            raw, a0, a1, a2, o0, o1, o2 = segment_surface(
+                s0, s1, s2, g0, g1, g2, k, centres, radii, kinds, params, vertices, reach
+            )
             if not raw <= reach:
                 continue
             vehicle[p] = i
@@ -231,30 +248,34 @@ def obstacle_repulsion_force(
 
 @kernel
 def slot_ranges(
-    slots: np.ndarray, followers: np.ndarray, centres: np.ndarray, radii: np.ndarray, kinds: np.ndarray,
-    params: np.ndarray, vertices: np.ndarray, l0: float, margin: float, floor: float,
+    slots: np.ndarray, braking: np.ndarray, followers: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+    kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, l0: float, margin: float, floor: float,
 ) -> np.ndarray:  # fmt: skip
     """[add] Each follower's influence distance (N, K + S) m from each obstacle (the spheres centres (K, 3),
-    radii (K,) first, then the packed shapes): its slot's (slots (N, 3) ENU m) clearance from the obstacle's
-    surface less `margin` m, within [floor, l0]; l0 in the rows not among the (N,) bool `followers`.
+    radii (K,) first, then the packed shapes): the clearance from the obstacle's surface of its slot's
+    braking path, the segment slots[i] -> slots[i] + braking[i] ((N, 3) ENU m each; braking: the follower's
+    own evaluation segment, ahead - q of `obstacle_pairs`), less `margin` m, within [floor, l0]; l0 in the
+    rows not among the (N,) bool `followers`.
 
     The paper's repulsion reaches l0 = 20 m from every surface with a gain that grows with the distance to
     the destination (rho^n): 50-100 m from the goal, a follower 10 m from a surface is pushed off at the
     equivalent of 20 m/s, so a follower whose slot passes 10 m from an obstacle flies metres wide of it. A
     follower whose slot clears an obstacle needs its repulsion only once it strays more than `margin` m
-    toward it; within `floor` m of a surface every follower feels it whatever its slot does."""
-    n, k_obs = slots.shape[0], radii.shape[0]
-    k_all = k_obs + kinds.shape[0]
+    toward it; within `floor` m of a surface every follower feels it whatever its slot does. The slot is
+    looked ahead along the same braking path as the follower: a follower on its slot, its path reaching
+    towards a gap its slot will pass 8 m from each side, is not held back from it while its slot is still
+    40 m short of it (docs/metrics.md)."""
+    n, k_all = slots.shape[0], radii.shape[0] + kinds.shape[0]
     out = np.full((n, k_all), l0)
     for i in range(n):
         if not followers[i]:
             continue
         s0, s1, s2 = slots[i, 0], slots[i, 1], slots[i, 2]
+        g0, g1, g2 = braking[i, 0], braking[i, 1], braking[i, 2]
         for k in range(k_all):
-            if k < k_obs:
-                clear = sphere_surface(s0, s1, s2, centres[k, 0], centres[k, 1], centres[k, 2], radii[k])[0]
-            else:
-                clear = surface(s0, s1, s2, k - k_obs, kinds, params, vertices)[0]
+            clear = segment_surface(
+                s0, s1, s2, g0, g1, g2, k, centres, radii, kinds, params, vertices, l0 + margin
+            )[0]
             out[i, k] = clip_to_scalars(clear - margin, floor, l0)
     return out
 

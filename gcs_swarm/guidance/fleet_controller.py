@@ -826,7 +826,7 @@ class FleetController:
         if fp.slot_range:  # [add] a follower on a slot clear of an obstacle is not pushed off it (field)
             followers = active & ~self.is_leader
             ranges = slot_ranges(
-                targets, followers, centres, radii, *self.shapes, fp.l0, fp.slot_range_margin,
+                targets, ahead - p_r, followers, centres, radii, *self.shapes, fp.l0, fp.slot_range_margin,
                 fp.slot_range_floor,
             )  # fmt: skip
         f_obs = obstacle_repulsion(p_r, ahead, dest, centres, radii, fp, shapes=self.shapes, ranges=ranges)

@@ -1,6 +1,7 @@
 """A follower feels an obstacle only within its slot's clearance from it less a margin (field.slot_ranges,
-FieldParams.slot_range): the figures worked by hand from the spec's adaptive repulsion (spec 3.2 Eqs 10-12)
-with the influence distance l0 replaced by the pair's range."""
+FieldParams.slot_range), the slot looked ahead along the follower's own braking path: the figures worked by
+hand from the spec's adaptive repulsion (spec 3.2 Eqs 10-12) with the influence distance l0 replaced by the
+pair's range."""
 
 from __future__ import annotations
 
@@ -16,9 +17,10 @@ CENTRES = np.array([[0.0, 0.0, 10.0]])  # one sphere of radius 5 m
 RADII = np.array([5.0])
 
 
-def ranges_of(slots, followers, shapes=NO_SHAPES, margin=3.0, floor=5.0):
+def ranges_of(slots, followers, shapes=NO_SHAPES, margin=3.0, floor=5.0, braking=None):
     slots, followers = np.asarray(slots, dtype=float), np.asarray(followers, dtype=bool)
-    return slot_ranges(slots, followers, CENTRES, RADII, *shapes, L0, margin, floor)
+    braking = np.zeros_like(slots) if braking is None else np.asarray(braking, dtype=float)
+    return slot_ranges(slots, braking, followers, CENTRES, RADII, *shapes, L0, margin, floor)
 
 
 def test_a_followers_range_is_its_slots_clearance_less_the_margin_within_floor_and_l0():
@@ -41,6 +43,28 @@ def test_shapes_count_after_the_spheres_by_their_surface_distance():
     # row 0: sphere 62.0 - 5 - 3 = 54 -> 20, cylinder 8 - 3 = 5; row 1: sphere 25 - 3 = 22 -> 20, cylinder
     # hypot(30, 50) - 4 - 3 = 51.3 -> 20
     assert ranges == pytest.approx(np.array([[20.0, 5.0], [20.0, 20.0]]))
+
+
+def test_the_slot_is_looked_ahead_along_the_followers_braking_path():
+    # slots 40 m short of the sphere and 13 m to its side, each follower's braking path 50 m along x
+    slots = [[-40.0, 13.0, 10.0], [-40.0, 13.0, 10.0], [-40.0, 13.0, 10.0]]
+    braking = [
+        [50.0, 0.0, 0.0],  # passes (0, 13): 13 - 5 = 8 m clear, less 3: 5 m
+        [25.0, 0.0, 0.0],  # ends at (-15, 13): hypot(15, 13) - 5 = 14.85 m clear, less 3
+        [-50.0, 0.0, 0.0],  # away from it: the slot's own hypot(40, 13) - 5 - 3 = 34.06 m, no more than l0
+    ]
+    ranges = ranges_of(slots, [True, True, True], floor=4.0, braking=braking)
+    assert ranges[:, 0] == pytest.approx([5.0, np.hypot(15.0, 13.0) - 8.0, L0])
+    # without the look-ahead the slot 37 m from the surface keeps l0 on every row
+    assert ranges_of(slots, [True, True, True], floor=4.0)[:, 0] == pytest.approx([L0, L0, L0])
+
+
+def test_a_shapes_range_is_taken_along_the_braking_path_too():
+    # the cylinder of radius 4 m round (0, 50): a slot at (-40, 62) braking 60 m along x passes 12 m from
+    # its axis, 8 m from its surface: 8 - 3 = 5 m; the sphere stays beyond l0 + margin (hypot(0, 62) - 5)
+    shapes = pack_shapes(cylinders=[((0.0, 50.0), 4.0, 0.0, 30.0)])
+    ranges = ranges_of([[-40.0, 62.0, 10.0]], [True], shapes, braking=[[60.0, 0.0, 0.0]])
+    assert ranges == pytest.approx(np.array([[20.0, 5.0]]), abs=1e-5)
 
 
 def adaptive_magnitudes(l: float, rho: float, l0: float) -> tuple[float, float]:
