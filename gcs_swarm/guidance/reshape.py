@@ -662,18 +662,49 @@ class FormationShaper:
         self, move: SlotMove, route: Route, speed: float, centres: np.ndarray, radii: np.ndarray,
         shapes: ShapeArrays = NO_SHAPES, early: bool = False,
     ) -> float | None:  # fmt: skip
-        """The least clearance m every slot keeps from every obstacle surface while `move` runs with the
-        leader going on along `route` at `speed` m/s (stopping where it ends), if it keeps it, else None:
-        clearance_m or, where a slot is closer already at the move's start, as much as the closest slot has
-        then (the slots of a tail still short of a gap must not cut through its sides on their way to a wider
-        shape, and a column whose tail came to rest in an obstacle's margin may still open out of it past
-        that obstacle); `early`, a widening judged from its move's end (`decide`): clearance_m +
-        WIDEN_MARGIN_M the whole way, as much as a shape that fits where the leader is keeps. Sampled every
-        MOVE_SAMPLE_S; clearance_m without obstacles."""
-        gaps = self._move_gaps(move, route, speed, centres, radii, shapes, move.t0)
+        """The least clearance m the slots keep from every obstacle surface while `move` runs with the
+        leader going on along `route` at `speed` m/s (stopping where it ends), if each keeps its own floor,
+        else None. A slot's floor is clearance_m or, where that slot is closer already at the move's start,
+        as much as it has then (the slots of a tail still short of a gap must not cut through its sides on
+        their way to a wider shape, and a column whose tail came to rest in an obstacle's margin may still
+        open out of it past that obstacle; one slot's start in a margin does not let another into it: legs3-2
+        re-formed at its goal with its tail slot 1.6 m from a sphere because the slot beside it started
+        there, docs/metrics.md); `early`, a widening judged from its move's end (`decide`): clearance_m +
+        WIDEN_MARGIN_M for every slot the whole way, as much as a shape that fits where the leader is keeps.
+        Sampled every MOVE_SAMPLE_S; clearance_m without obstacles."""
         clearance = self.params.clearance_m
-        floor = clearance + WIDEN_MARGIN_M if early else min(clearance, float(gaps[0]))
-        return floor if keeps_clear(gaps, floor) else None
+        if early:
+            floor = clearance + WIDEN_MARGIN_M
+            gaps = self._move_gaps(move, route, speed, centres, radii, shapes, move.t0)
+            return floor if keeps_clear(gaps, floor) else None
+        offsets, which, points, headings = self._move_samples(move, route, speed, move.t0)
+        least = clearance
+        for row in self._moved_rows(move):
+            gaps = shape_clearance(offsets, which, np.array([row]), points, headings, centres, radii, *shapes)
+            floor = min(clearance, float(gaps[0]))
+            if not keeps_clear(gaps, floor):
+                return None
+            least = min(least, floor)
+        return least
+
+    @staticmethod
+    def _moved_rows(move: SlotMove) -> np.ndarray:
+        """The follower rows (F,) int of `move`: its slots not at the leader at its start or its end."""
+        return np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
+
+    def _move_samples(
+        self, move: SlotMove, route: Route, speed: float, since: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The moments of `move` from `since` s to its end, every MOVE_SAMPLE_S, with the leader going on
+        along `route` at `speed` m/s, as shape_clearance's first arguments: the offsets (M, N, 3) leader-frame
+        m, which (M,) int, and the leader's points (M, 3) ENU m and headings (M,) rad."""
+        left = max(move.t0 + move.duration - since, 0.0)
+        moments = np.linspace(0.0, left, max(2, math.ceil(left / MOVE_SAMPLE_S) + 1))
+        travel = speed * moments
+        points, headings, along = route(float(travel[-1]))
+        at = np.minimum(np.searchsorted(along, travel), len(along) - 1)
+        offsets = move.along(since + moments)[0]
+        return offsets, np.arange(len(moments), dtype=np.int64), points[at], headings[at]
 
     def _move_gaps(
         self, move: SlotMove, route: Route, speed: float, centres: np.ndarray, radii: np.ndarray,
@@ -681,15 +712,10 @@ class FormationShaper:
     ) -> np.ndarray:  # fmt: skip
         """Smallest slot clearance (M,) m at each moment of `move` from `since` s to its end, every
         MOVE_SAMPLE_S, with the leader going on along `route` at `speed` m/s (`clear_floor`)."""
-        left = max(move.t0 + move.duration - since, 0.0)
-        moments = np.linspace(0.0, left, max(2, math.ceil(left / MOVE_SAMPLE_S) + 1))
-        travel = speed * moments
-        points, headings, along = route(float(travel[-1]))
-        at = np.minimum(np.searchsorted(along, travel), len(along) - 1)
-        offsets = move.along(since + moments)[0]
-        rows = np.flatnonzero(np.any(move.start != 0.0, axis=1) | np.any(move.end != 0.0, axis=1))
-        which = np.arange(len(moments), dtype=np.int64)
-        return shape_clearance(offsets, which, rows, points[at], headings[at], centres, radii, *shapes)
+        offsets, which, points, headings = self._move_samples(move, route, speed, since)
+        return shape_clearance(
+            offsets, which, self._moved_rows(move), points, headings, centres, radii, *shapes
+        )
 
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,

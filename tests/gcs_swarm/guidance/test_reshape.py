@@ -360,6 +360,31 @@ def test_a_move_is_clear_if_no_slot_comes_closer_than_clearance_m_or_than_it_alr
     assert (shaper.clear_floor(move, _standing_route, 0.0, *sphere) is not None) is clear
 
 
+@pytest.mark.parametrize(
+    ("end", "clear"),
+    [
+        ((-27.0, 2.0), False),  # hypot(4, 2) - 1 = 3.47 m from the surface: inside clearance_m (4 m)
+        ((-25.0, 3.0), True),  # hypot(6, 3) - 1 = 5.71 m: outside it
+    ],
+)
+def test_one_slot_in_an_obstacles_margin_does_not_let_another_into_it(end, clear):
+    """As above, with two follower slots: one holds at x = -28, 2 m from the sphere's surface (inside the
+    margin already); the other moves from (-20, 10), hypot(11, 10) - 1 = 13.87 m from the surface, straight
+    toward it. Its own floor is clearance_m, not the 2 m of the slot beside it (legs3-2 re-formed at its goal
+    with one slot passing 1.6 m from a sphere because another had started 1.6 m from it)."""
+    shaper = FormationShaper(PARAMS, np.zeros((3, 3)), 0, 4.0)
+    start, stop = np.zeros((3, 3)), np.zeros((3, 3))
+    start[1] = stop[1] = [-28.0, 0.0, 0.0]
+    start[2] = [-20.0, 10.0, 0.0]
+    stop[2] = [end[0], end[1], 0.0]
+    move = plan_move(start, stop, np.ones(3, dtype=bool), 0.0, PARAMS.speed_m_s)
+    sphere = np.array([[-31.0, 0.0, 10.0]]), np.array([1.0])
+    floor = shaper.clear_floor(move, _standing_route, 0.0, *sphere)
+    assert (floor is not None) is clear
+    if clear:  # the least floor of the two: the holding slot's 2 m
+        assert floor == pytest.approx(2.0)
+
+
 def test_a_column_whose_tail_came_to_rest_in_an_obstacles_margin_still_opens_at_the_goal():
     """The leader holds at its last waypoint (0, 0, 10) heading east with a column 7 m apart behind it; a
     sphere of radius 1 m right behind the tail slot (-28, 0) leaves it 2 m from the surface, inside
