@@ -88,6 +88,10 @@ CLEARANCE_TOLERANCE_M = 1e-6  # m a slot's clearance may round below its start's
 # m a widening under way may come closer to an obstacle than it was planned to before it is given up: the
 # leader does not fly on at exactly the speed the plan assumed
 OPENING_SLACK_M = 1.0
+# m a slot already in clearance_m's margin may come closer on its way than at the move's start: at legs2-13's
+# goal a slot 7.4 m from a sphere dipped 0.4 m while the column turned and restored, and without the slack
+# the formation stayed a column there (docs/metrics.md)
+MARGIN_SLACK_M = 0.5
 EARLY_TURN_MAX_RAD = math.radians(20.0)  # rad the route may turn while a widening judged early runs
 GOAL_RADIUS_M = 2.0  # m from its last waypoint within which the leader is at its goal (`_decide_at_goal`)
 # moves planned and checked for clearance at the goal per decision (the costly part of a decision there)
@@ -665,12 +669,13 @@ class FormationShaper:
         """The least clearance m the slots keep from every obstacle surface while `move` runs with the
         leader going on along `route` at `speed` m/s (stopping where it ends), if each keeps its own floor,
         else None. A slot's floor is clearance_m or, where that slot is closer already at the move's start,
-        as much as it has then (the slots of a tail still short of a gap must not cut through its sides on
-        their way to a wider shape, and a column whose tail came to rest in an obstacle's margin may still
-        open out of it past that obstacle; one slot's start in a margin does not let another into it: legs3-2
-        re-formed at its goal with its tail slot 1.6 m from a sphere because the slot beside it started
-        there, docs/metrics.md); `early`, a widening judged from its move's end (`decide`): clearance_m +
-        WIDEN_MARGIN_M for every slot the whole way, as much as a shape that fits where the leader is keeps.
+        as much as it has then less MARGIN_SLACK_M (the slots of a tail still short of a gap must not cut
+        through its sides on their way to a wider shape, and a column whose tail came to rest in an
+        obstacle's margin may still open out of it past that obstacle; one slot's start in a margin does not
+        let another into it: legs3-2 re-formed at its goal with its tail slot 1.6 m from a sphere because the
+        slot beside it started there, docs/metrics.md); `early`, a widening judged from its move's end
+        (`decide`): clearance_m + WIDEN_MARGIN_M for every slot the whole way, as much as a shape that fits
+        where the leader is keeps.
         Sampled every MOVE_SAMPLE_S; clearance_m without obstacles."""
         clearance = self.params.clearance_m
         if early:
@@ -681,7 +686,7 @@ class FormationShaper:
         least = clearance
         for row in self._moved_rows(move):
             gaps = shape_clearance(offsets, which, np.array([row]), points, headings, centres, radii, *shapes)
-            floor = min(clearance, float(gaps[0]))
+            floor = min(clearance, float(gaps[0]) - MARGIN_SLACK_M)
             if not keeps_clear(gaps, floor):
                 return None
             least = min(least, floor)

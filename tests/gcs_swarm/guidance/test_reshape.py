@@ -15,6 +15,7 @@ from gcs_swarm.guidance.fleet_controller import FleetController
 from gcs_swarm.guidance.formation import formation_offsets
 from gcs_swarm.guidance.params import PAPER_PLAIN, ReshapeParams
 from gcs_swarm.guidance.reshape import (
+    MARGIN_SLACK_M,
     MIN_JERK_PEAK_ACCEL,
     PACE_MARGIN_M_S,
     FormationShaper,
@@ -342,6 +343,7 @@ def _standing_route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         (-28.0, (-20.0, 0.0), True),  # 2 m from the surface, moving straight away from it
         (-28.0, (-28.0, 10.0), True),  # 2 m, moving sideways: the sphere is right behind, so farther
         (-28.0, (-29.5, 0.0), False),  # 2 m, backing to 0.5 m: closer than it already was
+        (-28.0, (-28.3, 0.0), True),  # 2 m, backing to 1.7 m: within MARGIN_SLACK_M (0.5 m) of its start
         (-20.0, (-25.0, 0.0), True),  # 10 m, ending 5 m off: clearance_m (4) kept
         (-20.0, (-28.0, 0.0), False),  # 10 m, ending 2 m off: inside clearance_m
     ],
@@ -350,7 +352,7 @@ def test_a_move_is_clear_if_no_slot_comes_closer_than_clearance_m_or_than_it_alr
     """One follower slot moving straight along +-x / y in the leader frame, the leader holding at (0, 0, 10)
     heading east, a sphere of radius 1 m at (-31, 0, 10): a slot at x = -28 is 2 m from its surface (inside
     PARAMS.clearance_m, 4 m), one at x = -20 is 10 m. A move may take a slot out of the margin or along it,
-    never deeper into it; a slot outside the margin must stay outside it."""
+    never deeper into it than MARGIN_SLACK_M; a slot outside the margin must stay outside it."""
     shaper = FormationShaper(PARAMS, np.zeros((2, 3)), 0, 4.0)
     start, stop = np.zeros((2, 3)), np.zeros((2, 3))
     start[1] = [start_x, 0.0, 0.0]
@@ -381,8 +383,8 @@ def test_one_slot_in_an_obstacles_margin_does_not_let_another_into_it(end, clear
     sphere = np.array([[-31.0, 0.0, 10.0]]), np.array([1.0])
     floor = shaper.clear_floor(move, _standing_route, 0.0, *sphere)
     assert (floor is not None) is clear
-    if clear:  # the least floor of the two: the holding slot's 2 m
-        assert floor == pytest.approx(2.0)
+    if clear:  # the least floor of the two: the holding slot's 2 m, less the slack of a slot in the margin
+        assert floor == pytest.approx(2.0 - MARGIN_SLACK_M)
 
 
 def test_a_column_whose_tail_came_to_rest_in_an_obstacles_margin_still_opens_at_the_goal():
