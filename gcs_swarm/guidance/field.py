@@ -87,27 +87,33 @@ def attraction_force(
 
 
 @kernel
-def segment_surface(
-    s0: float, s1: float, s2: float, g0: float, g1: float, g2: float, k: int, centres: np.ndarray,
-    radii: np.ndarray, kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray, reach: float,
+def segment_sphere(
+    s0: float, s1: float, s2: float, g0: float, g1: float, g2: float, c0: float, c1: float, c2: float,
+    radius: float,
 ) -> tuple[float, float, float, float, float, float, float]:  # fmt: skip
-    """Obstacle k's surface distance l m at the point of the segment (s0, s1, s2) + f (g0, g1, g2) (ENU m,
-    f in [0, 1]) nearest it, that point (a0, a1, a2) and the unit vector there (o0, o1, o2) (a sphere's
-    centre -> point; a shape's outward normal): (l, a0, a1, a2, o0, o1, o2). Obstacle k is a sphere of
-    centres (K, 3), radii (K,) for k < K, else shape k - K of kinds, params, vertices (spec 2.2); a shape no
-    point of the segment can be within `reach` m of gives l = inf (the rest zero) without the search."""
-    k_obs = radii.shape[0]
+    """The surface distance l m of the sphere of centre (c0, c1, c2), `radius` (ENU m) at the point of the
+    segment (s0, s1, s2) + f (g0, g1, g2) (f in [0, 1]) nearest its centre, that point (a0, a1, a2) and the
+    unit vector centre -> point there (o0, o1, o2; +z on the centre, spec 2.1): (l, a0, a1, a2, o0, o1, o2).
+    Scalars only, so that the loops over pairs calling it pass no arrays."""
     length_sq = dot3(g0, g1, g2, g0, g1, g2)
-    if k < k_obs:
-        c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
-        along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
-        frac = clip_to_scalars(along / length_sq if length_sq > 0.0 else 0.0, 0.0, 1.0)
-        a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
-        raw, o0, o1, o2 = sphere_surface(a0, a1, a2, c0, c1, c2, radii[k])
-        return raw, a0, a1, a2, o0, o1, o2
-    shape = k - k_obs
+    along = dot3(c0 - s0, c1 - s1, c2 - s2, g0, g1, g2)
+    frac = clip_to_scalars(along / length_sq if length_sq > 0.0 else 0.0, 0.0, 1.0)
+    a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
+    raw, o0, o1, o2 = sphere_surface(a0, a1, a2, c0, c1, c2, radius)
+    return raw, a0, a1, a2, o0, o1, o2
+
+
+@kernel
+def segment_shape(
+    s0: float, s1: float, s2: float, g0: float, g1: float, g2: float, shape: int, kinds: np.ndarray,
+    params: np.ndarray, vertices: np.ndarray, reach: float,
+) -> tuple[float, float, float, float, float, float, float]:  # fmt: skip
+    """As `segment_sphere` for the cylinder or prism `shape` of kinds, params, vertices (spec 2.2; its outward
+    normal at the point), the point found by `segment_nearest`; a shape no point of the segment can be within
+    `reach` m of gives l = inf (the rest zero) without the search."""
+    length = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
     # the surface distance is 1-Lipschitz: no point of the segment is nearer than this
-    if surface(s0, s1, s2, shape, kinds, params, vertices)[0] - math.sqrt(length_sq) > reach:
+    if surface(s0, s1, s2, shape, kinds, params, vertices)[0] - length > reach:
         return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     frac = segment_nearest(s0, s1, s2, s0 + g0, s1 + g1, s2 + g2, shape, kinds, params, vertices)
     a0, a1, a2 = s0 + g0 * frac, s1 + g1 * frac, s2 + g2 * frac
@@ -144,9 +150,13 @@ def obstacle_pairs(
         g0, g1, g2 = ahead[i, 0] - s0, ahead[i, 1] - s1, ahead[i, 2] - s2
         for k in range(k_all):
             reach = ranges[i, k] if per_pair else l0
-            raw, a0, a1, a2, o0, o1, o2 = segment_surface(
-                s0, s1, s2, g0, g1, g2, k, centres, radii, kinds, params, vertices, reach
-            )
+            if k < k_obs:
+                c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
+                raw, a0, a1, a2, o0, o1, o2 = segment_sphere(s0, s1, s2, g0, g1, g2, c0, c1, c2, radii[k])
+            else:
+                raw, a0, a1, a2, o0, o1, o2 = segment_shape(
+                    s0, s1, s2, g0, g1, g2, k - k_obs, kinds, params, vertices, reach
+                )
             if not raw <= reach:
                 continue
             vehicle[p] = i
@@ -265,7 +275,8 @@ def slot_ranges(
     looked ahead along the same braking path as the follower: a follower on its slot, its path reaching
     towards a gap its slot will pass 8 m from each side, is not held back from it while its slot is still
     40 m short of it (docs/metrics.md)."""
-    n, k_all = slots.shape[0], radii.shape[0] + kinds.shape[0]
+    n, k_obs = slots.shape[0], radii.shape[0]
+    k_all = k_obs + kinds.shape[0]
     out = np.full((n, k_all), l0)
     for i in range(n):
         if not followers[i]:
@@ -273,9 +284,12 @@ def slot_ranges(
         s0, s1, s2 = slots[i, 0], slots[i, 1], slots[i, 2]
         g0, g1, g2 = braking[i, 0], braking[i, 1], braking[i, 2]
         for k in range(k_all):
-            clear = segment_surface(
-                s0, s1, s2, g0, g1, g2, k, centres, radii, kinds, params, vertices, l0 + margin
-            )[0]
+            if k < k_obs:
+                c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
+                clear = segment_sphere(s0, s1, s2, g0, g1, g2, c0, c1, c2, radii[k])[0]
+            else:
+                reach = l0 + margin
+                clear = segment_shape(s0, s1, s2, g0, g1, g2, k - k_obs, kinds, params, vertices, reach)[0]
             out[i, k] = clip_to_scalars(clear - margin, floor, l0)
     return out
 
