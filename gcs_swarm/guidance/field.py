@@ -277,6 +277,7 @@ def slot_ranges(
     40 m short of it (docs/metrics.md)."""
     n, k_obs = slots.shape[0], radii.shape[0]
     k_all = k_obs + kinds.shape[0]
+    reach = l0 + margin  # a shape's clearance beyond this gives l0 whatever it is
     out = np.full((n, k_all), l0)
     for i in range(n):
         if not followers[i]:
@@ -288,7 +289,6 @@ def slot_ranges(
                 c0, c1, c2 = centres[k, 0], centres[k, 1], centres[k, 2]
                 clear = segment_sphere(s0, s1, s2, g0, g1, g2, c0, c1, c2, radii[k])[0]
             else:
-                reach = l0 + margin
                 clear = segment_shape(s0, s1, s2, g0, g1, g2, k - k_obs, kinds, params, vertices, reach)[0]
             out[i, k] = clip_to_scalars(clear - margin, floor, l0)
     return out

@@ -675,8 +675,7 @@ class FormationShaper:
         let another into it: legs3-2 re-formed at its goal with its tail slot 1.6 m from a sphere because the
         slot beside it started there, docs/metrics.md); `early`, a widening judged from its move's end
         (`decide`): clearance_m + WIDEN_MARGIN_M for every slot the whole way, as much as a shape that fits
-        where the leader is keeps.
-        Sampled every MOVE_SAMPLE_S; clearance_m without obstacles."""
+        where the leader is keeps. Sampled every MOVE_SAMPLE_S; clearance_m without obstacles."""
         clearance = self.params.clearance_m
         if early:
             floor = clearance + WIDEN_MARGIN_M
