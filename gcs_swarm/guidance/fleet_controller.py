@@ -509,17 +509,19 @@ class FleetController:
         turn, brake = self.reshape.path_turn_accel_m_s2, self.reshape.pace_decel_m_s2
         self.path_pace = self.trail.pace(p_lead, v_lead, a_lead, arcs, turn, brake)
 
-    def _standing_offsets(self, t: float, p_lead: np.ndarray) -> np.ndarray:
-        """(N, 3) leader-frame m, before the degraded widening: where the followers in the formation stand
-        now relative to the leader at p_lead (3,) ENU m and heading psi_L (FormationShaper.decide's
-        `standing`); the offsets flown at t s for the leader's row and the rows out of the formation or
-        without a position."""
+    def _standing_offsets(self, t: float, p_lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where the followers in the formation stand now relative to the leader at p_lead (3,) ENU m and
+        heading psi_L, (N, 3) leader-frame m before the degraded widening, and their rate in that turning
+        frame (N, 3) m/s (FormationShaper.decide's `standing`); the offsets flown at t s and their rate for
+        the leader's row and the rows out of the formation or without a position."""
         assert self.shaper is not None and self.heading is not None
-        flown = self.shaper.flown(t)[0]
-        world = self.last_pos - p_lead
-        here = rotate_to_world(world, -self.heading.psi) / self.spacing_scale  # world -> leader frame
+        flown, flown_rate, _ = self.shaper.flown(t)
+        psi, turn = self.heading.psi, self.heading.rate
+        here = rotate_to_world(self.last_pos - p_lead, -psi) / self.spacing_scale  # world -> leader frame
+        relative = rotate_to_world(self.last_vel - self.last_vel[self.leader], -psi) / self.spacing_scale
+        rate = relative - turn * np.stack([-here[:, 1], here[:, 0], np.zeros(self.n)], axis=1)
         known = np.isfinite(here).all(axis=1) & np.any(flown != 0.0, axis=1)
-        return np.where(known[:, None], here, flown)
+        return np.where(known[:, None], here, flown), np.where(known[:, None], rate, flown_rate)
 
     def drain_events(self) -> list[str]:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of

@@ -362,6 +362,10 @@ class ReshapeParams:
     # m/s^2, hardest a slot accelerates relative to the leader in a change: with pace_decel_m_s2, within the
     # reference's accel_xy_max (4 m/s^2)
     accel_m_s2: float = 2.0
+    # m/s^2, hardest the slots brake the rate they had when a change starts while they still move (one
+    # change taking over from another, or a change from where unassembled followers fly): the move carries
+    # that rate on and brings it to rest within this (reshape.SlotMove), so no slot's velocity jumps
+    settle_accel_m_s2: float = 4.0
     # m/s^2, fastest the leader's pace cap falls while the shape changes (the followers brake with it)
     pace_decel_m_s2: float = 1.5
     restore_after_s: float = 1.5  # s a wider shape must keep fitting before the formation widens to it
@@ -400,8 +404,8 @@ class ReshapeParams:
             raise ValueError("need clearance_m >= 0, lookahead_s > 0 and lookahead_min_m >= 0")
         if not (self.min_spacing_m > 0 and self.speed_m_s > 0 and self.steps >= 1 and self.move_gap_m > 0):
             raise ValueError("need min_spacing_m > 0, speed_m_s > 0, steps >= 1 and move_gap_m > 0")
-        if not (self.pace_decel_m_s2 > 0 and self.accel_m_s2 > 0):
-            raise ValueError("need pace_decel_m_s2 > 0 and accel_m_s2 > 0")
+        if not (self.pace_decel_m_s2 > 0 and self.accel_m_s2 > 0 and self.settle_accel_m_s2 > 0):
+            raise ValueError("need pace_decel_m_s2 > 0, accel_m_s2 > 0 and settle_accel_m_s2 > 0")
         if not self.gap_clearance_m >= 0:
             raise ValueError("need gap_clearance_m >= 0")
         if not (self.restore_after_s >= 0 and self.decide_every_s > 0):

@@ -47,6 +47,9 @@ purpose instead, and its followers' slots move with it:
   acceleration at both ends) as short as lets no slot move faster than speed_m_s nor accelerate harder than
   accel_m_s2 relative to the leader (`move_duration`); where two phases overlap, both stretched in time until
   their combined rate and acceleration keep those bounds too (`timed_phases`).
+  A change that starts while the slots still move (taking over from another, or from where followers not
+  yet assembled fly) carries their rate on and brings it to rest within settle_accel_m_s2 (`SlotMove`,
+  `settle_profile`), so no slot's velocity jumps under its follower.
   The offsets' rate and acceleration go to the followers as velocity and acceleration feed-forwards.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
   reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
@@ -310,6 +313,30 @@ MIN_JERK_PEAK_RATE = 1.875
 MIN_JERK_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
 
 
+def settle_profile(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The quintic tau (1 - tau)^3 (1 + 3 tau) and its first and second derivatives at tau (clipped to
+    [0, 1]): slope 1 and value and curvature 0 at tau = 0, value, slope and curvature 0 at tau = 1. A rate
+    r carried into a move as r T settle_profile(t / T) starts at r and comes to rest after T s without a
+    jump in acceleration."""
+    tau = np.clip(tau, 0.0, 1.0)
+    return (
+        tau * (1.0 - tau) ** 3 * (1.0 + 3.0 * tau),
+        1.0 - 18.0 * tau**2 + 32.0 * tau**3 - 15.0 * tau**4,
+        -36.0 * tau + 96.0 * tau**2 - 60.0 * tau**3,
+    )
+
+
+# The settling profile's peak |second derivative| (at tau = (16 - sqrt 76) / 30) and peak value (at 1/3)
+SETTLE_PEAK_ACCEL = float(abs(settle_profile(np.array([(16.0 - math.sqrt(76.0)) / 30.0]))[2][0]))
+SETTLE_PEAK_TRAVEL = 16.0 / 81.0
+
+
+def settle_duration(rate: np.ndarray, accel: float) -> float:
+    """s, the shortest settling (`settle_profile`) of the slot rates (N, 3) m/s whose acceleration stays
+    within `accel` m/s^2; a slot settling from r m/s carries on SETTLE_PEAK_TRAVEL r T m at most."""
+    return SETTLE_PEAK_ACCEL * float(np.max(np.linalg.norm(rate, axis=-1), initial=0.0)) / accel
+
+
 def move_duration(distance: float, speed: float, accel: float) -> float:
     """s, the shortest minimum-jerk move over `distance` m whose rate stays within `speed` m/s and whose
     acceleration within `accel` m/s^2."""
@@ -356,17 +383,22 @@ PEAK_SAMPLING_MARGIN = 1.001
 class SlotMove:
     """The slots moving from `start` to `end` (N, 3) leader-frame m from t0 s: in each phase, `begin` s after
     t0, that phase's `axes` go from `start` to `end` along a minimum-jerk profile of its `duration` s. Each
-    axis moves in one phase; phases may overlap."""
+    axis moves in one phase; phases may overlap. A move begun while the slots were still moving carries
+    their rate then, `start_rate` (N, 3) m/s, on and brings it to rest over its first `settle_s` s
+    (`settle_profile`), so that no slot's velocity jumps where one change of shape takes over from
+    another."""
 
     start: np.ndarray
     end: np.ndarray
     t0: float
     phases: tuple[tuple[tuple[int, ...], float, float], ...]  # (axes, begin s, duration s)
+    start_rate: np.ndarray | None = None
+    settle_s: float = 0.0
 
     @property
     def duration(self) -> float:
         """s, the whole move."""
-        return max((begin + d for _, begin, d in self.phases), default=0.0)
+        return max(max((begin + d for _, begin, d in self.phases), default=0.0), self.settle_s)
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Offsets (N, 3) at time t s, their rate (N, 3) m/s and their acceleration (N, 3) m/s^2."""
@@ -390,13 +422,20 @@ class SlotMove:
             offsets[:, :, cols] = self.start[:, cols] + lam[:, None, None] * delta
             rate[:, :, cols] = (dlam / duration)[:, None, None] * delta
             accel[:, :, cols] = (ddlam / duration**2)[:, None, None] * delta
+        if self.start_rate is not None and self.settle_s > 0.0:
+            begun = (elapsed >= 0.0)[:, None, None]
+            h, dh, ddh = settle_profile(elapsed / self.settle_s)
+            offsets += begun * (self.settle_s * h)[:, None, None] * self.start_rate
+            rate += begun * dh[:, None, None] * self.start_rate
+            accel += begun * (ddh / self.settle_s)[:, None, None] * self.start_rate
         return offsets, rate, accel
 
     def stretches(self) -> list[tuple[float, float, list[int]]]:
-        """The move cut at every start and end of a phase: (from s, to s after t0, the indices of the phases
-        running throughout), in order."""
+        """The move cut at every start and end of a phase and where its settling ends: (from s, to s after
+        t0, the indices of the phases running throughout), in order."""
         moving = [(i, begin, begin + d) for i, (_, begin, d) in enumerate(self.phases) if d > 0.0]
-        bounds = sorted({0.0} | {a for _, a, _ in moving} | {b for _, _, b in moving})
+        settle = {self.settle_s} if self.settle_s > 0.0 else set()
+        bounds = sorted({0.0} | {a for _, a, _ in moving} | {b for _, _, b in moving} | settle)
         return [
             (a, b, [i for i, begin, end in moving if begin <= a and b <= end])
             for a, b in zip(bounds, bounds[1:], strict=False)
@@ -445,10 +484,11 @@ def pace_speed(phases: list[tuple[float, float]], room: float) -> float:
 def closest_pair_in(move: SlotMove, rows: np.ndarray) -> float:
     """Smallest distance m between two of the (N,) bool `rows` while `move` runs: exactly in a stretch in
     which one phase runs (its axes move together, proportionally: a straight synchronised move, whose closest
-    approach slot_assignment.closest_approach gives), sampled at OVERLAP_SAMPLES moments where two do."""
+    approach slot_assignment.closest_approach gives), sampled at OVERLAP_SAMPLES moments where two do or the
+    slots still settle from the rate they started with."""
     best = math.inf
     for a, b, running in move.stretches():
-        if len(running) > 1:
+        if len(running) > 1 or a < move.settle_s:
             moments = move.t0 + np.linspace(a, b, OVERLAP_SAMPLES)
             here = move.along(moments)[0][:, rows]
             pair = np.linalg.norm(here[:, :, None, :] - here[:, None, :, :], axis=-1)
@@ -498,16 +538,23 @@ def plan_move(
     accel: float = math.inf,
     keep_apart: float = math.inf,
     orders: Iterable[tuple[tuple[tuple[int, ...], float], ...]] = MOVE_ORDERS.values(),
+    start_rate: np.ndarray | None = None,
+    settle_accel: float | None = None,
 ) -> SlotMove:
     """The move from `start` to `end` (N, 3) among `orders` (`timed_phases`): the quickest of those
     that keep the (N,) bool `rows` (the leader's among them) `keep_apart` m apart, or as far apart as they
-    stand at the start or the end where that is closer; else the one that keeps them farthest apart."""
+    stand at the start or the end where that is closer; else the one that keeps them farthest apart.
+    `start_rate` (N, 3) m/s: the slots' rate at the start, brought to rest within `settle_accel` m/s^2
+    (None: `accel`; `settle_duration`)."""
     here, there = start[rows], end[rows]
     floor = min(keep_apart, closest_approach(here, here), closest_approach(there, there))
-    best = SlotMove(start, end, t0, ())
+    braking = accel if settle_accel is None else settle_accel
+    settle_s = 0.0 if start_rate is None or math.isinf(braking) else settle_duration(start_rate, braking)
+    carried = start_rate if settle_s > 0.0 else None
+    best = SlotMove(start, end, t0, (), carried, settle_s)
     best_rank = (math.inf, math.inf)
     for order in orders:
-        move = SlotMove(start, end, t0, timed_phases(start, end, order, speed, accel))
+        move = SlotMove(start, end, t0, timed_phases(start, end, order, speed, accel), carried, settle_s)
         gap = closest_pair_in(move, rows)
         # kept apart: ranked by duration, ahead of every order that is not, ranked by how close they pass
         rank = (0.0, move.duration) if gap >= floor - 1e-6 else (1.0, -gap)
@@ -568,16 +615,22 @@ class FormationShaper:
         """A new mission formation (N, 3) around `leader`: flown at once when t is None, else reached from
         the offsets flown now along a reshape that starts at t s."""
         was = None if t is None else self.start_offsets(t)
+        rate = None if t is None else self.start_rates(t)
         self.leader = leader
         self._set(np.array(nominal, dtype=float))
         if was is not None and t is not None:
-            self._change_to(0, was, t, announce=False)
+            self._change_to(0, was, t, announce=False, rate=rate)
 
     def start_offsets(self, t: float) -> np.ndarray:
         """Offsets (N, 3) a change of shape starting at t s starts from: the slots flown, or where a column
         following the leader's path has them (`bent`), so that the slots do not jump when the change starts
         and its clearance is checked from where they are."""
         return self.flown(t)[0] if self.bent is None else self.bent
+
+    def start_rates(self, t: float) -> np.ndarray | None:
+        """Rates (N, 3) m/s leader frame a change of shape starting at t s starts with (`SlotMove`): the
+        slots' rate flown then; None where a column follows the leader's path (`bent`)."""
+        return self.flown(t)[1] if self.bent is None else None
 
     def flown(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Offsets (N, 3) flown at time t s, their rate of change (N, 3) m/s and its rate (N, 3) m/s^2."""
@@ -603,14 +656,16 @@ class FormationShaper:
         return turned_name(self.shapes[self.current].name, self.turn)
 
     def _plan(
-        self, index: int, now: np.ndarray, t: float, assembled: bool | None = None, turn: float = 0.0
-    ) -> SlotMove:
+        self, index: int, now: np.ndarray, t: float, assembled: bool | None = None, turn: float = 0.0,
+        rate: np.ndarray | None = None,
+    ) -> SlotMove:  # fmt: skip
         """The move from the offsets `now` (N, 3) to shape `index`, turned by `turn` rad about the leader
         (`rotate_to_world`), starting at t: followers assigned to the new slots by the shortest longest move,
         the quickest move order that keeps them move_gap_m apart (`plan_move`); before the formation has
         assembled, the one that keeps them farthest apart (the followers are still flying to their slots, and
         a quicker sweep of the slots across their way reversed some: spec 6a.4), among UNASSEMBLED_ORDERS.
-        `assembled`: as if the formation had assembled or not (None: as it has, `self.assembled`)."""
+        `assembled`: as if the formation had assembled or not (None: as it has, `self.assembled`); `rate`
+        (N, 3) m/s: the slots' rate at `now` (None: at rest)."""
         target = rotate_to_world(self.shapes[index].offsets, turn)
         followers = np.flatnonzero(np.any(target != 0.0, axis=1))
         end = np.array(target)
@@ -621,19 +676,24 @@ class FormationShaper:
         rows[self.leader] = True
         params = self.params
         if self.assembled if assembled is None else assembled:
-            return plan_move(now, end, rows, t, params.speed_m_s, params.accel_m_s2, params.move_gap_m)
-        return plan_move(now, end, rows, t, params.speed_m_s, params.accel_m_s2, orders=UNASSEMBLED_ORDERS)
+            orders, keep_apart = tuple(MOVE_ORDERS.values()), params.move_gap_m
+        else:
+            orders, keep_apart = UNASSEMBLED_ORDERS, math.inf
+        return plan_move(
+            now, end, rows, t, params.speed_m_s, params.accel_m_s2, keep_apart, orders, rate,
+            params.settle_accel_m_s2,
+        )  # fmt: skip
 
     def _change_to(
         self, index: int, now: np.ndarray, t: float, announce: bool = True, move: SlotMove | None = None,
-        start_scale: float | None = None, turn: float = 0.0,
+        start_scale: float | None = None, turn: float = 0.0, rate: np.ndarray | None = None,
     ) -> None:  # fmt: skip
-        """Start moving the slots from the offsets `now` (N, 3) to shape `index` turned by `turn` rad at t
-        (along `move`, planned by `_plan` with that turn, when given), the spacing scale from `start_scale`
-        (None: the scale flown at t)."""
+        """Start moving the slots from the offsets `now` (N, 3), at `rate` (N, 3) m/s (None: at rest), to
+        shape `index` turned by `turn` rad at t (along `move`, planned by `_plan` with that turn, when given),
+        the spacing scale from `start_scale` (None: the scale flown at t)."""
         self.start_scale = self.scale(t) if start_scale is None else start_scale
         self.end_scale = self.shapes[index].scale
-        self.move = move if move is not None else self._plan(index, now, t, turn=turn)
+        self.move = move if move is not None else self._plan(index, now, t, turn=turn, rate=rate)
         self.waiting_moves = {}
         self.goal_blocked = set()
         self.opening_early = False
@@ -654,8 +714,10 @@ class FormationShaper:
         cached = self.waiting_moves.get(index)
         if cached is None or cached.start is not self.move.end or self.bent is not None:
             settled = t >= self.move.t0 + self.move.duration and self.bent is None
-            now = self.move.end if settled else self.start_offsets(t)
-            cached = self._plan(index, now, t)
+            if settled:
+                cached = self._plan(index, self.move.end, t)
+            else:
+                cached = self._plan(index, self.start_offsets(t), t, rate=self.start_rates(t))
             if settled:
                 self.waiting_moves[index] = cached
             else:
@@ -724,7 +786,8 @@ class FormationShaper:
     def decide(
         self, t: float, p_leader: np.ndarray, psi_leader: float, waypoints: np.ndarray, speed_cap: float,
         speed: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
-        route: Route | None = None, assembled: bool = True, standing: Callable[[], np.ndarray] | None = None,
+        route: Route | None = None, assembled: bool = True,
+        standing: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
         psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
@@ -733,9 +796,9 @@ class FormationShaper:
         through the waypoints, route_samples). `assembled`: whether the formation has assembled (every
         follower reached its slot once; FleetController): until then a change moves its slots the way that
         keeps them farthest apart, not the quickest (`_plan`). `standing`, given before the formation has
-        assembled: where the followers stand now, (N, 3) leader-frame m, asked for only when the formation
-        narrows: the narrowing starts from there, not from the slots they are still flying to (spec 6a.4),
-        its spacing scale from theirs."""
+        assembled: where the followers stand now, (N, 3) leader-frame m, and how they move in that frame,
+        (N, 3) m/s, asked for only when the formation narrows: the narrowing starts from there, at that rate,
+        not from the slots they are still flying to (spec 6a.4), its spacing scale from theirs."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
@@ -752,7 +815,7 @@ class FormationShaper:
             return
         self.goal_blocked = set()
         if self.turn != 0.0:  # the leader left its goal (a console goto): its shape, unturned, at once
-            self._change_to(self.current, self.start_offsets(t), t)
+            self._change_to(self.current, self.start_offsets(t), t, rate=self.start_rates(t))
         length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap + self.committed_m)
         # [add] a wider shape that does not fit where the leader is may still be flown once the move to it is
         # over: it must fit from where the leader will be then on, for the look-ahead, and the way there must
@@ -811,11 +874,11 @@ class FormationShaper:
         if best > self.current:
             self.wider_since = None
             if standing is None:
-                self._change_to(best, self.start_offsets(t), t)
+                self._change_to(best, self.start_offsets(t), t, rate=self.start_rates(t))
             else:  # the repulsion range starts at the spacing they stand at (spec 6a.6)
-                stand = standing()
+                stand, moving = standing()
                 start_scale = min(1.0, shape_spacing(stand, self.leader) / self.spacing)
-                self._change_to(best, stand, t, start_scale=start_scale)
+                self._change_to(best, stand, t, start_scale=start_scale, rate=moving)
         elif best < self.current:
             if self.wider_since is None:
                 self.wider_since = t
@@ -889,7 +952,7 @@ class FormationShaper:
             if checks == GOAL_CHECKS_PER_DECISION:  # the rest at the next decisions
                 return
             checks += 1
-            move = self._plan(k, self.start_offsets(t), t, turn=turn)
+            move = self._plan(k, self.start_offsets(t), t, turn=turn, rate=self.start_rates(t))
             if self.clear_floor(move, route, speed, centres, radii, shapes) is not None:
                 self.wider_since = None
                 self._change_to(k, move.start, t, move=move, turn=turn)

@@ -18,6 +18,7 @@ from gcs_swarm.guidance.reshape import (
     MARGIN_SLACK_M,
     MIN_JERK_PEAK_ACCEL,
     PACE_MARGIN_M_S,
+    SETTLE_PEAK_ACCEL,
     FormationShaper,
     SlotMove,
     candidate_shapes,
@@ -691,6 +692,49 @@ def test_a_move_is_the_quickest_that_keeps_the_slots_far_enough_apart(keep_apart
     np.testing.assert_allclose(move.at(move.duration)[0], line)
 
 
+def test_a_move_begun_while_the_slots_move_carries_their_rate_on_and_brings_it_to_rest():
+    """A slot moving across at 3 m/s when a move that leaves it where it is starts: it starts at 3 m/s and
+    no acceleration, and comes to rest within 2 m/s^2 after 3.94 x 3 / 2 = 5.91 s (the settling quintic
+    tau (1 - tau)^3 (1 + 3 tau) bends hardest, 3.94 per unit, at tau = (16 - sqrt 76) / 30 = 0.243), having
+    carried on 16 / 81 x 3 x 5.91 = 3.50 m at most (at tau = 1/3: 1/3 x (2/3)^3 x 2 = 16/81), then back."""
+    start = np.zeros((2, 3))
+    start[1] = [-7.0, 0.0, 0.0]
+    rate = np.zeros((2, 3))
+    rate[1] = [0.0, 3.0, 0.0]
+    move = plan_move(start, start, np.ones(2, dtype=bool), 10.0, 6.0, 2.0, start_rate=rate)
+    assert SETTLE_PEAK_ACCEL == pytest.approx(3.9402, abs=1e-4)
+    assert move.duration == pytest.approx(3.9402 * 3.0 / 2.0, abs=1e-3)
+    offsets, moving, accel = move.at(10.0)
+    np.testing.assert_allclose(offsets, start, atol=1e-12)
+    np.testing.assert_allclose(moving, rate, atol=1e-12)
+    np.testing.assert_allclose(accel, 0.0, atol=1e-12)
+    fastest, hardest = _peaks_sampled(move)
+    assert fastest == pytest.approx(3.0) and hardest == pytest.approx(2.0, abs=1e-4)
+    across = [move.at(t)[0][1, 1] for t in np.linspace(10.0, 10.0 + move.duration, 2001)]
+    assert max(across) == pytest.approx(16.0 / 81.0 * 3.0 * move.duration, abs=1e-4)
+    end = move.at(10.0 + move.duration)
+    np.testing.assert_allclose(end[0], start, atol=1e-9)
+    np.testing.assert_allclose(end[1], 0.0, atol=1e-9)
+    np.testing.assert_allclose(end[2], 0.0, atol=1e-9)
+
+
+def test_a_change_taking_over_from_a_move_under_way_keeps_the_slots_velocity():
+    """A V of four ordered into a line (a console reshape) and, 2 s into that move, into a column: the
+    slots' rate just after the second change is their rate just before it (the old move's), where it was a
+    step to rest before; the column is reached, at rest."""
+    shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
+    shaper.set_nominal(_line(4, 10.0), 0, 0.0)
+    before = shaper.flown(2.0)[1]
+    assert np.linalg.norm(before, axis=1).max() > 1.0  # the slots are moving
+    column = np.zeros((5, 3))
+    column[1:, 0] = [-7.0, -14.0, -21.0, -28.0]
+    shaper.set_nominal(column, 0, 2.0)
+    np.testing.assert_allclose(shaper.flown(2.0)[1], before, atol=1e-9)
+    offsets, rate, _ = shaper.flown(2.0 + shaper.move.duration)
+    np.testing.assert_allclose(np.sort(offsets[:, 0]), np.sort(column[:, 0]), atol=1e-9)
+    np.testing.assert_allclose(rate, 0.0, atol=1e-9)
+
+
 def _line(followers: int, spacing: float) -> np.ndarray:
     out = np.zeros((followers + 1, 3))
     out[1:] = formation_offsets("line", followers, spacing)
@@ -853,6 +897,28 @@ def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_
     plant.step(cmd, active)
     ctl.tick(DT, plant.pos, plant.vel, plant.att, centres, radii, active)
     assert ctl.assembled
+
+
+def test_a_change_before_the_formation_has_assembled_starts_at_the_rate_the_followers_fly():
+    """As above, not yet assembled, the followers of the launch row flying at (1, 2), (0, -3), (2, 0) and
+    (-1, 1) m/s with the leader at rest heading east: the change starts at their rate (the leader's frame is
+    ENU's turned by psi_L = 0, and does not turn), so their slots do not stop dead under them while they
+    fly on (gap-19: a follower crossing at 5 m/s overshot its slot by 8.7 m, docs/metrics.md)."""
+    from tests.gcs_swarm.guidance.test_fleet_controller import PointMassFleet
+
+    line = _line(4, 12.0)
+    centres, radii = _gap_world(16.0, x=60.0)
+    ctl = FleetController(5, 0, line, np.array([[300.0, 0.0, 10.0]]), reshape=PARAMS)
+    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
+    plant = PointMassFleet(launch_row + np.array([0.0, 0.0, 10.0]))
+    plant.vel[1:] = [[1.0, 2.0, 0.0], [0.0, -3.0, 0.0], [2.0, 0.0, 0.0], [-1.0, 1.0, 0.0]]
+    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
+    active = np.ones(5, dtype=bool)
+    ctl.tick(0.0, plant.pos, plant.vel, plant.att, centres, radii, active)
+    shaper = ctl.shaper
+    assert shaper is not None and shaper.shape_name == "column"
+    np.testing.assert_allclose(shaper.flown(0.0)[0][1:], launch_row[1:], atol=1e-9)
+    np.testing.assert_allclose(shaper.flown(0.0)[1][1:], plant.vel[1:], atol=1e-9)
 
 
 @pytest.mark.parametrize(
