@@ -19,11 +19,12 @@ purpose instead, and its followers' slots move with it:
   the leader will swerve in a way the route does not tell), the one with the most clearance, but only if
   it is narrower than the shape flown, all its slots stay outside the obstacles and it clears them by
   CLEARER_M more than the shape flown; else the shape flown is kept (a formation never widens while nothing
-  fits). Narrower than the shape flown: at once; wider: once it
-  has kept fitting, with WIDEN_MARGIN_M more clearance, for `restore_after_s`, so the formation does not flap
-  at the edge of a gap. With `widen_after_move`, a wider shape that does not fit where the leader is
+  fits). Narrower than the shape flown: at once; wider: once it has kept fitting, with WIDEN_MARGIN_M more
+  clearance, for `restore_after_s`, so the formation does not flap at the edge of a gap, and only where the
+  route runs straight while its move runs (`straight_for`: in a turn the slots would sweep round the
+  leader as they move). With `widen_after_move`, a wider shape that does not fit where the leader is
   counts as fitting when it fits from where the leader will be once the move to it is over, where the route
-  runs straight meanwhile (`straight_for`), and its way there keeps clearance_m + WIDEN_MARGIN_M
+  runs straight meanwhile, and its way there keeps clearance_m + WIDEN_MARGIN_M
   (`clear_floor`); such a widening under way is judged from its move's end and given up when the rest of
   its way no longer keeps the clearance it was planned with, less OPENING_SLACK_M. A wider shape that fits
   and whose way is not found blocked is `widening_due`: the runner's arrival waits for it
@@ -95,7 +96,7 @@ OPENING_SLACK_M = 1.0
 # goal a slot 7.4 m from a sphere dipped 0.4 m while the column turned and restored, and without the slack
 # the formation stayed a column there (docs/metrics.md)
 MARGIN_SLACK_M = 0.5
-EARLY_TURN_MAX_RAD = math.radians(20.0)  # rad the route may turn while a widening judged early runs
+EARLY_TURN_MAX_RAD = math.radians(20.0)  # rad the route may turn while a widening runs
 GOAL_RADIUS_M = 2.0  # m from its last waypoint within which the leader is at its goal (`_decide_at_goal`)
 # moves planned and checked for clearance at the goal per decision (the costly part of a decision there)
 GOAL_CHECKS_PER_DECISION = 1
@@ -285,8 +286,9 @@ def clearance_along(
 
 def straight_for(headings: np.ndarray, along: np.ndarray, distance: float) -> bool:
     """Whether the formation's heading (P,) rad along the route turns by at most EARLY_TURN_MAX_RAD over
-    its first `distance` m (`along` (P,) m): a widening is judged from its move's end only where the leader
-    flies on straight meanwhile (in a turn its slots sweep while they move, faster than a follower flies)."""
+    its first `distance` m (`along` (P,) m): a widening starts, and is judged from its move's end, only where
+    the leader flies on straight meanwhile (in a turn its slots sweep while they move, faster than a follower
+    flies)."""
     ahead = np.unwrap(headings[along <= distance + 1e-9])
     return bool(len(ahead) < 2 or np.ptp(ahead) <= EARLY_TURN_MAX_RAD)
 
@@ -884,14 +886,19 @@ class FormationShaper:
                 self.wider_since = t
             if t - self.wider_since >= self.params.restore_after_s:
                 move = widenings[best] if best in widenings else self._widening(best, t)
-                early = best in early_floors
-                floor = early_floors[best] if early else self.clear_floor(move, route, speed, *every, shapes)
-                if floor is not None:  # the way there keeps clear too
-                    self.wider_since = None
-                    self._change_to(best, move.start, t, move=move)
-                    self.opening_early, self.opening_floor = early, floor
-                else:
-                    self.widen_blocked = True
+                # and only where the route runs straight meanwhile: in a turn the slots sweep round the
+                # leader while they move, faster than a follower flies (legs2-5, legs3-4; spec 6a.3)
+                if straight_for(every_heading, every_along, speed * move.duration):
+                    early = best in early_floors
+                    floor = (
+                        early_floors[best] if early else self.clear_floor(move, route, speed, *every, shapes)
+                    )
+                    if floor is not None:  # the way there keeps clear too
+                        self.wider_since = None
+                        self._change_to(best, move.start, t, move=move)
+                        self.opening_early, self.opening_floor = early, floor
+                    else:
+                        self.widen_blocked = True
         else:
             self.wider_since = None
         self._pace(t, speed, points, headings, along, centres, radii, shapes)

@@ -325,6 +325,46 @@ def test_a_widening_under_way_is_given_up_when_an_obstacle_appears_on_its_way():
         assert (probe.current == 0) is keeps_opening
 
 
+def _turning_route(turn_at: float, turn_rad: float):
+    """A route east from the origin at 10 m height, sampled every 2 m, whose heading steps to `turn_rad`
+    `turn_at` m along (the points themselves run on east: no obstacle is near them)."""
+
+    def route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        along = np.arange(0.0, length + 2.0, 2.0)
+        points = np.stack([along, np.zeros_like(along), np.full_like(along, 10.0)], axis=1)
+        return points, np.where(along < turn_at, 0.0, turn_rad), along
+
+    return route
+
+
+@pytest.mark.parametrize(
+    "turn_at, turn_deg, widens",
+    [
+        (20.0, 45.0, False),  # a corner 20 m ahead: the leader turns 45 deg while the V opens
+        (20.0, 15.0, True),  # a bend of 15 deg is straight enough (straight_for: 20 deg)
+        (2000.0, 45.0, True),  # the corner lies beyond the leader's travel while the V opens
+    ],
+)
+def test_a_column_widens_only_where_the_route_runs_straight_while_it_opens(turn_at, turn_deg, widens):
+    """A column of four, settled, nothing near, its V fitting since long before: at 10 m/s the V opens at
+    once where the route runs straight over the leader's travel while it opens (its move takes seconds:
+    tens of metres, more than 20 m and less than 2000 m), and waits where the route turns more than 20 deg
+    within that travel (in a turn the slots would sweep round the leader as they move), without the way
+    being taken as blocked."""
+    shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
+    column = len(shaper.shapes) - 1
+    shaper._change_to(column, shaper.shapes[column].offsets, -100.0, announce=False)
+    shaper.wider_since = -10.0
+    far = np.array([[0.0, 5000.0, 10.0]]), np.array([1.0])
+    east = np.array([[3000.0, 0.0, 10.0]])
+    route = _turning_route(turn_at, math.radians(turn_deg))
+    shaper.decide(0.0, np.array([0.0, 0.0, 10.0]), 0.0, east, 10.0, 10.0, *far, route=route)
+    assert (shaper.current == 0) is widens
+    assert not shaper.widen_blocked
+    if not widens:
+        assert shaper.current == column and shaper.widening_due
+
+
 def test_the_route_is_straight_while_its_heading_turns_at_most_20_deg():
     along = np.array([0.0, 2.0, 4.0, 6.0])
     headings = np.array([0.0, 0.1, 0.2, 0.5])  # rad: 11.5 deg over the first 4 m, 28.6 deg over 6 m
