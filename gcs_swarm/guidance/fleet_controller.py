@@ -295,7 +295,6 @@ class FleetController:
         self.started_in_flight = False  # the leader was faster than the start cap's floor when the formation
         # started (`reset`): its followers are flying already, and the start's cap does not apply
         self.leader_budget = NO_BUDGET  # the leader's acceleration budget from its slowest follower (spec 6b)
-        self.assembly_planned = False  # the first tick plans the formation's assembly (`_plan_assembly`)
         self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
         self.detours: list[Detour] = []  # legs planned round a gap (`drain_detours`)
         self.names = names if len(names) == n else tuple(f"vehicle {i + 1}" for i in range(n))
@@ -524,19 +523,6 @@ class FleetController:
         known = np.isfinite(here).all(axis=1) & np.any(flown != 0.0, axis=1)
         return np.where(known[:, None], here, flown), np.where(known[:, None], rate, flown_rate)
 
-    def _plan_assembly(self, t: float, p_lead: np.ndarray) -> None:
-        """[add] Spec 6a.4: a formation that has not assembled when it starts assembles along a planned move
-        from where its followers stand and at the rate they fly (`_standing_offsets`) to the mission's shape,
-        as any change of shape before assembly does, instead of each follower pursuing a slot that stands
-        elsewhere (gap-6: a follower crossing 7.5 m at 4.8 m/s overshot its slot by 2.1 m and turned 97 deg
-        at 2.2 m/s, a cusp). Its spacing scale starts at theirs. Once, at the first tick with the leader's
-        state (t s, p_lead (3,) ENU m)."""
-        assert self.shaper is not None
-        self.assembly_planned = True
-        if self.assembled:
-            return
-        self.shaper.assemble_from(*self._standing_offsets(t, p_lead), t)
-
     def drain_events(self) -> list[str]:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
         shape come apart, from `drain_shape_changes`."""
@@ -645,7 +631,6 @@ class FleetController:
         # every follower has been within ASSEMBLED_M of its slot (on_slots; kept up to date by `tick`)
         slots = slot_positions(pos[self.leader], yaw[self.leader], self.flown_offsets * self.spacing_scale)
         self.assembled = on_slots(pos, slots, known & ~self.is_leader)
-        self.assembly_planned = False  # the first tick plans the formation's assembly (`_plan_assembly`)
         self.started_in_flight = bool(np.hypot(*vel[self.leader, :2]) > self._start_cap_floor())
         self.start_pace = math.inf  # (the next tick sets the start's cap again where it applies)
         self.generator.reset(self.last_pos, self.last_vel)
@@ -771,8 +756,6 @@ class FleetController:
         offsets, offset_rate, offset_accel, shrink = self.offsets, None, None, 1.0
         if self.shaper is not None:  # [add] deliberate reshaping around obstacles (reshape)
             assert self.reshape is not None
-            if not self.assembly_planned:
-                self._plan_assembly(t, p_lead)
             cap_now = float(self.v_xy_cap[lead] * self.speed_scale)
             predicted = partial(self._leader_path_ahead, cap_now, centres, radii)
             standing = None if self.assembled else partial(self._standing_offsets, t, p_lead)

@@ -709,19 +709,6 @@ class FormationShaper:
             self.changes.append(ShapeChange(t, change, name, shape.scale, math.degrees(turn)))
         self.current, self.turn = index, turn
 
-    def assemble_from(self, standing: np.ndarray, rate: np.ndarray, t: float) -> None:
-        """The formation assembles along a move to the shape flown that starts at t s where its followers
-        stand, `standing` (N, 3) leader-frame m, at the rate they fly, `rate` (N, 3) m/s (spec 6a.4): they
-        are on the slots of that moment from the start, and the slots carry them into the shape."""
-        self._change_to(
-            self.current, standing, t, announce=False, start_scale=self._standing_scale(standing), rate=rate
-        )
-
-    def _standing_scale(self, standing: np.ndarray) -> float:
-        """The spacing scale of followers standing at `standing` (N, 3): their nearest spacing over the
-        mission's, at most 1, so the repulsion range starts at the spacing they stand at (spec 6a.6)."""
-        return min(1.0, shape_spacing(standing, self.leader) / self.spacing)
-
     def _widening(self, index: int, t: float) -> SlotMove:
         """The move to the wider shape `index` from t: planned once while the slots stand still, then the
         same move started later (the assignment is the costly part); planned afresh each time while a column
@@ -890,9 +877,10 @@ class FormationShaper:
             self.wider_since = None
             if standing is None:
                 self._change_to(best, self.start_offsets(t), t, rate=self.start_rates(t))
-            else:
+            else:  # the repulsion range starts at the spacing they stand at (spec 6a.6)
                 stand, moving = standing()
-                self._change_to(best, stand, t, start_scale=self._standing_scale(stand), rate=moving)
+                start_scale = min(1.0, shape_spacing(stand, self.leader) / self.spacing)
+                self._change_to(best, stand, t, start_scale=start_scale, rate=moving)
         elif best < self.current:
             if self.wider_since is None:
                 self.wider_since = t

@@ -961,35 +961,6 @@ def test_a_change_before_the_formation_has_assembled_starts_at_the_rate_the_foll
     np.testing.assert_allclose(shaper.flown(0.0)[1][1:], plant.vel[1:], atol=1e-9)
 
 
-def test_a_formation_that_has_not_assembled_assembles_along_a_move_from_where_its_followers_stand():
-    """A line abreast of four 12 m apart with nothing near, its followers in the launch row (5 m behind the
-    leader, 4 m apart, flying at the velocities below): the first tick starts a move to the line from
-    where they stand, at their rate, its spacing scale 4 / 12 (spec 6a.4), so they are on the slots of that
-    moment and have assembled; the move ends in the line (each follower on one of its slots), at rest."""
-    from tests.gcs_swarm.guidance.test_fleet_controller import PointMassFleet
-
-    line = _line(4, 12.0)
-    far = np.array([[0.0, 5000.0, 10.0]]), np.array([1.0])
-    ctl = FleetController(5, 0, line, np.array([[300.0, 0.0, 10.0]]), reshape=PARAMS)
-    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
-    plant = PointMassFleet(launch_row + np.array([0.0, 0.0, 10.0]))
-    plant.vel[1:] = [[1.0, -1.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], [0.0, -0.5, 0.0]]
-    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
-    assert not ctl.assembled
-    active = np.ones(5, dtype=bool)
-    ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, active)
-    shaper = ctl.shaper
-    assert shaper is not None and shaper.shape_name == "formation" and not shaper.changes
-    offsets, rate, _ = shaper.flown(0.0)
-    np.testing.assert_allclose(offsets, launch_row, atol=1e-9)
-    np.testing.assert_allclose(rate[1:], plant.vel[1:], atol=1e-9)
-    assert shaper.start_scale == pytest.approx(4.0 / 12.0)
-    assert ctl.assembled
-    end, end_rate, _ = shaper.flown(shaper.move.t0 + shaper.move.duration)
-    np.testing.assert_allclose(sorted(map(tuple, end[1:])), sorted(map(tuple, line[1:])), atol=1e-9)
-    np.testing.assert_allclose(end_rate, 0.0, atol=1e-9)
-
-
 @pytest.mark.parametrize(
     "d_max, spacing, scale, expected",
     [
