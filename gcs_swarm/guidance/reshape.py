@@ -328,14 +328,14 @@ def settle_profile(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     )
 
 
-# The settling profile's peak |second derivative| (at tau = (16 - sqrt 76) / 30) and peak value (at 1/3)
+# The settling profile's peak |second derivative| (at tau = (16 - sqrt 76) / 30)
 SETTLE_PEAK_ACCEL = float(abs(settle_profile(np.array([(16.0 - math.sqrt(76.0)) / 30.0]))[2][0]))
-SETTLE_PEAK_TRAVEL = 16.0 / 81.0
 
 
 def settle_duration(rate: np.ndarray, accel: float) -> float:
     """s, the shortest settling (`settle_profile`) of the slot rates (N, 3) m/s whose acceleration stays
-    within `accel` m/s^2; a slot settling from r m/s carries on SETTLE_PEAK_TRAVEL r T m at most."""
+    within `accel` m/s^2; a slot settling from r m/s carries on 16 r T / 81 m at most (the profile's peak,
+    at tau = 1/3)."""
     return SETTLE_PEAK_ACCEL * float(np.max(np.linalg.norm(rate, axis=-1), initial=0.0)) / accel
 
 
@@ -589,7 +589,7 @@ class FormationShaper:
         self.paced_at = -math.inf  # s, when pace_cap was last set
         self.waiting_moves: dict[int, SlotMove] = {}  # widenings planned, by shape, waiting for a clear way
         # (N, 3) leader-frame m: where a column following the leader's path (column_path) has its slots now,
-        # which is where a change of shape starts from (`start_offsets`); None when the slots are rigid
+        # which is where a change of shape starts from (`start_state`); None when the slots are rigid
         self.bent: np.ndarray | None = None
 
     def _set(self, nominal: np.ndarray) -> None:
@@ -616,23 +616,21 @@ class FormationShaper:
     def set_nominal(self, nominal: np.ndarray, leader: int, t: float | None) -> None:
         """A new mission formation (N, 3) around `leader`: flown at once when t is None, else reached from
         the offsets flown now along a reshape that starts at t s."""
-        was = None if t is None else self.start_offsets(t)
-        rate = None if t is None else self.start_rates(t)
+        was, rate = (None, None) if t is None else self.start_state(t)
         self.leader = leader
         self._set(np.array(nominal, dtype=float))
         if was is not None and t is not None:
             self._change_to(0, was, t, announce=False, rate=rate)
 
-    def start_offsets(self, t: float) -> np.ndarray:
-        """Offsets (N, 3) a change of shape starting at t s starts from: the slots flown, or where a column
-        following the leader's path has them (`bent`), so that the slots do not jump when the change starts
-        and its clearance is checked from where they are."""
-        return self.flown(t)[0] if self.bent is None else self.bent
-
-    def start_rates(self, t: float) -> np.ndarray | None:
-        """Rates (N, 3) m/s leader frame a change of shape starting at t s starts with (`SlotMove`): the
-        slots' rate flown then; None where a column follows the leader's path (`bent`)."""
-        return self.flown(t)[1] if self.bent is None else None
+    def start_state(self, t: float) -> tuple[np.ndarray, np.ndarray | None]:
+        """Offsets (N, 3) a change of shape starting at t s starts from, and their rate (N, 3) m/s
+        (`SlotMove`): the slots flown and their rate, so that the slots neither jump nor stop dead when the
+        change starts and its clearance is checked from where they are; or where a column following the
+        leader's path has them (`bent`), rate None."""
+        if self.bent is not None:
+            return self.bent, None
+        offsets, rate, _ = self.flown(t)
+        return offsets, rate
 
     def flown(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Offsets (N, 3) flown at time t s, their rate of change (N, 3) m/s and its rate (N, 3) m/s^2."""
@@ -719,7 +717,8 @@ class FormationShaper:
             if settled:
                 cached = self._plan(index, self.move.end, t)
             else:
-                cached = self._plan(index, self.start_offsets(t), t, rate=self.start_rates(t))
+                now, rate = self.start_state(t)
+                cached = self._plan(index, now, t, rate=rate)
             if settled:
                 self.waiting_moves[index] = cached
             else:
@@ -817,7 +816,8 @@ class FormationShaper:
             return
         self.goal_blocked = set()
         if self.turn != 0.0:  # the leader left its goal (a console goto): its shape, unturned, at once
-            self._change_to(self.current, self.start_offsets(t), t, rate=self.start_rates(t))
+            now, rate = self.start_state(t)
+            self._change_to(self.current, now, t, rate=rate)
         length = max(self.params.lookahead_min_m, self.params.lookahead_s * speed_cap + self.committed_m)
         # [add] a wider shape that does not fit where the leader is may still be flown once the move to it is
         # over: it must fit from where the leader will be then on, for the look-ahead, and the way there must
@@ -876,7 +876,8 @@ class FormationShaper:
         if best > self.current:
             self.wider_since = None
             if standing is None:
-                self._change_to(best, self.start_offsets(t), t, rate=self.start_rates(t))
+                now, rate = self.start_state(t)
+                self._change_to(best, now, t, rate=rate)
             else:  # the repulsion range starts at the spacing they stand at (spec 6a.6)
                 stand, moving = standing()
                 start_scale = min(1.0, shape_spacing(stand, self.leader) / self.spacing)
@@ -959,7 +960,8 @@ class FormationShaper:
             if checks == GOAL_CHECKS_PER_DECISION:  # the rest at the next decisions
                 return
             checks += 1
-            move = self._plan(k, self.start_offsets(t), t, turn=turn, rate=self.start_rates(t))
+            now, rate = self.start_state(t)
+            move = self._plan(k, now, t, turn=turn, rate=rate)
             if self.clear_floor(move, route, speed, centres, radii, shapes) is not None:
                 self.wider_since = None
                 self._change_to(k, move.start, t, move=move, turn=turn)
