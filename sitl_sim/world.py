@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from swarm_common.approach import segment_min_norm
 from swarm_common.jit import kernel
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays, segment_nearest, surface
 
@@ -39,15 +40,6 @@ class Obstacles:
 
 
 @kernel
-def closest_approach(rx0: float, ry0: float, rz0: float, rx1: float, ry1: float, rz1: float) -> float:
-    """Minimum norm of the segment (rx0, ry0, rz0) -> (rx1, ry1, rz1): relative positions moving linearly."""
-    dx, dy, dz = rx1 - rx0, ry1 - ry0, rz1 - rz0
-    length2 = dx * dx + dy * dy + dz * dz
-    s = 0.0 if length2 <= 0.0 else min(max(-(rx0 * dx + ry0 * dy + rz0 * dz) / length2, 0.0), 1.0)
-    return math.sqrt((rx0 + s * dx) ** 2 + (ry0 + s * dy) ** 2 + (rz0 + s * dz) ** 2)
-
-
-@kernel
 def swept_hits(
     pos0: np.ndarray, pos1: np.ndarray, c0: np.ndarray, c1: np.ndarray, radii: np.ndarray, ignore: np.ndarray,
     kinds: np.ndarray, params: np.ndarray, vertices: np.ndarray,
@@ -63,7 +55,7 @@ def swept_hits(
         if ignore[i]:
             continue
         for j in range(k):
-            reach = closest_approach(
+            reach = segment_min_norm(
                 pos0[i, 0] - c0[j, 0], pos0[i, 1] - c0[j, 1], pos0[i, 2] - c0[j, 2],
                 pos1[i, 0] - c1[j, 0], pos1[i, 1] - c1[j, 1], pos1[i, 2] - c1[j, 2],
             )  # fmt: skip
@@ -86,7 +78,7 @@ def swept_hits(
         for j in range(i + 1, n):
             if ignore[j]:
                 continue
-            reach = closest_approach(
+            reach = segment_min_norm(
                 pos0[i, 0] - pos0[j, 0], pos0[i, 1] - pos0[j, 1], pos0[i, 2] - pos0[j, 2],
                 pos1[i, 0] - pos1[j, 0], pos1[i, 1] - pos1[j, 1], pos1[i, 2] - pos1[j, 2],
             )  # fmt: skip

@@ -64,6 +64,7 @@ from gcs_swarm.guidance.reshape import (
     SAMPLE_STEP_M,
     FormationShaper,
     ShapeChange,
+    closest_pair_sampled,
     shape_clearance,
     shape_repulsion_range,
 )
@@ -75,6 +76,7 @@ from gcs_swarm.guidance.separation import (
     repulsion_range,
     uav_repulsion,
 )
+from gcs_swarm.guidance.slot_assignment import closest_approach
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
@@ -124,6 +126,8 @@ def prepare_kernels(dead_gcs: DeadGcsParams | None) -> None:
         obstacle_r,
         *NO_SHAPES,
     )  # reshape
+    closest_pair_sampled(pos[None])  # a change of shape's separation, sampled (reshape.closest_pair_in) ...
+    closest_approach(offsets, pos)  # ... and exact (slot_assignment)
     assert ctl.heading is not None  # the leader's path flown forward (leader_path: look-ahead, gaps)
     goal = pos[0] + 30.0
     leader_stalls(
@@ -295,6 +299,7 @@ class FleetController:
         self.started_in_flight = False  # the leader was faster than the start cap's floor when the formation
         # started (`reset`): its followers are flying already, and the start's cap does not apply
         self.leader_budget = NO_BUDGET  # the leader's acceleration budget from its slowest follower (spec 6b)
+        self.assembly_planned = False  # the first tick plans the formation's assembly (`_plan_assembly`)
         self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
         self.detours: list[Detour] = []  # legs planned round a gap (`drain_detours`)
         self.names = names if len(names) == n else tuple(f"vehicle {i + 1}" for i in range(n))
@@ -523,6 +528,28 @@ class FleetController:
         known = np.isfinite(here).all(axis=1) & np.any(flown != 0.0, axis=1)
         return np.where(known[:, None], here, flown), np.where(known[:, None], rate, flown_rate)
 
+    def _plan_assembly(self, t: float, p_lead: np.ndarray) -> None:
+        """[add] Spec 6a.4: a formation that has not assembled when it starts assembles along a planned move
+        from where its followers stand and at the rate they fly (`_standing_offsets`) to the mission's shape,
+        as any change of shape before assembly does, instead of each follower pursuing a slot that stands
+        elsewhere (gap-6: a follower crossing 7.5 m at 4.8 m/s overshot its slot by 2.1 m and turned 97 deg
+        at 2.2 m/s, a cusp); its spacing scale starts at theirs. Only where that move takes at most
+        reshape.assembly_move_max_s: followers farther off fly to their slots at their own speed, quicker
+        than a slot may move. Once, at the first tick with the leader's state (t s, p_lead (3,) ENU m); an
+        event says which."""
+        assert self.shaper is not None and self.reshape is not None
+        self.assembly_planned = True
+        if self.assembled:
+            return
+        planned, duration = self.shaper.assemble_from(*self._standing_offsets(t, p_lead), t)
+        if planned:
+            self.events.append(f"t={t:.2f} s formation assembles along a planned move of {duration:.1f} s")
+        else:
+            self.events.append(
+                f"t={t:.2f} s followers fly to their slots on their own (a planned move would take "
+                f"{duration:.1f} s, over assembly_move_max_s {self.reshape.assembly_move_max_s:g} s)"
+            )
+
     def drain_events(self) -> list[str]:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
         shape come apart, from `drain_shape_changes`."""
@@ -631,6 +658,7 @@ class FleetController:
         # every follower has been within ASSEMBLED_M of its slot (on_slots; kept up to date by `tick`)
         slots = slot_positions(pos[self.leader], yaw[self.leader], self.flown_offsets * self.spacing_scale)
         self.assembled = on_slots(pos, slots, known & ~self.is_leader)
+        self.assembly_planned = False  # the first tick plans the formation's assembly (`_plan_assembly`)
         self.started_in_flight = bool(np.hypot(*vel[self.leader, :2]) > self._start_cap_floor())
         self.start_pace = math.inf  # (the next tick sets the start's cap again where it applies)
         self.generator.reset(self.last_pos, self.last_vel)
@@ -756,6 +784,8 @@ class FleetController:
         offsets, offset_rate, offset_accel, shrink = self.offsets, None, None, 1.0
         if self.shaper is not None:  # [add] deliberate reshaping around obstacles (reshape)
             assert self.reshape is not None
+            if not self.assembly_planned:
+                self._plan_assembly(t, p_lead)
             cap_now = float(self.v_xy_cap[lead] * self.speed_scale)
             predicted = partial(self._leader_path_ahead, cap_now, centres, radii)
             standing = None if self.assembled else partial(self._standing_offsets, t, p_lead)

@@ -366,6 +366,12 @@ class ReshapeParams:
     # change taking over from another, or a change from where unassembled followers fly): the move carries
     # that rate on and brings it to rest within this (reshape.SlotMove), so no slot's velocity jumps
     settle_accel_m_s2: float = 4.0
+    # s: a formation that has not assembled when it starts is carried into its shape along a planned move
+    # from where its followers stand when that move takes at most this long (no follower then pursues a slot
+    # standing elsewhere and overshoots it); farther, each follower flies to its slot at its own speed, which
+    # is quicker than a slot may move (followers starting hundreds of metres away: paper_nine_9). The
+    # issue's assembly bound (reshape, spec 6a.4); 0: always by pursuit
+    assembly_move_max_s: float = 10.0
     # m/s^2, fastest the leader's pace cap falls while the shape changes (the followers brake with it)
     pace_decel_m_s2: float = 1.5
     restore_after_s: float = 1.5  # s a wider shape must keep fitting before the formation widens to it
@@ -408,8 +414,8 @@ class ReshapeParams:
             raise ValueError("need pace_decel_m_s2 > 0, accel_m_s2 > 0 and settle_accel_m_s2 > 0")
         if not self.gap_clearance_m >= 0:
             raise ValueError("need gap_clearance_m >= 0")
-        if not (self.restore_after_s >= 0 and self.decide_every_s > 0):
-            raise ValueError("need restore_after_s >= 0 and decide_every_s > 0")
+        if not (self.restore_after_s >= 0 and self.decide_every_s > 0 and self.assembly_move_max_s >= 0):
+            raise ValueError("need restore_after_s >= 0, decide_every_s > 0 and assembly_move_max_s >= 0")
         if not self.path_turn_accel_m_s2 > 0:
             raise ValueError("need path_turn_accel_m_s2 > 0")
         if not 0 <= self.goal_turn_step_deg <= 180:

@@ -31,6 +31,9 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
+from swarm_common.approach import segment_min_norm
+from swarm_common.jit import kernel
+
 
 class AssignmentRule(StrEnum):
     """Which step of `assign_moves` gave the assignment (module docstring)."""
@@ -76,19 +79,23 @@ def crossing_pairs(starts: np.ndarray, goals: np.ndarray) -> bool:
     return bool(cross.any())
 
 
+@kernel
 def closest_approach(starts: np.ndarray, goals: np.ndarray) -> float:
     """Smallest distance (m) between any two of the (M, 3) vehicles moving together on straight lines from
-    `starts` to `goals` (positions s + lam (g - s), lam in [0, 1]); inf for fewer than two."""
-    if len(starts) < 2:
-        return math.inf
-    r0 = starts[:, None, :] - starts[None, :, :]  # (M, M, 3) relative positions at lam = 0
-    dr = (goals - starts)[:, None, :] - (goals - starts)[None, :, :]  # their change over the move
-    dd = np.einsum("ijk,ijk->ij", dr, dr)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        lam = np.where(dd > 0.0, np.clip(-np.einsum("ijk,ijk->ij", r0, dr) / dd, 0.0, 1.0), 0.0)
-    gap = np.linalg.norm(r0 + lam[..., None] * dr, axis=-1)
-    np.fill_diagonal(gap, np.inf)
-    return float(gap.min())
+    `starts` to `goals` (positions s + lam (g - s), lam in [0, 1]): each pair's relative position moves
+    linearly (swarm_common.approach.segment_min_norm); inf for fewer than two. Compiled: every change of
+    shape checks it for each way its slots may move, a hundred slots at a time (reshape.plan_move)."""
+    best = math.inf
+    for i in range(starts.shape[0]):
+        for j in range(i + 1, starts.shape[0]):
+            best = min(
+                best,
+                segment_min_norm(
+                    starts[i, 0] - starts[j, 0], starts[i, 1] - starts[j, 1], starts[i, 2] - starts[j, 2],
+                    goals[i, 0] - goals[j, 0], goals[i, 1] - goals[j, 1], goals[i, 2] - goals[j, 2],
+                ),
+            )  # fmt: skip
+    return best
 
 
 def gap_floor(starts: np.ndarray, goals: np.ndarray, min_gap: float) -> float:

@@ -5,16 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sitl_sim.world import FUSELAGE_RADIUS, Obstacles, closest_approach, find_collisions
+from sitl_sim.world import FUSELAGE_RADIUS, Obstacles, find_collisions
 from tests.sitl_sim.sim_process import M, read_truth
 
 NONE = np.zeros(3, dtype=bool)
-
-
-def test_closest_approach_of_a_segment():
-    assert closest_approach(-1.0, 0.5, 0.0, 1.0, 0.5, 0.0) == pytest.approx(0.5)
-    assert closest_approach(2.0, 0.0, 0.0, 3.0, 0.0, 0.0) == pytest.approx(2.0)
-    assert closest_approach(1.0, 1.0, 1.0, 1.0, 1.0, 1.0) == pytest.approx(3**0.5)
 
 
 def test_moving_obstacle_and_fast_vehicle_cannot_tunnel():

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.spatial.distance import pdist
 from shapely.geometry import Point, Polygon
 
 from gcs_swarm.guidance.fleet_controller import FleetController
@@ -17,22 +19,27 @@ from gcs_swarm.guidance.params import PAPER_PLAIN, ReshapeParams
 from gcs_swarm.guidance.reshape import (
     MARGIN_SLACK_M,
     MIN_JERK_PEAK_ACCEL,
+    MOVE_ORDERS,
     PACE_MARGIN_M_S,
     SETTLE_PEAK_ACCEL,
+    UNASSEMBLED_ORDERS,
     FormationShaper,
     SlotMove,
     candidate_shapes,
     closest_pair_in,
+    closest_pair_sampled,
     min_jerk,
     move_duration,
     nearest_slot_spacing,
     pace_speed,
     plan_move,
     route_samples,
+    settle_duration,
     shape_clearance,
     straight_for,
+    timed_phases,
 )
-from gcs_swarm.guidance.slot_assignment import closest_approach
+from gcs_swarm.guidance.slot_assignment import assign_moves, closest_approach
 from swarm_common.obstacle_shapes import NO_SHAPES, pack_shapes
 
 PARAMS = ReshapeParams(clearance_m=4.0)  # the worlds below are sized for 4 m between slots and surfaces
@@ -732,6 +739,66 @@ def test_a_move_is_the_quickest_that_keeps_the_slots_far_enough_apart(keep_apart
     np.testing.assert_allclose(move.at(move.duration)[0], line)
 
 
+@pytest.mark.parametrize("moments, rows", [(1, 2), (7, 3), (128, 60)])
+def test_the_closest_pair_sampled_is_scipys_smallest_pairwise_distance(moments, rows):
+    """closest_pair_sampled (compiled) against scipy's pdist at each moment, on random positions with one
+    pair placed 0.37 m apart at one moment; and inf for a single row."""
+    rng = np.random.default_rng(moments)
+    positions = rng.uniform(-40.0, 40.0, (moments, rows, 3))
+    positions[moments // 2, rows - 1] = positions[moments // 2, 0] + [0.0, 0.37, 0.0]
+    expected = min(float(pdist(here).min()) for here in positions)
+    assert closest_pair_sampled(positions) == pytest.approx(expected, rel=1e-12)
+    assert expected <= 0.37 + 1e-12
+    assert closest_pair_sampled(positions[:, :1]) == math.inf
+
+
+def _plan_move_every_order(start, end, rows, speed, accel, keep_apart, orders, rate):
+    """The choice plan_move's docstring states, made by timing every order and finding every closest
+    approach: the quickest that keeps the rows apart (the first of equals), else the one that passes
+    farthest apart (the first of equals)."""
+    floor = min(
+        keep_apart, closest_approach(start[rows], start[rows]), closest_approach(end[rows], end[rows])
+    )
+    settle_s = 0.0 if rate is None else settle_duration(rate, PARAMS.settle_accel_m_s2)
+    carried = rate if settle_s > 0.0 else None
+    moves = [
+        SlotMove(start, end, 0.0, timed_phases(start, end, o, speed, accel), carried, settle_s)
+        for o in orders
+    ]
+    gaps = [closest_pair_in(m, rows) for m in moves]
+    kept = [k for k, gap in enumerate(gaps) if gap >= floor - 1e-6]
+    if kept:
+        return moves[min(kept, key=lambda k: (moves[k].duration, k))]
+    return moves[min(range(len(moves)), key=lambda k: (-gaps[k], k))]
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("assembled", [True, False])
+def test_a_planned_move_is_the_one_every_order_timed_and_checked_would_give(seed, assembled):
+    """plan_move finds the closest approach quickest order first and stops at the first that keeps the
+    slots apart; on random starts and ends of three to eight followers (assigned by the shortest longest
+    move or as drawn, crossing; at rest or moving), it picks exactly the move that timing and checking every
+    order picks, whether some order keeps them apart or none does."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(4, 10))
+    start, end = np.zeros((n, 3)), np.zeros((n, 3))
+    start[1:, :2] = rng.uniform(-25.0, 25.0, (n - 1, 2))
+    end[1:, :2] = rng.uniform(-25.0, 25.0, (n - 1, 2))
+    if seed % 3:  # assigned as a change of shape assigns them (FormationShaper._plan); else as drawn
+        order, _ = assign_moves(start[1:], end[1:], PARAMS.move_gap_m)
+        end[1:] = end[1:][order]
+    rate = rng.uniform(-3.0, 3.0, (n, 3)) * [1.0, 1.0, 0.0] if seed % 2 else None
+    if rate is not None:
+        rate[0] = 0.0
+    rows = np.ones(n, dtype=bool)
+    orders = tuple(MOVE_ORDERS.values()) if assembled else UNASSEMBLED_ORDERS
+    keep_apart = PARAMS.move_gap_m if assembled else math.inf
+    expected = _plan_move_every_order(start, end, rows, 6.0, 2.0, keep_apart, orders, rate)
+    move = plan_move(start, end, rows, 0.0, 6.0, 2.0, keep_apart, orders, rate, PARAMS.settle_accel_m_s2)
+    assert move.phases == expected.phases
+    assert move.settle_s == expected.settle_s
+
+
 def test_a_move_begun_while_the_slots_move_carries_their_rate_on_and_brings_it_to_rest():
     """A slot moving across at 3 m/s when a move that leaves it where it is starts: it starts at 3 m/s and
     no acceleration, and comes to rest within 2 m/s^2 after 3.94 x 3 / 2 = 5.91 s (the settling quintic
@@ -959,6 +1026,79 @@ def test_a_change_before_the_formation_has_assembled_starts_at_the_rate_the_foll
     assert shaper is not None and shaper.shape_name == "column"
     np.testing.assert_allclose(shaper.flown(0.0)[0][1:], launch_row[1:], atol=1e-9)
     np.testing.assert_allclose(shaper.flown(0.0)[1][1:], plant.vel[1:], atol=1e-9)
+
+
+def _launch_row_fleet(params: ReshapeParams) -> tuple[FleetController, np.ndarray, np.ndarray]:
+    """A line abreast of four 12 m apart (slots at -24, -12, 12, 24 m across) with nothing near, its followers
+    in the launch row (5 m behind the leader, 4 m apart, flying at the velocities below), after the first
+    tick: the controller, the launch row (5, 3) leader-frame m and the followers' velocities (5, 3) m/s."""
+    from tests.gcs_swarm.guidance.test_fleet_controller import PointMassFleet
+
+    far = np.array([[0.0, 5000.0, 10.0]]), np.array([1.0])
+    ctl = FleetController(5, 0, _line(4, 12.0), np.array([[300.0, 0.0, 10.0]]), reshape=params)
+    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
+    plant = PointMassFleet(launch_row + np.array([0.0, 0.0, 10.0]))
+    plant.vel[1:] = [[1.0, -1.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], [0.0, -0.5, 0.0]]
+    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
+    assert not ctl.assembled
+    ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, np.ones(5, dtype=bool))
+    return ctl, launch_row, plant.vel
+
+
+# The launch row's move into the line, by hand: the longest move is 18 m across (-6 to -24) and 5 m along;
+# no slot faster than 6 m/s nor harder than 2 m/s^2 (PARAMS); a minimum-jerk phase over D m peaks at
+# 10 / sqrt(3) D / T^2. The quickest possible is one straight phase, max(1.875 x 18.68 / 6,
+# sqrt(5.77 x 18.68 / 2)) = 7.34 s; across, then along keeps the followers as far apart as they stand (4 m:
+# each spreads in its own row, then all move forward together) in sqrt(5.77 x 18 / 2) + sqrt(5.77 x 5 / 2)
+# = 7.21 + 3.80 = 11.01 s, so the planner (the quickest way that keeps them that far apart) takes no longer
+QUICKEST_LAUNCH_ROW_MOVE_S = math.sqrt(MIN_JERK_PEAK_ACCEL * math.hypot(18.0, 5.0) / 2)
+SEQUENTIAL_LAUNCH_ROW_MOVE_S = math.sqrt(MIN_JERK_PEAK_ACCEL * 18 / 2) + math.sqrt(
+    MIN_JERK_PEAK_ACCEL * 5 / 2
+)
+
+
+def test_a_formation_that_has_not_assembled_assembles_along_a_move_from_where_its_followers_stand():
+    """With assembly_move_max_s over the launch row's move (at most 11.01 s), the first tick starts that
+    move to the line from where the followers stand, at their rate, its spacing scale 4 / 12 (spec 6a.4), so
+    they are on the slots of that moment and have assembled; the move ends in the line (each follower on one
+    of its slots), at rest, and an event says so."""
+    ctl, launch_row, vel = _launch_row_fleet(replace(PARAMS, assembly_move_max_s=12.0))
+    shaper = ctl.shaper
+    assert shaper is not None and shaper.shape_name == "formation" and not shaper.changes
+    offsets, rate, _ = shaper.flown(0.0)
+    np.testing.assert_allclose(offsets, launch_row, atol=1e-9)
+    np.testing.assert_allclose(rate[1:], vel[1:], atol=1e-9)
+    assert shaper.start_scale == pytest.approx(4.0 / 12.0)
+    assert ctl.assembled
+    assert QUICKEST_LAUNCH_ROW_MOVE_S - 1e-6 <= shaper.move.duration <= SEQUENTIAL_LAUNCH_ROW_MOVE_S + 1e-6
+    end, end_rate, _ = shaper.flown(shaper.move.t0 + shaper.move.duration)
+    np.testing.assert_allclose(sorted(map(tuple, end[1:])), sorted(map(tuple, _line(4, 12.0)[1:])), atol=1e-9)
+    np.testing.assert_allclose(end_rate, 0.0, atol=1e-9)
+    assert ctl.drain_events() == [
+        f"t=0.00 s formation assembles along a planned move of {shaper.move.duration:.1f} s"
+    ]
+
+
+def test_followers_whose_assembly_move_would_take_too_long_fly_to_their_slots_on_their_own():
+    """With assembly_move_max_s 7 s, under the quickest the launch row's move can be (7.34 s): the slots
+    stay in the line, the followers fly to them (not assembled yet), and an event says why."""
+    ctl, launch_row, _ = _launch_row_fleet(replace(PARAMS, assembly_move_max_s=7.0))
+    shaper = ctl.shaper
+    assert shaper is not None and not shaper.changes
+    offsets, rate, _ = shaper.flown(0.0)
+    np.testing.assert_allclose(offsets, _line(4, 12.0), atol=1e-9)
+    np.testing.assert_allclose(rate, 0.0, atol=1e-12)
+    assert not ctl.assembled
+    (event,) = ctl.drain_events()
+    taken = re.fullmatch(
+        r"t=0\.00 s followers fly to their slots on their own \(a planned move would take ([\d.]+) s, over "
+        r"assembly_move_max_s 7 s\)",
+        event,
+    )
+    assert (
+        taken
+        and QUICKEST_LAUNCH_ROW_MOVE_S - 0.05 <= float(taken.group(1)) <= SEQUENTIAL_LAUNCH_ROW_MOVE_S + 0.05
+    )
 
 
 @pytest.mark.parametrize(
