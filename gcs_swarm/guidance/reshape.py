@@ -488,18 +488,14 @@ def pace_speed(phases: list[tuple[float, float]], room: float) -> float:
 
 @kernel
 def closest_pair_sampled(positions: np.ndarray) -> float:
-    """Smallest distance m between two different rows of `positions` (T, M, 3) m at any of its T moments;
-    inf with fewer than two rows. Compiled: a move of a hundred slots is sampled at OVERLAP_SAMPLES moments
-    per stretch, every decision (`closest_pair_in`)."""
-    best = np.inf
+    """Smallest distance m between two different rows of `positions` (T, M, 3) m at any of its T moments
+    (at each, slot_assignment.closest_approach of the rows standing still); inf with fewer than two rows.
+    Compiled: a move of a hundred slots is sampled at OVERLAP_SAMPLES moments per stretch, every decision
+    (`closest_pair_in`)."""
+    best = math.inf
     for k in range(positions.shape[0]):
-        for i in range(positions.shape[1]):
-            for j in range(i + 1, positions.shape[1]):
-                dx = positions[k, i, 0] - positions[k, j, 0]
-                dy = positions[k, i, 1] - positions[k, j, 1]
-                dz = positions[k, i, 2] - positions[k, j, 2]
-                best = min(best, dx * dx + dy * dy + dz * dz)
-    return math.sqrt(best)
+        best = min(best, closest_approach(positions[k], positions[k]))
+    return best
 
 
 def closest_pair_in(move: SlotMove, rows: np.ndarray) -> float:
