@@ -63,6 +63,7 @@ from gcs_swarm.guidance.reference import ReferenceGenerator, default_d_g, no_bud
 from gcs_swarm.guidance.reshape import (
     SAMPLE_STEP_M,
     FormationShaper,
+    Route,
     ShapeChange,
     closest_pair_sampled,
     shape_clearance,
@@ -80,6 +81,7 @@ from gcs_swarm.guidance.slot_assignment import closest_approach
 from gcs_swarm.guidance.smc import SMCController
 from gcs_swarm.guidance.topology import TOPOLOGIES, LeaderRelay, check_adjacency, star_adjacency
 from swarm_common.obstacle_shapes import NO_SHAPES, ShapeArrays
+from swarm_common.rotations import wrap_pi_float
 
 NO_ROWS = np.zeros((0, 3))
 RESHAPE_GAP_M = 1.0  # m beyond D_Emg kept between followers whose slots move in a reshape
@@ -296,10 +298,12 @@ class FleetController:
         )
         self.follower_pace = math.inf  # m/s, the leader's cap from its followers' top speeds (`envelope`)
         self.start_pace = math.inf  # m/s, the leader's cap until its followers' drag is measured (`envelope`)
+        self.footprint_paced = False  # the shaper's footprint pace holds the leader (`_footprint_event`)
         self.started_in_flight = False  # the leader was faster than the start cap's floor when the formation
         # started (`reset`): its followers are flying already, and the start's cap does not apply
         self.leader_budget = NO_BUDGET  # the leader's acceleration budget from its slowest follower (spec 6b)
         self.assembly_planned = False  # the first tick plans the formation's assembly (`_plan_assembly`)
+        self.assembled = False  # every follower has been on its slot (`reset`, kept up to date by `tick`)
         self.events: list[str] = []  # what changed, for the flight's events (`drain_events`)
         self.detours: list[Detour] = []  # legs planned round a gap (`drain_detours`)
         self.names = names if len(names) == n else tuple(f"vehicle {i + 1}" for i in range(n))
@@ -528,7 +532,7 @@ class FleetController:
         known = np.isfinite(here).all(axis=1) & np.any(flown != 0.0, axis=1)
         return np.where(known[:, None], here, flown), np.where(known[:, None], rate, flown_rate)
 
-    def _plan_assembly(self, t: float, p_lead: np.ndarray) -> None:
+    def _plan_assembly(self, t: float, p_lead: np.ndarray, goal: np.ndarray) -> None:
         """[add] Spec 6a.4: a formation that has not assembled when it starts assembles along a planned move
         from where its followers stand and at the rate they fly (`_standing_offsets`) to the mission's shape,
         as any change of shape before assembly does, instead of each follower pursuing a slot that stands
@@ -536,19 +540,57 @@ class FleetController:
         at 2.2 m/s, a cusp); its spacing scale starts at theirs. Only where that move takes at most
         reshape.assembly_move_max_s: followers farther off fly to their slots at their own speed, quicker
         than a slot may move. Once, at the first tick with the leader's state (t s, p_lead (3,) ENU m); an
-        event says which."""
-        assert self.shaper is not None and self.reshape is not None
+        event says which.
+
+        With heading_from_route, the move is planned first with psi_L turned to the direction from the
+        leader to the point it flies to, `goal` (3,) ENU m (unless the leader is already in flight or within
+        d_g of it), and taken so if it is short enough: the formation is formed facing its route, so that
+        psi_L does not swing the slots round the leader while they move (gap-12: the leader's yaw 18 deg off
+        its first leg; psi_L turned when the leader reached heading_min_speed, 3 s in, and swung a slot 17 m
+        astern across its follower's way, a cusp). Else psi_L stays the leader's yaw and the move is planned
+        in that frame (real PX4 SIH starts 53 deg off its goal: turned, the move would take 11.4 s, so its
+        followers would pursue their slots; unturned it takes 8.4 s).
+        Once the move is taken the formation has assembled (its followers stand on the slots of the moment),
+        so a change decided in the same tick is planned as one after assembly is (spec 6a.4)."""
+        assert self.shaper is not None and self.reshape is not None and self.heading is not None
         self.assembly_planned = True
         if self.assembled:
             return
-        planned, duration = self.shaper.assemble_from(*self._standing_offsets(t, p_lead), t)
+        to_goal = goal[:2] - p_lead[:2]
+        planned = False
+        if self.reference.heading_from_route and not self.started_in_flight and np.hypot(*to_goal) > self.d_g:
+            yaw = self.heading.psi
+            self.heading.psi = math.atan2(to_goal[1], to_goal[0])
+            planned, duration = self.shaper.assemble_from(*self._standing_offsets(t, p_lead), t)
+            turn = math.degrees(wrap_pi_float(self.heading.psi - yaw))
+            if not planned:
+                self.heading.psi = yaw
+            elif abs(turn) >= 1.0:
+                self.events.append(f"t={t:.2f} s formation faces its route: psi_L turned {turn:+.0f} deg")
+        if not planned:
+            planned, duration = self.shaper.assemble_from(*self._standing_offsets(t, p_lead), t)
         if planned:
+            self.assembled = True
             self.events.append(f"t={t:.2f} s formation assembles along a planned move of {duration:.1f} s")
         else:
             self.events.append(
                 f"t={t:.2f} s followers fly to their slots on their own (a planned move would take "
                 f"{duration:.1f} s, over assembly_move_max_s {self.reshape.assembly_move_max_s:g} s)"
             )
+
+    def _footprint_event(self, t: float) -> None:
+        """An event where the shaper's footprint pace (spec 6a.10) starts holding the leader, with its cap,
+        and where it lets go."""
+        assert self.shaper is not None
+        cap = self.shaper.footprint_cap
+        if math.isfinite(cap) and not self.footprint_paced:
+            self.events.append(
+                f"t={t:.2f} s pace: leader held to {cap:.1f} m/s, where its path leaves the "
+                f"{self.shaper.shape_name} room"
+            )
+        elif not math.isfinite(cap) and self.footprint_paced:
+            self.events.append(f"t={t:.2f} s pace: leader's footprint pace off")
+        self.footprint_paced = math.isfinite(cap)
 
     def drain_events(self) -> list[str]:
         """The guidance's events since the last call (pace changes) as "t=... s ..." lines; the changes of
@@ -661,6 +703,7 @@ class FleetController:
         self.assembly_planned = False  # the first tick plans the formation's assembly (`_plan_assembly`)
         self.started_in_flight = bool(np.hypot(*vel[self.leader, :2]) > self._start_cap_floor())
         self.start_pace = math.inf  # (the next tick sets the start's cap again where it applies)
+        self.footprint_paced = False
         self.generator.reset(self.last_pos, self.last_vel)
         self.position_controller.reset(self.n)
         rate = self.heading_rate_max
@@ -785,18 +828,24 @@ class FleetController:
         if self.shaper is not None:  # [add] deliberate reshaping around obstacles (reshape)
             assert self.reshape is not None
             if not self.assembly_planned:
-                self._plan_assembly(t, p_lead)
+                self._plan_assembly(t, p_lead, goal)
             cap_now = float(self.v_xy_cap[lead] * self.speed_scale)
             predicted = partial(self._leader_path_ahead, cap_now, centres, radii)
+
+            def predicted_at(speed_cap: float) -> Route:
+                return partial(self._leader_path_ahead, speed_cap, centres, radii)
+
             standing = None if self.assembled else partial(self._standing_offsets, t, p_lead)
             self.shaper.decide(
                 t, p_lead, self.heading.psi, self.route_points[self.route_index :], cap_now,
                 float(np.hypot(*self.last_vel[lead, :2])), centres, radii, self.shapes,
                 route=predicted if self.reshape.predict_path else None,
                 assembled=self.assembled, standing=standing,
+                route_at=predicted_at if self.reshape.predict_path and self.reshape.footprint_pace else None,
             )  # fmt: skip
             offsets, offset_rate, offset_accel = self.shaper.flown(t)
             shrink = self.shaper.scale(t)
+            self._footprint_event(t)
         self.flown_offsets = offsets
         start_cap_on = self.envelope is not None and self.envelope.params.start_lead_m_s > 0
         if start_cap_on and not self.started_in_flight:  # [add] no faster than followers not yet measured fly

@@ -348,6 +348,10 @@ class ReshapeParams:
     # the look-ahead follows the leader's path predicted by flying its reference forward through the field
     # (gcs_swarm.guidance.leader_path); false: the straight route through its waypoints
     predict_path: bool = True
+    # while the shape flown does not fit the look-ahead and no other is taken, the leader slows to the
+    # fastest of 0.8, 0.6 and 0.4 x its cap at which its predicted path leaves that shape room (spec
+    # 6a.10); needs predict_path
+    footprint_pace: bool = True
     # m, the tightest spacing a narrowed formation or column flies: D_Emg (3 m) plus 2 m of slot error on
     # each of two neighbours before they are in an emergency separation
     min_spacing_m: float = 7.0

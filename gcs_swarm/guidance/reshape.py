@@ -54,7 +54,8 @@ purpose instead, and its followers' slots move with it:
   The offsets' rate and acceleration go to the followers as velocity and acceleration feed-forwards.
 - **Assembly**: a formation whose followers do not stand on their slots when it starts is carried into its
   shape along such a move from where they stand (`assemble_from`), when that move takes at most
-  assembly_move_max_s; farther off, each follower flies to its slot on its own.
+  assembly_move_max_s; farther off, each follower flies to its slot on its own. A change that follows at
+  once is planned as one after assembly is: the followers stand on the slots of the moment.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
   reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
   which a slot falls back along the leader's heading, not below that phase's peak fall-back rate less
@@ -62,6 +63,10 @@ purpose instead, and its followers' slots move with it:
   phase in which none does (a move across, a shrink), down to a hover: the leader waits for the formation.
   The cap falls no faster than `pace_decel_m_s2`: followers whose slots brake with the leader, and fall back
   besides, brake no harder than they can.
+- **Footprint pace**: while the shape flown, at rest, does not fit the look-ahead and no other is taken, the
+  leader slows to the fastest of a few fractions of its cap at which the path predicted for it leaves that
+  shape room (`footprint_cap`, `_footprint_pace`): a rigid shape's slots cut less across the inside of a
+  corner the slower its leader takes it.
 
 Offsets are (N, 3) leader-frame metres (x forward, y left, z up), the leader's row zero. `scale` is the
 spacing of the flown shape over the mission's (1 unreshaped); the inter-UAV repulsion range shrinks with it
@@ -100,6 +105,10 @@ OPENING_SLACK_M = 1.0
 # the formation stayed a column there (docs/metrics.md)
 MARGIN_SLACK_M = 0.5
 EARLY_TURN_MAX_RAD = math.radians(20.0)  # rad the route may turn while a widening runs
+# fractions of the leader's speed cap at which the footprint pace (`_footprint_pace`) tries the leader's path
+FOOTPRINT_PACE_STEPS = (0.8, 0.6, 0.4)
+# m: the footprint pace takes the fastest of those speeds whose clearance is within this of the best one's
+FOOTPRINT_SLACK_M = 2.0
 GOAL_RADIUS_M = 2.0  # m from its last waypoint within which the leader is at its goal (`_decide_at_goal`)
 # moves planned and checked for clearance at the goal per decision (the costly part of a decision there)
 GOAL_CHECKS_PER_DECISION = 1
@@ -602,6 +611,8 @@ class FormationShaper:
         self.wider_since: float | None = None  # s, since when a wider shape has fitted (restore_after_s)
         self.widen_blocked = False  # a wider shape fits but the way to it was found blocked (`widening_due`)
         self.pace_cap = math.inf  # m/s, the leader's speed cap while the slots move (`_pace`)
+        # m/s, the leader's speed cap while the shape flown does not fit its path (`_footprint_pace`)
+        self.footprint_cap = math.inf
         self.paced_at = -math.inf  # s, when pace_cap was last set
         self.waiting_moves: dict[int, SlotMove] = {}  # widenings planned, by shape, waiting for a clear way
         # (N, 3) leader-frame m: where a column following the leader's path (column_path) has its slots now,
@@ -828,6 +839,7 @@ class FormationShaper:
         speed: float, centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays = NO_SHAPES,
         route: Route | None = None, assembled: bool = True,
         standing: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None,
+        route_at: Callable[[float], Route] | None = None,
     ) -> None:  # fmt: skip
         """Choose the shape at time t s (module docstring) for the leader at p_leader (3,) ENU m heading
         psi_leader rad toward `waypoints` (W, 3) at up to speed_cap m/s, flying at `speed` m/s now, among
@@ -838,7 +850,9 @@ class FormationShaper:
         keeps them farthest apart, not the quickest (`_plan`). `standing`, given before the formation has
         assembled: where the followers stand now, (N, 3) leader-frame m, and how they move in that frame,
         (N, 3) m/s, asked for only when the formation narrows: the narrowing starts from there, at that rate,
-        not from the slots they are still flying to (spec 6a.4), its spacing scale from theirs."""
+        not from the slots they are still flying to (spec 6a.4), its spacing scale from theirs. `route_at`:
+        the leader's path predicted at a speed cap m/s other than speed_cap (None: `route` does not depend on
+        it), for the footprint pace (`_footprint_pace`)."""
         if t < self.next_decision or len(self.shapes) < 2:
             return
         self.next_decision = t + self.params.decide_every_s
@@ -852,6 +866,7 @@ class FormationShaper:
         if len(waypoints) == 1 and math.hypot(*(goal - p_leader)[:2]) <= GOAL_RADIUS_M:
             self._decide_at_goal(t, goal, psi_leader, route, speed, centres, radii, shapes)
             self.pace_cap, self.paced_at = math.inf, t  # the leader hovers on its goal: nothing to pace
+            self.footprint_cap = math.inf
             return
         self.goal_blocked = set()
         if self.turn != 0.0:  # the leader left its goal (a console goto): its shape, unturned, at once
@@ -940,7 +955,36 @@ class FormationShaper:
                         self.widen_blocked = True
         else:
             self.wider_since = None
+        self.footprint_cap = math.inf
+        at_rest = not self.move.phases_left(t)
+        if best == self.current and gaps[best] < self.params.clearance_m and route_at is not None and at_rest:
+            self.footprint_cap = self._footprint_pace(t, route_at, speed_cap, speed, centres, radii, shapes)
         self._pace(t, speed, points, headings, along, centres, radii, shapes)
+
+    def _footprint_pace(
+        self, t: float, route_at: Callable[[float], Route], speed_cap: float, speed: float,
+        centres: np.ndarray, radii: np.ndarray, shapes: ShapeArrays,
+    ) -> float:  # fmt: skip
+        """The leader's speed cap m/s while the shape flown, at rest, does not fit the look-ahead and no other
+        shape was taken (spec 6a.10): the fastest of speed_cap and speed_cap x FOOTPRINT_PACE_STEPS at which
+        the shape, along the leader's path predicted at that cap (`route_at`), keeps clearance_m from every
+        obstacle surface, or at most FOOTPRINT_SLACK_M less than the clearest of them does; inf where that is
+        speed_cap itself. Only the path the leader reaches before it could brake from its `speed` m/s at
+        pace_decel_m_s2, plus lookahead_min_m, counts: a tighter place farther on is paced for when it is
+        that near. A rigid shape's heading psi_L turns at a rate of its own (spec 6a.7), so a leader that
+        takes a corner slower carries its slots round it closer to its own path (gap-12: a column of nine,
+        56 m long, its leader through a detour at 10 m/s, predicted 0.4 m from a sphere; at 4 m/s 5.4 m)."""
+        offsets = self.flown(t)[0]
+        window = self.params.lookahead_min_m + speed**2 / (2.0 * self.params.pace_decel_m_s2)
+        tried = []
+        for step in (1.0, *FOOTPRINT_PACE_STEPS):
+            points, headings, along = route_at(speed_cap * step)(window)
+            near = along <= window + 1e-9
+            clearance = clearance_along(offsets, points[near], headings[near], centres, radii, shapes)
+            tried.append((speed_cap * step, float(clearance.min())))
+        enough = min(self.params.clearance_m, max(g for _, g in tried) - FOOTPRINT_SLACK_M)
+        chosen = next(v for v, g in tried if g >= enough)
+        return math.inf if chosen >= speed_cap else chosen
 
     def _decide_at_goal(
         self, t: float, goal: np.ndarray, psi_leader: float, route: Route, speed: float, centres: np.ndarray,
@@ -1021,7 +1065,7 @@ class FormationShaper:
         leader can brake as fast; a cap before that lay above the leader's speed (a change with room to
         spare) does not delay the braking."""
         phases = self.move.phases_left(t)
-        cap = math.inf
+        cap = self.footprint_cap
         if phases and self.current != 0:
             gap = clearance_along(self.flown(t)[0], points, headings, centres, radii, shapes)
             tight = np.flatnonzero(gap < self.params.clearance_m)

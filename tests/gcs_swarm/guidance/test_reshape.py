@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import math
 import re
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -24,6 +25,7 @@ from gcs_swarm.guidance.reshape import (
     SETTLE_PEAK_ACCEL,
     UNASSEMBLED_ORDERS,
     FormationShaper,
+    Route,
     SlotMove,
     candidate_shapes,
     closest_pair_in,
@@ -967,22 +969,34 @@ def test_a_pace_cap_above_the_leaders_speed_does_not_delay_its_braking():
     assert capped[25.0] < 10.0
 
 
-@pytest.mark.parametrize("on_slots", [False, True])
-def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_stand(on_slots):
+@pytest.mark.parametrize(
+    "on_slots, assembly_move_max_s",
+    [(True, 10.0), (False, 7.0), (False, 12.0)],
+    ids=["on", "pursuing", "carried"],
+)
+def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_stand(
+    on_slots, assembly_move_max_s
+):
     """A line abreast of four 12 m apart, a gap 16 m wide 60 m ahead: the column fits it, the line does not,
     and the first decision (the first tick) starts the change. Assembled (followers on their line slots from
     the start), the slots move from the line the quickest way that keeps move_gap_m: straight, one phase,
     at the line's spacing (scale 1). Not yet assembled (followers still in their launch row 5 m behind the
     leader, 4 m apart, 7-25 m from their line slots), the slots start where the followers stand, not from
     the line they were flying to (spec 6a.4): the move's start is the launch row, its spacing scale 4 / 12
-    (so the repulsion range starts at min_spacing_m - 1 m, spec 6a.6, not at D_max), its phases one after the
-    other (back, then across: the followers still converge on the slots; starting across half way back
-    would be quicker and pass no closer), and the followers, on the slots of that moment, have assembled."""
+    (so the repulsion range starts at min_spacing_m - 1 m, spec 6a.6, not at D_max), and the followers, on
+    the slots of that moment, have assembled. Where the launch row's assembly move into the line (7.34-11.01
+    s) is over assembly_move_max_s (7 s), the followers were pursuing their slots: the change's phases come
+    one after the other (back, then across: the followers still converge on the slots; starting across half
+    way back would be quicker and pass no closer). Where it is not (12 s), the assembly carried them on their
+    slots from the first tick, so the change is planned as one after assembly: the second phase starts
+    while the first runs, the quickest way that keeps them move_gap_m (6 m) apart, or as far as they stand
+    (4 m) where that is less."""
     from tests.gcs_swarm.guidance.test_fleet_controller import DT, PointMassFleet
 
     line = _line(4, 12.0)
     centres, radii = _gap_world(16.0, x=60.0)
-    ctl = FleetController(5, 0, line, np.array([[300.0, 0.0, 10.0]]), control_dt=DT, reshape=PARAMS)
+    params = replace(PARAMS, assembly_move_max_s=assembly_move_max_s)
+    ctl = FleetController(5, 0, line, np.array([[300.0, 0.0, 10.0]]), control_dt=DT, reshape=params)
     launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
     start = line.copy() if on_slots else launch_row
     plant = PointMassFleet(start + np.array([0.0, 0.0, 10.0]))
@@ -996,11 +1010,14 @@ def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_
     np.testing.assert_allclose(move.start, start, atol=1e-9)
     np.testing.assert_allclose(cmd.slots[1:], start[1:] + np.array([0.0, 0.0, 10.0]), atol=1e-9)  # followers
     assert shaper.start_scale == pytest.approx(1.0 if on_slots else 4.0 / 12.0)
+    ends = [begin + duration for _, begin, duration in move.phases]
     if on_slots:
         assert [axes for axes, _, _ in move.phases] == [(0, 1, 2)]
-    else:  # not yet assembled: one phase after the other, never overlapping
-        ends = [begin + duration for _, begin, duration in move.phases]
+    elif assembly_move_max_s < QUICKEST_LAUNCH_ROW_MOVE_S:  # pursuing: one phase after the other
         assert [begin for _, begin, _ in move.phases[1:]] == pytest.approx(ends[:-1])
+    else:  # carried on their slots: overlapping phases, apart as far as they stand
+        assert len(move.phases) == 2 and move.phases[1][1] < ends[0] - 1e-6
+        assert closest_pair_in(move, np.ones(5, dtype=bool)) >= 4.0 - 1e-6
     plant.step(cmd, active)
     ctl.tick(DT, plant.pos, plant.vel, plant.att, centres, radii, active)
     assert ctl.assembled
@@ -1117,3 +1134,130 @@ def test_a_tighter_shapes_repulsion_range_is_its_own_spacing_at_most(d_max, spac
     from gcs_swarm.guidance.reshape import shape_repulsion_range
 
     assert shape_repulsion_range(d_max, spacing, scale, 7.0) == pytest.approx(expected)
+
+
+def _lagging_route(lag_per_m_s: float) -> Callable[[float], Route]:
+    """The leader's path predicted at a speed cap v m/s: east from x = 0 along y = 0, every 2 m, the
+    formation's heading lagging the path by lag_per_m_s x v rad (turned left: its astern slots swing
+    right)."""
+
+    def at(speed_cap: float) -> Route:
+        def route(length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            along = np.arange(0.0, length + 1e-9, 2.0)
+            points = np.stack([along, np.zeros_like(along), np.full_like(along, 10.0)], axis=1)
+            return points, np.full(len(along), lag_per_m_s * speed_cap), along
+
+        return route
+
+    return at
+
+
+@pytest.mark.parametrize("lag_per_m_s, paced", [(0.04, 6.0), (0.0, math.inf)], ids=["lagging", "no-lag"])
+def test_a_column_that_does_not_fit_its_path_at_speed_paces_the_leader_to_the_speed_at_which_it_does(
+    lag_per_m_s, paced
+):
+    """A V of four 10 m apart; a sphere of radius 2 at (20, -14), 12 m right of the leader's path east: no
+    V fits past it (a slot of the 10 m V flies at y = -14.1, of the 7 m one at y = -9.9, 2.1 m from its
+    surface), the column, astern along the path, does (12 m): the shaper falls into the column 7 m apart
+    (tail 28 m astern). Then the formation's heading lags the path by 0.04 rad per m/s of the leader's cap
+    (spec 6a.10): the column's tail swings 28 sin(0.04 v) m right, 10.9 m at 10 m/s, so as the path goes
+    past the sphere the tail comes within 14 - 10.9 - 2 = 1.1 m of its surface (8 m/s: 3.2 m; 6 m/s: 5.4
+    m; 4 m/s: 7.5 m). No shape fits; the leader, at 10 m/s, is paced to 6 m/s, the fastest at which the
+    column keeps clearance_m (4 m); the cap falls to it at pace_decel_m_s2. Without the lag (the column
+    always fits) there is no such cap."""
+    shaper = FormationShaper(PARAMS, _v(), 0, 4.0)
+    centres, radii = np.array([[20.0, -14.0, 10.0]]), np.array([2.0])
+    route_at = _lagging_route(lag_per_m_s)
+    straight = _lagging_route(0.0)(10.0)  # the path at any speed, the heading along it
+    wp = np.array([[400.0, 0.0, 10.0]])
+    p_leader = np.array([0.0, 0.0, 10.0])
+    shaper.decide(
+        0.0, p_leader, 0.0, wp, 10.0, 10.0, centres, radii, route=straight, route_at=_lagging_route(0.0)
+    )
+    assert shaper.shape_name == "column" and math.isinf(shaper.footprint_cap)
+    t = shaper.move.t0 + shaper.move.duration + 0.1  # the column at rest
+    at_cap = route_at(10.0)
+    shaper.decide(t, p_leader, 0.0, wp, 10.0, 10.0, centres, radii, route=at_cap, route_at=route_at)
+    assert shaper.shape_name == "column"
+    assert shaper.footprint_cap == pytest.approx(paced)
+    assert shaper.pace_cap == pytest.approx(max(paced, 10.0 - PARAMS.pace_decel_m_s2 * (t - shaper.move.t0)))
+    later = t + 10.0
+    shaper.decide(
+        later, p_leader, 0.0, wp, 10.0, 10.0, centres, radii, route=route_at(10.0), route_at=route_at
+    )
+    assert shaper.pace_cap == pytest.approx(paced)
+
+
+def test_a_formation_that_has_not_assembled_is_formed_facing_its_route():
+    """The leader faces east (yaw 0) but its goal lies north, at (0, 300): the first tick turns psi_L to the
+    route's bearing, pi/2, before it plans the assembly (spec 6a.4), and says so; the move starts from the
+    launch row as a leader facing north sees it (x forward = north, y left = west: the follower 5 m west of
+    the leader and 6 m south of it stands 6 m astern and 5 m to its left). Flown 8 s,
+    psi_L stays at pi/2 while the leader gains speed north: the slots never swing round it."""
+    from tests.gcs_swarm.guidance.test_fleet_controller import DT, PointMassFleet
+
+    far = np.array([[0.0, -5000.0, 10.0]]), np.array([1.0])
+    params = replace(PARAMS, assembly_move_max_s=60.0)  # the move is taken, however long
+    ctl = FleetController(5, 0, _line(4, 12.0), np.array([[0.0, 300.0, 10.0]]), control_dt=DT, reshape=params)
+    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
+    plant = PointMassFleet(launch_row + np.array([0.0, 0.0, 10.0]))
+    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
+    active = np.ones(5, dtype=bool)
+    cmd = ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, active)
+    assert ctl.heading is not None and ctl.heading.psi == pytest.approx(math.pi / 2)
+    assert ctl.drain_events()[0] == "t=0.00 s formation faces its route: psi_L turned +90 deg"
+    shaper = ctl.shaper
+    assert shaper is not None
+    seen_facing_north = np.stack([launch_row[:, 1], -launch_row[:, 0], launch_row[:, 2]], axis=1)
+    np.testing.assert_allclose(shaper.move.start, seen_facing_north, atol=1e-9)
+    headings, speeds = [], []
+    for k in range(1, int(8.0 / DT)):
+        plant.step(cmd, active)
+        cmd = ctl.tick(k * DT, plant.pos, plant.vel, plant.att, *far, active)
+        headings.append(ctl.heading.psi)
+        speeds.append(plant.vel[0, 1])
+    assert max(speeds) > ctl.reference.heading_min_speed  # psi_L would have turned by now
+    assert np.abs(np.array(headings) - math.pi / 2).max() < math.radians(2.0)
+
+
+def test_a_formation_on_its_slots_keeps_the_leaders_yaw_at_the_start():
+    """The same leader and goal, its followers on their slots of the line (east-facing, the leader's yaw):
+    psi_L starts at the yaw, so no slot moves at once, and no event says it turned."""
+    from tests.gcs_swarm.guidance.test_fleet_controller import PointMassFleet
+
+    far = np.array([[0.0, -5000.0, 10.0]]), np.array([1.0])
+    line = _line(4, 12.0)
+    ctl = FleetController(5, 0, line, np.array([[0.0, 300.0, 10.0]]), reshape=PARAMS)
+    plant = PointMassFleet(line + np.array([0.0, 0.0, 10.0]))
+    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
+    assert ctl.assembled
+    cmd = ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, np.ones(5, dtype=bool))
+    assert ctl.heading is not None and ctl.heading.psi == 0.0
+    np.testing.assert_allclose(cmd.slots[1:], plant.pos[1:], atol=1e-9)
+    assert not any("faces its route" in event for event in ctl.drain_events())
+
+
+def test_a_formation_whose_move_facing_its_route_is_too_long_assembles_facing_the_leaders_yaw():
+    """The same launch row, goal north, assembly_move_max_s 9 s. Facing north, the line's slots lie east and
+    west of the leader and the launch row 5 m west of it: some follower must go to the slot 24 m east, at
+    least sqrt(2^2 + 29^2) = 29.07 m from every follower, which no minimum-jerk phase at 2 m/s^2 covers in
+    under sqrt(5.7735 x 29.07 / 2) = 9.16 s. Facing the leader's yaw (east) the move takes 7.34 s (above).
+    So psi_L stays at the yaw, the assembly is planned in that frame (spec 6a.4; real PX4 SIH, 53 deg off
+    its goal: 8.4 s so against 11.4 s turned), and no event says it turned."""
+    from tests.gcs_swarm.guidance.test_fleet_controller import PointMassFleet
+
+    far = np.array([[0.0, -5000.0, 10.0]]), np.array([1.0])
+    params = replace(PARAMS, assembly_move_max_s=9.0)
+    ctl = FleetController(5, 0, _line(4, 12.0), np.array([[0.0, 300.0, 10.0]]), reshape=params)
+    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
+    plant = PointMassFleet(launch_row + np.array([0.0, 0.0, 10.0]))
+    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
+    ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, np.ones(5, dtype=bool))
+    assert ctl.heading is not None and ctl.heading.psi == 0.0
+    shaper = ctl.shaper
+    assert shaper is not None
+    np.testing.assert_allclose(shaper.move.start, launch_row, atol=1e-9)
+    assert shaper.move.duration <= 9.0
+    assert ctl.drain_events() == [
+        f"t=0.00 s formation assembles along a planned move of {shaper.move.duration:.1f} s"
+    ]
