@@ -539,17 +539,19 @@ class FleetController:
         elsewhere (gap-6: a follower crossing 7.5 m at 4.8 m/s overshot its slot by 2.1 m and turned 97 deg
         at 2.2 m/s, a cusp); its spacing scale starts at theirs. Only where that move takes at most
         reshape.assembly_move_max_s: followers farther off fly to their slots at their own speed, quicker
-        than a slot may move. Once, at the first tick with the leader's state (t s, p_lead (3,) ENU m); an
-        event says which.
+        than a slot may move; where the move into the mission's shape is longer but one into a narrower
+        candidate is not, into the widest such (FormationShaper.assemble_from), widened once assembled as
+        any narrowed formation is. Once, at the first tick with the leader's state (t s, p_lead (3,) ENU
+        m); an event says which.
 
-        With heading_from_route, the move is planned first with psi_L turned to the direction from the
-        leader to the point it flies to, `goal` (3,) ENU m (unless the leader is already in flight or within
-        d_g of it), and taken so if it is short enough: the formation is formed facing its route, so that
-        psi_L does not swing the slots round the leader while they move (gap-12: the leader's yaw 18 deg off
-        its first leg; psi_L turned when the leader reached heading_min_speed, 3 s in, and swung a slot 17 m
-        astern across its follower's way, a cusp). Else psi_L stays the leader's yaw and the move is planned
-        in that frame (real PX4 SIH starts 53 deg off its goal: turned, the move would take 11.4 s, so its
-        followers would pursue their slots; unturned it takes 8.4 s).
+        With heading_from_route, each shape's move is planned first with psi_L turned to the direction from
+        the leader to the point it flies to, `goal` (3,) ENU m (unless the leader is already in flight or
+        within d_g of it), and taken so if it is short enough: the formation is formed facing its route, so
+        that psi_L does not swing the slots round the leader while they move (gap-12: the leader's yaw 18 deg
+        off its first leg; psi_L turned when the leader reached heading_min_speed, 3 s in, and swung a slot
+        17 m astern across its follower's way, a cusp). Else that shape's move is planned with psi_L the
+        leader's yaw, before any narrower shape is tried (real PX4 SIH starts 53 deg off its goal: turned,
+        the move into its shape would take 11.4 s; unturned it takes 8.4 s).
         Once the move is taken the formation has assembled (its followers stand on the slots of the moment),
         so a change decided in the same tick is planned as one after assembly is (spec 6a.4)."""
         assert self.shaper is not None and self.reshape is not None and self.heading is not None
@@ -557,19 +559,20 @@ class FleetController:
         if self.assembled:
             return
         to_goal = goal[:2] - p_lead[:2]
-        planned = False
+        yaw = self.heading.psi
+        frames = [yaw]
         if self.reference.heading_from_route and not self.started_in_flight and np.hypot(*to_goal) > self.d_g:
-            yaw = self.heading.psi
-            self.heading.psi = math.atan2(to_goal[1], to_goal[0])
-            planned, duration = self.shaper.assemble_from(*self._standing_offsets(t, p_lead), t)
-            turn = math.degrees(wrap_pi_float(self.heading.psi - yaw))
-            if not planned:
-                self.heading.psi = yaw
-            elif abs(turn) >= 1.0:
-                self.events.append(f"t={t:.2f} s formation faces its route: psi_L turned {turn:+.0f} deg")
-        if not planned:
-            planned, duration = self.shaper.assemble_from(*self._standing_offsets(t, p_lead), t)
-        if planned:
+            frames.insert(0, math.atan2(to_goal[1], to_goal[0]))  # facing the route, preferred
+        starts = []
+        for psi in frames:
+            self.heading.psi = psi
+            starts.append(self._standing_offsets(t, p_lead))
+        taken, duration = self.shaper.assemble_from(starts, t)
+        self.heading.psi = yaw if taken is None else frames[taken]
+        turn = math.degrees(wrap_pi_float(self.heading.psi - yaw))
+        if abs(turn) >= 1.0:
+            self.events.append(f"t={t:.2f} s formation faces its route: psi_L turned {turn:+.0f} deg")
+        if taken is not None:
             self.assembled = True
             self.events.append(f"t={t:.2f} s formation assembles along a planned move of {duration:.1f} s")
         else:

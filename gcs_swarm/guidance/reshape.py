@@ -54,7 +54,8 @@ purpose instead, and its followers' slots move with it:
   The offsets' rate and acceleration go to the followers as velocity and acceleration feed-forwards.
 - **Assembly**: a formation whose followers do not stand on their slots when it starts is carried into its
   shape along such a move from where they stand (`assemble_from`), when that move takes at most
-  assembly_move_max_s; farther off, each follower flies to its slot on its own. A change that follows at
+  assembly_move_max_s, else into the widest narrower shape whose move does; farther off, each follower
+  flies to its slot on its own. A change that follows at
   once is planned as one after assembly is: the followers stand on the slots of the moment.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
   reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
@@ -734,23 +735,36 @@ class FormationShaper:
             self.changes.append(ShapeChange(t, change, name, shape.scale, math.degrees(turn)))
         self.current, self.turn = index, turn
 
-    def assemble_from(self, standing: np.ndarray, rate: np.ndarray, t: float) -> tuple[bool, float]:
-        """Whether the formation assembles along a move to the shape flown that starts at t s where its
-        followers stand, `standing` (N, 3) leader-frame m, at the rate they fly, `rate` (N, 3) m/s (spec
-        6a.4), and that move's duration s: it does when the move takes at most assembly_move_max_s; then
-        they are on the slots of that moment from the start, and the slots carry them into the shape. Else
-        nothing changes: each follower flies to its slot on its own. The move is planned as a change once
-        the formation has assembled is (the quickest order that keeps move_gap_m, its phases may overlap),
-        since its followers stand on its slots from its start: on 30 of the 80 generated courses the
-        assembly move came 0.2-4.8 s shorter than one phase after the other, on 2 up to 0.9 s longer, with
-        the same bounds met (docs/metrics.md)."""
-        move = self._plan(self.current, standing, t, assembled=True, rate=rate)
-        if move.duration > self.params.assembly_move_max_s:
-            return False, move.duration
-        self._change_to(
-            self.current, standing, t, announce=False, move=move, start_scale=self._standing_scale(standing)
-        )
-        return True, move.duration
+    def assemble_from(
+        self, starts: list[tuple[np.ndarray, np.ndarray]], t: float
+    ) -> tuple[int | None, float]:
+        """Which of `starts` the formation assembles from, along a move that starts at t s where its
+        followers stand, and that move's duration s (spec 6a.4). Each start is where they stand, (N, 3)
+        leader-frame m, and the rate they fly, (N, 3) m/s, in one frame the formation may start in, the
+        preferred first. The move goes into the shape flown, or where every start's move would take longer
+        than assembly_move_max_s, into the widest narrower candidate one start's move into which does not
+        (a change of shape, announced: a launch grid stands closer together than the mission's shape, so a
+        narrower shape is nearer; gap-6's V of eight, 11.4 s away, is reached narrowed to 87 % in 9.5 s, and
+        widened once assembled); then the followers are on the slots of that moment from the start, and the
+        slots carry them into the shape. Where no move is short enough nothing changes (None), each follower
+        flies to its slot on its own, and the duration is that of the quickest move into the shape flown.
+        The move is planned as a change once the formation has assembled is (the quickest order that keeps
+        move_gap_m, its phases may overlap), since its followers stand on its slots from its start: on 30 of
+        the 80 generated courses the assembly move came 0.2-4.8 s shorter than one phase after the other, on
+        2 up to 0.9 s longer, with the same bounds met (docs/metrics.md)."""
+        quickest = math.inf
+        for k in range(self.current, len(self.shapes)):
+            for which, (standing, rate) in enumerate(starts):
+                move = self._plan(k, standing, t, assembled=True, rate=rate)
+                if k == self.current:
+                    quickest = min(quickest, move.duration)
+                if move.duration <= self.params.assembly_move_max_s:
+                    self._change_to(
+                        k, standing, t, announce=k != self.current, move=move,
+                        start_scale=self._standing_scale(standing),
+                    )  # fmt: skip
+                    return which, move.duration
+        return None, quickest
 
     def _standing_scale(self, standing: np.ndarray) -> float:
         """The spacing scale of followers standing at `standing` (N, 3): their nearest spacing over the

@@ -971,7 +971,7 @@ def test_a_pace_cap_above_the_leaders_speed_does_not_delay_its_braking():
 
 @pytest.mark.parametrize(
     "on_slots, assembly_move_max_s",
-    [(True, 10.0), (False, 7.0), (False, 12.0)],
+    [(True, 10.0), (False, 5.0), (False, 12.0)],
     ids=["on", "pursuing", "carried"],
 )
 def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_stand(
@@ -985,9 +985,12 @@ def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_
     the line they were flying to (spec 6a.4): the move's start is the launch row, its spacing scale 4 / 12
     (so the repulsion range starts at min_spacing_m - 1 m, spec 6a.6, not at D_max), and the followers, on
     the slots of that moment, have assembled. Where the launch row's assembly move into the line (7.34-11.01
-    s) is over assembly_move_max_s (7 s), the followers were pursuing their slots: the change's phases come
-    one after the other (back, then across: the followers still converge on the slots; starting across half
-    way back would be quicker and pass no closer). Where it is not (12 s), the assembly carried them on their
+    s) and into every narrower candidate is over assembly_move_max_s (5 s: the narrowest line, 7 m apart,
+    has a slot 14 m across, 9.43 m from every follower, no sooner than sqrt(5.7735 x 9.43 / 2) = 5.22 s;
+    the column's last slot, 28 m astern, is 23.09 m from every follower, 8.16 s), the followers were
+    pursuing their slots: the change's phases come one after the other (back, then across: the followers
+    still converge on the slots; starting across half way back would be quicker and pass no closer). Where
+    it is not (12 s), the assembly carried them on their
     slots from the first tick, so the change is planned as one after assembly: the second phase starts
     while the first runs, the quickest way that keeps them move_gap_m (6 m) apart, or as far as they stand
     (4 m) where that is less."""
@@ -1013,7 +1016,7 @@ def test_a_change_before_the_formation_has_assembled_starts_where_the_followers_
     ends = [begin + duration for _, begin, duration in move.phases]
     if on_slots:
         assert [axes for axes, _, _ in move.phases] == [(0, 1, 2)]
-    elif assembly_move_max_s < QUICKEST_LAUNCH_ROW_MOVE_S:  # pursuing: one phase after the other
+    elif assembly_move_max_s < 5.22:  # pursuing: one phase after the other
         assert [begin for _, begin, _ in move.phases[1:]] == pytest.approx(ends[:-1])
     else:  # carried on their slots: overlapping phases, apart as far as they stand
         assert len(move.phases) == 2 and move.phases[1][1] < ends[0] - 1e-6
@@ -1188,22 +1191,36 @@ def test_a_column_that_does_not_fit_its_path_at_speed_paces_the_leader_to_the_sp
     assert shaper.pace_cap == pytest.approx(paced)
 
 
+LAUNCH_ROW = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
+
+
+def _first_tick_from_the_launch_row(goal_xy: tuple[float, float], params: ReshapeParams):
+    """The line of four 12 m apart flying to goal_xy (ENU m, 10 m up), nothing near, its leader facing east
+    (yaw 0) and its followers at rest in LAUNCH_ROW (5 m behind, 4 m apart, world axes): the controller, the
+    point masses, the active mask, the far-off obstacle and the command, after the first tick."""
+    from tests.gcs_swarm.guidance.test_fleet_controller import DT, PointMassFleet
+
+    far = np.array([[0.0, -5000.0, 10.0]]), np.array([1.0])
+    goal = np.array([[goal_xy[0], goal_xy[1], 10.0]])
+    ctl = FleetController(5, 0, _line(4, 12.0), goal, control_dt=DT, reshape=params)
+    plant = PointMassFleet(LAUNCH_ROW + np.array([0.0, 0.0, 10.0]))
+    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
+    active = np.ones(5, dtype=bool)
+    cmd = ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, active)
+    return ctl, plant, active, far, cmd
+
+
 def test_a_formation_that_has_not_assembled_is_formed_facing_its_route():
     """The leader faces east (yaw 0) but its goal lies north, at (0, 300): the first tick turns psi_L to the
     route's bearing, pi/2, before it plans the assembly (spec 6a.4), and says so; the move starts from the
     launch row as a leader facing north sees it (x forward = north, y left = west: the follower 5 m west of
     the leader and 6 m south of it stands 6 m astern and 5 m to its left). Flown 8 s,
     psi_L stays at pi/2 while the leader gains speed north: the slots never swing round it."""
-    from tests.gcs_swarm.guidance.test_fleet_controller import DT, PointMassFleet
+    from tests.gcs_swarm.guidance.test_fleet_controller import DT
 
-    far = np.array([[0.0, -5000.0, 10.0]]), np.array([1.0])
     params = replace(PARAMS, assembly_move_max_s=60.0)  # the move is taken, however long
-    ctl = FleetController(5, 0, _line(4, 12.0), np.array([[0.0, 300.0, 10.0]]), control_dt=DT, reshape=params)
-    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
-    plant = PointMassFleet(launch_row + np.array([0.0, 0.0, 10.0]))
-    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
-    active = np.ones(5, dtype=bool)
-    cmd = ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, active)
+    ctl, plant, active, far, cmd = _first_tick_from_the_launch_row((0.0, 300.0), params)
+    launch_row = LAUNCH_ROW
     assert ctl.heading is not None and ctl.heading.psi == pytest.approx(math.pi / 2)
     assert ctl.drain_events()[0] == "t=0.00 s formation faces its route: psi_L turned +90 deg"
     shaper = ctl.shaper
@@ -1244,20 +1261,41 @@ def test_a_formation_whose_move_facing_its_route_is_too_long_assembles_facing_th
     under sqrt(5.7735 x 29.07 / 2) = 9.16 s. Facing the leader's yaw (east) the move takes 7.34 s (above).
     So psi_L stays at the yaw, the assembly is planned in that frame (spec 6a.4; real PX4 SIH, 53 deg off
     its goal: 8.4 s so against 11.4 s turned), and no event says it turned."""
-    from tests.gcs_swarm.guidance.test_fleet_controller import PointMassFleet
-
-    far = np.array([[0.0, -5000.0, 10.0]]), np.array([1.0])
-    params = replace(PARAMS, assembly_move_max_s=9.0)
-    ctl = FleetController(5, 0, _line(4, 12.0), np.array([[0.0, 300.0, 10.0]]), reshape=params)
-    launch_row = np.array([[0, 0, 0], [-5, -6, 0], [-5, -2, 0], [-5, 2, 0], [-5, 6, 0]], dtype=float)
-    plant = PointMassFleet(launch_row + np.array([0.0, 0.0, 10.0]))
-    ctl.reset(plant.pos, plant.vel, plant.att[:, 2])
-    ctl.tick(0.0, plant.pos, plant.vel, plant.att, *far, np.ones(5, dtype=bool))
+    ctl, *_ = _first_tick_from_the_launch_row((0.0, 300.0), replace(PARAMS, assembly_move_max_s=9.0))
     assert ctl.heading is not None and ctl.heading.psi == 0.0
     shaper = ctl.shaper
-    assert shaper is not None
-    np.testing.assert_allclose(shaper.move.start, launch_row, atol=1e-9)
+    assert shaper is not None and shaper.shape_name == "formation"
+    np.testing.assert_allclose(shaper.move.start, LAUNCH_ROW, atol=1e-9)
     assert shaper.move.duration <= 9.0
     assert ctl.drain_events() == [
         f"t=0.00 s formation assembles along a planned move of {shaper.move.duration:.1f} s"
     ]
+
+
+def test_a_formation_whose_move_into_its_shape_is_too_long_assembles_into_a_narrower_one():
+    """The launch row at rest and the line of four 12 m apart, assembly_move_max_s 7 s: the move into the
+    line itself takes at least 7.34 s (above), so the first tick carries the followers from where they
+    stand into the widest narrower candidate whose move takes at most 7 s, the line 86 % as wide (10.33 m
+    apart), and the formation has assembled: no follower pursues a slot standing elsewhere (gap-6: a
+    follower deflected round another's launch spot overshot its slot, a cusp). Both are events. With
+    nothing near, the shaper then restores the line along a planned move while the leader flies east."""
+    from tests.gcs_swarm.guidance.test_fleet_controller import DT
+
+    ctl, plant, active, far, cmd = _first_tick_from_the_launch_row(
+        (300.0, 0.0), replace(PARAMS, assembly_move_max_s=7.0)
+    )
+    launch_row = LAUNCH_ROW
+    shaper = ctl.shaper
+    assert shaper is not None and ctl.assembled
+    assert shaper.current == 1 and shaper.shapes[1].scale == pytest.approx(31.0 / 36.0)
+    assert shaper.move.duration <= 7.0
+    np.testing.assert_allclose(shaper.move.start, launch_row, atol=1e-9)
+    assert ctl.drain_shape_changes()[0].sentence == f"t=0.00 s formation narrows: {shaper.shape_name}"
+    duration = shaper.move.duration
+    assert ctl.drain_events() == [f"t=0.00 s formation assembles along a planned move of {duration:.1f} s"]
+    for k in range(1, int(40.0 / DT)):
+        plant.step(cmd, active)
+        cmd = ctl.tick(k * DT, plant.pos, plant.vel, plant.att, *far, active)
+    assert shaper.shape_name == "formation"
+    end = shaper.flown(k * DT)[0]
+    np.testing.assert_allclose(sorted(map(tuple, end[1:])), sorted(map(tuple, _line(4, 12.0)[1:])), atol=1e-9)
