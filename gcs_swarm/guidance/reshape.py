@@ -55,8 +55,8 @@ purpose instead, and its followers' slots move with it:
 - **Assembly**: a formation whose followers do not stand on their slots when it starts is carried into its
   shape along such a move from where they stand (`assemble_from`), when that move takes at most
   assembly_move_max_s, else into the widest narrower shape whose move does; farther off, each follower
-  flies to its slot on its own. A change that follows at
-  once is planned as one after assembly is: the followers stand on the slots of the moment.
+  flies to its slot on its own. A change that follows at once is planned as one after assembly is: the
+  followers stand on the slots of the moment.
 - **Pace**: while the slots move to a narrower shape, the leader slows so that the shape flown does not
   reach the first place it does not fit before the change is done (`pace_cap`, `pace_speed`). In a phase in
   which a slot falls back along the leader's heading, not below that phase's peak fall-back rate less
