@@ -297,6 +297,8 @@ class FleetController:
             None if pace is None or not pace.enabled else SpeedEnvelope(n, pace, self.limits.tilt_max, g)
         )
         self.follower_pace = math.inf  # m/s, the leader's cap from its followers' top speeds (`envelope`)
+        if self.shaper is not None and self.envelope is None:
+            self.shaper.followers_can_fly(None)
         self.start_pace = math.inf  # m/s, the leader's cap until its followers' drag is measured (`envelope`)
         self.footprint_paced = False  # the shaper's footprint pace holds the leader (`_footprint_event`)
         self.started_in_flight = False  # the leader was faster than the start cap's floor when the formation
@@ -621,6 +623,8 @@ class FleetController:
             return
         followers = active & ~self.is_leader
         cap = self.envelope.leader_cap(self.heading.psi, followers)
+        if self.shaper is not None:
+            self.shaper.followers_can_fly(cap)
         nominal = float(self.v_xy_cap[self.leader])
         was = self.follower_pace
         self.follower_pace = cap

@@ -358,6 +358,13 @@ class ReshapeParams:
     steps: int = 3  # spacings tried between the mission's and min_spacing_m
     column: bool = True  # may fall into a column (line astern) when no narrowed shape fits
     speed_m_s: float = 6.0  # m/s, fastest a slot moves relative to the leader while the shape changes
+    # m/s, fastest a slot moves relative to the leader in a change the leader spends mostly at its goal (it
+    # stops there before half the change is over, so a slot's rate is then its follower's own speed), at most
+    # the slowest follower's measured top speed less 1.5 m/s (gcs_swarm.guidance.capability); not under
+    # speed_m_s. Such a change accelerates its slots at up to accel_m_s2 + pace_decel_m_s2: the leader no
+    # longer brakes. A column restoring its shape at the goal brings its tail 40-50 m forward (reshape, spec
+    # 6a.4)
+    goal_speed_m_s: float = 9.0
     # m, the closest two slots (the leader's among them) may pass in a change for the slots to take the
     # quickest way (straight, rather than along then across): min_spacing_m less the 1 m by which a tighter
     # shape's neighbours repel (reshape.RESHAPE_CUSHION_M), so the quicker way does not push its
@@ -414,6 +421,8 @@ class ReshapeParams:
             raise ValueError("need clearance_m >= 0, lookahead_s > 0 and lookahead_min_m >= 0")
         if not (self.min_spacing_m > 0 and self.speed_m_s > 0 and self.steps >= 1 and self.move_gap_m > 0):
             raise ValueError("need min_spacing_m > 0, speed_m_s > 0, steps >= 1 and move_gap_m > 0")
+        if not self.goal_speed_m_s >= self.speed_m_s:
+            raise ValueError("need goal_speed_m_s >= speed_m_s")
         if not (self.pace_decel_m_s2 > 0 and self.accel_m_s2 > 0 and self.settle_accel_m_s2 > 0):
             raise ValueError("need pace_decel_m_s2 > 0, accel_m_s2 > 0 and settle_accel_m_s2 > 0")
         if not self.gap_clearance_m >= 0:

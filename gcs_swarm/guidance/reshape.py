@@ -111,6 +111,13 @@ FOOTPRINT_PACE_STEPS = (0.8, 0.6, 0.4)
 # m: the footprint pace takes the fastest of those speeds whose clearance is within this of the best one's
 FOOTPRINT_SLACK_M = 2.0
 GOAL_RADIUS_M = 2.0  # m from its last waypoint within which the leader is at its goal (`_decide_at_goal`)
+# s: a change may run at goal_speed_m_s only where the leader reaches its goal before half of it is over; a
+# leader farther than this from its goal (its route's length over its speed) is not asked, so a change there
+# is planned once, at speed_m_s, and moves waiting for a clear way are kept (`FormationShaper._plan`)
+GOAL_MOVE_HORIZON_S = 10.0
+# m/s below the slowest follower's measured top speed a slot moves at most in such a change: room for its
+# follower to correct its error on the way (`FormationShaper.followers_can_fly`)
+GOAL_SPEED_MARGIN_M_S = 1.5
 # moves planned and checked for clearance at the goal per decision (the costly part of a decision there)
 GOAL_CHECKS_PER_DECISION = 1
 FloatOrArray = TypeVar("FloatOrArray", float, np.ndarray)
@@ -304,6 +311,15 @@ def straight_for(headings: np.ndarray, along: np.ndarray, distance: float) -> bo
     flies)."""
     ahead = np.unwrap(headings[along <= distance + 1e-9])
     return bool(len(ahead) < 2 or np.ptp(ahead) <= EARLY_TURN_MAX_RAD)
+
+
+def goal_eta(p_leader: np.ndarray, waypoints: np.ndarray, speed: float) -> float:
+    """s until the leader at p_leader (3,) ENU m, flying at `speed` m/s, reaches the last of `waypoints`
+    (W, 3) ENU m along them, at that speed (a leader braking into its goal takes longer: the estimate errs
+    toward the goal being near); inf where that is over GOAL_MOVE_HORIZON_S (or the leader stands still)."""
+    legs = np.diff(np.vstack([p_leader[None, :], waypoints])[:, :2], axis=0)
+    eta = float(np.sum(np.hypot(legs[:, 0], legs[:, 1]))) / speed if speed > 0.0 else math.inf
+    return eta if eta <= GOAL_MOVE_HORIZON_S else math.inf
 
 
 def keeps_clear(gaps: np.ndarray, floor: float) -> bool:
@@ -606,6 +622,11 @@ class FormationShaper:
         self.min_gap = min_gap
         self.hold_m = hold_m
         self.changes: list[ShapeChange] = []  # the changes of shape made; the caller empties it
+        # s until the leader stops at its goal, estimated at each decision (`decide`); inf beyond
+        # GOAL_MOVE_HORIZON_S
+        self.goal_eta_s = math.inf
+        # m/s, fastest a slot may move in a change the leader spends mostly at its goal (`followers_can_fly`)
+        self.goal_move_speed = params.speed_m_s
         self.assembled = True  # the formation has assembled (`decide`)
         self._set(np.array(nominal, dtype=float))
         self.next_decision = -math.inf
@@ -640,6 +661,21 @@ class FormationShaper:
             for k in range(len(self.shapes))
             for assembled in (True, False)
         )
+
+    def followers_can_fly(self, top_speed: float | None) -> None:
+        """The slowest follower's top speed m/s as measured (capability.SpeedEnvelope.leader_cap; inf: not
+        yet measured; None: never measured, the pace off): a change the leader spends mostly at its goal may
+        move its slots at up to goal_speed_m_s, but not faster than that less GOAL_SPEED_MARGIN_M_S, and at
+        speed_m_s until it is measured (`goal_move_speed`)."""
+        params = self.params
+        if top_speed is None:
+            self.goal_move_speed = params.goal_speed_m_s
+        elif math.isinf(top_speed):
+            self.goal_move_speed = params.speed_m_s
+        else:
+            self.goal_move_speed = max(
+                params.speed_m_s, min(params.goal_speed_m_s, top_speed - GOAL_SPEED_MARGIN_M_S)
+            )
 
     def set_nominal(self, nominal: np.ndarray, leader: int, t: float | None) -> None:
         """A new mission formation (N, 3) around `leader`: flown at once when t is None, else reached from
@@ -693,7 +729,13 @@ class FormationShaper:
         assembled, the one that keeps them farthest apart (the followers are still flying to their slots, and
         a quicker sweep of the slots across their way reversed some: spec 6a.4), among UNASSEMBLED_ORDERS.
         `assembled`: as if the formation had assembled or not (None: as it has, `self.assembled`); `rate`
-        (N, 3) m/s: the slots' rate at `now` (None: at rest)."""
+        (N, 3) m/s: the slots' rate at `now` (None: at rest). The slots move at up to speed_m_s relative to
+        the leader; into a wider shape, at up to goal_move_speed where the leader reaches its goal
+        (goal_eta_s) before half of such a move is over: its slots' rate peaks half way, once the leader has
+        stopped, and is then their followers' own speed (goal_speed_m_s); their acceleration then takes the
+        share of the reference's that the leader's braking took (pace_decel_m_s2) as well. Not a turn or a
+        narrowing at the goal: a column turned there at that speed while its followers still braked behind
+        the leader, and two of them swung onto the slots' new way at over 2 m/s, a cusp (gap-16)."""
         target = rotate_to_world(self.shapes[index].offsets, turn)
         followers = np.flatnonzero(np.any(target != 0.0, axis=1))
         end = np.array(target)
@@ -707,6 +749,14 @@ class FormationShaper:
             orders, keep_apart = tuple(MOVE_ORDERS.values()), params.move_gap_m
         else:
             orders, keep_apart = UNASSEMBLED_ORDERS, math.inf
+        widening = index < self.current
+        if widening and self.goal_move_speed > params.speed_m_s and math.isfinite(self.goal_eta_s):
+            quick = plan_move(
+                now, end, rows, t, self.goal_move_speed, params.accel_m_s2 + params.pace_decel_m_s2,
+                keep_apart, orders, rate, params.settle_accel_m_s2,
+            )  # fmt: skip
+            if self.goal_eta_s <= quick.duration / 2.0:
+                return quick
         return plan_move(
             now, end, rows, t, params.speed_m_s, params.accel_m_s2, keep_apart, orders, rate,
             params.settle_accel_m_s2,
@@ -774,10 +824,12 @@ class FormationShaper:
     def _widening(self, index: int, t: float) -> SlotMove:
         """The move to the wider shape `index` from t: planned once while the slots stand still, then the
         same move started later (the assignment is the costly part); planned afresh each time while a column
-        follows the leader's path (its slots move in the leader's frame)."""
+        follows the leader's path (its slots move in the leader's frame), or near the goal (goal_eta_s: the
+        move's speed depends on when the leader gets there)."""
         cached = self.waiting_moves.get(index)
-        if cached is None or cached.start is not self.move.end or self.bent is not None:
-            settled = t >= self.move.t0 + self.move.duration and self.bent is None
+        near_goal = math.isfinite(self.goal_eta_s)
+        if cached is None or cached.start is not self.move.end or self.bent is not None or near_goal:
+            settled = t >= self.move.t0 + self.move.duration and self.bent is None and not near_goal
             if settled:
                 cached = self._plan(index, self.move.end, t)
             else:
@@ -877,7 +929,9 @@ class FormationShaper:
                 return route_samples(p_leader, psi_leader, waypoints, length, self.hold_m)
 
         goal = np.asarray(waypoints[-1], dtype=float)
+        self.goal_eta_s = goal_eta(p_leader, waypoints, speed)
         if len(waypoints) == 1 and math.hypot(*(goal - p_leader)[:2]) <= GOAL_RADIUS_M:
+            self.goal_eta_s = 0.0
             self._decide_at_goal(t, goal, psi_leader, route, speed, centres, radii, shapes)
             self.pace_cap, self.paced_at = math.inf, t  # the leader hovers on its goal: nothing to pace
             self.footprint_cap = math.inf

@@ -30,6 +30,7 @@ from gcs_swarm.guidance.reshape import (
     candidate_shapes,
     closest_pair_in,
     closest_pair_sampled,
+    goal_eta,
     min_jerk,
     move_duration,
     nearest_slot_spacing,
@@ -524,6 +525,78 @@ def test_the_fleet_has_not_arrived_while_a_widening_is_due_unless_arrive_in_shap
         assert ctl.shape_settled(1.0)
         ctl.shaper._change_to(0, ctl.shaper.shapes[column].offsets, 1.0, announce=False)
         assert not ctl.shape_settled(1.5)
+
+
+@pytest.mark.parametrize(
+    ("top_speed", "goal_move_speed"),
+    [
+        (None, 9.0),  # the pace off, nothing measured: goal_speed_m_s
+        (math.inf, 6.0),  # not yet measured: speed_m_s
+        (20.0, 9.0),  # fast followers: goal_speed_m_s
+        (10.0, 8.5),  # their top speed less 1.5 m/s
+        (6.9, 6.0),  # PX4 SIH's 6.9 m/s: 5.4 m/s is under speed_m_s, which stays
+    ],
+)
+def test_a_formation_widening_at_its_goal_moves_its_slots_as_fast_as_the_followers_can_fly(
+    top_speed, goal_move_speed
+):
+    """The column of `_column_at_goal` re-forms into the line with its leader holding at the goal: its slots
+    move at up to goal_speed_m_s (9 m/s) within the slowest follower's measured top speed less 1.5 m/s, never
+    under speed_m_s (6 m/s), and accelerate at up to accel_m_s2 + pace_decel_m_s2 (3.5 m/s^2) once that
+    speed is above speed_m_s; the move is then quicker than at speed_m_s and accel_m_s2."""
+    far = np.array([[1000.0, 0.0, 10.0]]), np.array([1.0])
+    params = replace(PARAMS, goal_speed_m_s=9.0)
+    slow, _ = _column_at_goal(*far, params)
+    nominal = np.zeros((5, 3))
+    nominal[1:] = formation_offsets("line", 4, 10.0)
+    shaper = FormationShaper(params, nominal, 0, 4.0)
+    shaper.followers_can_fly(top_speed)
+    assert shaper.goal_move_speed == pytest.approx(goal_move_speed)
+    shaper._change_to(len(shaper.shapes) - 1, nominal, -100.0, announce=False)
+    goal = np.array([[0.0, 0.0, 10.0]])
+    for t in np.arange(0.0, params.restore_after_s + 1.0, params.decide_every_s):
+        shaper.decide(t, goal[0], 0.0, goal, 10.0, 0.0, *far)
+    assert shaper.current == 0 == slow.current
+    rate, accel = _peaks_sampled(shaper.move)
+    assert rate <= goal_move_speed + 1e-6
+    if goal_move_speed > params.speed_m_s:
+        assert accel <= params.accel_m_s2 + params.pace_decel_m_s2 + 1e-6
+        assert rate > params.speed_m_s  # the faster limit is used, not merely allowed
+        assert shaper.move.duration < slow.move.duration - 1.0
+    else:
+        assert accel <= params.accel_m_s2 + 1e-6
+        assert shaper.move.duration == pytest.approx(slow.move.duration)
+
+
+def test_only_a_widening_whose_leader_stops_before_half_of_it_moves_the_slots_faster():
+    """The leader flying east at 10 m/s toward its goal 40 m off (goal_eta: 4 s) or 400 m off (40 s: beyond
+    GOAL_MOVE_HORIZON_S, not estimated). The column's move to the line, 9 m/s allowed, runs at the faster
+    limit only when the leader is there before half of that move is over; else at speed_m_s, as away from
+    the goal. The line's move into the column (a narrowing) keeps speed_m_s even at the goal: a column
+    turned there at the faster limit while its followers still braked behind the leader swung two of them
+    onto its new way at over 2 m/s (gap-16)."""
+    assert goal_eta(np.zeros(3), np.array([[30.0, 0.0, 0.0], [30.0, 10.0, 0.0]]), 10.0) == pytest.approx(4.0)
+    assert goal_eta(np.zeros(3), np.array([[400.0, 0.0, 0.0]]), 10.0) == math.inf
+    assert goal_eta(np.zeros(3), np.array([[40.0, 0.0, 0.0]]), 0.0) == math.inf
+    nominal = np.zeros((5, 3))
+    nominal[1:] = formation_offsets("line", 4, 10.0)
+    shaper = FormationShaper(replace(PARAMS, goal_speed_m_s=9.0), nominal, 0, 4.0)
+    shaper.followers_can_fly(20.0)
+    column_index = len(shaper.shapes) - 1
+    column = shaper.shapes[column_index].offsets
+    shaper.goal_eta_s = 0.0
+    narrowing_at_goal = shaper._plan(column_index, nominal, 0.0)
+    shaper.goal_eta_s = math.inf
+    narrowing = shaper._plan(column_index, nominal, 0.0)
+    assert narrowing_at_goal.duration == pytest.approx(narrowing.duration)
+    shaper._change_to(column_index, nominal, -100.0, announce=False)
+    slow = shaper._plan(0, column, 0.0)
+    shaper.goal_eta_s = 0.0
+    quick = shaper._plan(0, column, 0.0)
+    assert quick.duration < slow.duration
+    for eta, expected in ((quick.duration / 2 - 0.01, quick), (quick.duration / 2 + 0.01, slow)):
+        shaper.goal_eta_s = eta
+        assert shaper._plan(0, column, 0.0).duration == pytest.approx(expected.duration)
 
 
 def _column_beside_obstacles_at_goal(step_deg: float) -> tuple[FormationShaper, np.ndarray, np.ndarray]:
