@@ -358,7 +358,7 @@ class ReshapeParams:
     steps: int = 3  # spacings tried between the mission's and min_spacing_m
     column: bool = True  # may fall into a column (line astern) when no narrowed shape fits
     speed_m_s: float = 6.0  # m/s, fastest a slot moves relative to the leader while the shape changes
-    # m/s, fastest a slot moves relative to the leader in a change the leader spends mostly at its goal (it
+    # m/s, fastest a slot moves relative to the leader in a widening the leader spends mostly at its goal (it
     # stops there before half the change is over, so a slot's rate is then its follower's own speed), at most
     # the slowest follower's measured top speed less 1.5 m/s (gcs_swarm.guidance.capability); not under
     # speed_m_s. Such a change accelerates its slots at up to accel_m_s2 + pace_decel_m_s2: the leader no

@@ -47,7 +47,8 @@ purpose instead, and its followers' slots move with it:
   quarter of the way across). Each phase follows a minimum-jerk profile (quintic, zero velocity and
   acceleration at both ends) as short as lets no slot move faster than speed_m_s nor accelerate harder than
   accel_m_s2 relative to the leader (`move_duration`); where two phases overlap, both stretched in time until
-  their combined rate and acceleration keep those bounds too (`timed_phases`).
+  their combined rate and acceleration keep those bounds too (`timed_phases`). A widening that the leader
+  spends mostly at its goal moves at up to goal_speed_m_s instead, within what the followers fly (`_plan`).
   A change that starts while the slots still move (taking over from another, or from where followers not
   yet assembled fly) carries their rate on and brings it to rest within settle_accel_m_s2 (`SlotMove`,
   `settle_profile`), so no slot's velocity jumps under its follower.
@@ -625,7 +626,8 @@ class FormationShaper:
         # s until the leader stops at its goal, estimated at each decision (`decide`); inf beyond
         # GOAL_MOVE_HORIZON_S
         self.goal_eta_s = math.inf
-        # m/s, fastest a slot may move in a change the leader spends mostly at its goal (`followers_can_fly`)
+        # m/s, fastest a slot may move in a widening the leader spends mostly at its goal
+        # (`followers_can_fly`)
         self.goal_move_speed = params.speed_m_s
         self.assembled = True  # the formation has assembled (`decide`)
         self._set(np.array(nominal, dtype=float))
@@ -664,9 +666,9 @@ class FormationShaper:
 
     def followers_can_fly(self, top_speed: float | None) -> None:
         """The slowest follower's top speed m/s as measured (capability.SpeedEnvelope.leader_cap; inf: not
-        yet measured; None: never measured, the pace off): a change the leader spends mostly at its goal may
-        move its slots at up to goal_speed_m_s, but not faster than that less GOAL_SPEED_MARGIN_M_S, and at
-        speed_m_s until it is measured (`goal_move_speed`)."""
+        yet measured; None: never measured, the pace off): a widening the leader spends mostly at its goal
+        may move its slots at up to goal_speed_m_s, but not faster than that top speed less
+        GOAL_SPEED_MARGIN_M_S, and at speed_m_s until it is measured (`goal_move_speed`, `_plan`)."""
         params = self.params
         if top_speed is None:
             self.goal_move_speed = params.goal_speed_m_s
